@@ -1,0 +1,3 @@
+"""camsmooth: five-axis tool-axis smoothing for toroidal cutters."""
+
+__version__ = "0.1.0"

@@ -1,0 +1,33 @@
+"""Error types. Every bad input raises one of these with a message that names the file,
+row, column or binding constraint; the CLI prints the message and exits non-zero."""
+
+from __future__ import annotations
+
+
+class CamsmoothError(Exception):
+    """Base class of all errors camsmooth raises on purpose (bad input, infeasible limits)."""
+
+
+class InputError(CamsmoothError, ValueError):
+    """Bad input: a file, a column, a value or an option that cannot be used.
+
+    The message names where: ``file``, 1-based data ``row`` (the header is row 0) and ``column``
+    when they are known.
+    """
+
+    def __init__(self, message: str, *, file: str | None = None, row: int | None = None,
+                 column: str | None = None) -> None:
+        self.file, self.row, self.column = file, row, column
+        where = []
+        if file is not None:
+            where.append(str(file))
+        if row is not None:
+            where.append(f"row {row}")
+        if column is not None:
+            where.append(f"column '{column}'")
+        super().__init__((": ".join([", ".join(where), message])) if where else message)
+
+
+class InfeasibleError(CamsmoothError):
+    """A problem that has no solution under the stated limits; the message names the binding
+    constraint (axis, limit, row, point)."""

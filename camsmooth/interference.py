@@ -1,0 +1,683 @@
+"""Cutter / mesh interference: exact clearance of tool poses and axial drop-cutter.
+
+The part surface is a triangle mesh (a sheet; it need not be closed).  Everything here is exact
+against the piecewise-linear mesh, up to a golden-section tolerance of ~1e-9 of an edge length
+and a pruning tolerance of 1e-9 mm:
+
+* :func:`clearance` - minimum signed distance ``delta`` between the tool solid (cutter + shank +
+  holder, camsmooth.cutter) and the mesh triangles for many poses.  The minimum of a convex
+  function over a triangle is attained in its interior (facet test, closed form via the support
+  point of the core cylinder) or on an edge (1-D convex minimisation, golden section); deep
+  penetrations where a triangle enters the core cylinder get a 2-D nested golden section.
+* :func:`axial_drop` - drop-cutter along any axis: the lowest tip position along the axis at
+  which the cutter touches the mesh (vertex, facet and edge tests), as in the classic 3-axis
+  drop-cutter (e.g. the OpenCAMLib drop-cutter) generalised to an arbitrary axis.
+
+Candidate triangles come from a cKDTree over the vertices: every point of a triangle lies
+within ``l/sqrt(3)`` of one of its vertices (``l`` = its longest edge), and signed distances are
+1-Lipschitz, so searching vertices within the tool offset by that reach is sound for any mesh.
+Coarse meshes with long edges make that reach, and so the work, large: pass ``max_edge`` to
+:class:`MeshIndex` to subdivide them.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+from scipy.spatial import cKDTree
+
+from camsmooth.cutter import ToroidalCutter, _cylinder_sd, _cylinder_support
+from camsmooth.errors import InputError
+
+__all__ = ["Clearance", "Drop", "MeshIndex", "axial_drop", "clearance"]
+
+_INVPHI = (math.sqrt(5.0) - 1.0) / 2.0
+_SQRT3 = math.sqrt(3.0)
+_PRUNE_TOL = 1e-9          # mm: an element that can improve the answer by less than this is skipped
+_BARY_TOL = 1e-12
+_CHUNK = 512              # poses / points per chunk (bounds memory)
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.einsum("...i,...i->...", a, b)
+
+
+def _flatten_lists(lists: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Object array of index lists -> (lengths, concatenated indices), without a Python loop
+    over the lists (map/chain run in C)."""
+    lens = np.fromiter(map(len, lists), dtype=np.intp, count=len(lists))
+    flat = np.fromiter(itertools.chain.from_iterable(lists), dtype=np.intp, count=int(lens.sum()))
+    return lens, flat
+
+
+def _csr_expand(ptr: np.ndarray, data: np.ndarray, owners: np.ndarray,
+                items: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For each (owner, item) pair emit (owner, x) for every x in data[ptr[item]:ptr[item + 1]]."""
+    starts = ptr[items]
+    counts = ptr[items + 1] - starts
+    total = int(counts.sum())
+    if total == 0:
+        return np.empty(0, np.intp), np.empty(0, np.intp)
+    first = np.cumsum(counts) - counts
+    offs = np.arange(total) - np.repeat(first, counts)
+    return np.repeat(owners, counts), data[np.repeat(starts, counts) + offs]
+
+
+def _unique_pairs(owner: np.ndarray, item: np.ndarray, n_items: int) -> tuple[np.ndarray, np.ndarray]:
+    key = np.unique(owner.astype(np.int64) * n_items + item)
+    return (key // n_items).astype(np.intp), (key % n_items).astype(np.intp)
+
+
+def _inside_triangle(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray,
+                     tol: float = _BARY_TOL) -> np.ndarray:
+    """Barycentric inside test for points in the triangles' planes (valid triangles only)."""
+    v0, v1, v2 = b - a, c - a, p - a
+    d00, d01, d11 = _dot(v0, v0), _dot(v0, v1), _dot(v1, v1)
+    d20, d21 = _dot(v2, v0), _dot(v2, v1)
+    den = d00 * d11 - d01 * d01
+    den = np.where(den > 0.0, den, 1.0)
+    v = (d11 * d20 - d01 * d21) / den
+    w = (d00 * d21 - d01 * d20) / den
+    return (v >= -tol) & (w >= -tol) & (1.0 - v - w >= -tol)
+
+
+def _golden_min(f, lo: np.ndarray, hi: np.ndarray, iters: int) -> tuple[np.ndarray, np.ndarray]:
+    """Vectorised golden-section minimisation of functions convex (unimodal) on [lo, hi];
+    one evaluation of ``f`` (on all items at once) per iteration.  Returns (argmin, min)."""
+    a, b = lo.astype(float), hi.astype(float)
+    c = b - _INVPHI * (b - a)
+    d = a + _INVPHI * (b - a)
+    fc, fd = f(c), f(d)
+    for _ in range(iters):
+        left = fc <= fd
+        a, b = np.where(left, a, c), np.where(left, d, b)
+        keep, fkeep = np.where(left, c, d), np.where(left, fc, fd)
+        x = np.where(left, b - _INVPHI * (b - a), a + _INVPHI * (b - a))
+        fx = f(x)
+        c, fc = np.where(left, x, keep), np.where(left, fx, fkeep)
+        d, fd = np.where(left, keep, x), np.where(left, fkeep, fx)
+    better = fc <= fd
+    return np.where(better, c, d), np.where(better, fc, fd)
+
+
+def _golden_iters(length: float) -> int:
+    """Iterations that shrink a bracket of ``length`` mm below ~1e-10 mm (at least 40)."""
+    if not length > 1e-10:
+        return 40
+    return int(min(90, max(40, math.ceil(math.log(length / 1e-10) / -math.log(_INVPHI)))))
+
+
+# ---------------------------------------------------------------------------------------------
+
+class MeshIndex:
+    """Search structures over a triangle mesh for :func:`clearance` and :func:`axial_drop`.
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh, mm, workpiece frame.  A surface sheet (need not be closed); face
+        normals should point from the material toward the tool (only for the caller's
+        convenience: the tests here are purely geometric and do not use the orientation).
+    max_edge : optional, mm.  Subdivide (trimesh.remesh.subdivide_to_size, shared midpoints, no
+        cracks) until no edge is longer than this.  Results are exact either way; the candidate
+        search reaches ``longest edge / sqrt(3)`` beyond the tool, so a coarse mesh (e.g. a CAD
+        STL with long thin facets) costs far more per pose unless subdivided.  A value about
+        the corner radius is a good start.
+
+    Attributes: ``vertices`` (V, 3), ``faces`` (F, 3), ``edges`` (E, 2) unique edges,
+    ``face_edges`` (F, 3) edge ids per face, ``face_normals`` (F, 3) unit (zero for degenerate
+    faces), ``face_valid`` (F,), ``face_long`` (F,) longest edge per face, ``vertex_reach`` (V,)
+    = longest edge of the incident faces / sqrt(3), ``vf_ptr``/``vf_faces`` vertex -> face CSR
+    adjacency, ``tree`` cKDTree over the vertices.
+    """
+
+    def __init__(self, mesh: trimesh.Trimesh, max_edge: float | None = None) -> None:
+        if not isinstance(mesh, trimesh.Trimesh):
+            raise InputError(f"mesh must be a trimesh.Trimesh, got {type(mesh).__name__}")
+        V = np.asarray(mesh.vertices, dtype=float)
+        F = np.asarray(mesh.faces, dtype=np.intp)
+        if len(F) == 0 or len(V) < 3:
+            raise InputError("mesh has no triangles")
+        if not np.all(np.isfinite(V)):
+            raise InputError("mesh has non-finite vertex coordinates")
+        if max_edge is not None:
+            max_edge = float(max_edge)
+            if not (math.isfinite(max_edge) and max_edge > 0):
+                raise InputError(f"max_edge must be a positive length in mm, got {max_edge}")
+            longest = float(np.max(np.linalg.norm(V[F] - V[np.roll(F, 1, axis=1)], axis=-1)))
+            iters = max(10, math.ceil(math.log2(max(longest / max_edge, 1.0))) + 3)
+            V, F = trimesh.remesh.subdivide_to_size(V, F, max_edge=max_edge, max_iter=iters)
+            V = np.asarray(V, dtype=float)
+            F = np.asarray(F, dtype=np.intp)
+        # Vertices used by no face are not part of the surface: drop them.
+        used = np.zeros(len(V), bool)
+        used[F.ravel()] = True
+        if not used.all():
+            remap = np.cumsum(used) - 1
+            V, F = V[used], remap[F].astype(np.intp)
+        self.vertices = V
+        self.faces = F
+        nv, nf = len(V), len(F)
+
+        raw = np.sort(np.stack([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]], axis=1), axis=-1)  # (F,3,2)
+        key = raw[..., 0].astype(np.int64) * nv + raw[..., 1]
+        ukey, inv = np.unique(key.ravel(), return_inverse=True)
+        self.edges = np.stack([ukey // nv, ukey % nv], axis=1).astype(np.intp)
+        self.face_edges = inv.reshape(nf, 3).astype(np.intp)
+
+        tri = V[F]
+        cr = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        area2 = np.linalg.norm(cr, axis=1)
+        elen = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=-1)
+        self.face_long = elen.max(axis=1)
+        self.face_valid = area2 > 1e-12 * np.maximum(self.face_long, 1e-300) ** 2
+        self.face_normals = np.where(self.face_valid[:, None],
+                                     cr / np.where(area2 > 0, area2, 1.0)[:, None], 0.0)
+
+        order = np.argsort(F.ravel(), kind="stable")
+        self.vf_faces = (order // 3).astype(np.intp)
+        counts = np.bincount(F.ravel(), minlength=nv)
+        self.vf_ptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.intp)
+        reach = np.zeros(nv)
+        np.maximum.at(reach, F.ravel(), np.repeat(self.face_long, 3))
+        self.vertex_long = reach
+        self.long_max = float(reach.max())
+        self.vertex_reach = reach / _SQRT3
+        self.reach_max = float(self.vertex_reach.max())
+        self.edge_length = np.linalg.norm(V[self.edges[:, 1]] - V[self.edges[:, 0]], axis=1)
+
+        self.tree = cKDTree(V)
+        lo, hi = V.min(axis=0), V.max(axis=0)
+        self.centre = 0.5 * (lo + hi)
+        self.bound_radius = float(np.max(np.linalg.norm(V - self.centre, axis=1)))
+        self._proj_cache: dict[bytes, tuple[cKDTree, np.ndarray]] = {}
+
+    @property
+    def n_vertices(self) -> int:
+        return len(self.vertices)
+
+    @property
+    def n_faces(self) -> int:
+        return len(self.faces)
+
+    def _projected_tree(self, axis: np.ndarray) -> tuple[cKDTree, np.ndarray]:
+        """2-D cKDTree of the vertices projected along ``axis`` (cached) and the (2, 3) basis."""
+        key = np.round(axis, 14).tobytes()
+        hit = self._proj_cache.get(key)
+        if hit is None:
+            e1 = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])
+            e1 /= np.linalg.norm(e1)
+            basis = np.stack([e1, np.cross(axis, e1)])
+            if len(self._proj_cache) >= 8:
+                self._proj_cache.clear()
+            hit = (cKDTree(self.vertices @ basis.T), basis)
+            self._proj_cache[key] = hit
+        return hit
+
+
+def _as_index(mesh_or_index: trimesh.Trimesh | MeshIndex) -> MeshIndex:
+    return mesh_or_index if isinstance(mesh_or_index, MeshIndex) else MeshIndex(mesh_or_index)
+
+
+def _poses(points: np.ndarray, axes: np.ndarray, what: str) -> tuple[np.ndarray, np.ndarray]:
+    p = np.asarray(points, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise InputError(f"{what} must have shape (N, 3), got {p.shape}")
+    a = np.asarray(axes, dtype=float)
+    if a.shape == (3,):
+        a = np.broadcast_to(a, p.shape)
+    if a.shape != p.shape:
+        raise InputError(f"tool axes must have shape (3,) or {p.shape}, got {a.shape}")
+    if not (np.all(np.isfinite(p)) and np.all(np.isfinite(a))):
+        raise InputError(f"{what} and tool axes must be finite")
+    nrm = np.linalg.norm(a, axis=1)
+    if np.any(nrm < 1e-12):
+        raise InputError(f"tool axis of {what[:-1] if what.endswith('s') else what} "
+                         f"{int(np.argmin(nrm)) + 1} has zero length")
+    return p, a / nrm[:, None]
+
+
+# ---------------------------------------------------------------------------------------------
+# clearance
+
+@dataclass
+class Clearance:
+    """Result of :func:`clearance` for N poses.
+
+    delta : (N,) mm, minimum signed distance between the tool solid and the mesh triangles
+        (negative = penetration / gouge depth), exact where ``capped`` is False; where the true
+        value is >= ``margin`` the pose is reported as ``delta = margin`` (a lower bound).
+    witness : (N, 3) mesh point attaining ``delta`` (NaN where capped).
+    capped : (N,) bool, True where no mesh point is closer than ``margin``.
+    margin : mm, the cap used.
+    """
+
+    delta: np.ndarray
+    witness: np.ndarray
+    capped: np.ndarray
+    margin: float
+
+
+def _scatter_min(U: np.ndarray, W: np.ndarray, idx: np.ndarray, val: np.ndarray, pts: np.ndarray) -> None:
+    if len(idx) == 0:
+        return
+    old = U[idx]
+    np.minimum.at(U, idx, val)
+    m = (val < old) & (val <= U[idx])
+    W[idx[m]] = pts[m]
+
+
+def _slack(g: np.ndarray | float, off: float, long_edge: np.ndarray | float,
+           reach_edge: np.ndarray | float) -> np.ndarray:
+    """How far below its lowest vertex value sd can dip on a triangle with longest edge
+    ``long_edge`` whose lowest vertex value is ``g``.
+
+    Every point of a triangle is within l / sqrt(3) of a vertex and sd is 1-Lipschitz: slack
+    <= l / sqrt(3).  Outside the core, sd + off is the distance to a convex set, whose Hessian
+    is at most 1 / distance; a convex function with an L-Lipschitz gradient lies at most
+    L R^2 / 2 below its linear interpolant on a triangle with enclosing radius R <= l / sqrt(3),
+    and the distance on the triangle is at least g + off - l / sqrt(3): slack
+    <= l^2 / (6 (g + off - l / sqrt(3))) when that is positive.
+    """
+    lip = np.asarray(reach_edge, dtype=float) / _SQRT3
+    dmin = np.asarray(g, dtype=float) + off - np.asarray(long_edge, dtype=float) / _SQRT3
+    smooth = np.asarray(long_edge, dtype=float) ** 2 / (6.0 * np.where(dmin > 0.0, dmin, 1.0))
+    return np.where(dmin > 0.0, np.minimum(lip, smooth), lip)
+
+
+def _body_clearance(index: MeshIndex, base: np.ndarray, axis: np.ndarray, height: float, radius: float,
+                    off: float, U: np.ndarray, W: np.ndarray) -> None:
+    """Lower ``U`` (N,) to the exact minimum of sd over the mesh for one convex body (a capped
+    cylinder base/axis/height/radius offset by ``off``) where that minimum is below ``U``."""
+    V, F = index.vertices, index.faces
+
+    def sd(pts, b, ax, grad=False):
+        s, g = _cylinder_sd(b, ax, height, radius, pts, grad)
+        return s - off, g
+
+    # 1. Candidate vertices.  A face with a point below U has a vertex below U + slack
+    #    (_slack); every vertex with sd < U + slack lies within max(off + U + slack, 0)
+    #    + sqrt(radius^2 + (step/2)^2) of one of the centres spaced ``step`` along the core axis.
+    e = np.maximum(off + U + _slack(U, off, index.long_max, index.long_max), 0.0)
+    emax = float(e.max())
+    step_target = max(radius, emax, 1e-3)
+    K = max(int(math.ceil(height / step_target)), 1) if height > 0 else 0
+    step = height / K if K else 0.0
+    ak = np.linspace(0.0, height, K + 1)
+    centres = (base[:, None, :] + ak[None, :, None] * axis[:, None, :]).reshape(-1, 3)
+    core_r = math.hypot(radius, 0.5 * step)
+    hits = index.tree.sparse_distance_matrix(cKDTree(centres), emax + core_r, output_type="ndarray")
+    pid, kb = np.divmod(hits["j"], len(ak))
+    k = hits["v"] <= e[pid] + core_r
+    vid, pid, kb = hits["i"][k], pid[k], kb[k]
+    if len(vid) == 0:
+        return
+    # Balls overlap: keep each (pose, vertex) only for the ball whose axial slab holds the
+    # vertex's (clamped) axial coordinate; that ball alone is guaranteed to contain it.
+    pv = V[vid]
+    bb, aa = base[pid], axis[pid]
+    a = _dot(pv - bb, aa)
+    if K:
+        k = np.clip(np.floor(a / step + 0.5), 0, K) == kb
+        vid, pid, pv, bb, aa = vid[k], pid[k], pv[k], bb[k], aa[k]
+    g, _ = sd(pv, bb, aa)
+    _scatter_min(U, W, pid, g, pv)
+
+    # 2. Candidate faces: those around vertices that pass the slack test.
+    m = g < U[pid] + _slack(g, off, index.vertex_long[vid], index.vertex_long[vid])
+    if not np.any(m):
+        return
+    fp, ff = _csr_expand(index.vf_ptr, index.vf_faces, pid[m], vid[m])
+    fp, ff = _unique_pairs(fp, ff, len(F))
+
+    # 3. Lower bounds per face: Lipschitz / smoothness (from vertex values), then, for faces
+    #    still in play, the tangent planes of the convex sd at the vertices.
+    tri = V[F[ff]]                                               # (M,3,3)
+    b3, a3 = base[fp][:, None, :], axis[fp][:, None, :]
+    gv, Gv = sd(tri, b3, a3, grad=True)                          # (M,3), (M,3,3)
+    gmin = gv.min(axis=1)
+    lf = index.face_long[ff]
+    lower = gmin - _slack(gmin, off, lf, lf)
+    lin = gv[:, :, None] + np.einsum("mik,mijk->mij", Gv, tri[:, None, :, :] - tri[:, :, None, :])
+    lower = np.maximum(lin.min(axis=2).max(axis=1), lower)
+    keep = lower < U[fp] - _PRUNE_TOL
+    fp, ff, tri, lower = fp[keep], ff[keep], tri[keep], lower[keep]
+    if len(fp) == 0:
+        return
+
+    # 4. Facet test.  If the plane misses the core cylinder, the plane's closest point to it is
+    #    the foot of the core's support point in -n (core above) or +n (core below); if that foot
+    #    is in the triangle it is the triangle's exact minimum.  Otherwise the minimum is on an
+    #    edge, unless the triangle enters the core cylinder (handled in step 6).
+    n = index.face_normals[ff]
+    valid = index.face_valid[ff]
+    bb, aa = base[fp], axis[fp]
+    s_lo = _cylinder_support(bb, aa, height, radius, -n)
+    s_hi = _cylinder_support(bb, aa, height, radius, n)
+    h_lo = _dot(n, s_lo - tri[:, 0])
+    h_hi = _dot(n, s_hi - tri[:, 0])
+    above = valid & (h_lo >= 0.0)
+    below = valid & ~above & (h_hi <= 0.0)
+    foot = np.where(above[:, None], s_lo - h_lo[:, None] * n, s_hi - h_hi[:, None] * n)
+    pval = np.where(above, h_lo, -h_hi) - off
+    resolved = (above | below) & _inside_triangle(foot, tri[:, 0], tri[:, 1], tri[:, 2])
+    _scatter_min(U, W, fp[resolved], pval[resolved], foot[resolved])
+    cuts = valid & ~above & ~below
+
+    # 5. Edge test: 1-D convex minimisation along the edges of unresolved faces.
+    ur = ~resolved
+    if np.any(ur):
+        ep, ee = _unique_pairs(np.repeat(fp[ur], 3), index.face_edges[ff[ur]].ravel(), len(index.edges))
+        pa, pb = V[index.edges[ee, 0]], V[index.edges[ee, 1]]
+        bb, aa = base[ep], axis[ep]
+        ga, Ga = sd(pa, bb, aa, grad=True)
+        gb, Gb = sd(pb, bb, aa, grad=True)
+        d = pb - pa
+        le = index.edge_length[ee]
+        lower_e = np.maximum.reduce([np.minimum(ga, ga + _dot(Ga, d)), np.minimum(gb, gb - _dot(Gb, d)),
+                                     np.minimum(ga, gb) - 0.5 * le])
+        k = lower_e < U[ep] - _PRUNE_TOL
+        if np.any(k):
+            ep, pa, d, bb, aa = ep[k], pa[k], d[k], bb[k], aa[k]
+            iters = _golden_iters(float(le[k].max()))
+            t, val = _golden_min(lambda t: sd(pa + t[:, None] * d, bb, aa)[0],
+                                 np.zeros(len(ep)), np.ones(len(ep)), iters)
+            _scatter_min(U, W, ep, val, pa + t[:, None] * d)
+
+    # 6. Deep test: a triangle whose plane cuts the core cylinder and which may reach inside it
+    #    (sd < -off) gets a 2-D nested golden section (the minimum over each slice parallel to
+    #    one edge is convex in the slice position, so nesting is exact).
+    deep = cuts & (lower < np.minimum(U[fp] - _PRUNE_TOL, -off))
+    if np.any(deep):
+        dp, t3 = fp[deep], tri[deep]
+        bb, aa = base[dp], axis[dp]
+        v0, d1, d2 = t3[:, 0], t3[:, 1] - t3[:, 0], t3[:, 2] - t3[:, 0]
+        iters = _golden_iters(float(index.face_long[ff[deep]].max()))
+        z, o = np.zeros(len(dp)), np.ones(len(dp))
+
+        def slice_min(s):
+            pa = v0 + s[:, None] * d1
+            dd = s[:, None] * (d2 - d1)
+            t, val = _golden_min(lambda t: sd(pa + t[:, None] * dd, bb, aa)[0], z, o, iters)
+            return t, val, pa + t[:, None] * dd
+
+        s_best, _ = _golden_min(lambda s: slice_min(s)[1], z, o, iters)
+        _, val, pt = slice_min(s_best)
+        _scatter_min(U, W, dp, val, pt)
+
+
+def clearance(index: MeshIndex | trimesh.Trimesh, cutter: ToroidalCutter, tips: np.ndarray,
+              axes: np.ndarray, *, margin: float = 1.0) -> Clearance:
+    """Minimum signed distance between the tool solid and the mesh for N tool poses.
+
+    Parameters
+    ----------
+    index : MeshIndex (or a trimesh.Trimesh, indexed on the fly).
+    cutter : the tool; its solid is cutter + shank (convex) united with the holder
+        (camsmooth.cutter).
+    tips : (N, 3) tool tips (CL points), mm, workpiece frame.
+    axes : (N, 3) or (3,) tool axes (tip -> spindle), normalised here.
+    margin : mm, >= 0.  Poses whose clearance is >= margin are reported as ``delta = margin``
+        with ``capped = True`` (a lower bound, no witness); smaller values are exact.
+
+    Returns
+    -------
+    Clearance: ``delta`` (N,) mm = min over mesh points x of signed_distance(tool, x), negative
+    for penetration (its magnitude is the depth of the deepest mesh point inside the tool);
+    ``witness`` (N, 3) the mesh point attaining it.
+
+    Exactness: against the piecewise-linear mesh, to ~1e-9 mm.  The cutter + shank and the
+    holder are each convex, so their signed distance is convex on each triangle; its minimum
+    there is at the foot of the support point (facet test) or on an edge (golden section), or,
+    only when a triangle reaches into the core cylinder (penetration deeper than r), found by a
+    nested 2-D golden section.  Elements are pruned only with rigorous lower bounds (tangent
+    planes of the convex distance, 1-Lipschitz bounds).  The test is geometric and ignores face
+    orientation: a tool wholly on the material side of a sheet without crossing it reports a
+    positive distance.
+    """
+    idx = _as_index(index)
+    tips, axes = _poses(tips, axes, "tool tips")
+    margin = float(margin)
+    if not (math.isfinite(margin) and margin >= 0.0):
+        raise InputError(f"margin must be a finite length >= 0 mm, got {margin}")
+    N = len(tips)
+    delta = np.full(N, margin)
+    witness = np.full((N, 3), np.nan)
+    for lo in range(0, N, _CHUNK):
+        sl = slice(lo, min(lo + _CHUNK, N))
+        tp, ax = tips[sl], axes[sl]
+        U, W = delta[sl], witness[sl]
+        _body_clearance(idx, tp + cutter.r * ax, ax, cutter.core_height, cutter.R, cutter.r, U, W)
+        if cutter.has_holder:
+            _body_clearance(idx, tp + float(cutter.shank_length) * ax, ax, float(cutter.holder_length),
+                            float(cutter.holder_radius), 0.0, U, W)
+    capped = np.isnan(witness[:, 0])
+    delta[capped] = margin
+    return Clearance(delta=delta, witness=witness, capped=capped, margin=margin)
+
+
+# ---------------------------------------------------------------------------------------------
+# axial drop
+
+@dataclass
+class Drop:
+    """Result of :func:`axial_drop` for N points.
+
+    cl : (N, 3) lowest tool tip positions, mm (NaN where ``hit`` is False).
+    contact : (N, 3) the mesh point touched.
+    contact_normal : (N, 3) unit normal of the cutter surface at the contact, pointing from the
+        material toward the tool (into the cutter), i.e. the ``n`` of cc_to_cl.
+    hit : (N,) bool, False where the tool's footprint misses the mesh.
+    """
+
+    cl: np.ndarray
+    contact: np.ndarray
+    contact_normal: np.ndarray
+    hit: np.ndarray
+
+
+def _zlow(cutter: ToroidalCutter, rho: np.ndarray) -> np.ndarray:
+    """Height of the cutter's lower envelope above the tip at radial distance rho (<= R + r)."""
+    x = np.maximum(rho - cutter.R, 0.0)
+    return cutter.r - np.sqrt(np.maximum(cutter.r ** 2 - x * x, 0.0))
+
+
+def _scatter_max(S: np.ndarray, C: np.ndarray, idx: np.ndarray, val: np.ndarray, pts: np.ndarray) -> None:
+    if len(idx) == 0:
+        return
+    old = S[idx]
+    np.maximum.at(S, idx, val)
+    m = (val > old) & (val >= S[idx])
+    C[idx[m]] = pts[m]
+
+
+def _drop_candidates(index: MeshIndex, p: np.ndarray, A: np.ndarray, fixed: bool,
+                     reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """(point, vertex) pairs with the vertex within ``reach`` of the point's axis line (superset)."""
+    N = len(p)
+    if fixed:
+        tree, basis = index._projected_tree(A[0])
+        lists = tree.query_ball_point(p @ basis.T, reach, workers=-1, return_sorted=False)
+        lens, vid = _flatten_lists(lists)
+        return np.repeat(np.arange(N), lens), vid
+    # Per-point axes: cover the part of each axis line near the mesh's bounding sphere with
+    # balls (vertices project onto the line within bound_radius of the sphere centre's foot).
+    rb = index.bound_radius
+    tc = _dot(index.centre - p, A)
+    wv = index.centre - p - tc[:, None] * A
+    near = np.sqrt(_dot(wv, wv)) <= rb + reach
+    step = reach
+    K = np.where(near, np.ceil(2.0 * rb / step).astype(np.intp) + 1, 0)
+    owner = np.repeat(np.arange(N), K)
+    k = np.arange(int(K.sum())) - np.repeat(np.cumsum(K) - K, K)
+    spacing = 2.0 * rb / np.maximum(K - 1, 1)
+    t = tc[owner] - rb + k * spacing[owner]
+    centres = p[owner] + t[:, None] * A[owner]
+    lens, vid = _flatten_lists(index.tree.query_ball_point(centres, math.hypot(reach, 0.5 * step),
+                                                           workers=-1, return_sorted=False))
+    return np.repeat(owner, lens), vid
+
+
+def _drop_chunk(index: MeshIndex, cutter: ToroidalCutter, p: np.ndarray, A: np.ndarray,
+                fixed: bool) -> tuple[np.ndarray, np.ndarray]:
+    V, F, E = index.vertices, index.faces, index.edges
+    R, r = cutter.R, cutter.r
+    Rc = R + r
+    N = len(p)
+    S = np.full(N, -np.inf)
+    C = np.full((N, 3), np.nan)
+
+    def local(pts, pp, aa):
+        q = pts - pp
+        h = _dot(q, aa)
+        w = q - h[..., None] * aa
+        return h, w, np.sqrt(_dot(w, w))
+
+    pid, vid = _drop_candidates(index, p, A, fixed, Rc + index.long_max)
+    if len(vid) == 0:
+        return S, C
+    h, _, rho = local(V[vid], p[pid], A[pid])
+    keep = rho <= Rc + index.vertex_long[vid]
+    pid, vid, h, rho = pid[keep], vid[keep], h[keep], rho[keep]
+
+    # Vertex test (closed form): s = (v - p).A - zlow(rho).
+    inn = rho <= Rc
+    _scatter_max(S, C, pid[inn], h[inn] - _zlow(cutter, rho[inn]), V[vid[inn]])
+
+    # Faces worth testing: if a point x of a face has s(x) > S, the face's highest vertex v
+    # (h is linear on the face) has h_v >= h(x) > S + zlow(rho(x)) >= S + zlow(rho_v - l_v), as
+    # rho is 1-Lipschitz, |x - v| <= l_v and zlow is nondecreasing.
+    lv = index.vertex_long[vid]
+    shrunk = np.maximum(rho - lv, 0.0)
+    m = (shrunk <= Rc) & (h > S[pid] + _zlow(cutter, np.minimum(shrunk, Rc)) + _PRUNE_TOL)
+    if not np.any(m):
+        return S, C
+    fp, ff = _csr_expand(index.vf_ptr, index.vf_faces, pid[m], vid[m])
+    fp, ff = _unique_pairs(fp, ff, len(F))
+    pp, aa = p[fp], A[fp]
+    tri = V[F[ff]]
+    ht, wt, rt = local(tri, pp[:, None, :], aa[:, None, :])      # (M,3)
+    # Upper bounds: max height minus the envelope at a lower bound of rho over the face, and the
+    # tangent planes of the concave s at vertices strictly inside the footprint.
+    rlb = np.maximum(rt.min(axis=1) - index.face_long[ff] / _SQRT3, 0.0)
+    ubf = np.where(rlb <= Rc, ht.max(axis=1) - _zlow(cutter, np.minimum(rlb, Rc)), -np.inf)
+    xin = np.maximum(rt - R, 0.0)
+    strict = xin < r * (1.0 - 1e-9)
+    slope = xin / np.sqrt(np.where(strict, r * r - xin * xin, 1.0))
+    e_r = wt / np.where(rt > 0.0, rt, 1.0)[..., None]
+    grad = aa[:, None, :] - (slope[..., None] * e_r)                # (M,3,3) gradient of s at vertices
+    sv = ht - _zlow(cutter, np.minimum(rt, Rc))
+    tang = sv[:, :, None] + np.einsum("mik,mijk->mij", grad, tri[:, None, :, :] - tri[:, :, None, :])
+    tang_ub = np.where(strict & (rt <= Rc), tang.max(axis=2), np.inf).min(axis=1)
+    ubf = np.minimum(ubf, tang_ub)
+    k = ubf > S[fp] + _PRUNE_TOL
+    fp, ff, pp, aa, tri = fp[k], ff[k], pp[k], aa[k], tri[k]
+    if len(fp) == 0:
+        return S, C
+
+    # Facet test (closed form): the plane, oriented so n.A > 0, touches the offset disc where
+    # CL = CC + r n + R u - r A (METHODS.md section 1); accept if CC lies in the triangle.
+    n = index.face_normals[ff]
+    na = _dot(n, aa)
+    n = np.where((na < 0.0)[:, None], -n, n)
+    na = np.abs(na)
+    ok = index.face_valid[ff] & (na > 1e-12)
+    wn = n - na[:, None] * aa
+    wl = np.sqrt(_dot(wn, wn))
+    u = wn / np.where(wl > 1e-12, wl, np.inf)[:, None]
+    s_f = (r + R * wl - r * na - _dot(n, pp - tri[:, 0])) / np.where(ok, na, 1.0)
+    cc = pp + s_f[:, None] * aa - r * n - R * u + r * aa
+    ok &= _inside_triangle(cc, tri[:, 0], tri[:, 1], tri[:, 2])
+    _scatter_max(S, C, fp[ok], s_f[ok], cc[ok])
+
+    # Edge test: s(t) is concave on the part of the edge inside the footprint (linear height
+    # minus a convex nondecreasing function of a convex rho): golden section on that interval.
+    ep, ee = _unique_pairs(np.repeat(fp, 3), index.face_edges[ff].ravel(), len(E))
+    pp, aa = p[ep], A[ep]
+    pa = V[E[ee, 0]]
+    d = V[E[ee, 1]] - pa
+    ha, wa, _ = local(pa, pp, aa)
+    hd = _dot(d, aa)
+    wd = d - hd[:, None] * aa
+    qa, qb, qc = _dot(wd, wd), 2.0 * _dot(wa, wd), _dot(wa, wa) - Rc * Rc
+    disc = qb * qb - 4.0 * qa * qc
+    feas = (qa > 0.0) & (disc >= 0.0)
+    sq = np.sqrt(np.maximum(disc, 0.0))
+    den = np.where(qa > 0.0, 2.0 * qa, 1.0)
+    t0 = np.maximum((-qb - sq) / den, 0.0)
+    t1 = np.minimum((-qb + sq) / den, 1.0)
+    feas &= t0 <= t1
+    tm = np.clip(-qb / den, t0, t1)
+    rmin = np.sqrt(np.maximum(qa * tm * tm + qb * tm + qc + Rc * Rc, 0.0))
+    ube = np.maximum(ha + t0 * hd, ha + t1 * hd) - _zlow(cutter, np.minimum(rmin, Rc))
+    k = feas & (ube > S[ep] + _PRUNE_TOL)
+    if np.any(k):
+        ep, pa, d, pp, aa, t0, t1 = ep[k], pa[k], d[k], pp[k], aa[k], t0[k], t1[k]
+
+        def negs(t):
+            hh, _, rr = local(pa + t[:, None] * d, pp, aa)
+            return -(hh - _zlow(cutter, np.minimum(rr, Rc)))
+
+        iters = _golden_iters(float(np.max((t1 - t0) * np.sqrt(_dot(d, d)))))
+        t, val = _golden_min(negs, t0, t1, iters)
+        for tt in (t0, t1):
+            vv = negs(tt)
+            better = vv < val
+            t, val = np.where(better, tt, t), np.where(better, vv, val)
+        _scatter_max(S, C, ep, -val, pa + t[:, None] * d)
+    return S, C
+
+
+def axial_drop(mesh_or_index: MeshIndex | trimesh.Trimesh, cutter: ToroidalCutter, points: np.ndarray,
+               axis: np.ndarray) -> Drop:
+    """Drop-cutter along a tool axis: the lowest tip ``cl = p + s * axis`` at which the cutter
+    touches the mesh, for each point ``p``.
+
+    ``s`` is the maximum over mesh elements inside the cutter's footprint cylinder (radius
+    R + r around the line p + t axis) of the contact parameter: vertices (closed form
+    ``s = (v - p).axis - zlow(rho)`` with the lower envelope zlow of the torus / flat bottom),
+    facets (closed form: the plane touching the offset disc, contact inside the triangle) and
+    edges (``s`` is concave along an edge: golden section).  This is the classic 3-axis
+    drop-cutter with the axis free.
+
+    Assumptions: the cutter comes from +infinity along ``axis``, so the result is the position
+    where it first touches the mesh (mesh above ``p`` counts).  Only the cutting end (torus and
+    flat bottom) can touch: any mesh point inside the footprint meets the lower envelope first,
+    and the shank, whose wall is the footprint boundary, is never hit from below.  The holder is
+    ignored.  Face orientation is not used.
+
+    Parameters
+    ----------
+    mesh_or_index : trimesh.Trimesh or MeshIndex, mm.
+    points : (N, 3) points on the drop lines, mm.
+    axis : (3,) common tool axis (fast path: a cached projected 2-D tree) or (N, 3) per point;
+        normalised here.
+
+    Returns Drop (cl, contact, contact_normal, hit); rows where the line misses are NaN.
+    """
+    idx = _as_index(mesh_or_index)
+    ax = np.asarray(axis, dtype=float)
+    fixed = ax.shape == (3,)
+    p, A = _poses(points, ax, "points")
+    N = len(p)
+    S = np.full(N, -np.inf)
+    C = np.full((N, 3), np.nan)
+    for lo in range(0, N, _CHUNK):
+        sl = slice(lo, min(lo + _CHUNK, N))
+        S[sl], C[sl] = _drop_chunk(idx, cutter, p[sl], A[sl], fixed)
+    hit = np.isfinite(S)
+    cl = np.where(hit[:, None], p + np.where(hit, S, 0.0)[:, None] * A, np.nan)
+    # Cutter normal at the contact: from the contact toward the nearest point of the core disc
+    # (radius R at height r): r n = core point - contact.
+    q = C - cl
+    hq = _dot(q, A)
+    wq = q - hq[:, None] * A
+    rq = np.sqrt(_dot(wq, wq))
+    core = cl + cutter.r * A + (np.minimum(rq, cutter.R) / np.where(rq > 0.0, rq, 1.0))[:, None] * wq
+    nrm = core - C
+    ln = np.linalg.norm(nrm, axis=1)
+    normal = np.where(hit[:, None], nrm / np.where(ln > 0.0, ln, 1.0)[:, None], np.nan)
+    return Drop(cl=cl, contact=C, contact_normal=normal, hit=hit)

@@ -1,0 +1,237 @@
+"""Tool orientation at CC points: local frames, lead/tilt <-> tool axis, curvature-based
+admissible windows and the initial (gouge-free) orientation.
+
+Frames and signs (METHODS.md section 1): at a CC point with unit normal n (material -> tool)
+and feed direction f, X_L = f, Z_L = n, Y_L = Z_L x X_L (right-handed). Lead theta rotates the
+tool axis about Y_L, tilt phi about Z_L:
+
+    T_L = (sin theta cos phi, sin theta sin phi, cos theta),  T_W = [X_L Y_L Z_L] T_L.
+
+Lead is in [0, pi/2) (positive lead puts the contact on the leading side of the cutter), tilt in
+(-pi/2, pi/2). All angles in radians.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .errors import InfeasibleError, InputError
+
+
+def local_frames(normals: np.ndarray, feed_dirs: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) local frames whose columns are X_L, Y_L, Z_L (workpiece frame).
+
+    The feed direction is projected onto the tangent plane of n, so it need only be roughly
+    tangent. Raises InputError where it is parallel to n.
+    """
+    n = np.asarray(normals, dtype=float)
+    f = np.asarray(feed_dirs, dtype=float)
+    x = f - np.sum(f * n, axis=1, keepdims=True) * n
+    norm = np.linalg.norm(x, axis=1, keepdims=True)
+    bad = np.flatnonzero(norm[:, 0] < 1e-9)
+    if bad.size:
+        raise InputError(f"feed direction parallel to the normal at point {bad[0]}")
+    x /= norm
+    y = np.cross(n, x)
+    return np.stack([x, y, n], axis=2)
+
+
+def axis_from_lead_tilt(lead: np.ndarray, tilt: np.ndarray, frames: np.ndarray) -> np.ndarray:
+    """Unit tool axes T (N, 3), workpiece frame, from lead and tilt (rad) in the local frames."""
+    lead, tilt = np.broadcast_arrays(np.asarray(lead, float), np.asarray(tilt, float))
+    tl = np.stack([np.sin(lead) * np.cos(tilt), np.sin(lead) * np.sin(tilt), np.cos(lead)], axis=-1)
+    return np.einsum("nij,nj->ni", frames, tl)
+
+
+def lead_tilt_from_axis(axes: np.ndarray, frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(lead, tilt) in rad of unit tool axes (N, 3) in the local frames; tilt is 0 where the
+    lead is 0 (the axis is along the normal and tilt is undefined)."""
+    tl = np.einsum("nji,nj->ni", frames, np.asarray(axes, float))
+    rho = np.hypot(tl[:, 0], tl[:, 1])
+    lead = np.arctan2(rho, tl[:, 2])
+    tilt = np.where(rho > 1e-12, np.arctan2(tl[:, 1], tl[:, 0]), 0.0)
+    return lead, tilt
+
+
+# ----------------------------------------------------------------------------------------------
+# curvature: surface (from the mesh) and cutter, in the local tangent basis (X_L, Y_L)
+def surface_curvature_tensors(vertices: np.ndarray, points: np.ndarray, frames: np.ndarray,
+                              k: int = 32, tree: cKDTree | None = None) -> np.ndarray:
+    """Curvature tensors (N, 2, 2) of the surface at CC points, in the basis (X_L, Y_L), from a
+    least-squares quadric h = c + d a + e b + (L a^2 + 2 M a b + N b^2) / 2 fitted to mesh
+    vertices around each point ((a, b, h): coordinates in the local frame); [[L, M], [M, N]] is
+    the second fundamental form.
+
+    Sign: positive where the surface bends toward the normal n (concave as seen from the tool),
+    the convention of camsmooth.surfaces. Exact for quadric patches. Anisotropic or one-sided
+    neighbourhoods (fine spacing along one parameter, surface boundaries) make the nearest
+    vertices collinear; the neighbourhood grows per point until the fit is well conditioned.
+    """
+    tree = tree if tree is not None else cKDTree(vertices)
+    points = np.asarray(points, float)
+    K = np.full((len(points), 2, 2), np.nan)
+    todo = np.arange(len(points))
+    while todo.size:
+        kk = min(k, len(vertices))
+        Kt, cond_ok = _quadric_fit(vertices, tree, points[todo], frames[todo], kk)
+        done = cond_ok | (kk >= len(vertices)) | (kk >= 4096)
+        K[todo[done]] = Kt[done]
+        todo = todo[~done]
+        k *= 2
+    return K
+
+
+def _quadric_fit(vertices: np.ndarray, tree: cKDTree, points: np.ndarray, frames: np.ndarray, k: int
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    _, nb = tree.query(points, k=k)
+    loc = np.einsum("nkj,nji->nki", vertices[nb] - points[:, None, :], frames)
+    a, b, h = loc[..., 0], loc[..., 1], loc[..., 2]
+    scale = np.sqrt(np.mean(a**2 + b**2, axis=1, keepdims=True)) + 1e-12
+    a_s, b_s = a / scale, b / scale
+    phi = np.stack([np.ones_like(a_s), a_s, b_s, 0.5 * a_s**2, a_s * b_s, 0.5 * b_s**2], axis=-1)
+    ata = np.einsum("nki,nkj->nij", phi, phi) / k
+    ev = np.linalg.eigvalsh(ata)
+    cond_ok = ev[:, 0] > 1e-4 * ev[:, -1]
+    coef = np.linalg.solve(ata + 1e-12 * np.eye(6), np.einsum("nki,nk->ni", phi, h)[..., None] / k)[..., 0]
+    s2 = scale[:, 0] ** 2
+    L, M, N = coef[:, 3] / s2, coef[:, 4] / s2, coef[:, 5] / s2
+    return np.stack([np.stack([L, M], -1), np.stack([M, N], -1)], axis=-2), cond_ok
+
+
+def cutter_curvature_tensors(R: float, r: float, lead: np.ndarray, tilt: np.ndarray) -> np.ndarray:
+    """Curvature tensors (..., 2, 2) of a toroidal cutter at its contact, in the basis (X_L, Y_L).
+
+    At a contact whose normal makes the angle lead with the tool axis, the torus has principal
+    curvature 1/r in the meridian plane (tangent direction m = (cos tilt, sin tilt)) and
+    sin(lead) / (R + r sin(lead)) across it (effective radius R / sin(lead) + r, METHODS
+    section 1). Positive = the cutter bends away from the part, toward n (same convention as the
+    surface: no local gouge iff K_cutter - K_surface is positive semidefinite).
+    """
+    lead, tilt = np.broadcast_arrays(np.asarray(lead, float), np.asarray(tilt, float))
+    sl = np.sin(lead)
+    k_meridian = 1.0 / r
+    k_cross = sl / (R + r * sl) if R > 0 else np.full_like(sl, 1.0 / r)
+    m = np.stack([np.cos(tilt), np.sin(tilt)], -1)
+    p = np.stack([-np.sin(tilt), np.cos(tilt)], -1)
+    return (k_meridian * m[..., :, None] * m[..., None, :]
+            + k_cross[..., None, None] * p[..., :, None] * p[..., None, :])
+
+
+def _min_eig_2x2(K: np.ndarray) -> np.ndarray:
+    a, b, c = K[..., 0, 0], K[..., 0, 1], K[..., 1, 1]
+    return 0.5 * (a + c) - np.sqrt(0.25 * (a - c) ** 2 + b**2)
+
+
+def min_gouge_free_lead(R: float, r: float, K_surface: np.ndarray, tilt: np.ndarray,
+                        lead_max: float, margin: float = 1e-4, iterations: int = 40) -> np.ndarray:
+    """Smallest lead (rad) in [0, lead_max] with K_cutter(lead, tilt) - K_surface >= margin * I
+    (no local gouge, METHODS section 1), for each point and tilt (arrays broadcast with
+    K_surface[..., 0, 0]). NaN where even lead_max gouges. The cutter tensor grows with lead in
+    the Loewner order, so the condition is monotone and bisection is exact.
+    """
+    tilt = np.asarray(tilt, float)
+    shape = np.broadcast_shapes(K_surface.shape[:-2], tilt.shape)
+    K = np.broadcast_to(K_surface, shape + (2, 2))
+
+    def ok(lead: np.ndarray) -> np.ndarray:
+        return _min_eig_2x2(cutter_curvature_tensors(R, r, lead, tilt) - K) >= margin
+
+    lo = np.zeros(shape)
+    hi = np.full(shape, float(lead_max))
+    feasible_hi = ok(hi)
+    feasible_lo = ok(lo)
+    for _ in range(iterations):
+        mid = 0.5 * (lo + hi)
+        good = ok(mid)
+        hi = np.where(good, mid, hi)
+        lo = np.where(good, lo, mid)
+    out = np.where(feasible_lo, 0.0, hi)
+    return np.where(feasible_hi, out, np.nan)
+
+
+@dataclass
+class Orientation:
+    """Initial orientation and admissible windows per CC point (rad).
+
+    lead, tilt: the initial (gouge-free) orientation; axis: the tool axes (N, 3);
+    lead_window, tilt_window: (N, 2) [min, max] after tightening by local curvature;
+    lead_required: the curvature's lower bound on lead (rad) per point (max over the tilt window).
+    """
+
+    lead: np.ndarray
+    tilt: np.ndarray
+    axis: np.ndarray
+    lead_window: np.ndarray
+    tilt_window: np.ndarray
+    lead_required: np.ndarray
+
+
+def initial_orientation(frames: np.ndarray, K_surface: np.ndarray, R: float, r: float,
+                        lead_range: tuple[float, float], tilt_range: tuple[float, float],
+                        prefer_lead: float | None = None, prefer_tilt: float | None = None,
+                        n_tilt: int = 9, point_names: list[str] | None = None) -> Orientation:
+    """Initial orientation avoiding local gouging (METHODS section 1).
+
+    Per point, the admissible lead window is [max(lead_min, lead_required), lead_max], where
+    lead_required is the smallest gouge-free lead over ``n_tilt`` tilts spanning the tilt window
+    (conservative: any tilt in the window is then safe). The initial orientation is the user's
+    preferred lead and tilt (default: the window midpoints), with the lead raised to the
+    curvature's requirement where needed. Raises InfeasibleError naming the first point where no
+    lead in the window avoids gouging (e.g. a corner radius larger than the concave radius of the
+    surface along the feed).
+    """
+    lmin, lmax = map(float, lead_range)
+    tmin, tmax = map(float, tilt_range)
+    if not (0.0 <= lmin < lmax < np.pi / 2):
+        raise InputError(f"lead window [{np.degrees(lmin):g}, {np.degrees(lmax):g}] deg must satisfy "
+                         "0 <= min < max < 90")
+    if not (-np.pi / 2 < tmin <= tmax < np.pi / 2):
+        raise InputError(f"tilt window [{np.degrees(tmin):g}, {np.degrees(tmax):g}] deg must satisfy "
+                         "-90 < min <= max < 90")
+    n = len(frames)
+    pl = 0.5 * (lmin + lmax) if prefer_lead is None else float(prefer_lead)
+    pt = 0.5 * (tmin + tmax) if prefer_tilt is None else float(prefer_tilt)
+    if not (lmin <= pl <= lmax and tmin <= pt <= tmax):
+        raise InputError("the preferred lead/tilt must lie inside the lead/tilt windows")
+    tilts = np.linspace(tmin, tmax, n_tilt) if tmax > tmin else np.array([tmin])
+    req = min_gouge_free_lead(R, r, K_surface[:, None], tilts[None, :], lmax)  # (N, n_tilt)
+    req_all = np.max(np.where(np.isnan(req), np.inf, req), axis=1)
+    tilt_window = np.tile([tmin, tmax], (n, 1)).astype(float)
+    # Where some tilts of the window gouge at every lead, keep the contiguous feasible tilt span
+    # around the preferred tilt.
+    partial = ~np.isfinite(req_all)
+    if partial.any():
+        feas = np.isfinite(req[partial])
+        any_feas = feas.any(axis=1)
+        if not any_feas.all():
+            i = int(np.flatnonzero(partial)[np.flatnonzero(~any_feas)[0]])
+            name = point_names[i] if point_names else f"point {i}"
+            kmax = float(np.max(np.linalg.eigvalsh(K_surface[i])))
+            raise InfeasibleError(
+                f"{name}: no lead in [{np.degrees(lmin):g}, {np.degrees(lmax):g}] deg avoids local gouging "
+                f"(surface curvature {kmax:.4g} 1/mm, concave radius {1 / kmax if kmax > 0 else np.inf:.4g} mm; "
+                f"cutter corner radius r = {r:g} mm, ring radius R = {R:g} mm): widen the lead window or use "
+                "a smaller corner radius")
+        rows = np.flatnonzero(partial)
+        lo_t = np.empty(len(rows))
+        hi_t = np.empty(len(rows))
+        j_pref = np.argmin(np.abs(tilts - pt))
+        for k, f in enumerate(feas):  # loop over the few partial points only
+            j = j_pref if f[j_pref] else int(np.argmax(f))
+            a = j
+            while a > 0 and f[a - 1]:
+                a -= 1
+            b = j
+            while b < len(f) - 1 and f[b + 1]:
+                b += 1
+            lo_t[k], hi_t[k] = tilts[a], tilts[b]
+            req_all[rows[k]] = np.max(req[rows[k], a:b + 1])
+        tilt_window[rows] = np.stack([lo_t, hi_t], -1)
+    lead_window = np.stack([np.maximum(lmin, req_all), np.full(n, lmax)], -1)
+    lead = np.clip(np.full(n, pl), lead_window[:, 0], lead_window[:, 1])
+    tilt = np.clip(np.full(n, pt), tilt_window[:, 0], tilt_window[:, 1])
+    axis = axis_from_lead_tilt(lead, tilt, frames)
+    return Orientation(lead, tilt, axis, lead_window, tilt_window, req_all)

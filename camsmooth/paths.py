@@ -1,0 +1,533 @@
+"""Cutter-contact (CC) paths: the CCPath type, the pinned CSV format, and simple path generators.
+
+Frames and units: workpiece frame W, mm; feed in mm/min (as in the file). The CC normal n points
+from the material toward the tool (CONVENTIONS.md); the feed direction f is the unit tangent of
+the path in the direction of travel (X_L of the local frame, METHODS.md section 1).
+
+CSV format (pinned)
+-------------------
+One header row, then one data row per CC point, in machining order. Column names are matched
+case-insensitively after stripping blanks; extra columns are ignored.
+
+- required: ``x, y, z`` (mm), ``nx, ny, nz`` (unit normal out of the material)
+- optional: ``row`` (integer row id; rows are contiguous runs of equal id; without it the file is
+  one row, id 0), ``fx, fy, fz`` (unit feed direction, all three or none), ``feed`` (mm/min, > 0)
+
+Errors (InputError naming the file, the 1-based data row = file line - 1, and the column):
+missing column (with a close misspelling suggested), unparsable or empty value, NaN or inf, zero
+normal, normal length off 1 by more than ``UNIT_TOL`` (within it the normal is normalised),
+non-integer row id, a row id that reappears after other rows, a row of fewer than 3 points,
+consecutive points of a row closer than ``REPEAT_TOL`` mm, feed <= 0, zero or non-unit feed
+direction (same rule as normals), feed direction not tangent (|f.n| > ``TANGENT_TOL``; within it
+f is projected onto the tangent plane). Blank lines are skipped (they keep their line number).
+"""
+
+from __future__ import annotations
+
+import csv
+import difflib
+import io
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import trimesh
+
+from camsmooth._io import write_text_atomic
+from camsmooth.errors import InputError
+from camsmooth.surfaces import ParametricSurface, surface_normals_at
+
+__all__ = [
+    "CCPath",
+    "estimate_feed_dirs",
+    "read_cc_csv",
+    "write_cc_csv",
+    "check_normals_against_mesh",
+    "zigzag_path",
+    "zigzag_extents",
+    "raster_path_on_mesh",
+    "UNIT_TOL",
+    "REPEAT_TOL",
+    "TANGENT_TOL",
+    "MIN_ROW_POINTS",
+]
+
+UNIT_TOL = 1e-3  # | |n| - 1 | above this is an error, below it n is normalised
+REPEAT_TOL = 1e-9  # mm: consecutive points of a row closer than this are a repeat
+TANGENT_TOL = 1e-2  # |f . n| above this: feed direction not tangent (0.57 degrees)
+MIN_ROW_POINTS = 3
+
+REQUIRED = ("x", "y", "z", "nx", "ny", "nz")
+OPTIONAL = ("row", "fx", "fy", "fz", "feed")
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.einsum("...i,...i->...", a, b)
+
+
+@dataclass
+class CCPath:
+    """A cutter-contact path in the workpiece frame.
+
+    points (N, 3) mm; normals (N, 3) unit, out of the material; rows (N,) int row ids, each row a
+    contiguous run, in machining order; feed_dirs (N, 3) unit tangents along travel or None;
+    feed (N,) mm/min or None; source: the file it came from, if any.
+    """
+
+    points: np.ndarray
+    normals: np.ndarray
+    rows: np.ndarray
+    feed_dirs: np.ndarray | None = None
+    feed: np.ndarray | None = None
+    source: str | None = None
+
+    def __post_init__(self) -> None:
+        self.points = np.asarray(self.points, dtype=float).reshape(-1, 3)
+        n = len(self.points)
+        self.normals = np.asarray(self.normals, dtype=float).reshape(-1, 3)
+        self.rows = np.asarray(self.rows).astype(np.int64).reshape(-1)
+        if self.feed_dirs is not None:
+            self.feed_dirs = np.asarray(self.feed_dirs, dtype=float).reshape(-1, 3)
+        if self.feed is not None:
+            self.feed = np.asarray(self.feed, dtype=float).reshape(-1)
+        for name in ("normals", "rows", "feed_dirs", "feed"):
+            a = getattr(self, name)
+            if a is not None and len(a) != n:
+                raise ValueError(f"CCPath.{name} has {len(a)} entries for {n} points")
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+    def row_slices(self) -> list[slice]:
+        """Index ranges of the rows in order. A row id that reappears after another row is an
+        InputError (naming the 1-based data row where it reappears)."""
+        starts, again = _row_runs(self.rows)
+        if again is not None:
+            raise InputError(f"row id {self.rows[again]} reappears after other rows (rows must be "
+                             "contiguous runs)", file=self.source, row=again + 1, column="row")
+        ends = np.r_[starts[1:], len(self.rows)]
+        return [slice(int(s), int(e)) for s, e in zip(starts, ends, strict=True)]
+
+    def feed_dirs_or_estimate(self) -> np.ndarray:
+        """The feed directions, estimated by ``estimate_feed_dirs`` when the path has none."""
+        if self.feed_dirs is not None:
+            return self.feed_dirs
+        return estimate_feed_dirs(self.points, self.normals, self.rows)
+
+
+def _row_runs(rows: np.ndarray) -> tuple[np.ndarray, int | None]:
+    """Start indices of the runs of equal row id, and the index where an id first reappears
+    after another run (None if every id forms one contiguous run)."""
+    r = np.asarray(rows).reshape(-1)
+    if len(r) == 0:
+        return np.zeros(0, dtype=np.int64), None
+    starts = np.flatnonzero(np.r_[True, r[1:] != r[:-1]])
+    ids = r[starts]
+    if len(np.unique(ids)) == len(ids):
+        return starts, None
+    seen: set[int] = set()
+    for k, rid in enumerate(ids.tolist()):  # loop over rows, only on the error path
+        if rid in seen:
+            return starts, int(starts[k])
+        seen.add(rid)
+    return starts, None  # pragma: no cover
+
+
+def estimate_feed_dirs(points: Any, normals: Any, rows: Any) -> np.ndarray:
+    """Unit feed directions (N, 3) from the point sequence within each row.
+
+    Central difference p[i+1] - p[i-1] inside a row, one-sided at its ends, projected onto the
+    tangent plane of n (t - (t.n) n) and normalised. Rows are runs of equal id in ``rows``; a row
+    of a single point has no direction (InputError).
+    """
+    p = np.asarray(points, dtype=float).reshape(-1, 3)
+    n = np.asarray(normals, dtype=float).reshape(-1, 3)
+    r = np.asarray(rows).reshape(-1)
+    if len(p) == 0:
+        return np.zeros((0, 3))
+    same = r[1:] == r[:-1]
+    has_next = np.r_[same, False]
+    has_prev = np.r_[False, same]
+    nxt = np.where(has_next[:, None], np.roll(p, -1, axis=0), p)
+    prv = np.where(has_prev[:, None], np.roll(p, 1, axis=0), p)
+    t = nxt - prv
+    t = t - _dot(t, n)[:, None] * n
+    norm = np.linalg.norm(t, axis=1)
+    bad = ~(norm > 0)
+    if np.any(bad):
+        k = int(np.flatnonzero(bad)[0])
+        raise InputError(f"cannot estimate a feed direction at point {k + 1} (row id {r[k]}): the row has a "
+                         "single point or the step is along the normal", row=k + 1)
+    return t / norm[:, None]
+
+
+# ---------------------------------------------------------------------------------------------
+# CSV
+
+
+def _parse_column(strings: list[str], line_nos: list[int], name: str, file: str) -> np.ndarray:
+    try:
+        return np.array(strings, dtype=float)
+    except ValueError:
+        pass
+    for s, row in zip(strings, line_nos, strict=True):
+        try:
+            float(s)
+        except ValueError:
+            what = "empty value" if not s.strip() else f"unparsable value {s.strip()!r}"
+            raise InputError(f"{what} (expected a number)", file=file, row=row, column=name) from None
+    raise InputError("unparsable values", file=file, column=name)  # pragma: no cover
+
+
+def _unit_vectors(v: np.ndarray, line_nos: np.ndarray, what: str, column: str, file: str) -> np.ndarray:
+    norm = np.linalg.norm(v, axis=1)
+    zero = norm < 1e-12
+    if np.any(zero):
+        k = int(np.flatnonzero(zero)[0])
+        raise InputError(f"zero {what}", file=file, row=int(line_nos[k]), column=column)
+    off = np.abs(norm - 1) > UNIT_TOL
+    if np.any(off):
+        k = int(np.flatnonzero(off)[0])
+        raise InputError(f"{what} is not a unit vector (length {norm[k]:.9g}, allowed 1 +- {UNIT_TOL:g})",
+                         file=file, row=int(line_nos[k]), column=column)
+    return v / norm[:, None]
+
+
+def read_cc_csv(path: str | Path) -> CCPath:
+    """Read a CC path from the pinned CSV format (module docstring); InputError on bad input."""
+    file = str(path)
+    try:
+        text = Path(path).read_text(encoding="utf-8-sig")
+    except OSError as exc:
+        raise InputError(f"cannot read CC path: {exc.strerror or exc}", file=file) from exc
+    except UnicodeDecodeError as exc:
+        raise InputError(f"not a text file: {exc}", file=file) from exc
+    try:
+        lines = list(csv.reader(io.StringIO(text)))
+    except csv.Error as exc:
+        raise InputError(f"not valid CSV: {exc}", file=file) from exc
+    if not lines or not any(f.strip() for line in lines for f in line):
+        raise InputError("empty file (expected a header row and data rows)", file=file)
+    header = [h.strip().lower() for h in lines[0]]
+    if not any(header):
+        raise InputError("the first line (header row) is empty", file=file, row=0)
+    col: dict[str, int] = {}
+    for i, h in enumerate(header):
+        if h in REQUIRED + OPTIONAL:
+            if h in col:
+                raise InputError("column appears twice in the header", file=file, row=0, column=h)
+            col[h] = i
+    unknown = [h for h in header if h and h not in REQUIRED + OPTIONAL]
+    feed_dir_cols = [c for c in ("fx", "fy", "fz") if c in col]
+    needed = list(REQUIRED) + (["fx", "fy", "fz"] if feed_dir_cols else [])
+    for name in needed:
+        if name not in col:
+            close = difflib.get_close_matches(name, unknown, n=1, cutoff=0.6)
+            hint = f" (found '{close[0]}': misspelt?)" if close else ""
+            why = "" if name in REQUIRED else f" (needed with {', '.join(feed_dir_cols)})"
+            raise InputError(f"missing column '{name}'{hint}{why}", file=file, row=0, column=name)
+
+    data = [(k, line) for k, line in enumerate(lines[1:], start=1) if any(f.strip() for f in line)]
+    if not data:
+        raise InputError("no data rows after the header", file=file)
+    used = [c for c in REQUIRED + OPTIONAL if c in col]
+    last = max(col[c] for c in used)
+    for k, line in data:
+        if len(line) > len(header):
+            raise InputError(f"{len(line)} fields but the header has {len(header)} (a decimal comma?)",
+                             file=file, row=k)
+        if len(line) <= last:
+            missing = next(c for c in used if col[c] >= len(line))
+            raise InputError(f"missing value ({len(line)} fields, header has {len(header)})",
+                             file=file, row=k, column=missing)
+    line_nos = [k for k, _ in data]
+    values: dict[str, np.ndarray] = {}
+    for c in used:
+        a = _parse_column([line[col[c]] for _, line in data], line_nos, c, file)
+        bad = ~np.isfinite(a)
+        if np.any(bad):
+            j = int(np.flatnonzero(bad)[0])
+            raise InputError(f"non-finite value {a[j]!r}", file=file, row=line_nos[j], column=c)
+        values[c] = a
+    rows_no = np.asarray(line_nos)
+
+    points = np.stack([values["x"], values["y"], values["z"]], axis=1)
+    normals = _unit_vectors(np.stack([values["nx"], values["ny"], values["nz"]], axis=1), rows_no, "normal",
+                            "nx,ny,nz", file)
+    if "row" in values:
+        r = values["row"]
+        nonint = (r != np.round(r)) | (np.abs(r) > 2**53)
+        if np.any(nonint):
+            j = int(np.flatnonzero(nonint)[0])
+            raise InputError(f"row id {data[j][1][col['row']].strip()!r} is not an integer", file=file,
+                             row=line_nos[j], column="row")
+        rows = r.astype(np.int64)
+    else:
+        rows = np.zeros(len(points), dtype=np.int64)
+    feed = None
+    if "feed" in values:
+        feed = values["feed"]
+        bad = ~(feed > 0)
+        if np.any(bad):
+            j = int(np.flatnonzero(bad)[0])
+            raise InputError(f"feed must be > 0 mm/min, got {feed[j]!r}", file=file, row=line_nos[j],
+                             column="feed")
+    feed_dirs = None
+    if feed_dir_cols:
+        f = _unit_vectors(np.stack([values["fx"], values["fy"], values["fz"]], axis=1), rows_no,
+                          "feed direction", "fx,fy,fz", file)
+        fn = _dot(f, normals)
+        bad = np.abs(fn) > TANGENT_TOL
+        if np.any(bad):
+            j = int(np.flatnonzero(bad)[0])
+            raise InputError(f"feed direction is not tangent to the surface (f.n = {fn[j]:.6g}, "
+                             f"|f.n| allowed <= {TANGENT_TOL:g})", file=file, row=line_nos[j],
+                             column="fx,fy,fz")
+        f = f - fn[:, None] * normals
+        feed_dirs = f / np.linalg.norm(f, axis=1)[:, None]
+
+    cc = CCPath(points=points, normals=normals, rows=rows, feed_dirs=feed_dirs, feed=feed, source=file)
+    starts, again = _row_runs(rows)
+    if again is not None:
+        raise InputError(f"row id {rows[again]} reappears after other rows (rows must be contiguous runs)",
+                         file=file, row=line_nos[again], column="row")
+    slices = cc.row_slices()
+    for sl in slices:
+        if sl.stop - sl.start < MIN_ROW_POINTS:
+            raise InputError(f"row id {rows[sl.start]} has {sl.stop - sl.start} point(s); at least "
+                             f"{MIN_ROW_POINTS} are needed", file=file, row=line_nos[sl.start], column="row")
+    step = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    repeat = (step < REPEAT_TOL) & (rows[1:] == rows[:-1])
+    if np.any(repeat):
+        j = int(np.flatnonzero(repeat)[0]) + 1
+        raise InputError(f"point repeats the previous point of row id {rows[j]} "
+                         f"(distance {step[j - 1]:.3g} mm)", file=file, row=line_nos[j], column="x,y,z")
+    return cc
+
+
+def write_cc_csv(path: str | Path, ccpath: CCPath) -> None:
+    """Write ``ccpath`` in the pinned CSV format, atomically, with '%.17g' floats (exact round trip
+    with ``read_cc_csv``). Columns: x,y,z,nx,ny,nz,row[,fx,fy,fz][,feed]."""
+    cols = ["x", "y", "z", "nx", "ny", "nz", "row"]
+    blocks = [ccpath.points, ccpath.normals]
+    if ccpath.feed_dirs is not None:
+        cols += ["fx", "fy", "fz"]
+    if ccpath.feed is not None:
+        cols += ["feed"]
+    fmt_float = "%.17g"
+    parts = [np.char.mod(fmt_float, b) for b in blocks]
+    parts.append(np.char.mod("%d", ccpath.rows.reshape(-1, 1)))
+    if ccpath.feed_dirs is not None:
+        parts.append(np.char.mod(fmt_float, ccpath.feed_dirs))
+    if ccpath.feed is not None:
+        parts.append(np.char.mod(fmt_float, ccpath.feed.reshape(-1, 1)))
+    table = np.concatenate(parts, axis=1) if len(ccpath) else np.zeros((0, len(cols)), dtype=str)
+    body = "\n".join(",".join(r) for r in table.tolist())
+    write_text_atomic(path, ",".join(cols) + "\n" + body + ("\n" if body else ""))
+
+
+def check_normals_against_mesh(path: CCPath, mesh: trimesh.Trimesh) -> None:
+    """InputError naming the first CC point whose normal points into the material.
+
+    A normal points into the material when n . m < 0, m the mesh face normal at the closest point
+    (``surface_normals_at``; the mesh's face normals must point out of the material). The row
+    named is the 1-based index of the point in the path (the data row of its CSV file).
+    """
+    m = surface_normals_at(mesh, path.points)
+    dots = _dot(path.normals, m)
+    bad = dots < 0
+    if np.any(bad):
+        k = int(np.flatnonzero(bad)[0])
+        raise InputError(f"normal points into the material (n . mesh normal = {dots[k]:.3g} at row id "
+                         f"{path.rows[k]}, point {path.points[k].round(6).tolist()}); "
+                         f"{int(np.sum(bad))} points affected", file=path.source, row=k + 1,
+                         column="nx,ny,nz")
+
+
+# ---------------------------------------------------------------------------------------------
+# path generators
+
+
+def _counts(length: float, step: float) -> int:
+    """Points needed so that ``length`` is split into intervals no longer than ``step``."""
+    return max(2, math.ceil(length / step - 1e-9) + 1)
+
+
+def _swap(surface: ParametricSurface, along: str) -> tuple[tuple[float, float], tuple[float, float]]:
+    """(range along the rows, range across them)."""
+    if along not in ("u", "v"):
+        raise ValueError("along must be 'u' or 'v'")
+    if along == "u":
+        return surface.u_range, surface.v_range
+    return surface.v_range, surface.u_range
+
+
+def _uv(along: str, a: Any, c: Any) -> tuple[np.ndarray, np.ndarray]:
+    a, c = np.broadcast_arrays(np.asarray(a, dtype=float), np.asarray(c, dtype=float))
+    return (a, c) if along == "u" else (c, a)
+
+
+def _cross_distance(surface: ParametricSurface, along: str, n_dense: int) -> tuple[np.ndarray, np.ndarray]:
+    """Cross parameter samples and the cumulative across-row distance (mm) at them.
+
+    The distance between neighbouring iso-curves per unit cross parameter is |Su x Sv| / |S_along|
+    (the part of S_cross normal to the row direction); its maximum along the row is integrated.
+    """
+    a_range, c_range = _swap(surface, along)
+    a_s = np.linspace(*a_range, 101)
+    c_d = np.linspace(*c_range, min(n_dense, 1001))  # the width varies smoothly: trapezoids suffice
+    d = surface.derivatives(*_uv(along, a_s[:, None], c_d[None, :]))
+    s_along = np.linalg.norm(d.Su if along == "u" else d.Sv, axis=-1)
+    w = (np.linalg.norm(np.cross(d.Su, d.Sv), axis=-1) / s_along).max(axis=0)
+    return c_d, np.r_[0.0, np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(c_d))]
+
+
+def zigzag_extents(surface: ParametricSurface, along: str = "u", n_dense: int = 4001) -> tuple[float, float]:
+    """(longest row length, across-row width) in mm of the zig-zag region of ``zigzag_path``
+    (no margin): e.g. stepover = width / (rows - 1), spacing = length / (points - 1)."""
+    a_range, c_range = _swap(surface, along)
+    _, s_cross = _cross_distance(surface, along, n_dense)
+    c_s = np.linspace(*c_range, 101)
+    P = surface.point(*_uv(along, np.linspace(*a_range, n_dense)[None, :], c_s[:, None]))
+    length = np.linalg.norm(np.diff(P, axis=1), axis=-1).sum(axis=1).max()
+    return float(length), float(s_cross[-1])
+
+
+def zigzag_path(surface: ParametricSurface, stepover: float, spacing: float, along: str = "u",
+                margin: float = 0.0, feed: float | None = None, n_dense: int = 4001) -> CCPath:
+    """Iso-parametric zig-zag CC path on a parametric surface.
+
+    Rows run along ``along`` ('u': rows at constant v; 'v': rows at constant u); consecutive rows
+    alternate direction, rows are numbered 0, 1, ... in machining order. Row placement: the
+    across-row distance between neighbouring iso-curves is |Su x Sv| / |S_along| per unit of the
+    other parameter; its maximum over the row is integrated across, and rows are placed at equal
+    steps of that distance, no more than ``stepover`` mm apart. Within a row, the iso-curve is
+    sampled densely (``n_dense``), its cumulative chord length computed, and points placed at equal
+    arc-length steps no longer than ``spacing`` mm (parameter found with ``np.interp``, then the
+    surface evaluated exactly). ``margin`` (mm) is left free at both ends of every row and before
+    the first / after the last row. feed_dirs are the exact unit tangents along travel;
+    ``feed`` (mm/min), if given, is set on every point.
+    """
+    a_range, _ = _swap(surface, along)
+    if not (stepover > 0 and spacing > 0 and margin >= 0):
+        raise ValueError("stepover and spacing must be > 0 and margin >= 0")
+
+    def uv(a: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return _uv(along, a, c)
+
+    def along_deriv(d: Any) -> np.ndarray:
+        return d.Su if along == "u" else d.Sv
+
+    c_d, s_cross = _cross_distance(surface, along, n_dense)
+    avail = s_cross[-1] - 2 * margin
+    if not avail >= 0:
+        raise ValueError(f"margin {margin} mm leaves no room across the rows ({s_cross[-1]:.6g} mm)")
+    n_rows = _counts(avail, stepover) if avail > 0 else 1
+    c_rows = np.interp(np.linspace(margin, s_cross[-1] - margin, n_rows), s_cross, c_d)
+
+    a_d = np.linspace(*a_range, n_dense)
+    P = surface.point(*uv(a_d[None, :], c_rows[:, None]))  # (n_rows, n_dense, 3)
+    chords = np.linalg.norm(np.diff(P, axis=1), axis=-1)
+    s_row = np.concatenate([np.zeros((n_rows, 1)), np.cumsum(chords, axis=1)], axis=1)
+
+    pts, nrm, fdirs, rows = [], [], [], []
+    for k in range(n_rows):  # loop over rows (tens), not points
+        length = s_row[k, -1] - 2 * margin
+        if not length > 0:
+            raise ValueError(f"margin {margin} mm leaves no room along row {k} ({s_row[k, -1]:.6g} mm)")
+        s_t = np.linspace(margin, s_row[k, -1] - margin, _counts(length, spacing))
+        a_t = np.interp(s_t, s_row[k], a_d)
+        sign = 1.0
+        if k % 2:
+            a_t, sign = a_t[::-1], -1.0
+        uu, vv = uv(a_t, np.full_like(a_t, c_rows[k]))
+        dk = surface.derivatives(uu, vv)
+        t = along_deriv(dk)
+        pts.append(surface.point(uu, vv))
+        nrm.append(np.cross(dk.Su, dk.Sv) / np.linalg.norm(np.cross(dk.Su, dk.Sv), axis=-1)[:, None])
+        fdirs.append(sign * t / np.linalg.norm(t, axis=-1)[:, None])
+        rows.append(np.full(len(a_t), k))
+    points = np.concatenate(pts)
+    return CCPath(points=points, normals=np.concatenate(nrm), rows=np.concatenate(rows),
+                  feed_dirs=np.concatenate(fdirs),
+                  feed=None if feed is None else np.full(len(points), float(feed)))
+
+
+DropFunction = Callable[[trimesh.Trimesh, Any, np.ndarray, np.ndarray],
+                        tuple[np.ndarray, np.ndarray, np.ndarray]]
+
+
+def raster_path_on_mesh(mesh: trimesh.Trimesh, cutter: Any, axis: Any, stepover: float, spacing: float,
+                        drop: DropFunction, feed: float | None = None) -> CCPath:
+    """Zig-zag raster CC path on a mesh by dropping the cutter along a fixed tool axis.
+
+    Raster lines lie in the plane normal to ``axis`` (unit T, from tool tip toward spindle):
+    travel along e1 (the world x axis projected onto that plane, or y if x is nearly parallel to T),
+    lines spaced ``stepover`` mm along e2 = T x e1, points ``spacing`` mm apart, both grids centred
+    on the mesh's extent. The start points sit on a plane 1 mm (or 1 % of the mesh size) above the
+    mesh's highest point along T. ``drop(mesh, cutter, points, axis)`` (e.g.
+    ``camsmooth.interference.axial_drop``) returns (cl, contact, contact_normal), each (N, 3), NaN
+    where the cutter misses. Misses split a line into separate rows; consecutive repeated contact
+    points (the cutter rolling over an edge) are kept once; rows of fewer than 3 points are
+    dropped. Lines alternate direction; rows are numbered 0, 1, ... in machining order. Feed
+    directions are the travel direction projected onto each contact's tangent plane.
+    """
+    T = np.asarray(axis, dtype=float)
+    T = T / np.linalg.norm(T)
+    if not (stepover > 0 and spacing > 0):
+        raise ValueError("stepover and spacing must be > 0")
+    e1 = np.array([1.0, 0.0, 0.0]) - T[0] * T
+    if np.linalg.norm(e1) < 0.1:
+        e1 = np.array([0.0, 1.0, 0.0]) - T[1] * T
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(T, e1)
+    V = np.asarray(mesh.vertices)
+    p1, p2, pa = V @ e1, V @ e2, V @ T
+
+    def centred(lo: float, hi: float, step: float) -> np.ndarray:
+        n = int(math.floor((hi - lo) / step + 1e-9)) + 1
+        return lo + 0.5 * ((hi - lo) - (n - 1) * step) + step * np.arange(n)
+
+    t1 = centred(p1.min(), p1.max(), spacing)
+    t2 = centred(p2.min(), p2.max(), stepover)
+    top = pa.max() + max(1.0, 0.01 * float(np.ptp(V, axis=0).max()))
+    grid = t1[None, :, None] * e1 + t2[:, None, None] * e2 + top * T  # (lines, points, 3)
+    _, contact, cn = drop(mesh, cutter, grid.reshape(-1, 3), T)
+    contact = np.asarray(contact, dtype=float).reshape(len(t2), len(t1), 3)
+    cn = np.asarray(cn, dtype=float).reshape(len(t2), len(t1), 3)
+    hit = np.all(np.isfinite(contact), axis=-1) & np.all(np.isfinite(cn), axis=-1)
+
+    pts, nrm, fdirs, rows = [], [], [], []
+    for j in range(len(t2)):  # loop over raster lines, not points
+        order = np.arange(len(t1)) if j % 2 == 0 else np.arange(len(t1))[::-1]
+        travel = e1 if j % 2 == 0 else -e1
+        h = hit[j, order]
+        # runs of consecutive hits along the travel order
+        edges = np.flatnonzero(np.diff(np.r_[0, h.astype(np.int8), 0]))
+        for s, e in zip(edges[::2], edges[1::2], strict=True):
+            idx = order[s:e]
+            c = contact[j, idx]
+            keep = np.r_[True, np.linalg.norm(np.diff(c, axis=0), axis=1) >= REPEAT_TOL]
+            c, n = c[keep], cn[j, idx][keep]
+            if len(c) < MIN_ROW_POINTS:
+                continue
+            n = n / np.linalg.norm(n, axis=1)[:, None]
+            f = travel - _dot(n, travel)[:, None] * n
+            fl = np.linalg.norm(f, axis=1)
+            f = np.where(fl[:, None] > 1e-9, f / np.where(fl > 1e-9, fl, 1.0)[:, None], np.nan)
+            pts.append(c)
+            nrm.append(n)
+            fdirs.append(f)
+            rows.append(np.full(len(c), len(rows)))
+    if not pts:
+        raise ValueError("the cutter missed the mesh everywhere: no raster rows")
+    points, normals, rr = np.concatenate(pts), np.concatenate(nrm), np.concatenate(rows)
+    f = np.concatenate(fdirs)
+    bad = ~np.all(np.isfinite(f), axis=1)
+    if np.any(bad):  # contact normal along the travel direction: fall back on the point sequence
+        f[bad] = estimate_feed_dirs(points, normals, rr)[bad]
+    return CCPath(points=points, normals=normals, rows=rr, feed_dirs=f,
+                  feed=None if feed is None else np.full(len(points), float(feed)))

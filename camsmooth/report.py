@@ -1,0 +1,731 @@
+"""HTML report of a smoothing run: plots per method and a summary table.
+
+``write_report`` writes a folder (atomically, ``camsmooth._io.atomic_dir``) with one PNG per
+plot and a self-contained ``report.html`` that embeds the same PNGs as base64 data URIs, so
+the HTML alone still shows everything when moved.
+
+Plots use matplotlib's object API (``matplotlib.figure.Figure`` and the Agg canvas), never
+pyplot, so the report neither needs a display nor changes the caller's backend. Multi-row
+programs are plotted against cumulative program time (rows concatenated, row starts marked by
+faint vertical lines). Series longer than ``max_plot_points`` are decimated to a min/max
+envelope per bin (peaks kept); the figure says so.
+
+The 3D view is rendered with pyvista in a child process: VTK aborts the whole process when it
+finds no OpenGL context (no X server, no EGL, no OSMesa), so rendering in-process could kill the
+caller. If the child fails the report carries a note instead of the image. Headless Linux works
+without a virtual framebuffer when VTK >= 9.4 (runtime OpenGL selection: X, then EGL, then
+OSMesa) finds an EGL (e.g. Mesa surfaceless/llvmpipe) or OSMesa library.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import os
+import subprocess
+import sys
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from . import __version__
+from ._io import atomic_dir
+from .result import MethodResult, SmoothResult
+
+#: PNG files of a report, in display order (``scene_3d.png`` only when rendering worked).
+PLOT_FILES: tuple[str, ...] = ("axes_angles.png", "axes_velocity.png", "axes_acceleration.png",
+                               "compound_acceleration.png", "lead_tilt.png", "clearance.png")
+SCENE_FILE = "scene_3d.png"
+HTML_FILE = "report.html"
+#: Clearance tolerance drawn on the clearance plot (mm); matches camsmooth.output.
+CLEARANCE_TOL_MM = -1e-3
+
+_METHOD_ORDER = ("none", "spline", "nlp")
+_METHOD_COLOURS = {"none": "#7f7f7f", "spline": "#1f77b4", "nlp": "#d62728"}
+_EXTRA_COLOURS = ("#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#17becf")
+_LIMIT_COLOUR = "#ff7f0e"
+_DPI = 100
+_RENDER_TIMEOUT_S = 120.0
+
+
+# ----------------------------------------------------------------------------------------------
+# series preparation
+@dataclass
+class _Series:
+    """One method's data laid out for plotting: cumulative time, row breaks, decimation."""
+
+    m: MethodResult
+    t: np.ndarray          # cumulative program time (s)
+    starts: np.ndarray     # index of each row's first point
+    max_points: int
+    primary: bool = False
+
+    @property
+    def decimated(self) -> bool:
+        return len(self.t) > self.max_points
+
+    def row_start_times(self) -> np.ndarray:
+        return self.t[self.starts]
+
+    def line(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(x, y) for a line plot: NaN-broken between rows, min/max envelope when decimated."""
+        return _line_xy(self.t, _finite(y), self.starts, self.max_points)
+
+    def band(self, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(x, lo, hi) for fill_between: per bin the lowest lo and highest hi when decimated."""
+        return _band_xy(self.t, _finite(lo), _finite(hi), self.starts, self.max_points)
+
+
+def _finite(y: np.ndarray) -> np.ndarray:
+    """Float copy with inf (e.g. an unbounded window, no mesh in reach) as NaN: a gap, not a
+    broken autoscale."""
+    y = np.array(y, dtype=float)
+    y[~np.isfinite(y)] = np.nan
+    return y
+
+
+def _row_starts(rows: np.ndarray) -> np.ndarray:
+    rows = np.asarray(rows)
+    if len(rows) == 0:
+        return np.zeros(0, dtype=int)
+    return np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
+
+
+def cumulative_time(t: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """Program time (s) over all rows: each row's time ``t`` (0 at its first point) is shifted
+    so the row starts where the previous row ended (rows contiguous, in path order)."""
+    t = np.asarray(t, dtype=float)
+    starts = _row_starts(rows)
+    if len(t) == 0:
+        return t.copy()
+    ends = np.r_[starts[1:], len(t)] - 1
+    t0 = t[starts]
+    duration = np.nan_to_num(t[ends] - t0)
+    offset = np.r_[0.0, np.cumsum(duration)[:-1]] - t0
+    return t + np.repeat(offset, np.diff(np.r_[starts, len(t)]))
+
+
+def _bins(starts: np.ndarray, n: int, max_points: int) -> np.ndarray:
+    """Start index of each decimation bin; bins never cross a row start."""
+    width = max(1, int(np.ceil(2 * n / max(max_points, 2))))
+    local = np.arange(n) - np.repeat(starts, np.diff(np.r_[starts, n]))
+    return np.flatnonzero(local % width == 0)
+
+
+def _break_rows(x: np.ndarray, ys: Sequence[np.ndarray], breaks: np.ndarray) -> list[np.ndarray]:
+    """Insert NaN before each break index so lines are not drawn across row starts."""
+    return [np.insert(np.asarray(a, float), breaks, np.nan) for a in (x, *ys)]
+
+
+def _line_xy(t: np.ndarray, y: np.ndarray, starts: np.ndarray, max_points: int
+             ) -> tuple[np.ndarray, np.ndarray]:
+    n = len(t)
+    if n <= max_points:
+        x, yy = _break_rows(t, [y], starts[1:])
+        return x, yy
+    b = _bins(starts, n, max_points)
+    ymin = np.fmin.reduceat(y, b)
+    ymax = np.fmax.reduceat(y, b)
+    tmid = 0.5 * (t[b] + t[np.r_[b[1:], n] - 1])
+    x = np.repeat(tmid, 2)
+    yy = np.column_stack([ymin, ymax]).ravel()
+    row_break = np.flatnonzero(np.isin(b, starts[1:]))
+    x, yy = _break_rows(x, [yy], 2 * row_break)
+    return x, yy
+
+
+def _band_xy(t: np.ndarray, lo: np.ndarray, hi: np.ndarray, starts: np.ndarray, max_points: int
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    n = len(t)
+    if n <= max_points:
+        return tuple(_break_rows(t, [lo, hi], starts[1:]))  # type: ignore[return-value]
+    b = _bins(starts, n, max_points)
+    stop = np.r_[b[1:], n] - 1
+    x = np.column_stack([t[b], t[stop]]).ravel()
+    lo_b = np.repeat(np.fmin.reduceat(lo, b), 2)
+    hi_b = np.repeat(np.fmax.reduceat(hi, b), 2)
+    row_break = np.flatnonzero(np.isin(b, starts[1:]))
+    return tuple(_break_rows(x, [lo_b, hi_b], 2 * row_break))  # type: ignore[return-value]
+
+
+def _ordered_methods(result: SmoothResult) -> list[str]:
+    known = [m for m in _METHOD_ORDER if m in result.methods]
+    return known + [m for m in result.methods if m not in known]
+
+
+def _colour(method: str, order: list[str]) -> str:
+    if method in _METHOD_COLOURS:
+        return _METHOD_COLOURS[method]
+    extras = [m for m in order if m not in _METHOD_COLOURS]
+    return _EXTRA_COLOURS[extras.index(method) % len(_EXTRA_COLOURS)]
+
+
+# ----------------------------------------------------------------------------------------------
+# figures
+def _figure(nrows: int, ncols: int, title: str, height_per_row: float = 2.6, width: float | None = None):
+    from matplotlib.figure import Figure
+
+    width = width or max(6.0, 4.6 * ncols)
+    fig = Figure(figsize=(width, 0.6 + height_per_row * nrows), dpi=_DPI, layout="constrained")
+    axes = fig.subplots(nrows, ncols, squeeze=False, sharex="col")
+    fig.suptitle(title, fontsize=11)
+    return fig, axes
+
+
+def _mark_rows(ax, s: _Series) -> None:
+    starts = s.row_start_times()
+    if len(starts) > 1:
+        ax.vlines(starts[1:], 0, 1, transform=ax.get_xaxis_transform(), colors="0.6", linewidths=0.5,
+                  alpha=0.35, zorder=0)
+
+
+def _limit_lines(ax, values: Sequence[float], label: str, data: np.ndarray, always: bool) -> None:
+    """Horizontal limit lines. ``always``: widen the view to show them. Otherwise (travel limits
+    far from the data) they are drawn only when near the data and named in a corner note, so a
+    few degrees of motion are not flattened against a +-100 deg travel."""
+    values = [float(v) for v in values if np.isfinite(v)]
+    if not values:
+        return
+    finite = data[np.isfinite(data)]
+    lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 0.0)
+    span = max(hi - lo, 1e-9)
+    near = [v for v in values if lo - 1.5 * span <= v <= hi + 1.5 * span]
+    shown = values if always else near
+    for v in shown:
+        ax.axhline(v, color=_LIMIT_COLOUR, linestyle="--", linewidth=1.0, zorder=1)
+    if len(shown) < len(values):
+        ax.text(0.99, 0.02, f"{label} {', '.join(f'{v:g}' for v in values)} (off scale)",
+                transform=ax.transAxes, ha="right", va="bottom", fontsize=7, color=_LIMIT_COLOUR)
+    elif shown:
+        ax.plot([], [], color=_LIMIT_COLOUR, linestyle="--", linewidth=1.0, label=label)
+
+
+def _axis_limits(machine: Any, name: str) -> Any:
+    limits = getattr(machine, "limits", None) or {}
+    return limits.get(name)
+
+
+def _decimation_note(series: Sequence[_Series]) -> str:
+    dec = [s for s in series if s.decimated]
+    if not dec:
+        return ""
+    n = max(len(s.t) for s in dec)
+    return f" [decimated: {n} points shown as min/max per bin, about {dec[0].max_points} drawn]"
+
+
+def _plot_axes(series: list[_Series], colours: dict[str, str], machine: Any, quantity: str) -> Any:
+    """A and B per method (columns): angle, velocity or acceleration with its limits."""
+    spec = {
+        "angle": ("A", "B", "deg", "travel", lambda m, ax: getattr(m, ax)),
+        "velocity": ("A'", "B'", "deg/s", "\u00b1vmax", lambda m, ax: getattr(m, f"{ax}_vel")),
+        "acceleration": ("A''", "B''", "deg/s\u00b2", "\u00b1amax", lambda m, ax: getattr(m, f"{ax}_acc")),
+    }[quantity]
+    lab_a, lab_b, unit, limit_label, get = spec
+    title = f"Rotary axes: {quantity} per method ({unit}){_decimation_note(series)}"
+    fig, axes = _figure(2, len(series), title)
+    for c, s in enumerate(series):
+        for r_, (axis_name, lab) in enumerate((("A", lab_a), ("B", lab_b))):
+            ax = axes[r_, c]
+            y = np.degrees(np.asarray(get(s.m, axis_name), dtype=float))
+            x, yy = s.line(y)
+            ax.plot(x, yy, color=colours[s.m.method], linewidth=0.9, label=s.m.method)
+            lim = _axis_limits(machine, axis_name)
+            if lim is not None:
+                if quantity == "angle":
+                    _limit_lines(ax, np.degrees([lim.min, lim.max]), "travel", y, always=False)
+                else:
+                    vmax = lim.vmax if quantity == "velocity" else lim.amax
+                    if np.isfinite(vmax):
+                        v = float(np.degrees(vmax))
+                        _limit_lines(ax, [-v, v], limit_label, y, always=True)
+            _mark_rows(ax, s)
+            ax.grid(True, alpha=0.3)
+            ax.set_ylabel(f"{lab} ({unit})")
+            if r_ == 0:
+                ax.set_title(s.m.method + (" (primary)" if s.primary else ""), fontsize=10)
+            if r_ == 1:
+                ax.set_xlabel("program time (s)")
+            ax.legend(loc="upper right", fontsize=7)
+    return fig
+
+
+def _plot_compound(series: list[_Series], colours: dict[str, str]) -> Any:
+    fig, axes = _figure(1, 1, "Compound angular acceleration |T''| of the tool axis (1/s\u00b2, log scale)"
+                        + _decimation_note(series), height_per_row=3.6, width=max(9.0, 4.6 * len(series)))
+    ax = axes[0, 0]
+    positive = False
+    for s in series:
+        y = np.abs(np.asarray(s.m.compound_acc, dtype=float))
+        any_positive = bool(np.any(y > 0))
+        positive |= any_positive
+        x, yy = s.line(np.where(y > 0, y, np.nan))
+        label = s.m.method if any_positive else f"{s.m.method} (zero everywhere, not drawn)"
+        ax.plot(x, yy, color=colours[s.m.method], linewidth=0.9, label=label)
+    if positive:
+        ax.set_yscale("log")
+    else:
+        ax.text(0.5, 0.5, "|T''| is zero everywhere", transform=ax.transAxes, ha="center")
+    if series:
+        _mark_rows(ax, series[0])
+    ax.grid(True, which="both", alpha=0.3)
+    ax.set_xlabel("program time (s)")
+    ax.set_ylabel("|T''| (1/s\u00b2)")
+    ax.legend(loc="upper right", fontsize=8)
+    return fig
+
+
+def _plot_lead_tilt(series: list[_Series], colours: dict[str, str]) -> Any:
+    fig, axes = _figure(2, len(series), "Lead and tilt (deg) within their per-point windows (shaded)"
+                        + _decimation_note(series))
+    for c, s in enumerate(series):
+        for r_, (name, window) in enumerate((("lead", s.m.lead_window), ("tilt", s.m.tilt_window))):
+            ax = axes[r_, c]
+            w = np.degrees(np.asarray(window, dtype=float).reshape(-1, 2))
+            xb, lo, hi = s.band(w[:, 0], w[:, 1])
+            ax.fill_between(xb, lo, hi, color="0.75", alpha=0.6, linewidth=0, label="window")
+            y = np.degrees(np.asarray(getattr(s.m, name), dtype=float))
+            x, yy = s.line(y)
+            ax.plot(x, yy, color=colours[s.m.method], linewidth=0.9, label=name)
+            with np.errstate(invalid="ignore"):
+                out = (y < w[:, 0] - 1e-9) | (y > w[:, 1] + 1e-9)
+            if out.any():
+                ax.plot(s.t[out], y[out], "x", color="k", markersize=3, label=f"outside ({int(out.sum())})")
+            _mark_rows(ax, s)
+            ax.grid(True, alpha=0.3)
+            ax.set_ylabel(f"{name} (deg)")
+            if r_ == 0:
+                ax.set_title(s.m.method, fontsize=10)
+            else:
+                ax.set_xlabel("program time (s)")
+            ax.legend(loc="upper right", fontsize=7)
+    return fig
+
+
+def _plot_clearance(series: list[_Series], colours: dict[str, str]) -> Any:
+    fig, axes = _figure(1, len(series), "Clearance \u03b4 tool to surface (mm); gouge below "
+                        f"{CLEARANCE_TOL_MM:g} mm" + _decimation_note(series), height_per_row=3.2)
+    for c, s in enumerate(series):
+        ax = axes[0, c]
+        d = np.asarray(s.m.delta, dtype=float)
+        x, yy = s.line(d)
+        ax.plot(x, yy, color=colours[s.m.method], linewidth=0.9, label="\u03b4")
+        ax.axhline(0.0, color="k", linewidth=0.8)
+        ax.axhline(CLEARANCE_TOL_MM, color="#d62728", linestyle="--", linewidth=0.9,
+                   label=f"tolerance {CLEARANCE_TOL_MM:g} mm")
+        with np.errstate(invalid="ignore"):
+            bad = d < CLEARANCE_TOL_MM
+        if bad.any():
+            ax.plot(s.t[bad], d[bad], ".", color="#d62728", markersize=3, label=f"gouge ({int(bad.sum())})")
+        _mark_rows(ax, s)
+        ax.grid(True, alpha=0.3)
+        ax.set_title(s.m.method, fontsize=10)
+        ax.set_xlabel("program time (s)")
+        ax.set_ylabel("\u03b4 (mm)")
+        ax.legend(loc="upper right", fontsize=7)
+    return fig
+
+
+def _save_png(fig: Any, path: Path) -> None:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    FigureCanvasAgg(fig)
+    fig.savefig(path, format="png", dpi=_DPI)
+
+
+# ----------------------------------------------------------------------------------------------
+# 3D scene (child process)
+def _mesh_arrays(mesh: Any) -> tuple[np.ndarray, np.ndarray] | None:
+    """(vertices (V,3), triangles (F,3)) of a trimesh-like or pyvista surface, or None."""
+    if mesh is None:
+        return None
+    if hasattr(mesh, "vertices") and hasattr(mesh, "faces"):
+        v = np.asarray(mesh.vertices, dtype=float)
+        f = np.asarray(mesh.faces, dtype=np.int64)
+        if f.ndim == 2 and f.shape[1] == 3:
+            return v, f
+    if hasattr(mesh, "points") and hasattr(mesh, "triangulate"):
+        surf = (mesh.extract_surface() if hasattr(mesh, "extract_surface") else mesh).triangulate()
+        return np.asarray(surf.points, dtype=float), np.asarray(surf.regular_faces, dtype=np.int64)
+    return None
+
+
+def _axis_segments(m: MethodResult, length: float, max_segments: int) -> np.ndarray:
+    """(K, 2, 3) segments from the CL point along the tool axis, every step-th point."""
+    cl = np.asarray(m.cl, dtype=float).reshape(-1, 3)
+    T = np.asarray(m.axis, dtype=float).reshape(-1, 3)
+    step = max(1, int(np.ceil(len(cl) / max(max_segments, 1))))
+    keep = np.arange(0, len(cl), step)
+    ok = np.isfinite(cl[keep]).all(axis=1) & np.isfinite(T[keep]).all(axis=1)
+    keep = keep[ok]
+    return np.stack([cl[keep], cl[keep] + length * T[keep]], axis=1)
+
+
+def _scene_inputs(result: SmoothResult, max_segments: int) -> tuple[dict[str, np.ndarray], str]:
+    before = result.methods.get("none")
+    after = result.result
+    pts = [np.asarray(after.cl, float).reshape(-1, 3)]
+    mesh = _mesh_arrays(result.surface_mesh)
+    if mesh is not None:
+        pts.append(mesh[0])
+    allp = np.concatenate(pts)
+    allp = allp[np.isfinite(allp).all(axis=1)]
+    diag = float(np.linalg.norm(np.ptp(allp, axis=0))) if len(allp) else 1.0
+    length = 0.08 * diag if diag > 0 else 1.0
+    data: dict[str, np.ndarray] = {
+        "after": _axis_segments(after, length, max_segments),
+        "after_label": np.array(f"after: {after.method}"),
+        "path": np.asarray(after.cl, float).reshape(-1, 3),
+        "path_breaks": _row_starts(after.rows),
+    }
+    if before is not None and before is not after:
+        data["before"] = _axis_segments(before, length, max_segments)
+        data["before_label"] = np.array("before: none")
+    if mesh is not None:
+        data["vertices"], data["faces"] = mesh
+    step = max(1, int(np.ceil(len(after) / max(max_segments, 1))))
+    which = "at every point" if step == 1 else f"at every {step}th point (subsampled)"
+    note = f"Tool axes drawn as {length:.3g} mm segments from the tool tip {which}."
+    if mesh is None:
+        note += " No surface mesh in the result: axes only."
+    return data, note
+
+
+def render_scene_main(argv: Sequence[str]) -> int:
+    """Child-process entry: render ``argv[0]`` (npz from ``_scene_inputs``) to PNG ``argv[1]``.
+
+    Kept importable and separate so a VTK abort cannot take the caller down with it.
+    """
+    import pyvista as pv
+
+    pv.OFF_SCREEN = True
+    src, dst = argv[0], argv[1]
+    with np.load(src) as z:
+        d = {k: z[k] for k in z.files}
+    width, height = 1200, 900
+    pl = pv.Plotter(off_screen=True, window_size=(width, height))
+    pl.set_background("white")
+    if "vertices" in d:
+        faces = np.column_stack([np.full(len(d["faces"]), 3), d["faces"]]).ravel()
+        pl.add_mesh(pv.PolyData(d["vertices"], faces), color="#d9d9d9", smooth_shading=True, specular=0.2)
+    path = d["path"]
+    legend = []
+    if len(path) > 1:
+        seg = np.stack([path[:-1], path[1:]], axis=1)
+        seg = np.delete(seg, d["path_breaks"][1:] - 1, axis=0)
+        seg = seg[np.isfinite(seg).all(axis=(1, 2))]
+        if len(seg):
+            pl.add_mesh(pv.line_segments_from_points(seg.reshape(-1, 3)), color="#555555", line_width=1)
+            legend.append(("tool-tip path", "#555555"))
+    for key, colour, width in (("before", "#7f7f7f", 2), ("after", "#d62728", 3)):
+        if key in d and len(d[key]):
+            pl.add_mesh(pv.line_segments_from_points(d[key].reshape(-1, 3)), color=colour, line_width=width)
+            legend.append((f"{d[f'{key}_label']} (tool axes)", colour))
+    # legend as coloured text lines: VTK's legend box scales text to its height and overflows
+    # the window sideways for longer labels
+    for k, (label, colour) in enumerate(legend):
+        pl.add_text(f"\u2014 {label}", position=(20, height - 40 - 30 * k), font_size=14, color=colour)
+    pl.view_isometric()
+    pl.camera.zoom(1.25)
+    pl.add_axes()
+    pl.screenshot(dst)
+    pl.close()
+    return 0
+
+
+def _start_render(npz: Path, png: Path) -> subprocess.Popen:
+    pkg_parent = str(Path(__file__).resolve().parents[1])
+    env = dict(os.environ)
+    env["PYTHONPATH"] = pkg_parent + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+    code = ("import sys; from camsmooth.report import render_scene_main; "
+            "sys.exit(render_scene_main(sys.argv[1:]))")
+    return subprocess.Popen([sys.executable, "-c", code, str(npz), str(png)], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _finish_render(proc: subprocess.Popen, png: Path, timeout: float) -> str | None:
+    """None when ``png`` holds a real image, else the reason it does not."""
+    try:
+        _, err = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.communicate()
+        return f"the renderer did not finish within {timeout:g} s"
+    if proc.returncode != 0:
+        tail = [ln for ln in (err or "").strip().splitlines() if ln.strip()][-4:]
+        rc = proc.returncode
+        how = f"killed by signal {-rc}" if rc < 0 else f"exit code {rc}"
+        return f"the pyvista/VTK renderer failed ({how}): " + (" | ".join(tail) or "no message")
+    if not png.exists() or png.stat().st_size == 0:
+        return "the renderer wrote no image"
+    from matplotlib.image import imread
+
+    img = imread(png)
+    if img.ndim < 2 or float(np.ptp(img[..., :3])) == 0.0:
+        png.unlink()
+        return "the renderer produced a blank image (OpenGL context without working rasteriser)"
+    return None
+
+
+# ----------------------------------------------------------------------------------------------
+# HTML
+def _fmt(v: Any, spec: str = ".4g") -> str:
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        return "\u2014"
+    return "\u2014" if np.isnan(f) else format(f, spec)
+
+
+def method_summary(m: MethodResult) -> dict[str, Any]:
+    """Table values for one method, in report units: gamma, peak |A''| and |B''| (deg/s^2),
+    min delta (mm), violations (name -> count), unclean rows (list), unreachable (list of
+    (row, idx)), runtime (s). Taken from ``m.metrics`` (peak accelerations there are rad/s^2);
+    what the metrics lack is computed from the arrays (gamma and runtime become NaN)."""
+    mt = m.metrics or {}
+
+    def peak(key: str, arr: np.ndarray) -> float:
+        if mt.get(key) is not None:
+            return float(np.degrees(float(mt[key])))
+        a = np.abs(np.asarray(arr, dtype=float))
+        return float(np.degrees(np.nanmax(a))) if a.size and np.isfinite(a).any() else float("nan")
+
+    d = np.asarray(m.delta, dtype=float)
+    min_delta = mt.get("min_delta")
+    if min_delta is None:
+        min_delta = float(np.nanmin(d)) if d.size and np.isfinite(d).any() else float("nan")
+    return {
+        "gamma": float(mt["gamma"]) if mt.get("gamma") is not None else float("nan"),
+        "peak_A_acc_deg": peak("peak_A_acc", m.A_acc),
+        "peak_B_acc_deg": peak("peak_B_acc", m.B_acc),
+        "min_delta": float(min_delta),
+        "violations": dict(mt.get("violations") or {}),
+        "unclean_rows": [int(r) for r in (mt.get("unclean_rows") or [])],
+        "unreachable": [tuple(int(v) for v in p) for p in (mt.get("unreachable") or [])],
+        "runtime_s": float(mt["runtime_s"]) if mt.get("runtime_s") is not None else float("nan"),
+        "points": len(m),
+        "rows": int(len(_row_starts(m.rows))),
+    }
+
+
+def _short_list(items: Sequence[Any], limit: int = 60) -> str:
+    txt = ", ".join(str(i) for i in items[:limit])
+    return txt + (f", \u2026 and {len(items) - limit} more" if len(items) > limit else "")
+
+
+def _summary_table(order: list[str], summaries: dict[str, dict[str, Any]], primary: str) -> str:
+    vnames: list[str] = []
+    for name in order:
+        vnames += [v for v in summaries[name]["violations"] if v not in vnames]
+    head = (["method", "points", "rows", "\u0393 (gamma)", "peak |A''| (deg/s\u00b2)",
+             "peak |B''| (deg/s\u00b2)", "min \u03b4 (mm)"]
+            + [f"violations: {v}" for v in vnames] + ["unclean rows", "unreachable points", "run time (s)"])
+    out = ["<table class='summary'>", "<tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr>"]
+    for name in order:
+        s = summaries[name]
+        bad_delta = np.isfinite(s["min_delta"]) and s["min_delta"] < CLEARANCE_TOL_MM
+        cells = [
+            (html.escape(name) + (" <b>(primary)</b>" if name == primary else ""), False),
+            (str(s["points"]), False), (str(s["rows"]), False),
+            (_fmt(s["gamma"]), False), (_fmt(s["peak_A_acc_deg"]), False), (_fmt(s["peak_B_acc_deg"]), False),
+            (_fmt(s["min_delta"]), bad_delta),
+        ]
+        for v in vnames:
+            count = s["violations"].get(v)
+            cells.append(("\u2014" if count is None else str(count), bool(count)))
+        cells += [(str(len(s["unclean_rows"])), bool(s["unclean_rows"])),
+                  (str(len(s["unreachable"])), bool(s["unreachable"])), (_fmt(s["runtime_s"], ".3g"), False)]
+        tds = "".join(f"<td class='{'bad' if bad else ''}'>{c}</td>" for c, bad in cells)
+        out.append(f"<tr>{tds}</tr>")
+    out.append("</table>")
+    return "\n".join(out)
+
+
+def _notice(order: list[str], summaries: dict[str, dict[str, Any]], primary: str) -> str:
+    items = []
+    for name in sorted(order, key=lambda n: n != primary):
+        s = summaries[name]
+        tag = html.escape(name) + (" (primary)" if name == primary else "")
+        if s["unclean_rows"]:
+            items.append(f"<li><b>{tag}</b>: rows that could not be made clean: "
+                         f"{html.escape(_short_list(s['unclean_rows']))}</li>")
+        if s["unreachable"]:
+            pts = [f"(row {r}, point {i})" for r, i in s["unreachable"]]
+            items.append(f"<li><b>{tag}</b>: unreachable points (no axis solution within the travel): "
+                         f"{html.escape(_short_list(pts))}</li>")
+    if not items:
+        return "<p class='ok'>All rows clean; all points reachable.</p>"
+    return "<div class='notice'><b>Attention:</b><ul>" + "".join(items) + "</ul></div>"
+
+
+def _setup_html(result: SmoothResult) -> str:
+    m, c = result.machine, result.cutter
+    rows = []
+    if m is not None:
+        rows.append(("machine", f"{getattr(m, 'name', '?')} (kind {getattr(m, 'kind', '?')}, "
+                                f"pivot {_fmt(getattr(m, 'pivot', None))} mm)"))
+        for ax in ("A", "B"):
+            lim = _axis_limits(m, ax)
+            if lim is not None:
+                deg = np.degrees
+                rows.append((f"axis {ax}", f"travel [{_fmt(deg(lim.min))}, {_fmt(deg(lim.max))}] deg, "
+                                           f"vmax {_fmt(deg(lim.vmax))} deg/s, "
+                                           f"amax {_fmt(deg(lim.amax))} deg/s\u00b2"))
+    if c is not None:
+        rows.append(("cutter", f"R {_fmt(getattr(c, 'R', None))} mm, r {_fmt(getattr(c, 'r', None))} mm, "
+                               f"diameter {_fmt(getattr(c, 'diameter', None))} mm, "
+                               f"shank {_fmt(getattr(c, 'shank_length', None))} mm"))
+    for k, v in (result.inputs or {}).items():
+        txt = repr(v) if not isinstance(v, (str, os.PathLike)) else str(v)
+        rows.append((str(k), txt if len(txt) < 300 else txt[:300] + "\u2026"))
+    return ("<table class='setup'>" + "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>"
+                                              for k, v in rows) + "</table>")
+
+
+_CSS = """
+body { font-family: sans-serif; margin: 1.5em; color: #222; max-width: 1500px; }
+h1 { font-size: 1.5em; } h2 { font-size: 1.15em; margin-top: 1.6em; }
+table { border-collapse: collapse; margin: 0.6em 0; font-size: 0.9em; }
+th, td { border: 1px solid #bbb; padding: 3px 8px; text-align: left; }
+table.summary td { text-align: right; } table.summary td:first-child { text-align: left; }
+th { background: #f0f0f0; }
+td.bad { color: #b00; font-weight: bold; background: #fdecec; }
+.notice { border: 2px solid #c00; background: #fdecec; color: #900; padding: 0.5em 1em; margin: 1em 0; }
+.ok { color: #176317; }
+.warn { border: 1px dashed #c60; background: #fff6e5; padding: 0.5em 1em; }
+figure { margin: 0.5em 0 1.5em 0; } figure img { max-width: 100%; border: 1px solid #ddd; }
+figcaption { font-size: 0.85em; color: #555; }
+"""
+
+_CAPTIONS = {
+    "axes_angles.png": ("1. Rotary axes A and B",
+                        "Commanded A and B (deg) per method; dashed: travel limits (named in the corner "
+                        "when far off scale)."),
+    "axes_velocity.png": ("2. Axis velocities", "A' and B' (deg/s) per method; dashed: \u00b1vmax."),
+    "axes_acceleration.png": ("3. Axis accelerations",
+                              "A'' and B'' (deg/s\u00b2) per method; dashed: \u00b1amax."),
+    "compound_acceleration.png": ("4. Compound angular acceleration",
+                                  "|d\u00b2T/dt\u00b2| of the unit tool axis per method (log scale)."),
+    "lead_tilt.png": ("5. Lead and tilt",
+                      "Lead and tilt (deg) per method; shaded: admissible window per point after gouge "
+                      "tightening; x: outside the window."),
+    "clearance.png": ("6. Clearance",
+                      "Minimum signed clearance \u03b4 tool to surface (mm); solid: 0; dashed: "
+                      f"{CLEARANCE_TOL_MM:g} mm tolerance; dots: gouges."),
+}
+
+
+def _img_tag(png: Path, alt: str) -> str:
+    b64 = base64.b64encode(png.read_bytes()).decode("ascii")
+    return f"<img src='data:image/png;base64,{b64}' alt='{html.escape(alt)}'>"
+
+
+# ----------------------------------------------------------------------------------------------
+# entry point
+def write_report(result: SmoothResult, out_dir: str | os.PathLike, *, title: str | None = None,
+                 render_3d: bool = True, max_plot_points: int = 8000, max_axis_segments: int = 300) -> Path:
+    """Write the report folder ``out_dir`` atomically and return its path.
+
+    Contents: PLOT_FILES (matplotlib PNGs, cumulative program time on x), ``scene_3d.png``
+    (pyvista, surface with tool axes before ('none') and after (primary method); absent with a
+    note in the HTML when rendering is unavailable or ``render_3d`` is False) and ``report.html``
+    (self-contained, PNGs embedded as base64 data URIs; summary table per method and a red notice
+    of unclean rows and unreachable points). Angles in degrees, lengths in mm. Series longer than
+    ``max_plot_points`` are drawn as a min/max envelope per bin; at most ``max_axis_segments``
+    tool axes per method are drawn in 3D. An exception leaves no (partial) folder behind and an
+    existing ``out_dir`` untouched.
+    """
+    if not result.methods:
+        raise ValueError("SmoothResult has no methods to report")
+    if result.primary not in result.methods:
+        raise ValueError(f"primary method {result.primary!r} not among {sorted(result.methods)}")
+    order = _ordered_methods(result)
+    colours = {m: _colour(m, order) for m in order}
+    series = []
+    for name in order:
+        m = result.methods[name]
+        series.append(_Series(m, cumulative_time(m.t, m.rows), _row_starts(m.rows),
+                              max(int(max_plot_points), 4), primary=name == result.primary))
+    t_start = time.perf_counter()
+    with atomic_dir(out_dir) as tmp:
+        proc = None
+        scene_note = "3D view not requested (render_3d=False)."
+        scene_detail = ""
+        if render_3d:
+            npz = tmp / "_scene.npz"
+            data, scene_detail = _scene_inputs(result, max_axis_segments)
+            np.savez(npz, **data)
+            proc = _start_render(npz, tmp / SCENE_FILE)
+        try:
+            figures = {
+                "axes_angles.png": lambda: _plot_axes(series, colours, result.machine, "angle"),
+                "axes_velocity.png": lambda: _plot_axes(series, colours, result.machine, "velocity"),
+                "axes_acceleration.png": lambda: _plot_axes(series, colours, result.machine, "acceleration"),
+                "compound_acceleration.png": lambda: _plot_compound(series, colours),
+                "lead_tilt.png": lambda: _plot_lead_tilt(series, colours),
+                "clearance.png": lambda: _plot_clearance(series, colours),
+            }
+            for name in PLOT_FILES:
+                _save_png(figures[name](), tmp / name)
+            if proc is not None:
+                reason = _finish_render(proc, tmp / SCENE_FILE, _RENDER_TIMEOUT_S)
+                scene_note = "" if reason is None else (
+                    f"3D view unavailable: {reason}. Off-screen rendering needs an OpenGL context: on a "
+                    "headless machine VTK >= 9.4 uses EGL or OSMesa (e.g. Mesa's libEGL / libOSMesa), "
+                    "otherwise run under a virtual framebuffer (xvfb-run).")
+        finally:
+            if proc is not None and proc.poll() is None:
+                proc.kill()
+                proc.communicate()
+        (tmp / "_scene.npz").unlink(missing_ok=True)
+        html_text = _html(result, order, tmp, title, scene_note, scene_detail, series,
+                          time.perf_counter() - t_start)
+        (tmp / HTML_FILE).write_text(html_text, encoding="utf-8")
+    return Path(out_dir)
+
+
+def _html(result: SmoothResult, order: list[str], folder: Path, title: str | None, scene_note: str,
+          scene_detail: str, series: list[_Series], elapsed: float) -> str:
+    summaries = {name: method_summary(result.methods[name]) for name in order}
+    primary = result.primary
+    n = len(result.result)
+    title = title or f"camsmooth report \u2014 {primary}, {n} points, {summaries[primary]['rows']} rows"
+    parts = [
+        "<!DOCTYPE html>", "<html lang='en'><head><meta charset='utf-8'>",
+        f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
+        f"<h1>{html.escape(title)}</h1>",
+        _notice(order, summaries, primary),
+        "<h2>Summary</h2>",
+        _summary_table(order, summaries, primary),
+        "<p style='font-size:0.85em;color:#555'>Peak accelerations and minimum clearance over the whole "
+        f"program; violations are counts per constraint; red cells need attention (gouge below "
+        f"{CLEARANCE_TOL_MM:g} mm, any violation, unclean row or unreachable point).</p>",
+        "<h2>Setup</h2>", _setup_html(result),
+    ]
+    note = _decimation_note(series)
+    for name in PLOT_FILES:
+        head, cap = _CAPTIONS[name]
+        cap += " Time is cumulative over the program (rows concatenated; faint vertical lines at row starts)."
+        if note:
+            cap += " Long series are drawn decimated:" + note
+        parts.append(f"<h2>{html.escape(head)}</h2><figure>{_img_tag(folder / name, head)}"
+                     f"<figcaption>{html.escape(cap)}</figcaption></figure>")
+    parts.append("<h2>7. Tool axes on the surface (3D)</h2>")
+    scene = folder / SCENE_FILE
+    if not scene_note and scene.exists():
+        before = "grey: before (method 'none'), " if "none" in result.methods and primary != "none" else ""
+        cap = f"{before}red: after (method '{primary}'); dark line: tool-tip path. {scene_detail}"
+        parts.append(f"<figure>{_img_tag(scene, '3D view')}"
+                     f"<figcaption>{html.escape(cap)}</figcaption></figure>")
+    else:
+        parts.append(f"<p class='warn'>{html.escape(scene_note or '3D view unavailable.')}</p>")
+    parts.append(f"<p style='font-size:0.8em;color:#777'>Generated by camsmooth {html.escape(__version__)} "
+                 f"in {elapsed:.1f} s.</p></body></html>")
+    return "\n".join(parts)
+
+
+__all__ = ["CLEARANCE_TOL_MM", "HTML_FILE", "PLOT_FILES", "SCENE_FILE", "cumulative_time", "method_summary",
+           "render_scene_main", "write_report"]

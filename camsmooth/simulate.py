@@ -1,0 +1,136 @@
+"""Measurement simulators: realistic probing, spindle-analyser and ballbar files from a given
+error model, with seeded Gaussian noise, for examples and tests (file formats in
+camsmooth.calibration). Each simulator evaluates the machine through ErrorModel.apply /
+SpindleScrew / ErrorModel.thermal_state, i.e. the same chain the calibration fits.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from .calibration import BallbarData, ProbeData, SpindleData, probe_offsets
+from .errormodel import ErrorModel, SpindleScrew, thermal_frame
+from .errors import InputError
+from .kinematics import Machine, load_machine
+
+DEFAULT_NOISE = {"probe": 0.0005, "spindle": 0.0001, "ballbar": 0.001}  # mm, one standard deviation
+
+
+def default_probe_poses(machine: Machine, n: int = 11, max_deg: float = 100.0
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """An n x n grid of (A, B) in radians over +-max_deg, clipped to the machine's travel."""
+    lim = np.radians(max_deg)
+    a = np.linspace(-lim, lim, n)
+    A, B = (v.ravel() for v in np.meshgrid(a, a, indexing="ij"))
+    ok = machine.within("A", A) & machine.within("B", B)
+    return A[ok], B[ok]
+
+
+def simulate_probe(model: ErrorModel, machine: Machine | None = None, *, poses: tuple[np.ndarray, np.ndarray]
+                   | None = None, sphere: Sequence[float] = (0.0, 0.0, 0.0),
+                   sphere_error: Sequence[float] = (0.012, -0.008, 0.005),
+                   noise: float = DEFAULT_NOISE["probe"], seed: int = 0) -> ProbeData:
+    """Reference-sphere probing at the poses (A, B rad; default ``default_probe_poses``). The
+    sphere is nominally at ``sphere`` (mm) and really at sphere + sphere_error; at each pose the
+    pivot is commanded so that the nominal tool tip sits at the nominal centre, and the control
+    reports the centre computed with its nominal kinematics: c - g(A, B) + N(0, noise^2) per
+    coordinate (g = real minus nominal tool tip; calibration module docstring)."""
+    machine = machine or load_machine()
+    A, B = poses if poses is not None else default_probe_poses(machine)
+    A, B = np.asarray(A, float), np.asarray(B, float)
+    c0 = np.asarray(sphere, float)
+    T = machine.tool_axis_np(A, B)
+    xyz = machine.linear_axes(np.broadcast_to(c0, T.shape), T)
+    data = ProbeData(A, B, xyz[:, 0], xyz[:, 1], xyz[:, 2], np.zeros((len(A), 3)))
+    g = probe_offsets(model, machine, data)
+    rng = np.random.default_rng(seed)
+    data.centre = c0 + np.asarray(sphere_error, float) - g + rng.normal(0.0, noise, g.shape)
+    return data
+
+
+def simulate_spindle(model: ErrorModel, *, exts: Sequence[float] = (50.0, 150.0), revolutions: int = 3,
+                     samples_per_rev: int = 72, noise: float = DEFAULT_NOISE["spindle"], seed: int = 0
+                     ) -> SpindleData:
+    """Spindle-error-analyser data: the reference-ball centre in CS1 over ``revolutions`` spindle
+    turns (samples_per_rev per turn, spindle angle accumulating) at each ball extension ``exts``
+    (mm beyond the collet centre O4: the ball heights), from model.spindle (no errors when None),
+    plus N(0, noise^2) per coordinate."""
+    spindle = model.spindle or SpindleScrew()
+    if samples_per_rev < 4 or revolutions < 1:
+        raise InputError("simulate spindle: needs at least 4 samples per revolution and one revolution")
+    theta = np.arange(revolutions * samples_per_rev) * (2 * np.pi / samples_per_rev)
+    rng = np.random.default_rng(seed)
+    th_all, ext_all, balls = [], [], []
+    for e in exts:
+        balls.append(spindle.tip(theta, float(e)))
+        th_all.append(theta)
+        ext_all.append(np.full_like(theta, float(e)))
+    ball = np.concatenate(balls)
+    return SpindleData(np.concatenate(th_all), np.concatenate(ext_all),
+                       ball + rng.normal(0.0, noise, ball.shape))
+
+
+def default_ballbar_schedule(duration: float = 14400.0, interval: float = 900.0, heat: float = 10800.0,
+                             rpm: float = 5000.0) -> tuple[np.ndarray, np.ndarray]:
+    """Set times (s) every ``interval`` over ``duration`` and the spindle speed held from each set
+    to the next: ``rpm`` while t < heat (warm-up), then stopped (cool-down)."""
+    t = np.arange(0.0, duration + 0.5 * interval, interval)
+    return t, np.where(t < heat, rpm, 0.0)
+
+
+def simulate_ballbar(model: ErrorModel, machine: Machine | None = None, *, times: np.ndarray | None = None,
+                     rpm: np.ndarray | None = None, bar_length: float = 150.0,
+                     angles_deg: Sequence[float] = (30.0, 60.0), step_deg: float = 0.1,
+                     setup_error: float = 0.005, noise: float = DEFAULT_NOISE["ballbar"], seed: int = 0
+                     ) -> BallbarData:
+    """Ballbar cone test (METHODS section 5): at every set time the spindle ball runs a full
+    circle counter-clockwise and clockwise (``step_deg`` apart) at each bar angle, radius
+    L0 cos(angle), L0 sin(angle) above the table ball. The real spindle-ball centre is the
+    commanded one plus the static tool-tip error at A = B = 0 (geometric + spindle screw), plus
+    the thermal displacement at the set's time: the model's thermal state applied at the ball's
+    height h = L0 (sin angle - sin angle_min) above the reference (lowest) ball, which is taken
+    as the tool tip. Simulation assumptions: the thermal state is constant during a set, and,
+    as in the paper, the two cones sample the spindle at two heights. The table ball of each
+    cone is off its nominal place by N(0, setup_error^2) per coordinate (absorbed by the fit).
+    Readings dL = |S - C| - L0 + N(0, noise^2) (mm)."""
+    machine = machine or load_machine()
+    if times is None:
+        times, default_rpm = default_ballbar_schedule()
+        rpm = default_rpm if rpm is None else rpm
+    times = np.asarray(times, float)
+    rpm = np.broadcast_to(np.asarray(5000.0 if rpm is None else rpm, float), times.shape)
+    n_circle = int(round(360.0 / step_deg))
+    if abs(n_circle * step_deg - 360.0) > 1e-9 or n_circle < 3:
+        raise InputError(f"simulate ballbar: step {step_deg} deg must divide 360 deg")
+    rng = np.random.default_rng(seed)
+    angles = np.radians(np.sort(np.asarray(angles_deg, float)))
+    setup = rng.normal(0.0, setup_error, (len(angles), 3))
+    zero = np.zeros(1)
+    static = (model.predict(machine, zero, zero, zero, zero, zero).tip
+              - machine.tool_pose_np(zero, zero, zero, zero, zero)[0])[0]
+    state = model.thermal_state(times, rpm)
+    phi1 = np.arange(n_circle) * np.radians(step_deg)
+    cols: dict[str, list[np.ndarray]] = {k: [] for k in ("t", "rpm", "angle", "dir", "phi", "dL")}
+    for k, tk in enumerate(times):
+        for c, ang in enumerate(angles):
+            h = bar_length * (np.sin(ang) - np.sin(angles[0]))
+            f = thermal_frame({e: float(v[k]) for e, v in state.items()})
+            d = np.asarray(f.apply((0.0, 0.0, h))) - np.array([0.0, 0.0, h])
+            for direction in (1, -1):
+                phi = phi1 if direction == 1 else np.mod(-phi1, 2 * np.pi)
+                radius = bar_length * np.cos(ang)
+                P = np.column_stack([radius * np.cos(phi), radius * np.sin(phi),
+                                     np.full_like(phi, bar_length * np.sin(ang))])
+                S = P + static + d
+                dL = np.linalg.norm(S - setup[c], axis=1) - bar_length + rng.normal(0.0, noise, len(phi))
+                cols["t"].append(np.full_like(phi, tk))
+                cols["rpm"].append(np.full_like(phi, rpm[k]))
+                cols["angle"].append(np.full_like(phi, ang))
+                cols["dir"].append(np.full(len(phi), direction))
+                cols["phi"].append(phi)
+                cols["dL"].append(dL)
+    cat = {k: np.concatenate(v) for k, v in cols.items()}
+    return BallbarData(cat["t"], cat["rpm"], cat["angle"], cat["dir"].astype(int), cat["phi"],
+                       np.full_like(cat["t"], bar_length), cat["dL"])
