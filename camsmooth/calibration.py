@@ -337,15 +337,22 @@ class _Fit:
 
 
 def _lsq(fun: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, h: float = 1e-3) -> _Fit:
-    """least_squares with central-difference Jacobian; covariance s^2 (J^T J)^-1."""
-    res = least_squares(fun, x0, jac=lambda x: _central_jacobian(fun, x, h), method="lm", xtol=1e-12,
-                        ftol=1e-12, gtol=1e-12)
-    J = _central_jacobian(fun, res.x, h)
+    """least_squares with central-difference Jacobian; covariance s^2 (J^T J)^-1. _Fit.nfev counts
+    every model evaluation, the Jacobian's included."""
+    calls = [0]
+
+    def counted(x: np.ndarray) -> np.ndarray:
+        calls[0] += 1
+        return fun(x)
+
+    res = least_squares(counted, x0, jac=lambda x: _central_jacobian(counted, x, h), method="lm",
+                        xtol=1e-12, ftol=1e-12, gtol=1e-12)
+    J = _central_jacobian(counted, res.x, h)
     m, n = J.shape
     r = fun(res.x)
     s2 = float(r @ r) / max(m - n, 1)
     cov = s2 * np.linalg.pinv(J.T @ J)
-    return _Fit(res.x, cov, float(np.sqrt(np.mean(r * r))), J, int(res.nfev))
+    return _Fit(res.x, cov, float(np.sqrt(np.mean(r * r))), J, calls[0])
 
 
 def _sv(J: np.ndarray) -> tuple[np.ndarray, float]:

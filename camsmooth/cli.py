@@ -79,8 +79,8 @@ def _write_outputs(result, out_csv, gcode, report, feed, quiet, write_result_csv
 
 
 def _print_summary(result) -> None:
-    print(f"{'method':8s} {'Gamma':>12s} {'peak|A\"|':>10s} {'peak|B\"|':>10s} {'min delta':>10s} "
-          f"{'violations':>10s} {'time s':>8s}")
+    head = ("method", "Gamma", "peak|A''|", "peak|B''|", "min delta", "violations", "time s")
+    print("{:8s} {:>12s} {:>10s} {:>10s} {:>10s} {:>10s} {:>8s}".format(*head))
     for name, r in result.methods.items():
         m = r.metrics
         nviol = sum(m["violations"].values())

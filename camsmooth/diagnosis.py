@@ -1029,7 +1029,8 @@ class ThermalDrift(Candidate):
         for el in P.identifiable["thermal"]:
             ang = el.startswith("e")
             out.append(Param(f"gain_{el}", -1.0 if ang else -100.0, 1.0 if ang else 100.0, 1e-6 if ang else 1e-3))
-            out.append(Param(f"tau_{el}", max(1e-3, 2 * P.dt), 20.0 * span, 1.0))
+            # a time constant far below the record cannot be told from a constant offset
+            out.append(Param(f"tau_{el}", max(1e-3, 2 * P.dt, 0.02 * span), 20.0 * span, 1.0))
         return out
 
     def _tau_grid(self, P):
@@ -1840,10 +1841,11 @@ def diagnose(program: Program, recording: Recording, machine: Machine | None = N
         after = step["after"]
         before = step["before"]
         cand = _cands([name])[0]
-        names = after.pnames[name]
-        i0 = sum(len(after.pnames[n]) for n in after.active[:after.active.index(name)])
-        x = after.x[i0:i0 + len(names)]
-        sd = np.sqrt(np.clip(np.diag(after.cov)[i0:i0 + len(names)], 0, None)) if after.cov.size else np.zeros(0)
+        # parameters from the final joint fit; the RMS figures from the step that added the term
+        names = final.pnames[name]
+        i0 = sum(len(final.pnames[n]) for n in final.active[:final.active.index(name)])
+        x = final.x[i0:i0 + len(names)]
+        sd = np.sqrt(np.clip(np.diag(final.cov)[i0:i0 + len(names)], 0, None)) if final.cov.size else np.zeros(0)
         par, unc, units = cand.report(names, x, sd)
         eq = [e for e in res["equivalences"] if e["chosen"] == name]
         eff = {"name": name, "parameters": par, "uncertainties": unc, "units": units,

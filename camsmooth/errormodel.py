@@ -631,10 +631,12 @@ def compensate(model: ErrorModel, machine: Machine, tip: np.ndarray, axis: np.nd
                tol: float = 1e-12, max_iter: int = 20) -> Compensation:
     """Commanded (A, B, X, Y, Z) such that the model's PREDICTED real tool tip and axis equal the
     desired ones: tip (N,3) mm and unit axis (N,3), workpiece frame; A0, B0 (N,) rad the ideal
-    inverse kinematics (start and branch choice). Damped-free Gauss-Newton on all points at once
-    (each point is an independent 6 x 5 least-squares problem, the axis residual weighted by the
+    inverse kinematics (start and branch choice). Undamped Gauss-Newton on all points at once
+    (each point an independent 6 x 5 least-squares problem, the axis residual weighted by the
     pivot length so both are in mm); Jacobian by central differences on the vectorised model.
     Converges quadratically for small errors; the remaining residual is reported on the result.
+    At B = +-90 deg A only turns the tool about itself, so A is not determined there (steps use
+    the pseudo-inverse and A may move along that direction).
     """
     tip = np.atleast_2d(np.asarray(tip, float))
     axis = np.atleast_2d(np.asarray(axis, float))
@@ -663,8 +665,8 @@ def compensate(model: ErrorModel, machine: Machine, tip: np.ndarray, axis: np.nd
             dq = np.zeros(5)
             dq[k] = h
             J[:, :, k] = (residual(q + dq) - residual(q - dq)) / (2 * h)
-        JT = np.transpose(J, (0, 2, 1))
-        step = np.linalg.solve(JT @ J, -(JT @ r[:, :, None]))[:, :, 0]
+        # pseudo-inverse: at B = +-90 deg the A column vanishes (A turns the tool about itself)
+        step = -(np.linalg.pinv(J, rcond=1e-10) @ r[:, :, None])[:, :, 0]
         q = q + step
         if np.max(np.abs(step)) < tol:
             break

@@ -1,8 +1,10 @@
 """Cutter / mesh interference: exact clearance of tool poses and axial drop-cutter.
 
 The part surface is a triangle mesh (a sheet; it need not be closed).  Everything here is exact
-against the piecewise-linear mesh, up to a golden-section tolerance of ~1e-9 of an edge length
-and a pruning tolerance of 1e-9 mm:
+against the piecewise-linear mesh, up to a golden-section tolerance of ~1e-10 mm and a pruning
+tolerance of 1e-9 mm.  (Against the surface the mesh approximates, the chord error of the
+tessellation remains: a tool placed at a CC point of the true surface "gouges" a mesh whose
+chords lie above a concave region by up to that error.)
 
 * :func:`clearance` - minimum signed distance ``delta`` between the tool solid (cutter + shank +
   holder, camsmooth.cutter) and the mesh triangles for many poses.  The minimum of a convex
@@ -13,17 +15,19 @@ and a pruning tolerance of 1e-9 mm:
   which the cutter touches the mesh (vertex, facet and edge tests), as in the classic 3-axis
   drop-cutter (e.g. the OpenCAMLib drop-cutter) generalised to an arbitrary axis.
 
-Candidate triangles come from a cKDTree over the vertices: every point of a triangle lies
-within ``l/sqrt(3)`` of one of its vertices (``l`` = its longest edge), and signed distances are
-1-Lipschitz, so searching vertices within the tool offset by that reach is sound for any mesh.
-Coarse meshes with long edges make that reach, and so the work, large: pass ``max_edge`` to
-:class:`MeshIndex` to subdivide them.
+Candidate triangles come from a cKDTree over the vertices.  Every point of a triangle lies
+within ``l/sqrt(3)`` of one of its vertices (``l`` = its longest edge) and signed distances are
+1-Lipschitz (and, away from the tool's core, smooth with a known curvature bound), so a search
+of the vertices within the tool grown by a bound computed from ``l`` is sound for any mesh
+(see ``_slack``); triangles are then pruned only by rigorous bounds.  Coarse meshes with long
+edges make that bound, and so the work, large: pass ``max_edge`` to :class:`MeshIndex`.
+No Python loop runs over poses or points: work is vectorised over chunks of them.
 """
 
 from __future__ import annotations
 
-import itertools
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -39,19 +43,12 @@ _INVPHI = (math.sqrt(5.0) - 1.0) / 2.0
 _SQRT3 = math.sqrt(3.0)
 _PRUNE_TOL = 1e-9          # mm: an element that can improve the answer by less than this is skipped
 _BARY_TOL = 1e-12
+_FIRST_CAP = 0.05         # mm: cap of the cheap first clearance pass
 _CHUNK = 512              # poses / points per chunk (bounds memory)
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.einsum("...i,...i->...", a, b)
-
-
-def _flatten_lists(lists: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Object array of index lists -> (lengths, concatenated indices), without a Python loop
-    over the lists (map/chain run in C)."""
-    lens = np.fromiter(map(len, lists), dtype=np.intp, count=len(lists))
-    flat = np.fromiter(itertools.chain.from_iterable(lists), dtype=np.intp, count=int(lens.sum()))
-    return lens, flat
 
 
 def _csr_expand(ptr: np.ndarray, data: np.ndarray, owners: np.ndarray,
@@ -118,19 +115,22 @@ class MeshIndex:
 
     Parameters
     ----------
-    mesh : trimesh.Trimesh, mm, workpiece frame.  A surface sheet (need not be closed); face
-        normals should point from the material toward the tool (only for the caller's
-        convenience: the tests here are purely geometric and do not use the orientation).
-    max_edge : optional, mm.  Subdivide (trimesh.remesh.subdivide_to_size, shared midpoints, no
-        cracks) until no edge is longer than this.  Results are exact either way; the candidate
-        search reaches ``longest edge / sqrt(3)`` beyond the tool, so a coarse mesh (e.g. a CAD
-        STL with long thin facets) costs far more per pose unless subdivided.  A value about
-        the corner radius is a good start.
+    mesh : trimesh.Trimesh, mm, workpiece frame.  A surface sheet (need not be closed or
+        manifold); face normals should point from the material toward the tool, although the
+        computations here are purely geometric and do not use the orientation.  Vertices used
+        by no face are dropped.
+    max_edge : optional, mm.  Subdivide (trimesh.remesh.subdivide_to_size: shared midpoints, no
+        cracks, the surface itself unchanged) until no edge is longer than this.  Results are
+        exact either way, because the candidate search reaches beyond the tool by a bound that
+        grows with the longest edge (clearance: up to longest / sqrt(3); drop: the longest edge
+        itself).  On a coarse mesh (e.g. a CAD STL with long thin facets) that makes every pose
+        examine most of the mesh; subdividing to about the corner radius r keeps the search
+        local.  Fine, evenly meshed surfaces need no subdivision.
 
     Attributes: ``vertices`` (V, 3), ``faces`` (F, 3), ``edges`` (E, 2) unique edges,
     ``face_edges`` (F, 3) edge ids per face, ``face_normals`` (F, 3) unit (zero for degenerate
-    faces), ``face_valid`` (F,), ``face_long`` (F,) longest edge per face, ``vertex_reach`` (V,)
-    = longest edge of the incident faces / sqrt(3), ``vf_ptr``/``vf_faces`` vertex -> face CSR
+    faces), ``face_valid`` (F,), ``face_long`` (F,) longest edge per face, ``vertex_long`` (V,)
+    longest edge of the faces around each vertex, ``vf_ptr``/``vf_faces`` vertex -> face CSR
     adjacency, ``tree`` cKDTree over the vertices.
     """
 
@@ -139,8 +139,10 @@ class MeshIndex:
             raise InputError(f"mesh must be a trimesh.Trimesh, got {type(mesh).__name__}")
         V = np.asarray(mesh.vertices, dtype=float)
         F = np.asarray(mesh.faces, dtype=np.intp)
-        if len(F) == 0 or len(V) < 3:
+        if F.ndim != 2 or F.shape[1] != 3 or len(F) == 0 or len(V) < 3:
             raise InputError("mesh has no triangles")
+        if F.min() < 0 or F.max() >= len(V):
+            raise InputError("mesh faces index missing vertices")
         if not np.all(np.isfinite(V)):
             raise InputError("mesh has non-finite vertex coordinates")
         if max_edge is not None:
@@ -185,14 +187,11 @@ class MeshIndex:
         np.maximum.at(reach, F.ravel(), np.repeat(self.face_long, 3))
         self.vertex_long = reach
         self.long_max = float(reach.max())
-        self.vertex_reach = reach / _SQRT3
-        self.reach_max = float(self.vertex_reach.max())
         self.edge_length = np.linalg.norm(V[self.edges[:, 1]] - V[self.edges[:, 0]], axis=1)
 
         self.tree = cKDTree(V)
         lo, hi = V.min(axis=0), V.max(axis=0)
-        self.centre = 0.5 * (lo + hi)
-        self.bound_radius = float(np.max(np.linalg.norm(V - self.centre, axis=1)))
+        self.box = np.stack([lo, hi])
         self._proj_cache: dict[bytes, tuple[cKDTree, np.ndarray]] = {}
 
     @property
@@ -409,6 +408,14 @@ def _body_clearance(index: MeshIndex, base: np.ndarray, axis: np.ndarray, height
         _scatter_min(U, W, dp, val, pt)
 
 
+def _pose_clearance(index: MeshIndex, cutter: ToroidalCutter, tips: np.ndarray, axes: np.ndarray,
+                    U: np.ndarray, W: np.ndarray) -> None:
+    _body_clearance(index, tips + cutter.r * axes, axes, cutter.core_height, cutter.R, cutter.r, U, W)
+    if cutter.has_holder:
+        _body_clearance(index, tips + float(cutter.shank_length) * axes, axes, float(cutter.holder_length),
+                        float(cutter.holder_radius), 0.0, U, W)
+
+
 def clearance(index: MeshIndex | trimesh.Trimesh, cutter: ToroidalCutter, tips: np.ndarray,
               axes: np.ndarray, *, margin: float = 1.0) -> Clearance:
     """Minimum signed distance between the tool solid and the mesh for N tool poses.
@@ -421,7 +428,9 @@ def clearance(index: MeshIndex | trimesh.Trimesh, cutter: ToroidalCutter, tips: 
     tips : (N, 3) tool tips (CL points), mm, workpiece frame.
     axes : (N, 3) or (3,) tool axes (tip -> spindle), normalised here.
     margin : mm, >= 0.  Poses whose clearance is >= margin are reported as ``delta = margin``
-        with ``capped = True`` (a lower bound, no witness); smaller values are exact.
+        with ``capped = True`` (a lower bound, no witness); smaller values are exact.  The work
+        for poses that clear the mesh grows with the margin (all vertices within about the
+        margin of the tool are examined); touching or gouging poses are cheap.
 
     Returns
     -------
@@ -446,14 +455,21 @@ def clearance(index: MeshIndex | trimesh.Trimesh, cutter: ToroidalCutter, tips: 
     N = len(tips)
     delta = np.full(N, margin)
     witness = np.full((N, 3), np.nan)
+    # Two passes: most poses of a tool path touch or nearly touch the surface, and a small cap
+    # keeps their candidate sets small; only poses with nothing within the small cap are redone
+    # with the full margin.  Each pass is exact below its own cap.
+    caps = [min(margin, _FIRST_CAP), margin] if margin > _FIRST_CAP else [margin]
     for lo in range(0, N, _CHUNK):
-        sl = slice(lo, min(lo + _CHUNK, N))
-        tp, ax = tips[sl], axes[sl]
-        U, W = delta[sl], witness[sl]
-        _body_clearance(idx, tp + cutter.r * ax, ax, cutter.core_height, cutter.R, cutter.r, U, W)
-        if cutter.has_holder:
-            _body_clearance(idx, tp + float(cutter.shank_length) * ax, ax, float(cutter.holder_length),
-                            float(cutter.holder_radius), 0.0, U, W)
+        todo = np.arange(lo, min(lo + _CHUNK, N))
+        for cap in caps:
+            U = np.full(len(todo), cap)
+            W = np.full((len(todo), 3), np.nan)
+            _pose_clearance(idx, cutter, tips[todo], axes[todo], U, W)
+            found = ~np.isnan(W[:, 0])
+            delta[todo[found]], witness[todo[found]] = U[found], W[found]
+            todo = todo[~found]
+            if len(todo) == 0:
+                break
     capped = np.isnan(witness[:, 0])
     delta[capped] = margin
     return Clearance(delta=delta, witness=witness, capped=capped, margin=margin)
@@ -471,12 +487,18 @@ class Drop:
     contact_normal : (N, 3) unit normal of the cutter surface at the contact, pointing from the
         material toward the tool (into the cutter), i.e. the ``n`` of cc_to_cl.
     hit : (N,) bool, False where the tool's footprint misses the mesh.
+
+    Unpacks as ``cl, contact, contact_normal = drop`` (the triple that
+    camsmooth.paths.raster_path_on_mesh expects of its ``drop`` function).
     """
 
     cl: np.ndarray
     contact: np.ndarray
     contact_normal: np.ndarray
     hit: np.ndarray
+
+    def __iter__(self) -> Iterator[np.ndarray]:
+        return iter((self.cl, self.contact, self.contact_normal))
 
 
 def _zlow(cutter: ToroidalCutter, rho: np.ndarray) -> np.ndarray:
@@ -496,29 +518,44 @@ def _scatter_max(S: np.ndarray, C: np.ndarray, idx: np.ndarray, val: np.ndarray,
 
 def _drop_candidates(index: MeshIndex, p: np.ndarray, A: np.ndarray, fixed: bool,
                      reach: float) -> tuple[np.ndarray, np.ndarray]:
-    """(point, vertex) pairs with the vertex within ``reach`` of the point's axis line (superset)."""
+    """(point, vertex) pairs holding every vertex within ``reach`` of the point's axis line."""
     N = len(p)
     if fixed:
         tree, basis = index._projected_tree(A[0])
-        lists = tree.query_ball_point(p @ basis.T, reach, workers=-1, return_sorted=False)
-        lens, vid = _flatten_lists(lists)
-        return np.repeat(np.arange(N), lens), vid
-    # Per-point axes: cover the part of each axis line near the mesh's bounding sphere with
-    # balls (vertices project onto the line within bound_radius of the sphere centre's foot).
-    rb = index.bound_radius
-    tc = _dot(index.centre - p, A)
-    wv = index.centre - p - tc[:, None] * A
-    near = np.sqrt(_dot(wv, wv)) <= rb + reach
+        hits = tree.sparse_distance_matrix(cKDTree(p @ basis.T), reach, output_type="ndarray")
+        return hits["j"].astype(np.intp), hits["i"].astype(np.intp)
+    # Per-point axes: a vertex within ``reach`` of the line has its foot on the line inside the
+    # mesh's bounding box grown by ``reach``: cover that stretch of the line with balls.
+    lo, hi = index.box[0] - reach, index.box[1] + reach
+    t0, t1 = np.full(N, -np.inf), np.full(N, np.inf)
+    for k in range(3):  # the three slabs of the box
+        ak = A[:, k]
+        par = np.abs(ak) < 1e-12
+        ta = (lo[k] - p[:, k]) / np.where(par, 1.0, ak)
+        tb = (hi[k] - p[:, k]) / np.where(par, 1.0, ak)
+        inside = (p[:, k] >= lo[k]) & (p[:, k] <= hi[k])
+        t0 = np.where(par, np.where(inside, t0, np.inf), np.maximum(t0, np.minimum(ta, tb)))
+        t1 = np.where(par, np.where(inside, t1, -np.inf), np.minimum(t1, np.maximum(ta, tb)))
     step = reach
-    K = np.where(near, np.ceil(2.0 * rb / step).astype(np.intp) + 1, 0)
+    ok = t1 >= t0
+    K = np.where(ok, np.ceil(np.where(ok, t1 - t0, 0.0) / step).astype(np.intp) + 1, 0)
     owner = np.repeat(np.arange(N), K)
-    k = np.arange(int(K.sum())) - np.repeat(np.cumsum(K) - K, K)
-    spacing = 2.0 * rb / np.maximum(K - 1, 1)
-    t = tc[owner] - rb + k * spacing[owner]
+    if len(owner) == 0:
+        return owner, owner
+    kb = np.arange(len(owner)) - np.repeat(np.cumsum(K) - K, K)
+    spacing = (t1 - t0) / np.maximum(K - 1, 1)
+    t = t0[owner] + kb * spacing[owner]
     centres = p[owner] + t[:, None] * A[owner]
-    lens, vid = _flatten_lists(index.tree.query_ball_point(centres, math.hypot(reach, 0.5 * step),
-                                                           workers=-1, return_sorted=False))
-    return np.repeat(owner, lens), vid
+    hits = index.tree.sparse_distance_matrix(cKDTree(centres), math.hypot(reach, 0.5 * step),
+                                             output_type="ndarray")
+    ball, vid = hits["j"], hits["i"].astype(np.intp)
+    pid = owner[ball]
+    # Overlapping balls: keep each pair once, for the ball nearest the vertex's foot on the line.
+    tv = _dot(index.vertices[vid] - p[pid], A[pid])
+    near = np.clip(np.floor((tv - t0[pid]) / np.where(spacing[pid] > 0, spacing[pid], 1.0) + 0.5),
+                   0, K[pid] - 1)
+    keep = near == kb[ball]
+    return pid[keep], vid[keep]
 
 
 def _drop_chunk(index: MeshIndex, cutter: ToroidalCutter, p: np.ndarray, A: np.ndarray,

@@ -37,7 +37,9 @@ from .surfaces import Surface, load_surface
 METHODS = ("none", "spline", "nlp")
 GOUGE_TOL = 1e-3  # mm: a delta below -GOUGE_TOL is interference (the acceptance threshold)
 FIX_TOL = 2e-4  # mm: the NLP loop acts on delta below -FIX_TOL, safely inside GOUGE_TOL
-CLEAR_MARGIN = 5e-3  # mm: a candidate orientation counts as clear above this clearance
+# mm: a candidate orientation counts as clear at or above this clearance. The tool always
+# touches the surface at its CC point (clearance ~0), so "clear" means "no penetration".
+CLEAR_MARGIN = -5e-5
 DILATE = 3  # points on each side of a gouging point that share its raised lead bound
 
 
@@ -279,12 +281,12 @@ class _Context:
         fr = self.frames[s][bad]
         cur_l, cur_t = lead_tilt_from_axis(T[bad], fr)
         lw, tw = lead_w[bad], tilt_w[bad]
-        hi_clear = self._clearance_at(s, bad, lw[:, 1], cur_t) > CLEAR_MARGIN
+        hi_clear = self._clearance_at(s, bad, lw[:, 1], cur_t) >= CLEAR_MARGIN
         lo = np.minimum(cur_l, lw[:, 1])
         hi = lw[:, 1].copy()
         for _ in range(8):
             mid = 0.5 * (lo + hi)
-            ok = self._clearance_at(s, bad, mid, cur_t) > CLEAR_MARGIN
+            ok = self._clearance_at(s, bad, mid, cur_t) >= CLEAR_MARGIN
             hi = np.where(ok, mid, hi)
             lo = np.where(ok, lo, mid)
         need = np.minimum(hi + np.radians(0.25), lw[:, 1])
@@ -313,7 +315,7 @@ class _Context:
         d = self._clearance_at(s, np.repeat(bad, k), L.ravel(), P.ravel()).reshape(len(bad), k)
         Tc = axis_from_lead_tilt(L.ravel(), P.ravel(), np.repeat(fr, k, axis=0)).reshape(len(bad), k, 3)
         ang = np.arccos(np.clip(np.einsum("nkj,nj->nk", Tc, T[bad]), -1, 1))
-        score = np.where(d > CLEAR_MARGIN, ang, np.inf)
+        score = np.where(d >= CLEAR_MARGIN, ang, np.inf)
         best = np.argmin(score, axis=1)
         ar = np.arange(len(bad))
         found = np.isfinite(score[ar, best])

@@ -483,13 +483,13 @@ def _fmt(v: Any, spec: str = ".4g") -> str:
 def method_summary(m: MethodResult) -> dict[str, Any]:
     """Table values for one method, in report units: gamma, peak |A''| and |B''| (deg/s^2),
     min delta (mm), violations (name -> count), unclean rows (list), unreachable (list of
-    (row, idx)), runtime (s). Taken from ``m.metrics`` (peak accelerations there are rad/s^2);
+    (row, idx)), runtime (s). Taken from ``m.metrics`` (peak accelerations there are deg/s^2);
     what the metrics lack is computed from the arrays (gamma and runtime become NaN)."""
     mt = m.metrics or {}
 
     def peak(key: str, arr: np.ndarray) -> float:
         if mt.get(key) is not None:
-            return float(np.degrees(float(mt[key])))
+            return float(mt[key])
         a = np.abs(np.asarray(arr, dtype=float))
         return float(np.degrees(np.nanmax(a))) if a.size and np.isfinite(a).any() else float("nan")
 

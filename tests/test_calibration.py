@@ -142,7 +142,7 @@ def test_spindle_least_squares_at_least_as_accurate_as_pso(spindle_report):
     ls_err = [(rep.parameters[k] - getattr(SPINDLE, k)) / rep.uncertainties[k] for k in rep.parameters]
     pso_err = [(pso["parameters"][k] - getattr(SPINDLE, k)) / rep.uncertainties[k] for k in rep.parameters]
     assert np.sqrt(np.mean(np.square(ls_err))) <= np.sqrt(np.mean(np.square(pso_err))) + 0.05
-    assert pso["nfev"] > 100 * rep.details["ls"]["nfev"]  # the timing itself is printed by the example
+    assert pso["nfev"] > 50 * rep.details["ls"]["nfev"]  # the timing itself is printed by the example
 
 
 def test_spindle_bad_input():

@@ -47,8 +47,8 @@ def make_method(name: str, n_rows: int = 2, n_pts: int = 50, seed: int = 0) -> M
     delta = 0.05 + 0.02 * np.sin(idx / 3.0)
     if name == "none":
         delta[10] = -0.01
-    metrics = {"gamma": 12.3456 / (seed + 1), "peak_A_acc": float(np.abs(Aa).max()),
-               "peak_B_acc": float(np.abs(Ba).max()), "min_delta": float(delta.min()),
+    metrics = {"gamma": 12.3456 / (seed + 1), "peak_A_acc": float(np.degrees(np.abs(Aa).max())),
+               "peak_B_acc": float(np.degrees(np.abs(Ba).max())), "min_delta": float(delta.min()),
                "violations": {"B_acc": 4 - seed, "lead": 0}, "runtime_s": 0.25 * (seed + 1),
                "unclean_rows": [1] if name == "none" else [],
                "unreachable": [(1, 7), (0, 3)] if name == "nlp" else []}
@@ -121,8 +121,8 @@ def test_report_lists_metrics_and_notices(full_report):
         # unclean rows, unreachable points, run time
         assert cells[1:3] == [str(len(m)), "2"]
         assert cells[3] == format(mt["gamma"], ".4g")
-        assert cells[4] == format(np.degrees(mt["peak_A_acc"]), ".4g")
-        assert cells[5] == format(np.degrees(mt["peak_B_acc"]), ".4g")
+        assert cells[4] == format(mt["peak_A_acc"], ".4g")
+        assert cells[5] == format(mt["peak_B_acc"], ".4g")
         assert cells[6] == format(mt["min_delta"], ".4g")
         assert cells[7:9] == [str(mt["violations"]["B_acc"]), "0"]
         assert cells[9:11] == [str(len(mt["unclean_rows"])), str(len(mt["unreachable"]))]

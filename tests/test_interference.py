@@ -1,0 +1,465 @@
+"""Tests of camsmooth.interference: clearance against brute force and closed forms (touching,
+penetration, shank and holder gouges, caps, subdivision, chunking) and the axial drop against
+closed forms on a plane, a sphere and a cylinder, a dense-sampling bound and the clearance."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import trimesh
+from scipy.optimize import minimize
+
+from camsmooth.cutter import ToroidalCutter, cc_to_cl, cl_to_cc, signed_distance
+from camsmooth.errors import InputError
+from camsmooth.interference import MeshIndex, axial_drop, clearance
+
+
+def _grid_mesh(n: int, size: float, height=None) -> trimesh.Trimesh:
+    """Square grid sheet centred on the origin; ``height(x, y)`` (default 0) gives z."""
+    xs = np.linspace(-size / 2, size / 2, n)
+    X, Y = np.meshgrid(xs, xs, indexing="ij")
+    Z = np.zeros_like(X) if height is None else height(X, Y)
+    V = np.stack([X.ravel(), Y.ravel(), Z.ravel()], axis=1)
+    i, j = np.meshgrid(np.arange(n - 1), np.arange(n - 1), indexing="ij")
+    a = (i * n + j).ravel()
+    F = np.concatenate([np.stack([a, a + n, a + n + 1], 1), np.stack([a, a + n + 1, a + 1], 1)])
+    return trimesh.Trimesh(V, F, process=False)
+
+
+def _lead_tilt_axis(lead: float, tilt: float, f=(1.0, 0.0, 0.0), n=(0.0, 0.0, 1.0)) -> np.ndarray:
+    f, n = np.asarray(f, float), np.asarray(n, float)
+    y = np.cross(n, f)
+    return (math.sin(lead) * math.cos(tilt) * f + math.sin(lead) * math.sin(tilt) * y
+            + math.cos(lead) * n)
+
+
+def _on_mesh(points: np.ndarray, mesh: trimesh.Trimesh) -> np.ndarray:
+    """Distance from points to the mesh triangles (independent: trimesh's closest point)."""
+    _, dist, _ = trimesh.proximity.closest_point(mesh, points)
+    return dist
+
+
+# ---------------------------------------------------------------------------------------------
+# brute force: minimum of the tool's signed distance over each triangle
+
+def _proj_simplex(u, v):
+    u, v = np.maximum(u, 0.0), np.maximum(v, 0.0)
+    s = u + v
+    big = s > 1.0
+    return np.where(big, u / np.where(big, s, 1.0), u), np.where(big, v / np.where(big, s, 1.0), v)
+
+
+def _tri_min_sampled(f, a, b, c, n=40, levels=34, m=8):
+    """Dense barycentric grid, then a pattern search shrinking by 2 per level."""
+    i, j = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="ij")
+    k = i + j <= n
+    u, v = i[k] / n, j[k] / n
+    vals = f(a + u[:, None] * (b - a) + v[:, None] * (c - a))
+    q = int(np.argmin(vals))
+    bu, bv, best = u[q], v[q], vals[q]
+    w = 1.0 / n
+    g = np.linspace(-1.0, 1.0, 2 * m + 1)
+    for _ in range(levels):
+        U, W = np.meshgrid(bu + w * g, bv + w * g, indexing="ij")
+        U, W = _proj_simplex(U.ravel(), W.ravel())
+        vals = f(a + U[:, None] * (b - a) + W[:, None] * (c - a))
+        q = int(np.argmin(vals))
+        if vals[q] <= best:
+            bu, bv, best = U[q], W[q], vals[q]
+        w /= 2.0
+    return best
+
+
+def _tri_min_inside(base, axis, h, R, a, b, c):
+    """min over the triangle of max(rho - R, -z, z - h) (the solid cylinder's signed distance
+    where negative) by SLSQP on the epigraph; +inf if no start converges."""
+    def x_of(x):
+        return a + x[0] * (b - a) + x[1] * (c - a)
+
+    def cons(x):
+        p = x_of(x) - base
+        z = p @ axis
+        w = p - z * axis
+        t = x[2]
+        return np.array([(t + R) ** 2 - w @ w, t + R, t + z, t - z + h, x[0], x[1], 1 - x[0] - x[1]])
+
+    best = np.inf
+    for x0 in [(1 / 3, 1 / 3), (0.8, 0.1), (0.1, 0.8), (0.1, 0.1), (0.45, 0.45), (0.5, 0.0), (0.0, 0.5)]:
+        p = x_of(x0) - base
+        z = p @ axis
+        t0 = max(np.linalg.norm(p - z * axis) - R, -z, z - h) + 1.0
+        res = minimize(lambda x: x[2], [x0[0], x0[1], t0], constraints=[dict(type="ineq", fun=cons)],
+                       method="SLSQP", options=dict(ftol=1e-14, maxiter=500))
+        if res.success and np.all(cons(res.x) > -1e-10):
+            best = min(best, res.x[2])
+    return best
+
+
+def _brute_clearance(cutter, tip, axis, V, F):
+    def f(P):
+        return signed_distance(cutter, tip, axis, P)
+
+    best = min(_tri_min_sampled(f, *V[t]) for t in F)
+    bodies = [(tip + cutter.r * axis, cutter.core_height, cutter.R, cutter.r)]
+    if cutter.has_holder:
+        bodies.append((tip + cutter.shank_length * axis, cutter.holder_length, cutter.holder_radius, 0.0))
+    for base, h, R, off in bodies:
+        for t in F:
+            d = _tri_min_inside(base, axis, h, R, *V[t])
+            if d <= 0.0:
+                best = min(best, d - off)
+    return best
+
+
+def test_clearance_matches_brute_force_on_random_meshes():
+    rng = np.random.default_rng(7)
+    kinds = set()
+    for trial in range(24):
+        R = (0.0, 2.0, 3.0)[trial % 3]
+        holder = trial % 2 == 0
+        cutter = ToroidalCutter(R=R, r=1.0, shank_length=6.0, holder_radius=5.0 if holder else None,
+                                holder_length=4.0 if holder else 0.0)
+        V = rng.uniform(-5, 5, (10, 3))
+        V[:, 2] = rng.uniform(-2, 10, 10)
+        F = rng.integers(0, 10, (6, 3))
+        F = F[(F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 0] != F[:, 2])]
+        mesh = trimesh.Trimesh(V, F, process=False)
+        axis = rng.normal(size=3)
+        axis[2] = abs(axis[2]) + 0.3
+        axis /= np.linalg.norm(axis)
+        tip = rng.uniform(-3, 3, 3) + rng.uniform(-4, 6) * axis
+        if trial % 4 == 1:
+            tip += np.array([8.0, 0.0, 0.0])
+        res = clearance(MeshIndex(mesh), cutter, tip[None], axis, margin=2.0)
+        brute = _brute_clearance(cutter, tip, axis, V, F)
+        if brute >= 2.0:
+            assert res.capped[0] and res.delta[0] == 2.0 and np.all(np.isnan(res.witness[0]))
+            kinds.add("capped")
+            continue
+        kinds.add("deep" if brute < -cutter.r else "shallow" if brute < 0 else "clear")
+        assert not res.capped[0]
+        assert res.delta[0] == pytest.approx(brute, abs=1e-6)
+        # the witness is a mesh point with that signed distance
+        assert _on_mesh(res.witness, mesh)[0] < 1e-9
+        assert signed_distance(cutter, tip, axis, res.witness[0]) == pytest.approx(res.delta[0], abs=1e-12)
+    assert kinds == {"capped", "deep", "shallow", "clear"}
+
+
+@pytest.mark.parametrize("R, r", [(3.0, 2.0), (0.0, 1.5)])
+def test_clearance_zero_when_touching_a_plane(R, r):
+    # (a holder of radius R + r + 1 stays clear of the plane up to a lead of 75 deg)
+    cutter = ToroidalCutter(R=R, r=r, holder_radius=R + r + 1.0, holder_length=10.0)
+    mesh = _grid_mesh(41, 40.0)
+    index = MeshIndex(mesh)
+    rng = np.random.default_rng(8)
+    leads = np.radians([0.0, 0.0, 3.0, 10.0, 25.0, 60.0, 75.0])
+    tilts = np.radians([0.0, 40.0, -30.0, 170.0, 10.0, 95.0, -60.0])
+    cc = np.column_stack([rng.uniform(-3, 3, 7), rng.uniform(-3, 3, 7), np.zeros(7)])
+    T = np.array([_lead_tilt_axis(a, b) for a, b in zip(leads, tilts, strict=True)])
+    n = np.array([0.0, 0.0, 1.0])
+    cl = cc_to_cl(cutter, cc, n, T)
+    res = clearance(index, cutter, cl, T)
+    np.testing.assert_allclose(res.delta, 0.0, atol=1e-9)
+    assert not res.capped.any()
+    np.testing.assert_allclose(res.witness[:, 2], 0.0, atol=1e-12)
+    # with lead the contact is a single point: the CC point
+    np.testing.assert_allclose(res.witness[2:], cc[2:], atol=1e-6)
+
+
+def test_penetration_depth_into_a_plane():
+    cutter = ToroidalCutter(R=3.0, r=2.0, shank_length=30.0)
+    index = MeshIndex(_grid_mesh(61, 60.0))
+    n = np.array([0.0, 0.0, 1.0])
+    # tilted tools pushed along n by d < r: depth d exactly
+    T = np.array([_lead_tilt_axis(a, b) for a, b in [(0.2, 0.0), (0.5, 1.0), (1.0, -2.0), (0.05, 0.3)]])
+    cc = np.array([[0.3, 0.1, 0.0]] * 4)
+    cl = cc_to_cl(cutter, cc, n, T)
+    for d in (0.01, 0.5, 1.9):
+        res = clearance(index, cutter, cl - d * n, T)
+        np.testing.assert_allclose(res.delta, -d, atol=1e-9)
+    # vertical tool pushed by d: on the plane the deepest point is the axis, at depth
+    # min(d, R + r) from the tool's boundary (bottom face or shank wall)
+    for d in (0.5, 1.0, 2.0, 3.5, 5.0, 9.0):
+        res = clearance(index, cutter, np.array([[1.0, -2.0, -d]]), n)
+        assert res.delta[0] == pytest.approx(-min(d, 5.0), abs=1e-9)
+
+
+def test_shank_and_holder_gouges_against_a_wall():
+    # wall: the plane x = 0 (y, z in [-20, 40]), normal +x
+    ys = np.linspace(-20, 20, 41)
+    zs = np.linspace(-20, 40, 61)
+    Y, Z = np.meshgrid(ys, zs, indexing="ij")
+    V = np.stack([np.zeros(Y.size), Y.ravel(), Z.ravel()], axis=1)
+    i, j = np.meshgrid(np.arange(len(ys) - 1), np.arange(len(zs) - 1), indexing="ij")
+    a = (i * len(zs) + j).ravel()
+    nz = len(zs)
+    F = np.concatenate([np.stack([a, a + nz, a + nz + 1], 1), np.stack([a, a + nz + 1, a + 1], 1)])
+    wall = MeshIndex(trimesh.Trimesh(V, F, process=False))
+    # a vertical tool whose cutter clears the wall but whose holder (radius 8) reaches 2 mm into it
+    cutter = ToroidalCutter(R=2.0, r=1.0, shank_length=12.0, holder_radius=8.0, holder_length=10.0)
+    res = clearance(wall, cutter, np.array([[6.0, 0.0, 0.0]]), np.array([0.0, 0.0, 1.0]))
+    assert res.delta[0] == pytest.approx(6.0 - 8.0, abs=1e-9)
+    assert 12.0 - 1e-9 <= res.witness[0, 2] <= 22.0 + 1e-9
+    no_holder = ToroidalCutter(R=2.0, r=1.0, shank_length=12.0)
+    res = clearance(wall, no_holder, np.array([[6.0, 0.0, 0.0]]), np.array([0.0, 0.0, 1.0]))
+    assert res.capped[0] and res.delta[0] == 1.0
+    res = clearance(wall, no_holder, np.array([[6.0, 0.0, 0.0]]), np.array([0.0, 0.0, 1.0]), margin=5.0)
+    assert res.delta[0] == pytest.approx(3.0, abs=1e-9)
+    # a tool leaning toward the wall: tip 4 mm away (cutter clear), shank through the wall
+    T = np.array([-math.sin(0.4), 0.0, math.cos(0.4)])
+    res = clearance(wall, no_holder, np.array([[4.0, 0.0, 0.0]]), T)
+    top = np.array([4.0, 0.0, 0.0]) + 11.0 * T  # a shank axis point well inside: x < 0
+    assert top[0] < 0
+    assert res.delta[0] < -2.0
+    assert res.witness[0, 2] > 3.0  # the deepest wall point is up along the shank, not at the tip
+    assert signed_distance(no_holder, np.array([4.0, 0.0, 0.0]), T, res.witness[0]) == pytest.approx(
+        res.delta[0], abs=1e-12)
+
+
+def test_margin_caps_and_passes():
+    cutter = ToroidalCutter(R=2.0, r=1.0)
+    index = MeshIndex(_grid_mesh(41, 40.0))
+    up = np.array([0.0, 0.0, 1.0])
+    tips = np.array([[0.0, 0.0, 0.02], [0.0, 0.0, 0.3], [0.0, 0.0, 0.99], [0.0, 0.0, 1.5], [0, 0, 50.0],
+                     [0.0, 0.0, -0.4]])
+    res = clearance(index, cutter, tips, up, margin=1.0)
+    np.testing.assert_allclose(res.delta, [0.02, 0.3, 0.99, 1.0, 1.0, -0.4], atol=1e-12)
+    np.testing.assert_array_equal(res.capped, [False, False, False, True, True, False])
+    assert np.all(np.isnan(res.witness[res.capped])) and np.all(np.isfinite(res.witness[~res.capped]))
+    res0 = clearance(index, cutter, tips, up, margin=0.0)
+    np.testing.assert_allclose(res0.delta, [0, 0, 0, 0, 0, -0.4], atol=1e-12)
+    assert res0.capped.tolist() == [True] * 5 + [False]
+
+
+def test_subdivision_gives_the_same_exact_answer():
+    # two triangles for a 100 mm plane, and a coarse icosphere, with and without max_edge
+    rng = np.random.default_rng(9)
+    cutter = ToroidalCutter(R=2.0, r=1.0)
+    plane = trimesh.Trimesh([[-50, -50, 0], [50, -50, 0], [50, 50, 0], [-50, 50, 0]], [[0, 1, 2], [0, 2, 3]],
+                            process=False)
+    ball = trimesh.creation.icosphere(subdivisions=1, radius=15.0)
+    for mesh in (plane, ball):
+        coarse, fine = MeshIndex(mesh), MeshIndex(mesh, max_edge=2.0)
+        assert fine.face_long.max() <= 2.0 + 1e-9 and len(fine.faces) > 50 * len(coarse.faces)
+        T = rng.normal(size=(60, 3))
+        T[:, 2] = np.abs(T[:, 2]) + 0.5
+        T /= np.linalg.norm(T, axis=1, keepdims=True)
+        tips = rng.uniform(-12, 12, (60, 3))
+        tips[:, 2] = rng.uniform(-2, 18, 60) if mesh is ball else rng.uniform(-1.5, 1.0, 60)
+        a = clearance(coarse, cutter, tips, T, margin=3.0)
+        b = clearance(fine, cutter, tips, T, margin=3.0)
+        np.testing.assert_allclose(a.delta, b.delta, atol=1e-8)
+        np.testing.assert_array_equal(a.capped, b.capped)
+
+
+def test_many_poses_match_single_pose_calls_and_ignore_loose_vertices():
+    rng = np.random.default_rng(10)
+    mesh = _grid_mesh(61, 60.0, lambda x, y: 3 * np.sin(x / 6) * np.cos(y / 9))
+    # an unused far vertex must not count
+    loose = trimesh.Trimesh(np.vstack([mesh.vertices, [[0.0, 0.0, 1.0]]]), mesh.faces, process=False)
+    index = MeshIndex(loose)
+    assert len(index.vertices) == len(mesh.vertices)
+    cutter = ToroidalCutter(R=3.0, r=1.0, holder_radius=6.0, holder_length=20.0)
+    N = 1100  # more than one chunk
+    tips = np.column_stack([rng.uniform(-25, 25, N), rng.uniform(-25, 25, N), rng.uniform(-1, 5, N)])
+    T = rng.normal(size=(N, 3))
+    T[:, 2] = np.abs(T[:, 2]) + 1.0
+    T /= np.linalg.norm(T, axis=1, keepdims=True)
+    res = clearance(index, cutter, tips, T)
+    assert res.capped.sum() > 50 and (res.delta < 0).sum() > 50
+    for i in rng.choice(N, 25, replace=False):
+        one = clearance(index, cutter, tips[i:i + 1], T[i])
+        assert one.delta[0] == res.delta[i]
+    # delta is a lower bound of the signed distance at every mesh vertex
+    sd = signed_distance(cutter, tips[:, None, :], T[:, None, :], index.vertices[None, ::7, :])
+    assert np.all(res.delta[:, None] <= sd + 1e-12)
+
+
+def test_clearance_bad_input():
+    index = MeshIndex(_grid_mesh(5, 10.0))
+    cutter = ToroidalCutter(R=1.0, r=1.0)
+    up = np.array([0.0, 0.0, 1.0])
+    with pytest.raises(InputError, match="shape"):
+        clearance(index, cutter, np.zeros(3), up)
+    with pytest.raises(InputError, match="axes"):
+        clearance(index, cutter, np.zeros((2, 3)), np.zeros((3, 3)))
+    with pytest.raises(InputError, match="zero length"):
+        clearance(index, cutter, np.zeros((2, 3)), np.zeros(3))
+    with pytest.raises(InputError, match="finite"):
+        clearance(index, cutter, np.full((1, 3), np.nan), up)
+    with pytest.raises(InputError, match="margin"):
+        clearance(index, cutter, np.zeros((1, 3)), up, margin=-1.0)
+    with pytest.raises(InputError, match="max_edge"):
+        MeshIndex(_grid_mesh(5, 10.0), max_edge=0.0)
+    with pytest.raises(InputError, match="Trimesh"):
+        MeshIndex(np.zeros((3, 3)))
+
+
+# ---------------------------------------------------------------------------------------------
+# axial drop
+
+def _sphere_drop(cutter, p, A, O, Rs):
+    """Closed form: the core disc (radius R, r above the tip) at distance Rs + r from O."""
+    q = O - p
+    h = q @ A if q.ndim == 1 else np.sum(q * A, axis=-1)
+    rho = np.linalg.norm(q - h[..., None] * A, axis=-1)
+    x = np.maximum(rho - cutter.R, 0.0)
+    return h - cutter.r + np.sqrt((Rs + cutter.r) ** 2 - x * x)
+
+
+def test_axial_drop_on_a_plane_closed_form():
+    cutter = ToroidalCutter(R=3.0, r=2.0)
+    mesh = _grid_mesh(31, 60.0)
+    index = MeshIndex(mesh)
+    rng = np.random.default_rng(11)
+    foot = np.column_stack([rng.uniform(-15, 15, 200), rng.uniform(-15, 15, 200), np.zeros(200)])
+    n = np.array([0.0, 0.0, 1.0])
+    for A in (n, _lead_tilt_axis(0.3, 0.7), _lead_tilt_axis(1.2, -2.0)):
+        pts = foot + rng.uniform(-5, 30, 200)[:, None] * A  # lines through the plane's middle
+        na = A @ n
+        s = (cutter.r * (1 - na) + cutter.R * math.sqrt(max(1 - na * na, 0.0)) - pts @ n) / na
+        for axis in (A, np.tile(A, (len(pts), 1))):
+            drop = axial_drop(index, cutter, pts, axis)
+            assert drop.hit.all()
+            np.testing.assert_allclose(drop.cl, pts + s[:, None] * A, atol=1e-9)
+            np.testing.assert_allclose(drop.contact[:, 2], 0.0, atol=1e-9)
+            np.testing.assert_allclose(drop.contact_normal, np.tile(n, (len(pts), 1)), atol=1e-9)
+            if na < 1:
+                np.testing.assert_allclose(cl_to_cc(cutter, drop.cl, n, A), drop.contact, atol=1e-7)
+    # the mesh object itself is accepted too
+    d2 = axial_drop(mesh, cutter, foot[:5] + 10.0 * n, n)
+    np.testing.assert_allclose(d2.cl, foot[:5], atol=1e-9)
+
+
+def test_axial_drop_on_a_sphere_within_chord_error():
+    Rs = 10.0
+    mesh = trimesh.creation.icosphere(subdivisions=4, radius=Rs)
+    centres = mesh.triangles_center
+    nrm = mesh.face_normals
+    sag = Rs - float(np.min(np.sum(centres * nrm, axis=1)))  # the mesh holds the sphere Rs - sag
+    assert 0 < sag < 0.02
+    O = np.zeros(3)
+    rng = np.random.default_rng(12)
+    for cutter in (ToroidalCutter(R=3.0, r=2.0), ToroidalCutter(R=0.0, r=1.0)):
+        for A in (np.array([0.0, 0.0, 1.0]), _lead_tilt_axis(0.6, 0.4)):
+            e1 = np.cross(A, [1.0, 0, 0])
+            e1 /= np.linalg.norm(e1)
+            e2 = np.cross(A, e1)
+            rad = (Rs + cutter.R) * np.sqrt(rng.uniform(0, 1, 150))
+            ang = rng.uniform(-math.pi, math.pi, 150)
+            pts = 40 * A + rad[:, None] * (np.cos(ang)[:, None] * e1 + np.sin(ang)[:, None] * e2)
+            drop = axial_drop(mesh, cutter, pts, A)
+            assert drop.hit.all()
+            s = np.sum((drop.cl - pts) * A, axis=1)
+            hi = _sphere_drop(cutter, pts, A, O, Rs)
+            lo = _sphere_drop(cutter, pts, A, O, Rs - sag)
+            assert np.all(s <= hi + 1e-9) and np.all(s >= lo - 1e-9)
+            # the contact lies on the mesh and its normal is close to the sphere's
+            assert np.all(_on_mesh(drop.contact, mesh) < 1e-9)
+            sph = drop.contact / np.linalg.norm(drop.contact, axis=1, keepdims=True)
+            assert np.all(np.sum(sph * drop.contact_normal, axis=1) > math.cos(0.1))
+
+
+def test_axial_drop_on_a_cylinder_within_chord_error():
+    Rc, sections = 8.0, 256
+    mesh = trimesh.creation.cylinder(radius=Rc, height=120.0, sections=sections)
+    mesh.apply_transform(trimesh.transformations.rotation_matrix(math.pi / 2, [0, 1, 0]))  # axis -> x
+    index = MeshIndex(mesh)
+    fine = MeshIndex(mesh, max_edge=4.0)  # same surface, split facets: same answer
+    u = np.array([1.0, 0.0, 0.0])
+    inner = Rc * math.cos(math.pi / sections)
+    rng = np.random.default_rng(13)
+    cutter = ToroidalCutter(R=2.5, r=1.5)
+    for tilt in (0.0, 0.5):
+        A = np.array([0.0, math.sin(tilt), math.cos(tilt)])  # perpendicular to the cylinder's axis
+        e = np.cross(A, u)
+        pts = np.column_stack([rng.uniform(-40, 40, 200), np.zeros(200), np.zeros(200)]) + \
+            rng.uniform(-(Rc + 2.0), Rc + 2.0, 200)[:, None] * e + 30.0 * A
+        drop = axial_drop(index, cutter, pts, A)
+        assert drop.hit.all()
+        s = np.sum((drop.cl - pts) * A, axis=1)
+        np.testing.assert_allclose(axial_drop(fine, cutter, pts[:20], A).cl, drop.cl[:20], atol=1e-9)
+
+        def closed(radius, pts=pts, A=A, e=e):
+            d = -pts - (-pts @ u)[:, None] * u
+            x = np.maximum(np.abs(d @ e) - cutter.R, 0.0)
+            return d @ A - cutter.r + np.sqrt((radius + cutter.r) ** 2 - x * x)
+
+        assert np.all(s <= closed(Rc) + 1e-9) and np.all(s >= closed(inner) - 1e-9)
+        assert np.max(closed(Rc) - closed(inner)) < 2e-3
+
+
+def test_axial_drop_misses_and_per_point_axes():
+    cutter = ToroidalCutter(R=2.0, r=1.0)
+    mesh = _grid_mesh(21, 20.0, lambda x, y: np.sin(x / 3) + 0.1 * y)
+    index = MeshIndex(mesh)
+    pts = np.array([[0.0, 0.0, 20.0], [50.0, 0.0, 20.0], [12.5, 0.0, 5.0], [13.5, 0.0, 5.0]])
+    drop = axial_drop(index, cutter, pts, np.array([0.0, 0.0, 1.0]))
+    assert drop.hit.tolist() == [True, False, True, False]  # 12.5 reaches the edge at 10 + R + r
+    assert np.all(np.isnan(drop.cl[~drop.hit])) and np.all(np.isnan(drop.contact_normal[~drop.hit]))
+    rng = np.random.default_rng(14)
+    P = np.column_stack([rng.uniform(-12, 12, 300), rng.uniform(-12, 12, 300), rng.uniform(-3, 8, 300)])
+    A = rng.normal(size=(300, 3))
+    A[:, 2] = np.abs(A[:, 2]) + 1.0
+    A /= np.linalg.norm(A, axis=1, keepdims=True)
+    each = axial_drop(index, cutter, P, A)
+    for k in rng.choice(300, 10, replace=False):
+        one = axial_drop(index, cutter, P[k:k + 1], A[k])
+        assert one.hit[0] == each.hit[k]
+        if one.hit[0]:
+            np.testing.assert_allclose(one.cl[0], each.cl[k], atol=1e-9)
+
+
+def test_axial_drop_agrees_with_clearance_and_dense_sampling():
+    """At the dropped position the tool touches without penetrating (clearance 0, an
+    independent algorithm), the contact is a mesh point with that drop value, and no densely
+    sampled mesh point asks for a higher tool."""
+    rng = np.random.default_rng(15)
+    mesh = _grid_mesh(13, 24.0,
+                      lambda x, y: 2 * np.sin(x / 2.5) * np.cos(y / 3.5) + 0.3 * rng.normal(size=x.shape))
+    index = MeshIndex(mesh)
+    tri = mesh.triangles
+    k = 12
+    i, j = np.meshgrid(np.arange(k + 1), np.arange(k + 1), indexing="ij")
+    m = i + j <= k
+    bu, bv = i[m] / k, j[m] / k
+    samples = (tri[:, None, 0] + bu[None, :, None] * (tri[:, None, 1] - tri[:, None, 0])
+               + bv[None, :, None] * (tri[:, None, 2] - tri[:, None, 0])).reshape(-1, 3)
+    for cutter in (ToroidalCutter(R=2.0, r=1.0), ToroidalCutter(R=0.0, r=1.5), ToroidalCutter(R=3.0, r=0.5)):
+        N = 60
+        A = rng.normal(size=(N, 3))
+        A[:, 2] = np.abs(A[:, 2]) + 2.0
+        A /= np.linalg.norm(A, axis=1, keepdims=True)
+        P = np.column_stack([rng.uniform(-8, 8, N), rng.uniform(-8, 8, N), np.full(N, 5.0)])
+        drop = axial_drop(index, cutter, P, A)
+        assert drop.hit.all()
+        s = np.sum((drop.cl - P) * A, axis=1)
+        res = clearance(index, cutter, drop.cl, A)
+        np.testing.assert_allclose(res.delta, 0.0, atol=1e-8)
+        assert np.all(_on_mesh(drop.contact, mesh) < 1e-9)
+        np.testing.assert_allclose(signed_distance(cutter, drop.cl, A, drop.contact), 0.0, atol=1e-9)
+        # dense samples: s(x) = (x - p).A - zlow(rho) over the footprint never exceeds the drop
+        q = samples[None, :, :] - P[:, None, :]
+        h = np.einsum("nmk,nk->nm", q, A)
+        rho = np.linalg.norm(q - h[..., None] * A[:, None, :], axis=-1)
+        x = np.clip(rho - cutter.R, 0.0, cutter.r)
+        sv = np.where(rho <= cutter.R + cutter.r, h - (cutter.r - np.sqrt(cutter.r ** 2 - x * x)), -np.inf)
+        assert np.all(sv.max(axis=1) <= s + 1e-9)
+        assert np.all(sv.max(axis=1) >= s - 0.05)
+        # contact normal: unit, and along it the tool's surface is the contact's tangent plane
+        np.testing.assert_allclose(np.linalg.norm(drop.contact_normal, axis=1), 1.0, atol=1e-12)
+        below = drop.contact - 1e-4 * drop.contact_normal
+        np.testing.assert_allclose(signed_distance(cutter, drop.cl, A, below), 1e-4, atol=1e-9)
+
+
+def test_axial_drop_bad_input():
+    index = MeshIndex(_grid_mesh(5, 10.0))
+    cutter = ToroidalCutter(R=1.0, r=1.0)
+    with pytest.raises(InputError, match="shape"):
+        axial_drop(index, cutter, np.zeros((2, 2)), np.array([0, 0, 1.0]))
+    with pytest.raises(InputError, match="axes"):
+        axial_drop(index, cutter, np.zeros((2, 3)), np.zeros((3, 3)))
+    with pytest.raises(InputError, match="zero length"):
+        axial_drop(index, cutter, np.zeros((2, 3)), np.zeros(3))
