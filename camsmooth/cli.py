@@ -138,7 +138,8 @@ def run_demo(args: argparse.Namespace) -> int:
     _write_outputs(result, out / f"{name}_smoothed.csv", out / f"{name}_smoothed.nc", out / "report", 2000.0,
                    args.quiet, write_result_csv, write_gcode)
     if not args.quiet:
-        print(f"wrote {out / f'{name}_smoothed.csv'}, {out / f'{name}_smoothed.nc'} and {out / 'report' / 'report.html'}")
+        csv, nc, html = out / f"{name}_smoothed.csv", out / f"{name}_smoothed.nc", out / "report" / "report.html"
+        print(f"wrote {csv}, {nc} and {html}")
     return 0
 
 

@@ -995,7 +995,7 @@ class SpindleRunout(Candidate):
     def report(self, names, x, sd):
         r = float(math.hypot(x[0], x[1]))
         phi = float(math.degrees(math.atan2(x[1], x[0])))
-        sr = float(math.sqrt(((x[0] * sd[0]) ** 2 + (x[1] * sd[1]) ** 2)) / r) if r > 0 else float(max(sd))
+        sr = float(math.sqrt((x[0] * sd[0]) ** 2 + (x[1] * sd[1]) ** 2) / r) if r > 0 else float(max(sd))
         sphi = float(math.degrees(sr / r)) if r > 0 else None
         return ({"radius": r, "phase_deg": phi}, {"radius": sr, "phase_deg": sphi}, {"radius": "mm", "phase_deg": "deg"})
 
@@ -1496,6 +1496,11 @@ class Selector:
         self.cache[key] = f
         return f
 
+    def _x_from(self, key: tuple[str, ...], ph: Physics) -> np.ndarray:
+        """The parameter vector of a candidate set read from a physics (a warm start)."""
+        cands, pnames, _ = self._layout(key)
+        return np.concatenate([np.asarray(c.read(ph, pnames[c.name]), float) for c in cands])
+
     def _start(self, active, cands, pnames, params) -> np.ndarray:
         """Starting point: values of the already-fitted subset, initial guesses for the newcomer."""
         P = self.P
@@ -1563,6 +1568,32 @@ class Selector:
             active.append(best)
             rejected.pop(best, None)
             current = trials[best]
+            # backward step: a term added earlier as a stand-in may be redundant now; it stays only
+            # if it would still pass the test for joining last
+            changed = True
+            while changed and len(active) >= 2:
+                changed = False
+                for old in active[:-1]:
+                    reduced = tuple(a for a in active if a != old)
+                    f_red = self.fit(reduced, x0=self._x_from(reduced, current.physics))
+                    v = self._judge(f_red, current)
+                    if not v["ok"]:
+                        active.remove(old)
+                        steps = [st for st in steps if st["added"] != old]
+                        rejected[old] = {"name": old, "reason": f"dropped once {', '.join(active)} had joined: as "
+                                         f"the last term it {v['reason']}", "dropped": True,
+                                         "heldout_rms_change_pct": v["heldout_change_pct"]}
+                        current = f_red
+                        changed = True
+                        break
+        # the chain of fits in the final order (a dropped term leaves the recorded steps stale)
+        chain = [self.fit(())]
+        steps = []
+        for i, name in enumerate(active):
+            f = self.fit(tuple(active[:i + 1]))
+            steps.append({"added": name, "before": chain[-1], "after": f, "verdict": self._judge(chain[-1], f)})
+            chain.append(f)
+        current = chain[-1]
         # candidates that were equivalent to a chosen one: say so instead of a plain rejection
         for e in equivalences:
             alt = e["alternative"]

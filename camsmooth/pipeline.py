@@ -135,7 +135,6 @@ def smooth(path: CCPath | str | Path, surface: Surface | str | Path, machine: Ma
     wanted = ["none"] + (["spline"] if method in ("spline", "nlp") else []) + (["nlp"] if method == "nlp" else [])
     ctx = _Context(cc, frames, t, idx, slices, nominal, real, cutter, index, orient, opts, model, compensate)
     results: dict[str, MethodResult] = {}
-    solvers: dict[int, RowNLP] = {}
     # -- none: the initial orientation through inverse kinematics
     t0 = time.perf_counter()
     A0, B0, unreach0 = ctx.ik(orient.axis)
@@ -148,34 +147,45 @@ def smooth(path: CCPath | str | Path, surface: Surface | str | Path, machine: Ma
         lift = ctx.lift_fallback(As, Bs, np.ones(n, bool))
         results["spline"] = ctx.finish("spline", As, Bs, lift, unreach0, time.perf_counter() - t0)
     if "nlp" in wanted:
-        t0 = time.perf_counter()
-        An, Bn = np.empty(n), np.empty(n)
-        lead_w, tilt_w = orient.lead_window.copy(), orient.tilt_window.copy()
-        needs_lift = np.zeros(n, bool)
-        iterator = slices
-        if progress:
-            from tqdm import tqdm
-
-            iterator = tqdm(slices, desc="nlp rows", unit="row")
-        stats = []
-        for s in iterator:
-            m = s.stop - s.start
-            if m not in solvers:
-                solvers[m] = RowNLP(real, m, ipopt_options=opts.ipopt_options)
-            a, b, lw, tw, lift_mask, st = ctx.nlp_row(solvers[m], s, As[s], Bs[s], lead_w[s], tilt_w[s])
-            An[s], Bn[s], lead_w[s], tilt_w[s], needs_lift[s] = a, b, lw, tw, lift_mask
-            stats.append(st)
-        lift = ctx.lift_fallback(An, Bn, needs_lift)
-        res = ctx.finish("nlp", An, Bn, lift, np.zeros(0, int), time.perf_counter() - t0, lead_w, tilt_w)
-        res.metrics["ipopt_iterations"] = int(sum(s.iterations for s in stats))
-        res.metrics["nlp_build_s"] = float(sum(sv.build_s for sv in solvers.values()))
-        res.metrics["interference_passes"] = int(max((s.passes for s in stats), default=0))
-        results["nlp"] = res
+        runs = [("nlp", real)] + ([("nlp-ideal", nominal)] if model is not None else [])
+        for label, mach in runs:
+            results[label] = _run_nlp(ctx, mach, As, Bs, label, progress)
     return SmoothResult(methods=results, primary=method, machine=nominal, cutter=cutter, surface_mesh=surf.mesh,
                         inputs={"path": cc.source, "surface": surf.source, "feed": feed_arr,
                                 "lead_range": tuple(lead_range), "tilt_range": tuple(tilt_range),
                                 "model": model, "compensate": compensate, "real_machine": real,
                                 "total_runtime_s": time.perf_counter() - t_start})
+
+
+def _run_nlp(ctx: _Context, machine: Machine, As: np.ndarray, Bs: np.ndarray, label: str, progress: bool
+             ) -> MethodResult:
+    """The NLP over all rows on ``machine`` (the real one when a model is given), warm-started
+    from the spline solution; one solver per row length."""
+    t0 = time.perf_counter()
+    n = len(As)
+    An, Bn = np.empty(n), np.empty(n)
+    lead_w, tilt_w = ctx.orient.lead_window.copy(), ctx.orient.tilt_window.copy()
+    needs_lift = np.zeros(n, bool)
+    solvers: dict[int, RowNLP] = {}
+    iterator = ctx.slices
+    if progress:
+        from tqdm import tqdm
+
+        iterator = tqdm(ctx.slices, desc=f"{label} rows", unit="row")
+    stats = []
+    for s in iterator:
+        m = s.stop - s.start
+        if m not in solvers:
+            solvers[m] = RowNLP(machine, m, ipopt_options=ctx.opts.ipopt_options)
+        a, b, lw, tw, lift_mask, st = ctx.nlp_row(solvers[m], s, As[s], Bs[s], lead_w[s], tilt_w[s])
+        An[s], Bn[s], lead_w[s], tilt_w[s], needs_lift[s] = a, b, lw, tw, lift_mask
+        stats.append(st)
+    lift = ctx.lift_fallback(An, Bn, needs_lift)
+    res = ctx.finish(label, An, Bn, lift, np.zeros(0, int), time.perf_counter() - t0, lead_w, tilt_w)
+    res.metrics["ipopt_iterations"] = int(sum(st.iterations for st in stats))
+    res.metrics["nlp_build_s"] = float(sum(sv.build_s for sv in solvers.values()))
+    res.metrics["interference_passes"] = int(max((st.passes for st in stats), default=0))
+    return res
 
 
 @dataclass
@@ -225,6 +235,7 @@ class _Context:
         A, B = A0, B0
         iters = 0
         passes = 0
+        prev_w = (lead_w.copy(), tilt_w.copy())
         for passes in range(1, self.opts.max_passes + 1):  # noqa: B007
             A_new, B_new, st = solver.solve(t, frames, A, B, lead_w, tilt_w)
             iters += st.iterations
@@ -245,7 +256,7 @@ class _Context:
                 lead_w, tilt_w = prev_w
                 break
             A, B = A_new, B_new
-            T = self.axes_of(A, B)
+            T = solver.machine.tool_axis_np(A, B)
             cl = cc_to_cl(self.cutter, cc, nrm, T)
             d = self.delta(cl, T)
             bad = np.flatnonzero((d < -FIX_TOL) & ~no_clean)
@@ -256,7 +267,7 @@ class _Context:
             prev_w = (lead_w.copy(), tilt_w.copy())
             found = self._clear_windows(bad, s, T, lead_w, tilt_w)
             no_clean[bad[~found]] = True
-        T = self.axes_of(A, B)
+        T = solver.machine.tool_axis_np(A, B)
         d = self.delta(cc_to_cl(self.cutter, cc, nrm, T), T)
         return A, B, lead_w, tilt_w, d < -FIX_TOL, _RowStats(iters, passes)
 
@@ -357,11 +368,12 @@ class _Context:
         T = self.axes_of(A, B)
         cc, nrm = self.cc.points, self.cc.normals
         cl = cc_to_cl(self.cutter, cc, nrm, T) + lift[:, None] * nrm
-        if self.compensate and self.model is not None:
-            xyz = _linear_axes_for_tip(self.real, A, B, cl)
-        else:
-            xyz = self.nominal.linear_axes(cl, self.nominal.tool_axis_np(A, B))
-        delta = self.delta(cl, T)
+        xyz_nominal = self.nominal.linear_axes(cl, self.nominal.tool_axis_np(A, B))
+        xyz = _linear_axes_for_tip(self.real, A, B, cl) if (self.compensate and self.model is not None) \
+            else xyz_nominal
+        # the tool really sits at the predicted real tip: check clearance there
+        tip_real = self.real.tool_pose_np(A, B, *xyz.T)[0] if self.model is not None else cl
+        delta = self.delta(tip_real, T)
         lead, tilt = lead_tilt_from_axis(T, self.frames)
         n = len(A)
         A_vel, B_vel, A_acc, B_acc = (np.empty(n) for _ in range(4))
@@ -376,6 +388,17 @@ class _Context:
         res = MethodResult(method, self.cc.rows.copy(), self.idx.copy(), self.t.copy(), cc, nrm, cl, T, lead, tilt,
                            A, B, A_vel, B_vel, A_acc, B_acc, xyz, delta, lift, lead_w.copy(), tilt_w.copy(), comp)
         res.metrics = self.metrics(res, g, unreachable, runtime)
+        if self.model is not None:
+            # ideal (the intended CL point and the axis the ideal machine would give for the
+            # same A, B) against the predicted real machine, with and without compensation
+            tip_unc = self.real.tool_pose_np(A, B, *xyz_nominal.T)[0]
+            ideal_axis = self.nominal.tool_axis_np(A, B)
+            res.metrics["tip_error_um_max"] = float(1e3 * np.max(np.linalg.norm(tip_real - cl, axis=1)))
+            res.metrics["tip_error_um_max_uncompensated"] = float(
+                1e3 * np.max(np.linalg.norm(tip_unc - cl, axis=1)))
+            res.metrics["axis_error_urad_max"] = float(1e6 * np.max(np.arccos(np.clip(
+                np.sum(ideal_axis * T, axis=1), -1, 1))))
+            res.metrics["compensated"] = bool(self.compensate)
         return res
 
     def metrics(self, r: MethodResult, g: float, unreachable: np.ndarray, runtime: float) -> dict[str, Any]:

@@ -508,6 +508,8 @@ def method_summary(m: MethodResult) -> dict[str, Any]:
         "runtime_s": float(mt["runtime_s"]) if mt.get("runtime_s") is not None else float("nan"),
         "points": len(m),
         "rows": int(len(_row_starts(m.rows))),
+        "model": {k: mt[k] for k in ("tip_error_um_max", "tip_error_um_max_uncompensated", "axis_error_urad_max")
+                  if k in mt},
     }
 
 
@@ -523,6 +525,10 @@ def _summary_table(order: list[str], summaries: dict[str, dict[str, Any]], prima
     head = (["method", "points", "rows", "\u0393 (gamma)", "peak |A''| (deg/s\u00b2)",
              "peak |B''| (deg/s\u00b2)", "min \u03b4 (mm)"]
             + [f"violations: {v}" for v in vnames] + ["unclean rows", "unreachable points", "run time (s)"])
+    with_model = any(summaries[n].get("model") for n in order)
+    if with_model:  # ideal against predicted-real (error model given)
+        head += ["real tip error, as commanded (\u00b5m)", "real tip error, uncompensated (\u00b5m)",
+                 "real axis vs ideal (\u00b5rad)"]
     out = ["<table class='summary'>", "<tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr>"]
     for name in order:
         s = summaries[name]
@@ -538,6 +544,10 @@ def _summary_table(order: list[str], summaries: dict[str, dict[str, Any]], prima
             cells.append(("\u2014" if count is None else str(count), bool(count)))
         cells += [(str(len(s["unclean_rows"])), bool(s["unclean_rows"])),
                   (str(len(s["unreachable"])), bool(s["unreachable"])), (_fmt(s["runtime_s"], ".3g"), False)]
+        if with_model:
+            md = s.get("model") or {}
+            cells += [(_fmt(md.get(k, float("nan")), ".3g"), False)
+                      for k in ("tip_error_um_max", "tip_error_um_max_uncompensated", "axis_error_urad_max")]
         tds = "".join(f"<td class='{'bad' if bad else ''}'>{c}</td>" for c, bad in cells)
         out.append(f"<tr>{tds}</tr>")
     out.append("</table>")

@@ -32,7 +32,7 @@ from .kinematics import Machine
 # Limits are tightened by this fraction inside the NLP so that IPOPT's tolerance never shows
 # as a violation when the result is checked against the true limits.
 BACKOFF = 2e-3
-WINDOW_BACKOFF = np.radians(0.01)
+WINDOW_BACKOFF = 2e-6  # rad (0.4 arc-seconds): far below any machine error a model describes
 
 
 def fd_operators(t: np.ndarray) -> tuple[sp.csr_matrix, sp.csr_matrix]:
@@ -155,6 +155,7 @@ class RowNLP:
         g = ca.vertcat(d1(A), d1(B), d2(A), d2(B), dot(*W[0:3]), dot(*W[3:6]), dot(*W[6:9]))
         opts = {"ipopt.print_level": 0, "print_time": 0, "ipopt.sb": "yes", "ipopt.max_iter": 500,
                 "ipopt.tol": 1e-9, "ipopt.acceptable_tol": 1e-6, "ipopt.mu_strategy": "adaptive",
+                "ipopt.constr_viol_tol": 1e-10, "ipopt.acceptable_constr_viol_tol": 1e-9,
                 "ipopt.linear_solver": "mumps"}
         opts.update(ipopt_options or {})
         self.solver = ca.nlpsol("smooth_row", "ipopt", {"x": x, "p": p, "f": obj, "g": g}, opts)
@@ -210,7 +211,8 @@ class RowNLP:
         lbx, ubx, lbg, ubg = self.bounds(lead_window)
         x0 = np.clip(x0, lbx, ubx)
         t0 = time.perf_counter()
-        sol = self.solver(x0=x0, p=self._params(np.asarray(t, float), frames, tilt_window, scale), lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+        p = self._params(np.asarray(t, float), frames, tilt_window, scale)
+        sol = self.solver(x0=x0, p=p, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
         dt = time.perf_counter() - t0
         stats = self.solver.stats()
         x = np.asarray(sol["x"]).ravel()
