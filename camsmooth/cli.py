@@ -197,9 +197,26 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+RANGE_OPTIONS = ("--lead", "--tilt")
+
+
+def _join_ranges(argv: list[str]) -> list[str]:
+    """Let '--tilt -15:15' through: argparse would take '-15:15' for an option."""
+    out: list[str] = []
+    i = 0
+    while i < len(argv):
+        if argv[i] in RANGE_OPTIONS and i + 1 < len(argv):
+            out.append(f"{argv[i]}={argv[i + 1]}")
+            i += 2
+        else:
+            out.append(argv[i])
+            i += 1
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(_join_ranges(list(sys.argv[1:] if argv is None else argv)))
     try:
         return int(args.func(args) or 0)
     except CamsmoothError as exc:

@@ -1296,13 +1296,14 @@ def _gram(Jt: np.ndarray, r: np.ndarray | None = None) -> tuple[np.ndarray, np.n
 
 def _lm(resid_fn: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, lo: np.ndarray, hi: np.ndarray,
         scale: np.ndarray, mask: np.ndarray, max_iter: int = 40, jac_at_end: bool = True
-        ) -> tuple[np.ndarray, np.ndarray, float, int]:
+        ) -> tuple[np.ndarray, np.ndarray, float, int, np.ndarray | None, np.ndarray]:
     """Levenberg-Marquardt with box bounds for a few parameters and many residuals.
 
     resid_fn(x) returns the (n, C) floor-weighted residual; ``mask`` picks the entries that
     count. Forward-difference Jacobian (step 1e-4 of each parameter's scale, away from a bound);
     normal equations with Marquardt's diagonal scaling; parameters at a bound whose gradient
-    pushes outward are frozen for the step. Returns (x, J^T J at x, cost = sum r^2, iterations).
+    pushes outward are frozen for the step. Returns (x, J^T J at x, cost = sum r^2, iterations,
+    the transposed Jacobian at x (when ``jac_at_end``), the masked residual at x).
     With p parameters and m residuals each iteration costs p + 1 simulations and O(m p^2).
     """
     x = np.clip(np.asarray(x0, float).copy(), lo, hi)
@@ -1345,18 +1346,20 @@ def _lm(resid_fn: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, lo: np.nda
             rn = resid_fn(xn)[mask]
             cn = _dot(rn, rn)
             if cn < cost or not np.isfinite(cost):
-                small = bool(np.all(np.abs(xn - x) <= 1e-6 * np.maximum(np.abs(x), scale)))
+                small = bool(np.all(np.abs(xn - x) <= 1e-5 * np.maximum(np.abs(x), scale)))
                 drop = (cost - cn) / max(cost, 1e-300)
                 x, r, cost = xn, rn, cn
                 lam = max(lam / 10.0, 1e-12)
                 accepted = True
                 break
             lam *= 10.0
-        if not accepted or small or drop < 1e-10:
+        if not accepted or small or drop < 1e-8:
             break
+    Jt = None
     if jac_at_end or H is None:
-        H, _ = _gram(jac(x, r))
-    return x, H, cost, it
+        Jt = jac(x, r)
+        H, _ = _gram(Jt)
+    return x, H, cost, it, Jt, r
 
 
 @dataclass
@@ -1467,23 +1470,34 @@ class Selector:
         def rfun(x: np.ndarray) -> np.ndarray:
             return self._resid(self._physics(cands, pnames, x))
 
-        x, H, rss, _ = _lm(rfun, x0, lo, hi, scale, valid)
+        x, H, rss, _, Jt, r_valid = _lm(rfun, x0, lo, hi, scale, valid)
         r = rfun(x)
         rr = np.where(valid, r, 0.0)
         n = int(valid.sum())
         rho = _lag1(rr)
         n_eff = max(len(x) + 2.0, n * (1 - rho) / (1 + rho))
         cov = np.linalg.pinv(H) * rss / max(n - len(x), 1) * (n / n_eff)
-        # held-out: refit on the other folds, warm-started from the full fit
+        # held-out: for each fold, the parameters fitted without it. The refit is one Gauss-Newton
+        # step from the full fit using only the other folds' rows of the Jacobian (exact for
+        # parameters that enter linearly, the first step of an exact refit otherwise); the
+        # held-out residual is then simulated exactly.
+        entry_fold = np.broadcast_to(folds[:, None], valid.shape)[valid]
+        _, g_all = _gram(Jt, r_valid)
         held = np.zeros_like(r)
         fold_rss = np.zeros(K)
         fold_n = np.zeros(K, dtype=int)
         for k in range(K):
-            train = valid & (folds != k)[:, None]
-            test = valid & (folds == k)[:, None]
-            xk, _, _, _ = _lm(rfun, x, lo, hi, scale, train, max_iter=8, jac_at_end=False)
+            te_e = entry_fold == k
+            H_te, g_te = _gram(Jt[:, te_e], r_valid[te_e])
+            H_tr, g_tr = H - H_te, g_all - g_te
+            free = ~(((x <= lo) & (g_tr > 0)) | ((x >= hi) & (g_tr < 0)))
+            dx = np.zeros(len(x))
+            if free.any():
+                dx[free] = -np.linalg.pinv(H_tr[np.ix_(free, free)]) @ g_tr[free]
+            xk = np.clip(x + dx, lo, hi)
             rk = rfun(xk)
             sel = folds == k
+            test = valid & sel[:, None]
             held[sel] = rk[sel]
             fold_rss[k] = float(np.sum(np.where(test, rk, 0.0) ** 2))
             fold_n[k] = int(test.sum())
@@ -1764,12 +1778,12 @@ def _discriminate_lag_offset(sel: Selector, result: Mapping[str, Any]) -> dict[s
     valid = P.valid_fit
     K = int(P.folds.max()) + 1
     one = (np.array([0.0]), np.array([2.0]), np.array([1e-3]))
-    x_c, _, _, _ = _lm(lambda x: resid_common(x), np.array([max(tau0, 1e-4)]), *one, valid)
+    x_c = _lm(lambda x: resid_common(x), np.array([max(tau0, 1e-4)]), *one, valid)[0]
     fold_rss = np.zeros(K)
     for k in range(K):
         tr = valid & (P.folds != k)[:, None]
         te = valid & (P.folds == k)[:, None]
-        xk, _, _, _ = _lm(lambda x: resid_common(x), x_c, *one, tr, max_iter=8, jac_at_end=False)
+        xk = _lm(lambda x: resid_common(x), x_c, *one, tr, max_iter=8, jac_at_end=False)[0]
         fold_rss[k] = float(np.sum(np.where(te, resid_common(xk), 0.0) ** 2))
     n_test = int(valid.sum())
     h_common = math.sqrt(fold_rss.sum() / n_test)

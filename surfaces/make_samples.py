@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
-from scipy.interpolate import BSpline
+from scipy.interpolate import BSpline, PchipInterpolator
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))  # run from a source checkout without installing
@@ -46,47 +46,137 @@ def greville(knots: np.ndarray, degree: int) -> np.ndarray:
     return np.array([knots[i + 1:i + degree + 1].mean() for i in range(n)])
 
 
-def fit_height_field(f, x_range, y_range, n_ctrl, degree=3, n_fit=241) -> BSplineSurface:
-    """Bicubic B-spline z = f(x, y) over u = x, v = y: control x, y at the Greville abscissae, control
-    z by separable least squares on an n_fit x n_fit grid (z ~ Bu Z Bv^T)."""
-    tu = clamped_knots(n_ctrl[0], degree, *x_range)
-    tv = clamped_knots(n_ctrl[1], degree, *y_range)
-    xs, ys = np.linspace(*x_range, n_fit), np.linspace(*y_range, n_fit)
-    Bu = BSpline.design_matrix(xs, tu, degree).toarray()
-    Bv = BSpline.design_matrix(ys, tv, degree).toarray()
-    F = f(xs[:, None], ys[None, :])
-    Z = np.linalg.pinv(Bu) @ F @ np.linalg.pinv(Bv).T
-    gx, gy = np.meshgrid(greville(tu, degree), greville(tv, degree), indexing="ij")
-    control = np.stack([gx, gy, Z], axis=-1)
+# ---------------------------------------------------------------------------------------------
+# G1 profiles (circular arcs and lines) and their B-spline surfaces with double knots
+
+Piece = tuple[float, float]  # (length along x in mm, curvature in 1/mm; > 0 concave seen from above)
+
+
+def g1_profile(x: np.ndarray, pieces: list[Piece], psi0: float, z0: float = 0.0) -> np.ndarray:
+    """Height z(x) (mm) of a tangent-continuous chain of circular arcs and straight lines.
+
+    The chain starts at x = 0, height z0, slope angle psi0 (rad, z' = tan psi) and runs through
+    ``pieces`` (dx, kappa) in turn. On an arc of curvature kappa sin(psi) is linear in x,
+    sin(psi(x)) = sin(psi_k) + kappa (x - x_k), so z = z_k + (cos(psi_k) - cos(psi(x))) / kappa; a
+    line (kappa = 0) keeps its slope. Slope is continuous at the joins and curvature jumps there:
+    a G1 blend as in filleted CAD models.
+    """
+    x = np.asarray(x, dtype=float)
+    dx = np.array([p[0] for p in pieces])
+    kap = np.array([p[1] for p in pieces])
+    xs = np.r_[0.0, np.cumsum(dx)]
+    s, zs = [math.sin(psi0)], [z0]
+    for d, k in zip(dx, kap, strict=True):
+        se = s[-1] + k * d
+        if not abs(se) < 1:
+            raise ValueError("profile turns vertical")
+        c0, c1 = math.sqrt(1 - s[-1] ** 2), math.sqrt(1 - se * se)
+        zs.append(zs[-1] + (s[-1] / c0 * d if k == 0 else (c0 - c1) / k))
+        s.append(se)
+    i = np.clip(np.searchsorted(xs, x, side="right") - 1, 0, len(pieces) - 1)
+    t, s0, k = x - xs[i], np.array(s)[i], kap[i]
+    c0 = np.sqrt(1 - s0 * s0)
+    arc = (c0 - np.sqrt(np.clip(1 - (s0 + k * t) ** 2, 0, None))) / np.where(k == 0, 1.0, k)
+    return np.array(zs)[i] + np.where(k == 0, s0 / c0 * t, arc)
+
+
+def joins_of(pieces: list[Piece]) -> np.ndarray:
+    """x (mm) of the interior joins of a profile."""
+    return np.cumsum([p[0] for p in pieces])[:-1]
+
+
+def knots_with_joins(lo: float, hi: float, joins: np.ndarray, spacing: float, degree: int = 3) -> np.ndarray:
+    """Clamped knot vector on [lo, hi] with a knot of multiplicity degree - 1 at each join (C1 there:
+    the tangent is continuous, the curvature may jump) and single knots about ``spacing`` apart
+    inside the pieces."""
+    breaks = np.r_[lo, joins, hi]
+    inner = [float(j) for j in joins for _ in range(degree - 1)]
+    for a, b in zip(breaks[:-1], breaks[1:], strict=True):
+        inner += np.linspace(a, b, max(1, round((b - a) / spacing)) + 1)[1:-1].tolist()
+    return np.r_[[float(lo)] * (degree + 1), sorted(inner), [float(hi)] * (degree + 1)]
+
+
+def g1_surface(sections, length: float, width: float, n_ctrl_v: int = 10, spacing: float = 5.0,
+               extra=None, n_fit: tuple[int, int] = (1601, 121)) -> BSplineSurface:
+    """Bicubic B-spline through G1 sections across the rows (rows along u, roughly along x).
+
+    ``sections(y)`` gives (pieces, psi0) of the profile z(x) at y, x in [0, length], all with the
+    same number of pieces; the joins may move with y. u in [0, length] has double knots at the
+    mean joins u_k; the target point at (u, v) is (X, v, profile_v(X) + extra(X, v)) with
+    X(u, v) the monotone C1 cubic (PCHIP) taking u_k to the joins at y = v, so the target is C1
+    in u with its curvature jumps exactly on the knot lines. The control net is its separable
+    least-squares fit on an n_fit grid (v: clamped uniform knots, n_ctrl_v control points; the
+    control y are the Greville abscissae, so y = v exactly). The knot multiplicity, not the fit,
+    makes the surface C1 (and not C2) across the knot lines.
+    """
+    ys = np.linspace(0.0, width, 61)
+    u_joins = np.mean([joins_of(sections(y)[0]) for y in ys], axis=0)
+    tu = knots_with_joins(0.0, length, u_joins, spacing)
+    tv = clamped_knots(n_ctrl_v, 3, 0.0, width)
+    us = np.unique(np.r_[np.linspace(0.0, length, n_fit[0]), u_joins])
+    vs = np.linspace(0.0, width, n_fit[1])
+    F = np.empty((len(us), len(vs), 3))
+    for j, y in enumerate(vs):  # loop over sections (~100), not points
+        pieces, psi0 = sections(y)
+        X = PchipInterpolator(np.r_[0.0, u_joins, length], np.r_[0.0, joins_of(pieces), length])(us)
+        z = g1_profile(X, pieces, psi0) + (0.0 if extra is None else extra(X, y))
+        F[:, j] = np.stack([X, np.full_like(X, y), z], -1)
+    Bu = BSpline.design_matrix(us, tu, 3).toarray()
+    Bv = BSpline.design_matrix(vs, tv, 3).toarray()
+    control = np.einsum("ia,abk,jb->ijk", np.linalg.pinv(Bu), F, np.linalg.pinv(Bv))
+    control[:, :, 1] = greville(tv, 3)[None, :]
     # round to 1e-9 mm so the definition file stays short; the geometry changes by < 1e-8 mm
-    return BSplineSurface(np.round(control, 9), degree=(degree, degree), u_range=x_range, v_range=y_range)
+    return BSplineSurface(np.round(control, 9), degree=(3, 3), knots_u=tu, knots_v=tv)
 
 
 def blade() -> BSplineSurface:
-    """Mould/blade-like free-form: cambered across x (concave for x < 40, convex beyond), camber
-    growing along y, a twist and a gentle spanwise bow; 80 x 60 mm."""
-    def f(x, y):
-        xc, yc = x - 40.0, y - 30.0
-        amp = 5.0 * (1.0 + 0.12 * yc / 30.0)
-        return 8.0 + amp * np.sin(math.pi * xc / 50.0) + xc * yc / 600.0 + yc**2 / (2 * 400.0)
-    return fit_height_field(f, (0.0, 80.0), (0.0, 60.0), (14, 10))
+    """Mould/blade-like free-form of G1 pieces along x (80 x 60 mm): convex leading region
+    (R 44..52), straight, concave camber (R 41..47), straight, convex trailing region (R 43..49);
+    radii, the joins (moving up to 2 mm along x) and the start slope vary along y, plus a twist
+    and a spanwise bow. Double knots in u at the four joins."""
+    length, width = 80.0, 60.0
+
+    def sections(y: float) -> tuple[list[Piece], float]:
+        s = (y - 30.0) / 30.0
+        shift = 2.0 * math.sin(math.pi * y / width)
+        pieces = [(16.0 + shift, -1 / (48.0 - 4.0 * s)), (8.0, 0.0), (24.0 - shift, 1 / (44.0 + 3.0 * s)),
+                  (8.0, 0.0)]
+        pieces.append((length - sum(p[0] for p in pieces), -1 / (46.0 + 3.0 * s)))
+        return pieces, math.radians(10.0 + 2.0 * s)
+
+    def extra(x: np.ndarray, y: float) -> np.ndarray:
+        return 4.0 + (x - 40.0) * (y - 30.0) / 600.0 + (y - 30.0) ** 2 / 800.0
+
+    return g1_surface(sections, length, width, extra=extra)
+
+
+def mould() -> BSplineSurface:
+    """Mould wall crossed by every row (80 x 60 mm): floor -> concave fillet (R 36 -> 34 along y)
+    -> drafted wall (41 -> 46 deg) -> convex round (R 40..43) -> top, joined G1 (double knots in u
+    at the four joins); the floor length bows by 3 mm along y, so the wall is curved in plan."""
+    length, width = 80.0, 60.0
+
+    def sections(y: float) -> tuple[list[Piece], float]:
+        s = y / width
+        alpha = math.radians(41.0 + 5.0 * s)
+        r_fillet, r_round = 36.0 - 2.0 * s, 40.0 + 3.0 * math.sin(math.pi * s)
+        wall = 8.0 - 2.0 * s  # mm along the slope
+        pieces = [(9.0 + 3.0 * math.sin(math.pi * s), 0.0), (r_fillet * math.sin(alpha), 1 / r_fillet),
+                  (wall * math.cos(alpha), 0.0), (r_round * math.sin(alpha), -1 / r_round)]
+        pieces.append((length - sum(p[0] for p in pieces), 0.0))
+        return pieces, 0.0
+
+    return g1_surface(sections, length, width)
 
 
 def saddle() -> Saddle:
-    """z = 10 + (x^2 - y^2) / 90 on 60 x 60 mm: radius of curvature 45 mm at the centre."""
-    return Saddle(a=1 / 90, b=1 / 90, u_range=(-30.0, 30.0), v_range=(-30.0, 30.0), center=(0.0, 0.0, 10.0))
+    """z = 10 + (y^2 - x^2) / 250 on 60 x 60 mm: radius of curvature 125 mm at the centre, convex
+    along x (the rows) and concave across them."""
+    return Saddle(a=-1 / 250, b=-1 / 250, u_range=(-30.0, 30.0), v_range=(-30.0, 30.0),
+                  center=(0.0, 0.0, 10.0))
 
 
-def bump() -> BSplineSurface:
-    """Steep bowl across x whose radius grows from 36 to 40 mm along y and whose floor rises
-    gently: the normal swings by about +-45..52 degrees along every row (rows along x)."""
-    def f(x, y):
-        radius = 36.0 + 4.0 * y / 60.0
-        return 2.0 + 0.05 * y + radius - np.sqrt(radius**2 - (x - 28.5) ** 2)
-    return fit_height_field(f, (0.0, 57.0), (0.0, 60.0), (16, 8))
-
-
-SAMPLES = {"blade": blade, "saddle": saddle, "bump": bump}
+SAMPLES = {"blade": blade, "saddle": saddle, "mould": mould}
 
 
 def curvature_report(surface: ParametricSurface, n: int = 401) -> tuple[float, float]:
@@ -95,6 +185,26 @@ def curvature_report(surface: ParametricSurface, n: int = 401) -> tuple[float, f
     k1, k2, _, _ = surface.principal_curvatures(U, V)
     kmax, kmin = float(k1.max()), float(k2.min())
     return (1 / kmax if kmax > 1e-4 else math.inf), (-1 / kmin if kmin < -1e-4 else math.inf)
+
+
+def blend_report(surface: ParametricSurface, n: int = 121, eps: float = 1e-7) -> list[dict]:
+    """Per double interior u knot of a B-spline (a G1 blend): u, the largest normal angle (deg) and
+    the smallest / largest principal-curvature jump (1/mm) across it over n values of v."""
+    if not isinstance(surface, BSplineSurface):
+        return []
+    t, k = surface.knots_u, surface.degree[0]
+    vals, counts = np.unique(t[k + 1:-k - 1], return_counts=True)
+    v = np.linspace(*surface.v_range, n)
+    out = []
+    for uk in vals[counts == k - 1]:
+        lo, hi = np.full(n, uk - eps), np.full(n, uk + eps)
+        a, b = surface.principal_curvatures(lo, v), surface.principal_curvatures(hi, v)
+        jump = np.maximum(np.abs(a[0] - b[0]), np.abs(a[1] - b[1]))
+        cos = np.sum(surface.normal(lo, v) * surface.normal(hi, v), axis=-1)
+        out.append(dict(u=float(uk), kink=float(np.degrees(np.arccos(np.clip(cos.min(), -1, 1)))),
+                        jump=(float(jump.min()), float(jump.max())),
+                        left=(float(a[1].min()), float(a[0].max())), right=(float(b[1].min()), float(b[0].max()))))
+    return out
 
 
 def independent_chord_error(surface: ParametricSurface, mesh: trimesh.Trimesh, grid: tuple[int, int],
@@ -139,22 +249,23 @@ def make(name: str, surface: ParametricSurface) -> dict:
 
     counts = [s.stop - s.start for s in path.row_slices()]
     tilt = np.degrees(np.arctan2(path.normals[:, 0], path.normals[:, 2]))  # in the x-z plane (rows along x)
-    swing = max(float(np.degrees(np.arccos(np.clip(path.normals[s] @ path.normals[s].T, -1, 1))).max())
-                for s in path.row_slices())
+    swings = [float(np.degrees(np.arccos(np.clip(path.normals[s] @ path.normals[s].T, -1, 1))).max())
+              for s in path.row_slices()]
     concave, convex = curvature_report(surface)
     return dict(name=name, rows=len(counts), pts=(min(counts), max(counts)), n=len(path),
                 verts=len(mesh.vertices), faces=len(mesh.faces), grid=mesh.metadata["grid"],
                 chord_est=mesh.metadata["chord_error"], chord=chord,
                 sizes={p.name: p.stat().st_size for p in (toml, ply, csv)}, concave=concave, convex=convex,
                 tilt=(float(tilt.min()), float(tilt.max())),
-                max_tilt=float(np.degrees(np.arccos(path.normals[:, 2].min()))), swing=swing,
+                max_tilt=float(np.degrees(np.arccos(path.normals[:, 2].min()))),
+                swing=(min(swings), max(swings)), blends=blend_report(surface),
                 z=(float(mesh.vertices[:, 2].min()), float(mesh.vertices[:, 2].max())),
                 xy=np.ptp(mesh.vertices[:, :2], axis=0).tolist())
 
 
-def main() -> None:
-    for name, build in SAMPLES.items():
-        r = make(name, build())
+def main(names: list[str]) -> None:
+    for name in names or list(SAMPLES):
+        r = make(name, SAMPLES[name]())
         print(f"{r['name']}: {r['xy'][0]:.1f} x {r['xy'][1]:.1f} mm, z {r['z'][0]:.2f}..{r['z'][1]:.2f} mm")
         print(f"  path: {r['rows']} rows x {r['pts'][0]}..{r['pts'][1]} points ({r['n']} points)")
         print(f"  mesh: grid {r['grid'][0]} x {r['grid'][1]}, {r['verts']} vertices, {r['faces']} faces, "
@@ -162,8 +273,12 @@ def main() -> None:
         print("  files: " + ", ".join(f"{k} {v / 1e6:.2f} MB" for k, v in r["sizes"].items()))
         print(f"  min concave radius {r['concave']:.1f} mm, min convex radius {r['convex']:.1f} mm")
         print(f"  normal tilt in x-z along rows {r['tilt'][0]:.1f}..{r['tilt'][1]:.1f} deg, "
-              f"max from vertical {r['max_tilt']:.1f} deg, max swing within a row {r['swing']:.1f} deg")
+              f"max from vertical {r['max_tilt']:.1f} deg, swing within a row {r['swing'][0]:.1f}..{r['swing'][1]:.1f} deg")
+        for b in r["blends"]:
+            print(f"  G1 blend at u = {b['u']:.3f}: normal kink {b['kink']:.1e} deg, curvature "
+                  f"{b['left'][0]:+.4f}..{b['left'][1]:+.4f} -> {b['right'][0]:+.4f}..{b['right'][1]:+.4f} 1/mm, "
+                  f"jump {b['jump'][0]:.4f}..{b['jump'][1]:.4f} 1/mm")
 
 
 if __name__ == "__main__":
-    main()
+    main(sys.argv[1:])  # optional sample names; default all
