@@ -293,6 +293,41 @@ class _Knots:
             self.S_slope[:-1] = np.diff(self.S) / hS[:-1]
             self.S_angle = np.r_[0.0, np.cumsum(0.5 * (self.S[1:] + self.S[:-1]) * hS[:-1])] * (2 * np.pi / 60.0)
         self._dir: dict[str, np.ndarray] = {}
+        # equal steps inside every segment let scipy's IIR filter do the recursion
+        hin = self.h[:-1][same[:-1]]
+        self.h0 = float(np.median(hin)) if len(hin) else 0.0
+        self.uniform = bool(len(hin) and np.max(np.abs(hin - self.h0)) <= 1e-9 * self.h0
+                            and len(self.starts) <= 5000)
+        hall = np.diff(self.t)
+        self.uniform_all = bool(len(hall) and np.max(np.abs(hall - self.h0)) <= 1e-9 * self.h0)
+
+    def scan(self, tau: float, slope: np.ndarray, reset: bool = True, e0: float = 0.0) -> np.ndarray:
+        """Following error e at the knots of tau de/dt = s - e, i.e. e_(k+1) = alpha_k e_k +
+        (1 - alpha_k) tau s_k, alpha_k = exp(-h_k / tau); reset: e = 0 at each segment start
+        (else the recursion runs through the breaks from e0 at the first row)."""
+        from scipy.signal import lfilter
+
+        n = self.n
+        if reset and self.uniform or not reset and self.uniform_all:
+            al = math.exp(-self.h0 / tau)
+            coef = (1.0 - al) * tau
+            e = np.empty(n)
+            spans = zip(self.starts, self.ends, strict=True) if reset else [(0, n - 1)]
+            for i0, i1 in spans:
+                e[i0] = e0 if not reset else 0.0
+                if i1 > i0:
+                    zi = np.array([al * e[i0]])
+                    e[i0 + 1:i1 + 1] = lfilter([coef], [1.0, -al], slope[i0:i1], zi=zi)[0]
+            return e
+        h = self.h[:-1] if reset else np.diff(self.t)
+        with np.errstate(over="ignore", under="ignore"):
+            alpha = np.exp(-h / tau)
+        b = (1.0 - alpha) * slope[:-1] * tau
+        if reset:
+            alpha = np.where(self.same[:-1], alpha, 0.0)
+            b = np.where(self.same[:-1], b, 0.0)
+            return _scan(alpha, b)
+        return _scan(alpha, b) + np.r_[1.0, np.cumprod(alpha)] * e0
 
     def _slope(self, u: np.ndarray) -> np.ndarray:
         s = np.zeros(self.n)
@@ -339,12 +374,7 @@ class _Knots:
         cmd = u[k] + s[k] * x
         if tau <= 0.0:
             return cmd
-        with np.errstate(over="ignore", under="ignore"):
-            alpha = np.exp(-self.h[:-1] / tau)
-        b = (1.0 - alpha) * s[:-1] * tau
-        alpha = np.where(self.same[:-1], alpha, 0.0)
-        b = np.where(self.same[:-1], b, 0.0)
-        e = _scan(alpha, b)
+        e = self.scan(tau, s)
         a_x = np.exp(-x / tau)
         return cmd - (a_x * e[k] + (1.0 - a_x) * s[k] * tau)
 
@@ -352,11 +382,8 @@ class _Knots:
         """y with tau dy/dt = S/1000 - y, y = 0 at the program start (cold), at the points."""
         S = self.S / 1000.0
         sl = self.S_slope / 1000.0
-        h = np.r_[np.diff(self.t), 0.0]
-        alpha = np.exp(-h[:-1] / tau)
-        bb = (1.0 - alpha) * sl[:-1] * tau
-        # error e = u - y starts at u(0) (y = 0): x_k = e_k - alpha^k u0 handled by the scan below
-        e = _scan(alpha, bb) + np.r_[1.0, np.cumprod(alpha)] * S[0]
+        # y = 0 at the start means the error e = u - y starts at u(0)
+        e = self.scan(tau, sl, reset=False, e0=float(S[0]))
         a_x = np.exp(-x / tau)
         u = S[k] + sl[k] * x
         return u - (a_x * e[k] + (1.0 - a_x) * sl[k] * tau)
@@ -434,7 +461,8 @@ class Simulator:
         if key not in self._pose:
             m = geometric_machine(self.machine, ph.geometric, ph.spindle)
             n = len(self.t)
-            q = {a: (np.broadcast_to(np.asarray(v, float), (n,)) if np.ndim(v) == 0 else v) for a, v in axes.items()}
+            # idle axes stay scalar zeros: the chain then skips their joints
+            q = {a: (float(v) if np.ndim(v) == 0 else v) for a, v in axes.items()}
             f = m.chain.forward(q)
             p = [np.broadcast_to(np.asarray(f.p[i], float), (n,)) for i in range(3)]
             R = [[np.broadcast_to(np.asarray(f.R[i][j], float), (n,)) for j in range(3)] for i in range(3)]
@@ -1960,6 +1988,22 @@ def diagnose(program: Program, recording: Recording, machine: Machine | None = N
                      resid_after=ra, selection=res)
 
 
+def validate(program: Program, recording: Recording, diag: Diagnosis, machine: Machine | None = None
+             ) -> dict[str, Any]:
+    """Predict a recording the fit never saw with the current and the fitted model: RMS per
+    channel before and after (isolated spikes left out as in ``prepare``)."""
+    P = prepare(program, recording, machine or diag.problem.machine, diag.problem.base)
+    rb = P.data - P.sim_all.run(P.base)
+    ra = P.data - P.sim_all.run(diag.physics)
+    before = _channel_rms(rb, P.valid, P.channels)
+    after = _channel_rms(ra, P.valid, P.channels)
+    return _jsonable({"program": program.source, "recording": recording.source,
+                      "channels": {c: {"rms_before": before[c], "rms_after": after[c], "unit": channel_unit(c),
+                                       "floor": P.floor_info[c]["rms"], "samples": int(P.valid[:, j].sum())}
+                                   for j, c in enumerate(P.channels)},
+                      "outliers": len([o for o in P.outliers if "more" not in o])})
+
+
 def _jsonable(x: Any) -> Any:
     if isinstance(x, dict):
         return {str(k): _jsonable(v) for k, v in x.items()}
@@ -2081,6 +2125,26 @@ def _trapezoid(d: float, vmax: float, amax: float) -> tuple[float, Callable[[np.
     return T, s
 
 
+def _moves(arr: np.ndarray, t: np.ndarray, rng: np.random.Generator, t0: float,
+           target: Callable[[np.random.Generator], float], speed: Callable[[np.random.Generator], float],
+           amax: float, dwell: tuple[float, float]) -> None:
+    """Fill arr with rest-to-rest trapezoidal moves to random targets, each followed by a dwell."""
+    duration = float(t[-1]) + (t[1] - t[0] if len(t) > 1 else 0.0)
+    tcur, pos = t0, 0.0
+    i_prev = 0
+    while tcur < duration:
+        goal = target(rng)
+        v = speed(rng)
+        T, prof = _trapezoid(goal - pos, v, amax)
+        i0, i1 = np.searchsorted(t, [tcur, tcur + T])
+        arr[i_prev:i0] = pos
+        arr[i0:i1] = pos + prof(t[i0:i1] - tcur)
+        pos = goal
+        i_prev = i1
+        tcur += T + float(rng.uniform(*dwell))
+    arr[i_prev:] = pos
+
+
 def make_program(kind: str, duration: float = 20.0, rate: float = 500.0, seed: int = 0,
                  spindle: float = 6000.0) -> Program:
     """Synthetic test programs (times at ``rate`` Hz):
@@ -2100,26 +2164,19 @@ def make_program(kind: str, duration: float = 20.0, rate: float = 500.0, seed: i
         for arr, amp, vmx in ((X, 40.0, 60.0), (Y, 30.0, 45.0), (Z, 10.0, 25.0)):
             if kind != "lines":
                 amp, vmx = amp / 4, vmx / 3
-            tcur, pos = 0.2 * rng.random(), 0.0
-            while tcur < duration:
-                target = float(rng.uniform(-amp, amp))
-                v = float(rng.uniform(0.3, 1.0)) * vmx
-                T, prof = _trapezoid(target - pos, v, 800.0)
-                sel = t >= tcur
-                arr[sel] = pos + prof(t[sel] - tcur)
-                pos = target
-                tcur += T + float(rng.uniform(0.05, 0.6))
+            _moves(arr, t, rng, 0.2 * rng.random(), lambda r, a=amp: float(r.uniform(-a, a)),
+                   lambda r, v=vmx: float(r.uniform(0.3, 1.0)) * v, 800.0, (0.05, 0.6))
     if kind == "circles":
         R = 20.0
         tcur = 0.0
         while tcur < duration:
             f = float(rng.uniform(15.0, 60.0))
             Tc = 2 * np.pi * R / f
-            sel = (t >= tcur) & (t < tcur + Tc)
-            ph = (t[sel] - tcur) * f / R
-            X[sel] = R * np.sin(ph)
-            Y[sel] = R * (1 - np.cos(ph))
-            Z[t >= tcur] = float(rng.uniform(-5, 5))
+            i0, i1 = np.searchsorted(t, [tcur, tcur + Tc])
+            ph = (t[i0:i1] - tcur) * f / R
+            X[i0:i1] = R * np.sin(ph)
+            Y[i0:i1] = R * (1 - np.cos(ph))
+            Z[i0:] = float(rng.uniform(-5, 5))
             tcur += Tc + 0.3
         # smooth the Z steps so no axis jumps
         from scipy.ndimage import uniform_filter1d
@@ -2128,15 +2185,10 @@ def make_program(kind: str, duration: float = 20.0, rate: float = 500.0, seed: i
     if kind == "rotary":
         A = np.zeros(n)
         B = np.zeros(n)
-        for arr, amp in ((A, np.radians(30.0)), (B, np.radians(30.0))):
-            tcur, pos = 0.1 * rng.random(), 0.0
-            while tcur < duration:
-                target = float(rng.uniform(-amp, amp))
-                T, prof = _trapezoid(target - pos, np.radians(float(rng.uniform(10, 30))), np.radians(200.0))
-                sel = t >= tcur
-                arr[sel] = pos + prof(t[sel] - tcur)
-                pos = target
-                tcur += T + float(rng.uniform(0.05, 0.5))
+        for arr in (A, B):
+            amp = np.radians(30.0)
+            _moves(arr, t, rng, 0.1 * rng.random(), lambda r, a=amp: float(r.uniform(-a, a)),
+                   lambda r: np.radians(float(r.uniform(10, 30))), np.radians(200.0), (0.05, 0.5))
     if kind == "spindle":
         levels = rng.permutation([0.0, 3000.0, 6000.0, 9000.0, 12000.0])
         edges = np.linspace(0.0, duration, len(levels) + 1)

@@ -154,7 +154,7 @@ class RowNLP:
         dot = lambda a, b, c: a * T[0] + b * T[1] + c * T[2]  # noqa: E731
         g = ca.vertcat(d1(A), d1(B), d2(A), d2(B), dot(*W[0:3]), dot(*W[3:6]), dot(*W[6:9]))
         opts = {"ipopt.print_level": 0, "print_time": 0, "ipopt.sb": "yes", "ipopt.max_iter": 500,
-                "ipopt.tol": 1e-9, "ipopt.acceptable_tol": 1e-6, "ipopt.mu_strategy": "adaptive",
+                "ipopt.tol": 1e-6, "ipopt.acceptable_tol": 1e-4, "ipopt.mu_strategy": "adaptive",
                 "ipopt.constr_viol_tol": 1e-10, "ipopt.acceptable_constr_viol_tol": 1e-9,
                 "ipopt.linear_solver": "mumps"}
         opts.update(ipopt_options or {})

@@ -49,40 +49,55 @@ def greville(knots: np.ndarray, degree: int) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------
 # G1 profiles (circular arcs and lines) and their B-spline surfaces with double knots
 
-Piece = tuple[float, float]  # (length along x in mm, curvature in 1/mm; > 0 concave seen from above)
+Piece = tuple[float, float]  # (arc length in mm, curvature in 1/mm; > 0 concave seen from above)
 
 
-def g1_profile(x: np.ndarray, pieces: list[Piece], psi0: float, z0: float = 0.0) -> np.ndarray:
-    """Height z(x) (mm) of a tangent-continuous chain of circular arcs and straight lines.
+def g1_chain(sigma: np.ndarray, pieces: list[Piece], psi0: float) -> tuple[np.ndarray, np.ndarray]:
+    """(x, z) in mm at arc lengths ``sigma`` (mm) along a tangent-continuous chain of circular arcs
+    and straight lines in the x-z plane, starting at the origin with slope angle psi0 (rad, from
+    +x toward +z) and running through ``pieces`` (length, kappa) in turn.
 
-    The chain starts at x = 0, height z0, slope angle psi0 (rad, z' = tan psi) and runs through
-    ``pieces`` (dx, kappa) in turn. On an arc of curvature kappa sin(psi) is linear in x,
-    sin(psi(x)) = sin(psi_k) + kappa (x - x_k), so z = z_k + (cos(psi_k) - cos(psi(x))) / kappa; a
-    line (kappa = 0) keeps its slope. Slope is continuous at the joins and curvature jumps there:
-    a G1 blend as in filleted CAD models.
+    On a piece starting at (x_k, z_k, psi_k) the slope angle is psi = psi_k + kappa t (t = arc
+    length into the piece), so x = x_k + (sin psi - sin psi_k) / kappa, z = z_k - (cos psi -
+    cos psi_k) / kappa (a line: x_k + t cos psi_k, z_k + t sin psi_k). The slope is continuous at
+    the joins and the curvature jumps there: a G1 blend as in filleted CAD models.
     """
-    x = np.asarray(x, dtype=float)
-    dx = np.array([p[0] for p in pieces])
+    sigma = np.asarray(sigma, dtype=float)
+    ell = np.array([p[0] for p in pieces])
     kap = np.array([p[1] for p in pieces])
-    xs = np.r_[0.0, np.cumsum(dx)]
-    s, zs = [math.sin(psi0)], [z0]
-    for d, k in zip(dx, kap, strict=True):
-        se = s[-1] + k * d
-        if not abs(se) < 1:
-            raise ValueError("profile turns vertical")
-        c0, c1 = math.sqrt(1 - s[-1] ** 2), math.sqrt(1 - se * se)
-        zs.append(zs[-1] + (s[-1] / c0 * d if k == 0 else (c0 - c1) / k))
-        s.append(se)
-    i = np.clip(np.searchsorted(xs, x, side="right") - 1, 0, len(pieces) - 1)
-    t, s0, k = x - xs[i], np.array(s)[i], kap[i]
-    c0 = np.sqrt(1 - s0 * s0)
-    arc = (c0 - np.sqrt(np.clip(1 - (s0 + k * t) ** 2, 0, None))) / np.where(k == 0, 1.0, k)
-    return np.array(zs)[i] + np.where(k == 0, s0 / c0 * t, arc)
+    s0 = np.r_[0.0, np.cumsum(ell)]
+    x0, z0, psi = [0.0], [0.0], [float(psi0)]
+    for n, k in zip(ell, kap, strict=True):
+        x, z = _piece(n, psi[-1], k)
+        x0.append(x0[-1] + x)
+        z0.append(z0[-1] + z)
+        psi.append(psi[-1] + k * n)
+    i = np.clip(np.searchsorted(s0, sigma, side="right") - 1, 0, len(pieces) - 1)
+    x, z = _piece(sigma - s0[i], np.array(psi)[i], kap[i])
+    return np.array(x0)[i] + x, np.array(z0)[i] + z
 
 
-def joins_of(pieces: list[Piece]) -> np.ndarray:
-    """x (mm) of the interior joins of a profile."""
-    return np.cumsum([p[0] for p in pieces])[:-1]
+def _piece(t: np.ndarray | float, psi: np.ndarray | float, kappa: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
+    """Displacement (dx, dz) along an arc (or line, kappa = 0) of length t from slope angle psi."""
+    t, psi, kappa = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (t, psi, kappa)))
+    k = np.where(kappa == 0, 1.0, kappa)
+    e = psi + kappa * t
+    dx = np.where(kappa == 0, t * np.cos(psi), (np.sin(e) - np.sin(psi)) / k)
+    dz = np.where(kappa == 0, t * np.sin(psi), (np.cos(psi) - np.cos(e)) / k)
+    return dx, dz
+
+
+def close_chain(pieces: list[Piece], psi0: float, length: float) -> list[Piece]:
+    """``pieces`` with the last one's length set so that the chain ends at x = ``length`` (mm)."""
+    x, psi = 0.0, psi0
+    for n, k in pieces[:-1]:
+        x += float(_piece(n, psi, k)[0])
+        psi += k * n
+    dx, k = length - x, pieces[-1][1]
+    if not dx > 0:
+        raise ValueError("the profile is longer than the sample")
+    n = dx / math.cos(psi) if k == 0 else (math.asin(math.sin(psi) + k * dx) - psi) / k
+    return [*pieces[:-1], (n, k)]
 
 
 def knots_with_joins(lo: float, hi: float, joins: np.ndarray, spacing: float, degree: int = 3) -> np.ndarray:
@@ -100,27 +115,38 @@ def g1_surface(sections, length: float, width: float, n_ctrl_v: int = 10, spacin
                extra=None, n_fit: tuple[int, int] = (1601, 121)) -> BSplineSurface:
     """Bicubic B-spline through G1 sections across the rows (rows along u, roughly along x).
 
-    ``sections(y)`` gives (pieces, psi0) of the profile z(x) at y, x in [0, length], all with the
-    same number of pieces; the joins may move with y. u in [0, length] has double knots at the
-    mean joins u_k; the target point at (u, v) is (X, v, profile_v(X) + extra(X, v)) with
-    X(u, v) the monotone C1 cubic (PCHIP) taking u_k to the joins at y = v, so the target is C1
-    in u with its curvature jumps exactly on the knot lines. The control net is its separable
-    least-squares fit on an n_fit grid (v: clamped uniform knots, n_ctrl_v control points; the
-    control y are the Greville abscissae, so y = v exactly). The knot multiplicity, not the fit,
-    makes the surface C1 (and not C2) across the knot lines.
+    ``sections(y)`` gives (pieces, psi0) of the section at y: a ``g1_chain`` in the x-z plane
+    from x = 0 (z = 0) to x = ``length`` (the last piece's length is set by ``close_chain``), all
+    sections with the same number of pieces; the joins may move with y. The target point at
+    (u, v) is (x, v, z + extra(x, v)) at arc length sigma(u, v) along the section at y = v, where
+    sigma is the monotone C1 cubic (PCHIP) in u taking 0, the mean joins u_k and the mean total
+    length to 0, the joins and the total length of that section; the target is therefore C1 in u
+    with its curvature jumps exactly on the lines u = u_k, and u runs at about unit speed. The
+    knot vector in u has double knots at the u_k and single knots about ``spacing`` mm apart; in
+    v it is clamped uniform (n_ctrl_v control points). The control net is the separable least-
+    squares fit on an n_fit grid; the control y are the Greville abscissae (y = v exactly). The
+    knot multiplicity, not the fit, makes the surface C1 (and not C2) across the knot lines.
     """
-    ys = np.linspace(0.0, width, 61)
-    u_joins = np.mean([joins_of(sections(y)[0]) for y in ys], axis=0)
-    tu = knots_with_joins(0.0, length, u_joins, spacing)
+    def closed(y: float) -> tuple[list[Piece], float]:
+        pieces, psi0 = sections(y)
+        return close_chain(pieces, psi0, length), psi0
+
+    def breaks(pieces: list[Piece]) -> np.ndarray:
+        return np.cumsum([p[0] for p in pieces])
+
+    nodes = np.mean([breaks(closed(y)[0]) for y in np.linspace(0.0, width, 61)], axis=0)
+    u_joins, u_len = nodes[:-1], float(nodes[-1])
+    tu = knots_with_joins(0.0, u_len, u_joins, spacing)
     tv = clamped_knots(n_ctrl_v, 3, 0.0, width)
-    us = np.unique(np.r_[np.linspace(0.0, length, n_fit[0]), u_joins])
+    us = np.unique(np.r_[np.linspace(0.0, u_len, n_fit[0]), u_joins])
     vs = np.linspace(0.0, width, n_fit[1])
     F = np.empty((len(us), len(vs), 3))
     for j, y in enumerate(vs):  # loop over sections (~100), not points
-        pieces, psi0 = sections(y)
-        X = PchipInterpolator(np.r_[0.0, u_joins, length], np.r_[0.0, joins_of(pieces), length])(us)
-        z = g1_profile(X, pieces, psi0) + (0.0 if extra is None else extra(X, y))
-        F[:, j] = np.stack([X, np.full_like(X, y), z], -1)
+        pieces, psi0 = closed(y)
+        sigma = PchipInterpolator(np.r_[0.0, nodes], np.r_[0.0, breaks(pieces)])(us)
+        x, z = g1_chain(sigma, pieces, psi0)
+        x[-1] = length  # exactly, not to rounding
+        F[:, j] = np.stack([x, np.full_like(x, y), z + (0.0 if extra is None else extra(x, y))], -1)
     Bu = BSpline.design_matrix(us, tu, 3).toarray()
     Bv = BSpline.design_matrix(vs, tv, 3).toarray()
     control = np.einsum("ia,abk,jb->ijk", np.linalg.pinv(Bu), F, np.linalg.pinv(Bv))
@@ -130,19 +156,16 @@ def g1_surface(sections, length: float, width: float, n_ctrl_v: int = 10, spacin
 
 
 def blade() -> BSplineSurface:
-    """Mould/blade-like free-form of G1 pieces along x (80 x 60 mm): convex leading region
+    """Mould/blade-like free-form of G1 pieces across x (80 x 60 mm): convex leading region
     (R 44..52), straight, concave camber (R 41..47), straight, convex trailing region (R 43..49);
-    radii, the joins (moving up to 2 mm along x) and the start slope vary along y, plus a twist
-    and a spanwise bow. Double knots in u at the four joins."""
+    radii and the start slope vary along y, the joins are swept (they move by 4 mm along x over
+    y), plus a twist and a spanwise bow. Double knots in u at the four joins."""
     length, width = 80.0, 60.0
 
     def sections(y: float) -> tuple[list[Piece], float]:
         s = (y - 30.0) / 30.0
-        shift = 2.0 * math.sin(math.pi * y / width)
-        pieces = [(16.0 + shift, -1 / (48.0 - 4.0 * s)), (8.0, 0.0), (24.0 - shift, 1 / (44.0 + 3.0 * s)),
-                  (8.0, 0.0)]
-        pieces.append((length - sum(p[0] for p in pieces), -1 / (46.0 + 3.0 * s)))
-        return pieces, math.radians(10.0 + 2.0 * s)
+        return ([(16.0 + 2.0 * s, -1 / (48.0 - 4.0 * s)), (8.0, 0.0), (24.0, 1 / (44.0 + 3.0 * s)), (8.0, 0.0),
+                 (0.0, -1 / (46.0 + 3.0 * s))], math.radians(10.0 + 2.0 * s))
 
     def extra(x: np.ndarray, y: float) -> np.ndarray:
         return 4.0 + (x - 40.0) * (y - 30.0) / 600.0 + (y - 30.0) ** 2 / 800.0
@@ -152,19 +175,20 @@ def blade() -> BSplineSurface:
 
 def mould() -> BSplineSurface:
     """Mould wall crossed by every row (80 x 60 mm): floor -> concave fillet (R 36 -> 34 along y)
-    -> drafted wall (41 -> 46 deg) -> convex round (R 40..43) -> top, joined G1 (double knots in u
-    at the four joins); the floor length bows by 3 mm along y, so the wall is curved in plan."""
+    -> drafted wall (41 -> 46 deg, 8 -> 6 mm long) -> convex round (R 40..43) -> top, joined G1
+    (double knots in u at the four joins). The floor and the top share the x left over by the
+    fillet, wall and round, and the floor is lengthened by 2 sin(pi y / 60) mm, so the wall is
+    curved in plan."""
     length, width = 80.0, 60.0
 
     def sections(y: float) -> tuple[list[Piece], float]:
         s = y / width
         alpha = math.radians(41.0 + 5.0 * s)
-        r_fillet, r_round = 36.0 - 2.0 * s, 40.0 + 3.0 * math.sin(math.pi * s)
-        wall = 8.0 - 2.0 * s  # mm along the slope
-        pieces = [(9.0 + 3.0 * math.sin(math.pi * s), 0.0), (r_fillet * math.sin(alpha), 1 / r_fillet),
-                  (wall * math.cos(alpha), 0.0), (r_round * math.sin(alpha), -1 / r_round)]
-        pieces.append((length - sum(p[0] for p in pieces), 0.0))
-        return pieces, 0.0
+        r_fillet, r_round, wall = 36.0 - 2.0 * s, 40.0 + 3.0 * math.sin(math.pi * s), 8.0 - 2.0 * s
+        middle = (r_fillet + r_round) * math.sin(alpha) + wall * math.cos(alpha)  # x taken by the wall
+        floor = (length - middle) / 2 - 1.0 + 2.0 * math.sin(math.pi * s)
+        return ([(floor, 0.0), (r_fillet * alpha, 1 / r_fillet), (wall, 0.0), (r_round * alpha, -1 / r_round),
+                 (0.0, 0.0)], 0.0)
 
     return g1_surface(sections, length, width)
 

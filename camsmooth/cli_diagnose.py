@@ -1,0 +1,133 @@
+"""`camsmooth diagnose`: simulation versus recordings (camsmooth.diagnosis).
+
+    camsmooth diagnose --program P.csv --recording R.csv [--machine M.toml] [--model MODEL.json]
+                       --out FINDINGS.json [--report DIR] [--model-out NEW_MODEL.json]
+    camsmooth diagnose --format umich FILE.csv [FILE.csv ...] --out FINDINGS.json [...]
+                       [--validate FILE.csv ...]
+
+With ``--format umich`` each University of Michigan CNC-mill experiment file is read as program
+and recording at once (camsmooth.recordings.read_umich); several files are fitted together
+(kept apart in time), and ``--validate`` files are only predicted with the fitted model, never
+fitted. Outputs are written atomically; bad input raises InputError (exit 2 from the CLI).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from typing import Any
+
+from ._io import write_text_atomic
+from .errors import InputError
+
+
+def register(subparsers: Any) -> None:
+    """Add the `diagnose` verb to the CLI's subparsers."""
+    p = subparsers.add_parser(
+        "diagnose", help="compare recordings with the simulation; name, fit and validate the missing physics",
+        description="Simulate the recorded channels from the program and the current model, locate where the "
+                    "residual stands above the noise floor, name the missing physics from a library of "
+                    "candidates (chosen on held-out data), fit it and write the findings and the extended model.")
+    p.add_argument("files", nargs="*", metavar="FILE.csv",
+                   help="with --format umich: Michigan CNC-mill experiment file(s), program and recording in one")
+    p.add_argument("--format", choices=("csv", "umich"), default="csv",
+                   help="csv: --program and --recording CSVs (default); umich: Michigan CNC-mill traces")
+    p.add_argument("--program", help="program CSV: t (s), X, Y, Z (mm), A, B (deg), optional S (rpm), segment")
+    p.add_argument("--recording", help="recording CSV: t and X_act.., tip_x.., axis_i.., temp_* channels")
+    p.add_argument("--machine", help="machine TOML (default: the ideal AB head)")
+    p.add_argument("--model", help="current model JSON (ErrorModel JSON, optional servo section)")
+    p.add_argument("--out", required=True, help="FINDINGS.json to write")
+    p.add_argument("--report", help="folder for the plots and report.html")
+    p.add_argument("--model-out", help="write the extended model JSON here (ErrorModel JSON + servo section)")
+    p.add_argument("--validate", nargs="+", default=[], metavar="FILE.csv",
+                   help="with --format umich: files to predict with the fitted model (not fitted)")
+    p.add_argument("--folds", type=int, default=5, help="blocked time folds for held-out scoring (default 5)")
+    p.add_argument("--max-fit-samples", type=int, default=None,
+                   help="fit on at most this many samples (an even random subset; default 120000)")
+    p.add_argument("--candidates", help="comma list restricting the candidate library")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=run_diagnose)
+
+
+def _options(args: argparse.Namespace) -> Any:
+    from .diagnosis import CANDIDATES, Options
+
+    opt = Options()
+    if args.folds < 2:
+        raise InputError(f"--folds must be >= 2, got {args.folds}")
+    opt.folds = args.folds
+    if args.max_fit_samples is not None:
+        if args.max_fit_samples < 100:
+            raise InputError(f"--max-fit-samples must be >= 100, got {args.max_fit_samples}")
+        opt.max_fit_samples = args.max_fit_samples
+    if args.candidates:
+        names = tuple(c.strip() for c in args.candidates.split(",") if c.strip())
+        unknown = [c for c in names if c not in CANDIDATES]
+        if unknown:
+            raise InputError(f"--candidates: unknown {unknown}; known: {', '.join(CANDIDATES)}")
+        opt.candidates = names
+    return opt
+
+
+def run_diagnose(args: argparse.Namespace) -> int:
+    """Run `camsmooth diagnose` (module docstring)."""
+    from .diagnosis import diagnose, load_model, validate, write_findings, write_model
+    from .kinematics import load_machine
+    from .recordings import concatenate, read_program_csv, read_recording_csv, read_umich
+
+    if args.format == "umich":
+        if not args.files:
+            raise InputError("--format umich needs at least one FILE.csv")
+        if args.program or args.recording:
+            raise InputError("--format umich reads program and recording from FILE.csv; drop --program/--recording")
+        pairs = [read_umich(f) for f in args.files]
+        program, recording = pairs[0] if len(pairs) == 1 else concatenate(pairs)
+    else:
+        if args.files:
+            raise InputError(f"unexpected file argument(s) {args.files} (use --program and --recording, or "
+                             "--format umich)")
+        if not args.program or not args.recording:
+            raise InputError("diagnose needs --program P.csv and --recording R.csv (or --format umich FILE.csv)")
+        if args.validate:
+            raise InputError("--validate is for --format umich files")
+        program = read_program_csv(args.program)
+        recording = read_recording_csv(args.recording)
+    machine = load_machine(args.machine)
+    base = load_model(args.model)
+    diag = diagnose(program, recording, machine, base, _options(args))
+    if args.validate:
+        diag.findings["validation"] = [validate(*read_umich(f), diag, machine) for f in args.validate]
+    write_findings(args.out, diag)
+    if args.model_out:
+        write_model(args.model_out, diag)
+    if args.report:
+        from .diagnosis_report import write_report
+
+        write_report(diag, args.report)
+    if not args.quiet:
+        print(summary_text(diag.findings))
+        print(f"findings: {args.out}" + (f"; report: {args.report}" if args.report else "")
+              + (f"; model: {args.model_out}" if args.model_out else ""))
+    return 0
+
+
+def summary_text(f: dict[str, Any]) -> str:
+    """A few plain lines: the verdict, one sentence per effect, what was rejected."""
+    lines = [f"verdict: {f['verdict']}"]
+    for e in f["effects"]:
+        lines.append(f"- {e['sentence']}")
+    for r in f["rejected"]:
+        if not r["reason"].startswith("not applicable"):
+            lines.append(f"  rejected {r['name']}: {r['reason']}")
+    lv = f.get("lag_vs_offset")
+    if lv:
+        lines.append(f"lag vs offset: {lv['verdict']}")
+    for v in f.get("validation", []):
+        lines.append(f"validation {v['recording']}: " + "; ".join(
+            f"{c} {d['rms_before']:.4g} -> {d['rms_after']:.4g}" for c, d in v["channels"].items()))
+    return "\n".join(lines)
+
+
+def dump(path: str, data: dict[str, Any]) -> None:
+    """Write a JSON document atomically (kept for callers that build findings themselves)."""
+    write_text_atomic(path, json.dumps(data, indent=2) + "\n")
