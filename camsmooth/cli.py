@@ -183,7 +183,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("demo", help="smooth a shipped sample and write the CSV, G-code and report")
     p.add_argument("--out", default="demo_out", help="output folder (default demo_out)")
-    p.add_argument("--sample", default="blade", help="sample name in surfaces/ (blade, saddle, bump)")
+    p.add_argument("--sample", default="blade", help="sample name in surfaces/ (blade, saddle, mould)")
     p.add_argument("--samples", default=None, help="folder of the samples (default: the repository's surfaces/)")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=run_demo)

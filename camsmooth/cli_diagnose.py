@@ -14,10 +14,8 @@ fitted. Outputs are written atomically; bad input raises InputError (exit 2 from
 from __future__ import annotations
 
 import argparse
-import json
 from typing import Any
 
-from ._io import write_text_atomic
 from .errors import InputError
 
 
@@ -127,7 +125,3 @@ def summary_text(f: dict[str, Any]) -> str:
             f"{c} {d['rms_before']:.4g} -> {d['rms_after']:.4g}" for c, d in v["channels"].items()))
     return "\n".join(lines)
 
-
-def dump(path: str, data: dict[str, Any]) -> None:
-    """Write a JSON document atomically (kept for callers that build findings themselves)."""
-    write_text_atomic(path, json.dumps(data, indent=2) + "\n")

@@ -11,12 +11,20 @@ Pipeline (``diagnose``):
    20 floors) are reported as outliers and kept out of fits. Locate: intervals where |r| > 3
    floors, with the axis states there.
 3. Explain: a library of candidate physics (``CANDIDATES``), each a parametric addition to the
-   simulation with fit (least squares, scipy.optimize.least_squares on floor-weighted residuals)
-   and score (blocked K-fold held-out RMS and BIC). Greedy forward selection: a candidate joins
-   while the pooled held-out RMS falls by a clear margin, it falls in most folds, and BIC (with
-   the sample count reduced for the residual's autocorrelation) falls; others are recorded as
-   rejected with the reason. Candidates that explain the residual equally well are reported as
-   equivalent with the measurement that would separate them.
+   simulation (``Candidate``: parameters, how they enter Physics, a starting guess, a report),
+   fitted by least squares on floor-weighted residuals and scored on blocked time folds.
+   Least squares: a bounded Levenberg-Marquardt on the normal equations (``_lm``; with a few
+   parameters and up to a million residuals this is much cheaper than
+   scipy.optimize.least_squares' per-iteration SVD). Held-out: each fold predicted by the fit
+   without it (one Gauss-Newton step from the full fit on the other folds' Jacobian rows, then
+   simulated exactly). Greedy forward selection with a backward check (``Selector``): each round
+   every remaining candidate is screened jointly with the chosen terms (those linearised); the
+   best is refitted exactly and joins when the pooled held-out RMS falls by a clear margin, it
+   falls in most folds, and BIC (sample count reduced for the residual's lag-1 autocorrelation)
+   falls by a clear margin; an earlier term that would no longer pass as the last one is dropped.
+   Rejected candidates are recorded with the reason. Candidates that explain the residual
+   equally well are reported as equivalent with the measurement that would separate them; the
+   one named is the first in METHODS.md section 6's order (the more common cause).
 4. Show: residual RMS per channel before and after (fit and held-out), parameters with
    uncertainties, one sentence per effect.
 5. Update: ``model_json`` writes the extended model (ErrorModel JSON + a ``servo`` section).
@@ -715,8 +723,9 @@ class Candidate:
         return ({n: float(v) for n, v in zip(names, x, strict=True)},
                 {n: float(s) for n, s in zip(names, sd, strict=True)}, {n: "" for n in names})
 
-    def explains(self, P: Problem, x: Sequence[str]) -> str:
-        return self.name
+    def veto(self, P: Problem, names: Sequence[str], x: np.ndarray) -> str | None:
+        """A reason to refuse a fitted value that makes the term something else, or None."""
+        return None
 
     def state(self, P: Problem, names: Sequence[str]) -> tuple[str, np.ndarray, str]:
         """(label, values at the fit samples, unit) of the state this effect depends on."""
@@ -1025,7 +1034,8 @@ class SpindleRunout(Candidate):
         phi = float(math.degrees(math.atan2(x[1], x[0])))
         sr = float(math.sqrt((x[0] * sd[0]) ** 2 + (x[1] * sd[1]) ** 2) / r) if r > 0 else float(max(sd))
         sphi = float(math.degrees(sr / r)) if r > 0 else None
-        return ({"radius": r, "phase_deg": phi}, {"radius": sr, "phase_deg": sphi}, {"radius": "mm", "phase_deg": "deg"})
+        return ({"radius": r, "phase_deg": phi}, {"radius": sr, "phase_deg": sphi},
+                {"radius": "mm", "phase_deg": "deg"})
 
     def state(self, P, names):
         return "spindle angle (deg, mod 360)", np.degrees(np.mod(P.states["spindle_angle"], 2 * np.pi)), "deg"
@@ -1058,12 +1068,12 @@ class ThermalDrift(Candidate):
             ang = el.startswith("e")
             out.append(Param(f"gain_{el}", -1.0 if ang else -100.0, 1.0 if ang else 100.0, 1e-6 if ang else 1e-3))
             # a time constant far below the record cannot be told from a constant offset
-            out.append(Param(f"tau_{el}", max(1e-3, 2 * P.dt, 0.02 * span), 20.0 * span, 1.0))
+            out.append(Param(f"tau_{el}", max(1e-3, 2 * P.dt, 0.05 * span), 20.0 * span, 1.0))
         return out
 
     def _tau_grid(self, P):
         span = float(P.t[-1] - P.t[0])
-        return [span * f for f in (0.02, 0.05, 0.1, 0.2, 0.4, 0.8, 1.6, 3.2)]
+        return [span * f for f in (0.06, 0.1, 0.2, 0.4, 0.8, 1.6, 3.2)]
 
     def _element_fit(self, P, el, resid, base):
         """Best (gain, tau, fraction of the residual's sum of squares removed, z) for one element
@@ -1141,6 +1151,15 @@ class ThermalDrift(Candidate):
 
     def state(self, P, names):
         return "elapsed time (s)", P.states["elapsed"], "s"
+
+    def veto(self, P, names, x):
+        lo = {p.name: p.lo for p in self.params(P)}
+        fast = [n[4:] for n, v in zip(names, x, strict=True) if n.startswith("tau_") and v <= 1.01 * lo[n]]
+        if fast:
+            bound = lo["tau_" + fast[0]]
+            return (f"the fitted time constant of {', '.join(fast)} sits on its lower bound ({bound:.3g} s, "
+                    "5% of the record): a step, not a drift; it cannot be told from a constant offset")
+        return None
 
 
 LIBRARY: tuple[Candidate, ...] = (ServoLag(), TimeOffset(), Backlash(), RotaryLocation(), RotarySquareness(),
@@ -1323,7 +1342,8 @@ def _gram(Jt: np.ndarray, r: np.ndarray | None = None) -> tuple[np.ndarray, np.n
 
 
 def _lm(resid_fn: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-        scale: np.ndarray, mask: np.ndarray, max_iter: int = 40, jac_at_end: bool = True
+        scale: np.ndarray, mask: np.ndarray, max_iter: int = 40, jac_at_end: bool = True,
+        fixed_jt: np.ndarray | None = None
         ) -> tuple[np.ndarray, np.ndarray, float, int, np.ndarray | None, np.ndarray]:
     """Levenberg-Marquardt with box bounds for a few parameters and many residuals.
 
@@ -1333,6 +1353,8 @@ def _lm(resid_fn: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, lo: np.nda
     pushes outward are frozen for the step. Returns (x, J^T J at x, cost = sum r^2, iterations,
     the transposed Jacobian at x (when ``jac_at_end``), the masked residual at x).
     With p parameters and m residuals each iteration costs p + 1 simulations and O(m p^2).
+    fixed_jt: known Jacobian rows (transposed) for the first len(fixed_jt) parameters, reused as
+    they are (the linearised part of a screening fit, ``Selector.screen``).
     """
     x = np.clip(np.asarray(x0, float).copy(), lo, hi)
     p = len(x)
@@ -1341,7 +1363,10 @@ def _lm(resid_fn: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, lo: np.nda
 
     def jac(x: np.ndarray, r: np.ndarray) -> np.ndarray:
         Jt = np.empty((p, len(r)))
-        for j in range(p):
+        nf = 0 if fixed_jt is None else len(fixed_jt)
+        if nf:
+            Jt[:nf] = fixed_jt
+        for j in range(nf, p):
             d = 1e-4 * scale[j]
             if x[j] + d > hi[j]:
                 d = -d
@@ -1410,6 +1435,8 @@ class Fit:
     fold_rss: np.ndarray
     fold_n: np.ndarray
     heldout_resid: np.ndarray | None = None
+    Jt: np.ndarray | None = None
+    approximate: bool = False
 
 
 def _cands(names: Sequence[str]) -> list[Candidate]:
@@ -1431,9 +1458,9 @@ class Selector:
     def _thermal_elements(self, key: tuple[str, ...]) -> list[str]:
         """Thermal elements for a candidate set: chosen on the residual left by the terms before
         thermal_drift in the set (the active set when it was added)."""
+        key = key[:key.index("thermal_drift") + 1]  # later terms inherit the choice
         if key not in self.elements:
-            prefix = key[:key.index("thermal_drift")]
-            base = self.fit(prefix).physics
+            base = self.fit(key[:-1]).physics
             self.elements[key] = ThermalDrift().select_elements(self.P, base)
             self.thermal_init[key] = dict(self.P.thermal_init)
         self.P.thermal_init = dict(self.thermal_init[key])
@@ -1498,17 +1525,27 @@ class Selector:
         def rfun(x: np.ndarray) -> np.ndarray:
             return self._resid(self._physics(cands, pnames, x))
 
-        x, H, rss, _, Jt, r_valid = _lm(rfun, x0, lo, hi, scale, valid)
+        f = self._fit_core(key, pnames, rfun, x0, lo, hi, scale, lambda x: self._physics(cands, pnames, x))
+        self.cache[key] = f
+        return f
+
+    def _fit_core(self, key, pnames, rfun, x0, lo, hi, scale, physics_of, fixed_jt=None,
+                  approximate: bool = False) -> Fit:
+        """LM fit, covariance, blocked held-out scores. Held-out: for each fold, the parameters
+        fitted without it, as one Gauss-Newton step from the full fit using only the other folds'
+        rows of the Jacobian (exact for parameters that enter linearly, the first step of an exact
+        refit otherwise); the held-out residual is then simulated at those parameters."""
+        P = self.P
+        folds = P.folds
+        K = int(folds.max()) + 1
+        valid = P.valid_fit
+        x, H, rss, _, Jt, r_valid = _lm(rfun, x0, lo, hi, scale, valid, fixed_jt=fixed_jt)
         r = rfun(x)
         rr = np.where(valid, r, 0.0)
         n = int(valid.sum())
         rho = _lag1(rr)
         n_eff = max(len(x) + 2.0, n * (1 - rho) / (1 + rho))
         cov = np.linalg.pinv(H) * rss / max(n - len(x), 1) * (n / n_eff)
-        # held-out: for each fold, the parameters fitted without it. The refit is one Gauss-Newton
-        # step from the full fit using only the other folds' rows of the Jacobian (exact for
-        # parameters that enter linearly, the first step of an exact refit otherwise); the
-        # held-out residual is then simulated exactly.
         entry_fold = np.broadcast_to(folds[:, None], valid.shape)[valid]
         _, g_all = _gram(Jt, r_valid)
         held = np.zeros_like(r)
@@ -1529,14 +1566,52 @@ class Selector:
             held[sel] = rk[sel]
             fold_rss[k] = float(np.sum(np.where(test, rk, 0.0) ** 2))
             fold_n[k] = int(test.sum())
-        ph = self._physics(cands, pnames, x)
         resid_phys = held / P.w_fit
-        f = Fit(key, pnames, x, ph, cov, rss, n, n_eff,
-                n_eff * math.log(max(rss, 1e-300) / n) + len(x) * math.log(n_eff),
-                _channel_rms(r / P.w_fit, valid, P.channels), float(fold_rss.sum()),
-                _channel_rms(resid_phys, valid, P.channels), fold_rss, fold_n, resid_phys)
-        self.cache[key] = f
-        return f
+        return Fit(key, pnames, x, physics_of(x), cov, rss, n, n_eff,
+                   n_eff * math.log(max(rss, 1e-300) / n) + len(x) * math.log(n_eff),
+                   _channel_rms(r / P.w_fit, valid, P.channels), float(fold_rss.sum()),
+                   _channel_rms(resid_phys, valid, P.channels), fold_rss, fold_n, resid_phys, Jt, approximate)
+
+    def screen(self, current: Fit, name: str) -> Fit:
+        """A cheap joint fit of ``current`` plus candidate ``name``: the new parameters are
+        simulated exactly, the already-fitted ones enter linearly through their Jacobian at the
+        current fit (r(x_old + d) = r(x_old) + J_old d). Used to rank candidates; the one chosen
+        is then fitted exactly."""
+        key = current.active + (name,)
+        if not current.active or current.Jt is None:
+            return self.fit(key)
+        P = self.P
+        cands, pnames, params = self._layout(key)
+        p_old = len(current.x)
+        x_old = current.x
+        new = cands[-1]
+        new_names = pnames[name]
+        lo = np.array([p.lo for p in params])
+        hi = np.array([p.hi for p in params])
+        scale = np.array([p.scale for p in params])
+        valid = P.valid_fit
+        Jt_old = current.Jt
+        base = current.physics
+
+        def physics_of(z: np.ndarray) -> Physics:
+            ph = self._physics(cands[:-1], pnames, z[:p_old])
+            new.write(ph, new_names, z[p_old:])
+            return ph
+
+        def rfun(z: np.ndarray) -> np.ndarray:
+            ph = base.copy()
+            new.write(ph, new_names, z[p_old:])
+            R = self._resid(ph)
+            d = z[:p_old] - x_old
+            if np.any(d != 0.0):
+                R = R.copy()
+                R[valid] += np.einsum("pm,p->m", Jt_old, d)
+            return R
+
+        resid = P.data_fit - P.sim_fit.run(base)
+        x0 = np.concatenate([x_old, np.asarray(new.initial(P, base, new_names, resid), float)])
+        x0 = np.clip(x0, lo + 1e-12 * (hi - lo), hi - 1e-12 * (hi - lo))
+        return self._fit_core(key, pnames, rfun, x0, lo, hi, scale, physics_of, fixed_jt=Jt_old, approximate=True)
 
     def _x_from(self, key: tuple[str, ...], ph: Physics) -> np.ndarray:
         """The parameter vector of a candidate set read from a physics (a warm start)."""
@@ -1579,37 +1654,48 @@ class Selector:
                 if name in active:
                     continue
                 try:
-                    trials[name] = self.fit(tuple(active) + (name,))
+                    trials[name] = self._screen_pruned(current, name)
                 except (ValueError, np.linalg.LinAlgError) as exc:
                     rejected[name] = {"name": name, "reason": f"fit failed: {exc}"}
             if not trials:
                 break
-            verdicts = {n: self._judge(current, f) for n, f in trials.items()}
+            verdicts = {n: self._vetoed(n, f, self._judge(current, f)) for n, f in trials.items()}
             passing = [n for n, v in verdicts.items() if v["ok"]]
             for n, v in verdicts.items():
                 if not v["ok"]:
                     rejected[n] = {"name": n, "reason": v["reason"], "round": len(active) + 1,
                                    "fit_rms_change_pct": v["fit_change_pct"],
                                    "heldout_rms_change_pct": v["heldout_change_pct"], "delta_bic": v["delta_bic"]}
-            if not passing:
+            best = exact = None
+            while passing:
+                lowest = min(passing, key=lambda n: trials[n].heldout_rss)
+                group = [lowest] + [o for o in passing if o != lowest and self._equivalent(trials[lowest], trials[o])]
+                # equal within the noise: name the more common cause (library order = METHODS
+                # section 6 order of the usual suspects) and report the other as equivalent
+                cand = min(group, key=CANDIDATES.index)
+                key = tuple(active) + (cand,)
+                exact = self.fit(key, x0=trials[cand].x) if trials[cand].approximate else trials[cand]
+                v = self._vetoed(cand, exact, self._judge(current, exact))
+                if v["ok"]:
+                    best = cand
+                    for other in group:
+                        if other != best:
+                            equivalences.append({
+                                "chosen": best, "alternative": other, "round": len(active) + 1,
+                                "heldout_rms_chosen": _pooled(trials[best]),
+                                "heldout_rms_alternative": _pooled(trials[other]),
+                                "chosen_because": "equal within the noise; named first as the more common cause "
+                                                  "(METHODS.md section 6 order)",
+                                "separating_measurement": separating_measurement(best, other)})
+                    break
+                rejected[cand] = {"name": cand, "reason": v["reason"] + " (refitted jointly)",
+                                  "round": len(active) + 1, "heldout_rms_change_pct": v["heldout_change_pct"]}
+                passing.remove(cand)
+            if best is None:
                 break
-            lowest = min(passing, key=lambda n: trials[n].heldout_rss)
-            group = [lowest] + [o for o in passing if o != lowest and self._equivalent(trials[lowest], trials[o])]
-            # equal within the noise: name the more common cause (library order = METHODS section 6
-            # order of the usual suspects) and report the other as equivalent
-            best = min(group, key=CANDIDATES.index)
-            for other in group:
-                if other != best:
-                    equivalences.append({"chosen": best, "alternative": other, "round": len(active) + 1,
-                                         "heldout_rms_chosen": _pooled(trials[best]),
-                                         "heldout_rms_alternative": _pooled(trials[other]),
-                                         "chosen_because": "equal within the noise; named first as the more "
-                                                           "common cause (METHODS.md section 6 order)",
-                                         "separating_measurement": separating_measurement(best, other)})
-            steps.append({"added": best, "before": current, "after": trials[best], "verdict": verdicts[best]})
             active.append(best)
             rejected.pop(best, None)
-            current = trials[best]
+            current = exact
             # backward step: a term added earlier as a stand-in may be redundant now; it stays only
             # if it would still pass the test for joining last
             changed = True
@@ -1649,6 +1735,37 @@ class Selector:
         return {"active": active, "final": current, "baseline": self.fit(()), "steps": steps,
                 "rejected": list(rejected.values()) + not_applicable, "equivalences": equivalences,
                 "applicable": applicable, "selection_time_s": time.perf_counter() - t_start}
+
+    def _screen_pruned(self, current: Fit, name: str) -> Fit:
+        """``screen``; for thermal_drift, elements whose time constant runs onto its lower bound
+        (steps, not drifts: usually picked up from another effect's residual) are dropped and
+        the rest refitted."""
+        f = self.screen(current, name)
+        if name != "thermal_drift":
+            return f
+        key = current.active + (name,)
+        for _ in range(4):
+            names = f.pnames[name]
+            i0 = sum(len(f.pnames[n]) for n in f.active[:-1])
+            lo = {p.name: p.lo for p in ThermalDrift().params(self.P)}
+            fast = [n[4:] for n, v in zip(names, f.x[i0:i0 + len(names)], strict=True)
+                    if n.startswith("tau_") and v <= 1.01 * lo[n]]
+            keep = [e for e in self.elements[key] if e not in fast]
+            if not fast or not keep:
+                break
+            self.elements[key] = keep
+            self.cache.pop(key, None)
+            f = self.screen(current, name)
+        return f
+
+    def _vetoed(self, name: str, f: Fit, verdict: dict[str, Any]) -> dict[str, Any]:
+        """The verdict, turned into a refusal when the candidate vetoes its own fitted values."""
+        if not verdict["ok"]:
+            return verdict
+        names = f.pnames[name]
+        i0 = sum(len(f.pnames[n]) for n in f.active[:f.active.index(name)])
+        why = _cands([name])[0].veto(self.P, names, f.x[i0:i0 + len(names)])
+        return verdict if why is None else {**verdict, "ok": False, "reason": why}
 
     def _judge(self, before: Fit, after: Fit) -> dict[str, Any]:
         opt = self.opt
@@ -1692,6 +1809,23 @@ class Selector:
         d = db - da
         se = float(np.std(d, ddof=1) / math.sqrt(len(d))) if len(d) > 1 else math.inf
         return abs(float(np.mean(d))) < 2 * se and abs(mb - ma) < self.opt.equivalent * ma
+
+
+def _floor_stats(resid: np.ndarray, floor: np.ndarray, valid: np.ndarray, channels: Sequence[str]
+                 ) -> dict[str, dict[str, float]]:
+    """Per channel: RMS of residual / floor, and the fraction of samples above 3 floors."""
+    out = {}
+    for j, c in enumerate(channels):
+        z = np.abs(resid[valid[:, j], j]) / floor[valid[:, j], j]
+        out[c] = {"floors_rms": float(np.sqrt(np.mean(z * z))) if len(z) else math.nan,
+                  "fraction_above_3_floors": float(np.mean(z > 3.0)) if len(z) else math.nan}
+    return out
+
+
+def _above_floor(st: Mapping[str, float]) -> bool:
+    """A residual stands above the floor when its RMS exceeds 1.3 floors or more than 2% of the
+    samples exceed 3 floors (white noise at the floor: 1 floor and 0.27%)."""
+    return st["floors_rms"] > 1.3 or st["fraction_above_3_floors"] > 0.02
 
 
 def _pooled(f: Fit) -> float:
@@ -1747,30 +1881,41 @@ def _affected(before: Mapping[str, float], after: Mapping[str, float]) -> list[s
 
 
 def sentence_for(name: str, params: Mapping[str, Any], unc: Mapping[str, Any], hb: Mapping[str, float],
-                 ha: Mapping[str, float], equivalent: Sequence[Mapping[str, Any]] = ()) -> str:
+                 ha: Mapping[str, float], equivalent: Sequence[Mapping[str, Any]] = (),
+                 model_had: Mapping[str, Any] | None = None) -> str:
     """One plain sentence per effect, e.g. "Z lags its command by v/Kv with Kv = 124 1/s, left
     out of the simulation; adding it cuts the held-out RMS from 0.22 to 0.045 mm"."""
     chans = _affected(hb, ha) or list(hb)
     cut = f"adding it cuts the held-out RMS {_rms_unit_text(hb, ha, chans)}"
+    gap = "left out of the simulation"
+    if model_had:
+        had = ", ".join(f"{k} = {_fmt(v) if isinstance(v, float) else v}" for k, v in model_had.items())
+        cut = f"refitting it cuts the held-out RMS {_rms_unit_text(hb, ha, chans)} (the model had {had})"
+    gap = "mis-set in the simulation" if model_had else "left out of the simulation"
     if name == "servo_lag":
         ax = [k[3:] for k, v in params.items() if v is not None]
         kv = ", ".join(f"{_fmt(params[f'Kv_{a}'])} ± {_fmt(unc.get(f'Kv_{a}'))}" for a in ax)
         who = ", ".join(ax)
         verb = "lags its" if len(ax) == 1 else "lag their"
-        s = f"{who} {verb} command by v/Kv with Kv = {kv} 1/s, left out of the simulation; {cut}"
+        s = f"{who} {verb} command by v/Kv with Kv = {kv} 1/s, {gap}; {cut}"
     elif name == "time_offset":
         s = (f"The recording runs {_fmt(params['offset_s'] * 1000)} ± {_fmt(unc['offset_s'] * 1000)} ms "
-             f"{'behind' if params['offset_s'] >= 0 else 'ahead of'} the program's clock, left out of the simulation; {cut}")
+             f"{'behind' if params['offset_s'] >= 0 else 'ahead of'} the program's clock, left out of the "
+             f"simulation; {cut}")
     elif name == "backlash":
-        parts = [f"{k[9:]} {_fmt(v, 'deg' if k[9:] in ROTARY_AXES else 'mm')}" for k, v in params.items()]
-        s = f"The axes lose motion at each reversal (backlash {', '.join(parts)}), left out of the simulation; {cut}"
+        sig = {k: v for k, v in params.items() if abs(v) > 3 * (unc.get(k) or 0.0)}
+        parts = [f"{k[9:]} {_fmt(v, 'deg' if k[9:] in ROTARY_AXES else 'mm')} ± "
+                 f"{_fmt(unc.get(k), 'deg' if k[9:] in ROTARY_AXES else 'mm')}" for k, v in (sig or params).items()]
+        rest = [k[9:] for k in params if sig and k not in sig]
+        none = f"; none measurable on {', '.join(rest)}" if rest else ""
+        s = f"The axes lose motion at each reversal (backlash {', '.join(parts)}{none}), {gap}; {cut}"
     elif name == "spindle_runout":
         s = (f"The tool tip runs out at 1x spindle revolution with radius {_fmt(params['radius'], 'mm')} at phase "
-             f"{_fmt(params['phase_deg'], 'deg')}, left out of the simulation; {cut}")
+             f"{_fmt(params['phase_deg'], 'deg')}, {gap}; {cut}")
     elif name == "thermal_drift":
         els = sorted({k.rsplit("_", 1)[0] for k in params})
         parts = [f"{e} gain {_fmt(params[e + '_gain'])} per 1000 rpm, tau {_fmt(params[e + '_tau'], 's')}" for e in els]
-        s = f"The spindle grows thermally ({'; '.join(parts)}), left out of the simulation; {cut}"
+        s = f"The spindle grows thermally ({'; '.join(parts)}), {gap}; {cut}"
     elif name == "unexplained":
         s = "No candidate in the library explains the residual: " + params.get("detail", "")
     else:
@@ -1778,7 +1923,7 @@ def sentence_for(name: str, params: Mapping[str, Any], unc: Mapping[str, Any], h
                 "rotary_squareness": "The rotary axes are tilted from their nominal directions",
                 "spindle_tilt": "The spindle axis is tilted", "tool_length": "The tool length is off"}[name]
         parts = [f"{k} = {_fmt(v, 'rad' if k in _GEO_ANGLES else 'mm')}" for k, v in params.items()]
-        s = f"{what} ({', '.join(parts)}), left out of the simulation; {cut}"
+        s = f"{what} ({', '.join(parts)}), {gap}; {cut}"
     for e in equivalent:
         s += (f". The data cannot tell it from {e['alternative']} (held-out {e['heldout_rms_alternative']:.3g} "
               f"vs {e['heldout_rms_chosen']:.3g} floors): {e['separating_measurement']}")
@@ -1847,8 +1992,9 @@ def _discriminate_lag_offset(sel: Selector, result: Mapping[str, Any]) -> dict[s
                     "produce; per-axis servo lags can.")
     elif len(taus) > 1:
         verdict += " The per-axis delays agree within their uncertainties, as a single clock offset would also give."
-    sep = separating_measurement("servo_lag", "time_offset")
-    verdict += " " + sep[0].upper() + sep[1:] + "."
+    if shape_same:
+        sep = separating_measurement("servo_lag", "time_offset")
+        verdict += " " + sep[0].upper() + sep[1:] + "."
     return {"heldout_common_lag": h_common, "heldout_offset": h_off, "heldout_per_axis_lag": h_lag,
             "shape_distinguishes": not shape_same, "per_axis_delays": delays, "delays_differ": bool(spread),
             "chi2_per_dof": chi2 / dof, "verdict": verdict, "units": "held-out RMS in noise floors"}
@@ -1908,7 +2054,6 @@ def diagnose(program: Program, recording: Recording, machine: Machine | None = N
     rms_b_all = _channel_rms(rb, P.valid, P.channels)
     rms_a_all = _channel_rms(ra, P.valid, P.channels)
     effects = []
-    prev_fit = baseline
     for step in res["steps"]:
         name = step["added"]
         after = step["after"]
@@ -1926,22 +2071,26 @@ def diagnose(program: Program, recording: Recording, machine: Machine | None = N
                "heldout_rms_before": before.heldout_rms, "heldout_rms_after": after.heldout_rms,
                "verdict": {k: v for k, v in step["verdict"].items() if k != "ok"},
                "equivalent_to": [{k: v for k, v in e.items() if k != "chosen"} for e in eq]}
-        eff["sentence"] = sentence_for(name, par, unc, before.heldout_rms, after.heldout_rms, eq)
+        x_base = np.nan_to_num(np.asarray(cand.read(P.base, names), float))
+        had = None
+        if np.any(x_base != 0.0):
+            had = {k: v for k, v in cand.report(names, x_base, np.zeros(len(names)))[0].items() if v}
+            eff["model_had"] = had
+        eff["sentence"] = sentence_for(name, par, unc, before.heldout_rms, after.heldout_rms, eq, had)
         effects.append(eff)
-        prev_fit = after
-    del prev_fit
-    floors_rms = {c: P.floor_info[c]["rms"] for c in P.channels}
-    at_floor_before = all(rms_b_all[c] <= 1.5 * floors_rms[c] for c in P.channels)
-    at_floor_after = all(rms_a_all[c] <= 1.5 * floors_rms[c] for c in P.channels)
+    z_b, z_a = _floor_stats(rb, P.floor, P.valid, P.channels), _floor_stats(ra, P.floor, P.valid, P.channels)
+    at_floor_before = not any(_above_floor(z_b[c]) for c in P.channels)
+    at_floor_after = not any(_above_floor(z_a[c]) for c in P.channels)
     states_all = P.sim_all.states()
     loc_before = locate_intervals(P.t, rb, P.floor, P.valid, P.channels, states_all, P.segment)
     loc_after = locate_intervals(P.t, ra, P.floor, P.valid, P.channels, states_all, P.segment)
     if not effects and at_floor_before:
         verdict = "nothing to explain: the residual is at the noise floor"
     elif not at_floor_after:
-        above = [c for c in P.channels if rms_a_all[c] > 1.5 * floors_rms[c]]
-        detail = (f"{', '.join(f'{c} {_fmt(rms_a_all[c])} RMS vs floor {_fmt(floors_rms[c])}' for c in above)} "
-                  f"remains, in {loc_after['count']} located interval(s)")
+        above = [c for c in P.channels if _above_floor(z_a[c])]
+        detail = (", ".join(f"{c}: {_fmt(rms_a_all[c])} RMS ({z_a[c]['floors_rms']:.3g} floors; "
+                            f"{100 * z_a[c]['fraction_above_3_floors']:.2g}% of samples above 3 floors)" for c in above)
+                  + f" remains, in {loc_after['count']} located interval(s)")
         effects.append({"name": "unexplained", "parameters": {"detail": detail}, "uncertainties": {},
                         "rms_before": final.rms_fit, "rms_after": final.rms_fit,
                         "heldout_rms_before": final.heldout_rms, "heldout_rms_after": final.heldout_rms,
@@ -1963,13 +2112,13 @@ def diagnose(program: Program, recording: Recording, machine: Machine | None = N
         "notes": list(dict.fromkeys(program.notes + recording.notes)),
         "noise_floor": P.floor_info,
         "outliers": P.outliers,
-        "baseline_rms": {c: {"fit": rms_b_all[c], "heldout": baseline.heldout_rms[c]} for c in P.channels},
+        "baseline_rms": {c: {"fit": rms_b_all[c], "heldout": baseline.heldout_rms[c], **z_b[c]} for c in P.channels},
         "intervals": loc_before["intervals"],
         "located": {k: v for k, v in loc_before.items() if k != "intervals"},
         "intervals_after": loc_after["intervals"][:10],
         "effects": effects,
         "named": [e["name"] for e in effects if e["name"] != "unexplained"],
-        "final_rms": {c: {"fit": rms_a_all[c], "heldout": final.heldout_rms[c]} for c in P.channels},
+        "final_rms": {c: {"fit": rms_a_all[c], "heldout": final.heldout_rms[c], **z_a[c]} for c in P.channels},
         "rejected": res["rejected"],
         "equivalences": res["equivalences"],
         "lag_vs_offset": discrimination,
@@ -2253,3 +2402,126 @@ def simulate_recording_cli(args: Any) -> int:
     write_recording_csv(args.out, rec)
     print(f"wrote {args.out}: {len(rec.t)} samples, channels {', '.join(rec.channels)}")
     return 0
+
+
+# ----------------------------------------------------------------------------------------------
+# the concealed-effect suite: simulate with hidden physics, hand diagnose only program + recording
+#: one setting per candidate (file units, see ``physics_from_settings``)
+CONCEALED_EFFECTS: dict[str, dict[str, float]] = {
+    "servo_lag": {"Kv_X": 40.0, "Kv_Y": 60.0, "Kv_Z": 80.0, "Kv_A": 50.0, "Kv_B": 70.0},
+    "time_offset": {"offset_s": 0.005},
+    "backlash": {"backlash_X": 0.010, "backlash_Y": 0.015, "backlash_Z": 0.020, "backlash_A": 0.010,
+                 "backlash_B": 0.012},
+    "rotary_location": {"EY0A": 0.020, "EZ0A": -0.015, "EX0B": 0.010, "EZ0B": 0.020},
+    "rotary_squareness": {"EB0A": 1e-4, "EC0A": -8e-5, "EA0B": 6e-5, "EC0B": 1e-4},
+    "spindle_tilt": {"EA0S": 1e-4, "EB0S": -1.5e-4},
+    "spindle_runout": {"runout_radius": 0.005, "runout_phase_deg": 30.0},
+    "tool_length": {"EZ0T": 0.05},
+    "thermal_drift": {"thermal_dz_gain": 0.010, "thermal_dz_tau": 6.0, "thermal_dx_gain": 0.004,
+                      "thermal_dx_tau": 3.0},
+}
+#: recorded channel groups and the effects each test program can show
+CONCEALED_PROGRAMS: dict[str, dict[str, Any]] = {
+    "lines": {"channels": ("axes", "tip"),
+              "effects": ("servo_lag", "time_offset", "backlash", "tool_length", "spindle_runout", "thermal_drift")},
+    "circles": {"channels": ("axes", "tip"),
+                "effects": ("servo_lag", "time_offset", "backlash", "spindle_runout", "tool_length", "thermal_drift")},
+    "rotary": {"channels": ("axes", "tip", "axis"), "effects": CANDIDATES},
+    "spindle": {"channels": ("tip", "axis"),
+                "effects": ("servo_lag", "spindle_runout", "tool_length", "thermal_drift", "spindle_tilt")},
+}
+CONCEALED_PAIRS: tuple[tuple[str, str], ...] = (
+    ("servo_lag", "backlash"), ("servo_lag", "thermal_drift"), ("time_offset", "tool_length"),
+    ("rotary_location", "servo_lag"), ("rotary_squareness", "backlash"), ("spindle_runout", "thermal_drift"),
+    ("spindle_tilt", "tool_length"), ("backlash", "spindle_runout"))
+
+
+def concealed_truth(names: Sequence[str], program: Program) -> dict[str, float]:
+    """The settings of the named effects that the program can show (axes it moves; backlash on
+    axes it reverses; a backlash without reversal is a constant offset, not backlash)."""
+    kn = _Knots(program)
+    out: dict[str, float] = {}
+    for n in names:
+        for k, v in CONCEALED_EFFECTS[n].items():
+            ax = k.split("_")[-1] if k.startswith(("Kv_", "backlash_")) else None
+            if ax is not None and not kn.moves(ax):
+                continue
+            if k.startswith("backlash_"):
+                d = kn.direction(ax)
+                if not np.any(d[1:] * d[:-1] < 0):
+                    continue
+            out[k] = v
+    return out
+
+
+def concealed_check(findings: Mapping[str, Any], names: Sequence[str], truth: Mapping[str, float],
+                    tol: float = 0.10) -> tuple[bool, list[str]]:
+    """(named exactly the hidden effects, parameters off by more than tol relative)."""
+    ok = set(findings["named"]) == set(names)
+    bad: list[str] = []
+    if not ok:
+        return False, [f"named {findings['named']} for {list(names)}"]
+    par = {e["name"]: e["parameters"] for e in findings["effects"]}
+    for k, v in truth.items():
+        if k.startswith("Kv_"):
+            got = par["servo_lag"].get(k)
+        elif k == "offset_s":
+            got = par["time_offset"]["offset_s"]
+        elif k.startswith("backlash_"):
+            got = par["backlash"].get(k)
+            if k[-1] in ROTARY_AXES and got is not None:
+                got = got  # degrees in both
+        elif k in GEOMETRIC_NAMES:
+            got = next((p[k] for p in par.values() if k in p), None)
+        elif k == "runout_radius":
+            p = par["spindle_runout"]
+            z = p["radius"] * np.exp(1j * np.radians(p["phase_deg"]))
+            zt = v * np.exp(1j * np.radians(truth["runout_phase_deg"]))
+            if abs(z - zt) > tol * v:
+                bad.append(f"runout {p['radius']:.4g} mm at {p['phase_deg']:.4g} deg vs {v} at "
+                           f"{truth['runout_phase_deg']}")
+            continue
+        elif k == "runout_phase_deg":
+            continue
+        elif k.startswith("thermal_"):
+            el, what = k[8:].rsplit("_", 1)
+            got = par["thermal_drift"].get(f"{el}_{what}")
+        else:  # pragma: no cover
+            got = None
+        if got is None or abs(got - v) > tol * abs(v):
+            bad.append(f"{k}: {got} vs {v}")
+    return not bad, bad
+
+
+def concealed_case(kind: str, names: Sequence[str], noise: float, duration: float | None = None,
+                   rate: float | None = None, seed: int = 1, options: Options | None = None) -> dict[str, Any]:
+    """Simulate one concealed case and diagnose it from program and recording only; returns the
+    case, what was named, whether it was right (names and parameters within 10%) and the time.
+    noise: white sigma on mm channels (rotary and tool-axis channels get noise * 1e-3 rad)."""
+    spec = CONCEALED_PROGRAMS[kind]
+    duration = duration or (30.0 if kind == "spindle" else 20.0)
+    rate = rate or (200.0 if kind == "spindle" else 500.0)
+    program = make_program(kind, duration=duration, rate=rate, seed=seed, spindle=6100.0)
+    truth = concealed_truth(names, program)
+    rec = simulate_recording(program, physics=physics_from_settings(truth), channels=spec["channels"],
+                             noise={"axes": noise, "tip": noise, "rotary": noise * 1e-3, "axis": noise * 1e-3},
+                             seed=seed + 1000)
+    t0 = time.perf_counter()
+    diag = diagnose(program, rec, options=options)
+    dt = time.perf_counter() - t0
+    ok, bad = concealed_check(diag.findings, names, truth)
+    return {"kind": kind, "effects": list(names), "noise": noise, "named": diag.findings["named"], "ok": ok,
+            "problems": bad, "seconds": dt, "samples": len(rec.t)}
+
+
+def concealed_cases(kinds: Sequence[str] = tuple(CONCEALED_PROGRAMS), pairs: bool = True
+                    ) -> list[tuple[str, tuple[str, ...]]]:
+    """(program kind, hidden effects) for the null case, each effect alone and the pairs."""
+    out = []
+    for kind in kinds:
+        eff = CONCEALED_PROGRAMS[kind]["effects"]
+        out.append((kind, ()))
+        out += [(kind, (e,)) for e in eff]
+        if pairs:
+            out += [(kind, p) for p in CONCEALED_PAIRS if all(e in eff for e in p)]
+    return out

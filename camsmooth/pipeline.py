@@ -38,8 +38,10 @@ METHODS = ("none", "spline", "nlp")
 GOUGE_TOL = 1e-3  # mm: a delta below -GOUGE_TOL is interference (the acceptance threshold)
 FIX_TOL = 2e-4  # mm: the NLP loop acts on delta below -FIX_TOL, safely inside GOUGE_TOL
 # mm: a candidate orientation counts as clear at or above this clearance. The tool always
-# touches the surface at its CC point (clearance ~0), so "clear" means "no penetration".
-CLEAR_MARGIN = -5e-5
+# touches the surface at its CC point, and on concave regions the mesh's flat facets sit above
+# the true surface by up to the tessellation's chord error, so a perfect orientation reads about
+# -(chord error) there: "clear" is "no penetration beyond what the fix loop tolerates".
+CLEAR_MARGIN = -0.75 * FIX_TOL
 DILATE = 3  # points on each side of a gouging point that share its raised lead bound
 
 

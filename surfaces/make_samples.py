@@ -1,20 +1,25 @@
-"""Regenerate the sample surfaces in this folder: ``python surfaces/make_samples.py``.
+"""Regenerate the sample surfaces in this folder: ``python surfaces/make_samples.py [NAME ...]``.
 
-For each sample NAME it writes NAME.toml (definition), NAME.ply (binary PLY mesh, chord error
-<= 2e-4 mm) and NAME_path.csv (zig-zag CC path, about 30 rows of 200 points, feed 2000 mm/min),
-checks them (definition round trip, chord error measured independently, file size < 4 MB,
-normals up, curvature limits) and prints a summary. See README.md in this folder.
+For each sample NAME it writes NAME.toml (definition), NAME_path.csv (zig-zag CC path, about 30
+rows of 200 points, feed 2000 mm/min) and NAME.ply (binary PLY mesh, chord error <= 2e-4 mm, its
+grid lines through the rows and graded along them, ``row_aligned_grid``), checks them (definition
+round trip, chord error measured independently on the PLY, mesh offset at the CC points, file
+size < 4 MB, normals up) and prints a summary: size, curvature radii, normal swing per row and,
+for the B-spline samples, the curvature jump across every G1 blend (double knot). See README.md
+in this folder.
 """
 
 from __future__ import annotations
 
 import math
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import trimesh
 from scipy.interpolate import BSpline, PchipInterpolator
+from scipy.spatial import cKDTree
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))  # run from a source checkout without installing
@@ -25,19 +30,22 @@ from camsmooth.surfaces import (  # noqa: E402
     ParametricSurface,
     Saddle,
     clamped_knots,
+    grid_chord_error,
     load_definition,
     load_surface,
     save_definition,
     save_mesh,
-    tessellate_to_tolerance,
 )
 
 CHORD_TOL = 2e-4  # mm, required of the PLY mesh
 # PLY stores float32 vertices (rounding <= 4e-6 mm at 100 mm): tessellate a little tighter
 TESSELLATION_TOL = 1.9e-4
+# mesh deviation allowed where the surface is concave along the rows: chords lie above the
+# surface there, and the pipeline's clear-orientation test (pipeline.CLEAR_MARGIN, -5e-5 mm)
+# rejects every orientation at a CC point the mesh covers by more
+CONCAVE_TOL = 2.5e-5
 MAX_FILE_BYTES = 4_000_000
 ROWS, POINTS, FEED = 30, 200, 2000.0  # rows per path, points per row, mm/min
-MAX_MESH_POINTS = 100_000  # ~3.8 MB of binary PLY
 
 
 def greville(knots: np.ndarray, degree: int) -> np.ndarray:
@@ -50,6 +58,7 @@ def greville(knots: np.ndarray, degree: int) -> np.ndarray:
 # G1 profiles (circular arcs and lines) and their B-spline surfaces with double knots
 
 Piece = tuple[float, float]  # (arc length in mm, curvature in 1/mm; > 0 concave seen from above)
+Sections = Callable[[float], tuple[list[Piece], float]]  # y (mm) -> (pieces, start slope angle in rad)
 
 
 def g1_chain(sigma: np.ndarray, pieces: list[Piece], psi0: float) -> tuple[np.ndarray, np.ndarray]:
@@ -111,8 +120,9 @@ def knots_with_joins(lo: float, hi: float, joins: np.ndarray, spacing: float, de
     return np.r_[[float(lo)] * (degree + 1), sorted(inner), [float(hi)] * (degree + 1)]
 
 
-def g1_surface(sections, length: float, width: float, n_ctrl_v: int = 10, spacing: float = 5.0,
-               extra=None, n_fit: tuple[int, int] = (1601, 121)) -> BSplineSurface:
+def g1_surface(sections: Sections, length: float, width: float, n_ctrl_v: int = 10, spacing: float = 5.0,
+               extra: Callable[[np.ndarray, float], np.ndarray] | None = None,
+               n_fit: tuple[int, int] = (1601, 121)) -> BSplineSurface:
     """Bicubic B-spline through G1 sections across the rows (rows along u, roughly along x).
 
     ``sections(y)`` gives (pieces, psi0) of the section at y: a ``g1_chain`` in the x-z plane
@@ -134,7 +144,8 @@ def g1_surface(sections, length: float, width: float, n_ctrl_v: int = 10, spacin
     def breaks(pieces: list[Piece]) -> np.ndarray:
         return np.cumsum([p[0] for p in pieces])
 
-    nodes = np.mean([breaks(closed(y)[0]) for y in np.linspace(0.0, width, 61)], axis=0)
+    # rounded to 1e-6 mm only to keep the knots in the definition file short
+    nodes = np.round(np.mean([breaks(closed(y)[0]) for y in np.linspace(0.0, width, 61)], axis=0), 6)
     u_joins, u_len = nodes[:-1], float(nodes[-1])
     tu = knots_with_joins(0.0, u_len, u_joins, spacing)
     tv = clamped_knots(n_ctrl_v, 3, 0.0, width)
@@ -203,6 +214,104 @@ def saddle() -> Saddle:
 SAMPLES = {"blade": blade, "saddle": saddle, "mould": mould}
 
 
+def grid_mesh(surface: ParametricSurface, us: np.ndarray, vs: np.ndarray) -> trimesh.Trimesh:
+    """Triangle mesh on the parameter grid us x vs: vertex (i, j) = i * len(vs) + j, exact unit
+    vertex normals, two faces per cell wound like ``camsmooth.surfaces.tessellate`` (face normals
+    along Su x Sv, i.e. up)."""
+    nu, nv = len(us), len(vs)
+    U, V = np.meshgrid(us, vs, indexing="ij")
+    i, j = np.meshgrid(np.arange(nu - 1), np.arange(nv - 1), indexing="ij")
+    a = (i * nv + j).ravel()
+    faces = np.stack([np.stack([a, a + nv, a + nv + 1], -1), np.stack([a, a + nv + 1, a + 1], -1)], 1).reshape(-1, 3)
+    mesh = trimesh.Trimesh(vertices=surface.point(U, V).reshape(-1, 3), faces=faces,
+                           vertex_normals=surface.normal(U, V).reshape(-1, 3), process=False)
+    mesh.metadata["grid"] = (nu, nv)
+    return mesh
+
+
+def row_aligned_grid(surface: ParametricSurface, row_v: np.ndarray, chord_tol: float, concave_tol: float,
+                     n_sample: tuple[int, int] = (2001, 61)) -> tuple[np.ndarray, np.ndarray, float]:
+    """Parameter lines (us, vs) of a mesh for a path whose rows run along u at v = ``row_v``.
+
+    vs holds every row (so each CC point lies on a mesh edge along its row) and splits the gaps
+    between rows evenly. us is graded by the normal curvature along u (max over v of |L|, in mm
+    per parameter^2): the edge deviation |L| du^2 / 8 stays within a share of chord_tol, and
+    within concave_tol where the surface is concave along the rows (L > 0), so that there the
+    mesh lies at most concave_tol above the CC points. For each share (the rest goes to the
+    spacing across the rows) both spacings are scaled until the chord error
+    (``grid_chord_error``) is within chord_tol; the grid with the fewest points is returned as
+    (us, vs, chord error).
+    """
+    (u0, u1), (v0, v1) = surface.u_range, surface.v_range
+    U, V = surface.grid(*n_sample)
+    ff = surface.fundamental_forms(U, V)
+    L_abs, M_abs = np.abs(ff.L).max(axis=1), np.abs(ff.M).max(axis=1)
+    L_concave = np.clip(ff.L, 0, None).max(axis=1)
+    N_max = max(float(np.abs(ff.N).max()), 1e-12)
+    u_s = U[:, 0]
+    rows = np.unique(np.r_[v0, np.asarray(row_v, dtype=float), v1])
+    rows = rows[np.r_[np.diff(rows) > 1e-9, True]]  # a row at v1 - 1e-14 is the line v1
+    rows[-1] = v1
+
+    def spacing_v(share: float, scale: float) -> float:
+        return math.sqrt(8 * (1 - share) * chord_tol / N_max) / scale
+
+    def u_lines(share: float, scale: float) -> np.ndarray:
+        # (|L| du^2 + 2 |M| du dv) / 8 <= share * chord_tol, solved for du (lines per unit = 1 / du)
+        b = M_abs * spacing_v(share, scale)
+        c = 8 * share * chord_tol / scale**2
+        du = c / (b + np.sqrt(b * b + L_abs * c))
+        density = np.maximum.reduce([1 / du, np.sqrt(L_concave / (8 * concave_tol)), np.ones_like(u_s)])
+        # no coarse cell may straddle a curvature jump: spread each density over its own spacing
+        reach = np.ceil(1.0 / (density * (u_s[1] - u_s[0]))).astype(int)
+        spread = density.copy()
+        for k in np.flatnonzero(reach > 1):  # loop over the ~2000 samples, once per grid tried
+            lo, hi = max(0, k - reach[k]), k + reach[k] + 1
+            spread[lo:hi] = np.maximum(spread[lo:hi], density[k])
+        cum = np.r_[0.0, np.cumsum(0.5 * (spread[1:] + spread[:-1]) * np.diff(u_s))]
+        us = np.interp(np.linspace(0.0, cum[-1], math.ceil(cum[-1]) + 1), cum, u_s)
+        us[0], us[-1] = u0, u1
+        return us
+
+    def v_lines(share: float, scale: float) -> np.ndarray:
+        dv = spacing_v(share, scale)
+        splits = [np.linspace(a, b, math.ceil((b - a) / dv) + 1)[:-1]
+                  for a, b in zip(rows[:-1], rows[1:], strict=True)]
+        return np.r_[np.concatenate(splits), v1]
+
+    best: tuple[int, np.ndarray, np.ndarray, float] | None = None
+    for share in (0.3, 0.5, 0.7, 0.9):
+        scale = 1.0
+        for _ in range(8):  # the error scales with the square of the spacing: aim just under chord_tol
+            us, vs = u_lines(share, scale), v_lines(share, scale)
+            err = grid_chord_error(surface, us, vs)
+            if err <= chord_tol and (best is None or len(us) * len(vs) < best[0]):
+                best = (len(us) * len(vs), us, vs, err)
+            if 0.9 * chord_tol <= err <= chord_tol:
+                break
+            scale *= math.sqrt(err / (0.95 * chord_tol))
+    if best is None:
+        raise RuntimeError("row_aligned_grid did not reach the chord tolerance")
+    return best[1], best[2], best[3]
+
+
+def mesh_offsets(mesh: trimesh.Trimesh, points: np.ndarray, normals: np.ndarray, k: int = 32) -> np.ndarray:
+    """Signed offset (mm) of the mesh from each point along its normal, > 0 where the mesh lies
+    above (outside) the point: exact closest points on the faces around the k nearest vertices."""
+    _, nb = cKDTree(mesh.vertices).query(points, k=k)
+    vf = mesh.vertex_faces[nb].reshape(len(points), -1)  # padded with -1
+    owner, face = np.nonzero(vf >= 0)
+    face = vf[owner, face]
+    c = trimesh.triangles.closest_point(mesh.triangles[face], points[owner])
+    d = np.linalg.norm(c - points[owner], axis=1)
+    best = np.full(len(points), np.inf)
+    np.minimum.at(best, owner, d)
+    pick = d <= best[owner]
+    sign = np.zeros(len(points))
+    sign[owner[pick]] = np.einsum("ij,ij->i", c[pick] - points[owner[pick]], normals[owner[pick]])
+    return np.where(sign >= 0, best, -best)
+
+
 def curvature_report(surface: ParametricSurface, n: int = 401) -> tuple[float, float]:
     """(min concave radius, min convex radius) in mm on an n x n grid; inf if none (radius > 10 m)."""
     U, V = surface.grid(n, n)
@@ -231,22 +340,28 @@ def blend_report(surface: ParametricSurface, n: int = 121, eps: float = 1e-7) ->
     return out
 
 
-def independent_chord_error(surface: ParametricSurface, mesh: trimesh.Trimesh, grid: tuple[int, int],
+def independent_chord_error(surface: ParametricSurface, mesh: trimesh.Trimesh, us: np.ndarray, vs: np.ndarray,
                             n: int = 50_000) -> float:
-    """Largest distance from random surface points to the two triangles of their grid cell (an
-    upper bound of the distance to the mesh), exact per triangle. ``mesh`` keeps the grid's
-    vertex and face order (vertex (i, j) = i*nv + j, two faces per cell)."""
+    """Largest distance from random surface points to the triangles of their grid cell and its
+    eight neighbours (an upper bound of the distance to the mesh; the neighbours matter in thin
+    cells, whose iso-lines may bend sideways by more than the cell width), exact per triangle.
+    ``mesh`` keeps the order of ``grid_mesh`` on the lines us x vs (vertex (i, j) = i*nv + j,
+    two faces per cell)."""
     rng = np.random.default_rng(1)
-    nu, nv = grid
+    nu, nv = len(us), len(vs)
     u = rng.uniform(*surface.u_range, n)
     v = rng.uniform(*surface.v_range, n)
-    i = np.clip(np.searchsorted(np.linspace(*surface.u_range, nu), u) - 1, 0, nu - 2)
-    j = np.clip(np.searchsorted(np.linspace(*surface.v_range, nv), v) - 1, 0, nv - 2)
-    t = 2 * (i * (nv - 1) + j)
+    i = np.clip(np.searchsorted(us, u) - 1, 0, nu - 2)
+    j = np.clip(np.searchsorted(vs, v) - 1, 0, nv - 2)
     p = surface.point(u, v)
-    d = [np.linalg.norm(trimesh.triangles.closest_point(mesh.triangles[t + k], p) - p, axis=1)
-         for k in (0, 1)]
-    return float(np.minimum(*d).max())
+    best = np.full(n, np.inf)
+    for di in (-1, 0, 1):
+        for dj in (-1, 0, 1):
+            t = 2 * (np.clip(i + di, 0, nu - 2) * (nv - 1) + np.clip(j + dj, 0, nv - 2))
+            for k in (0, 1):
+                c = trimesh.triangles.closest_point(mesh.triangles[t + k], p)
+                best = np.minimum(best, np.linalg.norm(c - p, axis=1))
+    return float(best.max())
 
 
 def make(name: str, surface: ParametricSurface) -> dict:
@@ -256,20 +371,27 @@ def make(name: str, surface: ParametricSurface) -> dict:
     U, V = surface.grid(37, 41)
     assert back.parameters() == surface.parameters() and np.array_equal(back.point(U, V), surface.point(U, V))
 
-    mesh = tessellate_to_tolerance(surface, chord_tol=TESSELLATION_TOL, max_points=MAX_MESH_POINTS)
-    save_mesh(mesh, ply)
-    assert ply.stat().st_size < MAX_FILE_BYTES, (name, ply.stat().st_size)
-    loaded = load_surface(ply).mesh
-    assert np.array_equal(loaded.faces, mesh.faces) and np.all(loaded.face_normals[:, 2] > 0)
-    chord = independent_chord_error(surface, loaded, mesh.metadata["grid"])
-    assert chord <= CHORD_TOL, (name, chord)
-
     length, width = zigzag_extents(surface, "u")
     path = zigzag_path(surface, stepover=width / (ROWS - 1), spacing=length / (POINTS - 1), along="u",
                        feed=FEED)
     write_cc_csv(csv, path)
     path = read_cc_csv(csv)
     assert np.all(path.normals[:, 2] > 0)
+
+    # the rows lie at v = y (every sample has y(u, v) = v): put mesh lines through them
+    row_v = np.array([path.points[s.start, 1] for s in path.row_slices()])
+    assert np.allclose(surface.point(np.full_like(row_v, surface.u_range[0]), row_v)[:, 1], row_v, atol=1e-9)
+    us, vs, chord_est = row_aligned_grid(surface, row_v, TESSELLATION_TOL, CONCAVE_TOL)
+    mesh = grid_mesh(surface, us, vs)
+    save_mesh(mesh, ply)
+    assert ply.stat().st_size < MAX_FILE_BYTES, (name, ply.stat().st_size)
+    loaded = load_surface(ply).mesh
+    assert np.array_equal(loaded.faces, mesh.faces) and np.all(loaded.face_normals[:, 2] > 0)
+    chord = independent_chord_error(surface, loaded, us, vs)
+    assert chord <= CHORD_TOL, (name, chord)
+    offset = mesh_offsets(loaded, path.points, path.normals)
+    # the CC points lie on mesh edges: never more than concave_tol under the mesh
+    assert offset.max() <= 1.2 * CONCAVE_TOL and -offset.min() <= CHORD_TOL, (name, offset.min(), offset.max())
 
     counts = [s.stop - s.start for s in path.row_slices()]
     tilt = np.degrees(np.arctan2(path.normals[:, 0], path.normals[:, 2]))  # in the x-z plane (rows along x)
@@ -278,7 +400,8 @@ def make(name: str, surface: ParametricSurface) -> dict:
     concave, convex = curvature_report(surface)
     return dict(name=name, rows=len(counts), pts=(min(counts), max(counts)), n=len(path),
                 verts=len(mesh.vertices), faces=len(mesh.faces), grid=mesh.metadata["grid"],
-                chord_est=mesh.metadata["chord_error"], chord=chord,
+                chord_est=chord_est, chord=chord, offset=(float(offset.min()), float(offset.max())),
+                du=(float(np.diff(us).min()), float(np.diff(us).max())),
                 sizes={p.name: p.stat().st_size for p in (toml, ply, csv)}, concave=concave, convex=convex,
                 tilt=(float(tilt.min()), float(tilt.max())),
                 max_tilt=float(np.degrees(np.arccos(path.normals[:, 2].min()))),
@@ -294,10 +417,12 @@ def main(names: list[str]) -> None:
         print(f"  path: {r['rows']} rows x {r['pts'][0]}..{r['pts'][1]} points ({r['n']} points)")
         print(f"  mesh: grid {r['grid'][0]} x {r['grid'][1]}, {r['verts']} vertices, {r['faces']} faces, "
               f"chord error {r['chord_est']:.3g} mm (estimate), {r['chord']:.3g} mm (measured on the PLY)")
+        print(f"  mesh u spacing {r['du'][0]:.3f}..{r['du'][1]:.3f}; mesh offset from the CC points along their "
+              f"normals {r['offset'][0]:.2e}..{r['offset'][1]:.2e} mm")
         print("  files: " + ", ".join(f"{k} {v / 1e6:.2f} MB" for k, v in r["sizes"].items()))
         print(f"  min concave radius {r['concave']:.1f} mm, min convex radius {r['convex']:.1f} mm")
-        print(f"  normal tilt in x-z along rows {r['tilt'][0]:.1f}..{r['tilt'][1]:.1f} deg, "
-              f"max from vertical {r['max_tilt']:.1f} deg, swing within a row {r['swing'][0]:.1f}..{r['swing'][1]:.1f} deg")
+        print(f"  normal tilt in x-z along rows {r['tilt'][0]:.1f}..{r['tilt'][1]:.1f} deg, max from vertical "
+              f"{r['max_tilt']:.1f} deg, swing within a row {r['swing'][0]:.1f}..{r['swing'][1]:.1f} deg")
         for b in r["blends"]:
             print(f"  G1 blend at u = {b['u']:.3f}: normal kink {b['kink']:.1e} deg, curvature "
                   f"{b['left'][0]:+.4f}..{b['left'][1]:+.4f} -> {b['right'][0]:+.4f}..{b['right'][1]:+.4f} 1/mm, "
