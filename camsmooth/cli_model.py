@@ -255,9 +255,19 @@ def predict_table(model: Any, machine: Any, cols: dict[str, np.ndarray], rpm: fl
             raise InputError("--rpm needs a 't' column (time along the rows)", file=source, column="t")
         t = _program_time(cols["t"], cols.get("row"))
     pred = model.predict(machine, A, B, X, Y, Z, t=t, spindle_rpm=rpm)
+    # "ideal" = what the program intends: its tool tip (clx, cly, clz) and axis (i, j, k) when the
+    # file has them (a compensated program commands X, Y, Z away from the nominal kinematics on
+    # purpose), else the nominal kinematics of the commanded axes.
+    ideal_tip, ideal_axis = pred.ideal_tip, pred.ideal_axis
+    if all(k in cols for k in ("clx", "cly", "clz")):
+        ideal_tip = np.column_stack([cols["clx"], cols["cly"], cols["clz"]])
+    if all(k in cols for k in ("i", "j", "k")):
+        ideal_axis = np.column_stack([cols["i"], cols["j"], cols["k"]])
+        ideal_axis = ideal_axis / np.linalg.norm(ideal_axis, axis=1, keepdims=True)
     out = {"real_clx": pred.tip[:, 0], "real_cly": pred.tip[:, 1], "real_clz": pred.tip[:, 2],
            "real_i": pred.axis[:, 0], "real_j": pred.axis[:, 1], "real_k": pred.axis[:, 2],
-           "tip_dev_um": pred.tip_dev_um, "axis_dev_urad": pred.axis_dev_urad}
+           "tip_dev_um": 1e3 * np.linalg.norm(pred.tip - ideal_tip, axis=1),
+           "axis_dev_urad": 1e6 * np.arccos(np.clip(np.sum(pred.axis * ideal_axis, axis=1), -1.0, 1.0))}
     need = ("x", "y", "z", "nx", "ny", "nz", "lead", "tilt")
     if all(k in cols for k in need):
         from .orientation import lead_tilt_from_axis, local_frames
@@ -265,25 +275,30 @@ def predict_table(model: Any, machine: Any, cols: dict[str, np.ndarray], rpm: fl
         cc = np.column_stack([cols["x"], cols["y"], cols["z"]])
         n = np.column_stack([cols["nx"], cols["ny"], cols["nz"]])
         rows = cols.get("row", np.zeros(len(cc), dtype=int))
-        feed = np.full_like(cc, np.nan)
-        for r in np.unique(rows):
-            idx = np.flatnonzero(rows == r)
-            if len(idx) >= 2:
-                feed[idx] = np.gradient(cc[idx], axis=0)
+        if all(k in cols for k in ("fx", "fy", "fz")):
+            feed = np.column_stack([cols["fx"], cols["fy"], cols["fz"]])
+        else:  # older files: the feed direction from the CC points along each row
+            feed = np.full_like(cc, np.nan)
+            for r in np.unique(rows):
+                idx = np.flatnonzero(rows == r)
+                if len(idx) >= 2:
+                    feed[idx] = np.gradient(cc[idx], axis=0)
         ok = np.all(np.isfinite(feed), axis=1) & (np.linalg.norm(np.cross(feed, n), axis=1) > 1e-12)
         real_lead = np.full(len(cc), np.nan)
         real_tilt = np.full(len(cc), np.nan)
         if ok.any():
             frames = local_frames(n[ok], feed[ok])
-            l0, t0 = lead_tilt_from_axis(pred.ideal_axis[ok], frames)
+            l0, t0 = lead_tilt_from_axis(ideal_axis[ok], frames)
             l1, t1 = lead_tilt_from_axis(pred.axis[ok], frames)
             dtilt = np.angle(np.exp(1j * (t1 - t0)))
+            # the file's lead/tilt plus the change from the intended to the real axis (equal to
+            # evaluating the real axis directly when the file's frame is the same)
             real_lead[ok] = cols["lead"][ok] + np.degrees(l1 - l0)
             real_tilt[ok] = cols["tilt"][ok] + np.degrees(dtilt)
         out["real_lead"], out["real_tilt"] = real_lead, real_tilt
         if "delta" in cols:
-            omega = np.cross(pred.ideal_axis, pred.axis)  # small rotation: ideal axis -> real axis
-            disp = (pred.tip - pred.ideal_tip) + np.cross(omega, cc - pred.ideal_tip)
+            omega = np.cross(ideal_axis, pred.axis)  # small rotation: intended axis -> real axis
+            disp = (pred.tip - ideal_tip) + np.cross(omega, cc - ideal_tip)
             out["real_delta_est"] = cols["delta"] + np.sum(disp * n, axis=1)
     return out
 

@@ -77,7 +77,8 @@ def write_result_csv(path: str | os.PathLike, result: SmoothResult) -> Path:
 
     Columns: RESULT_CSV_COLUMNS = OUTPUT_COLUMNS (mm, s, degrees; see camsmooth.result) then
     ``lift`` (mm, fallback lift along the normal, 0 where none) and ``status`` (see
-    ``point_status``). Floats are written as Python ``repr`` (shortest exact round-trip); ``row``
+    ``point_status``), then ``fx,fy,fz`` (unit feed direction, the local frame's X_L) when the
+    result carries them. Floats are written as Python ``repr`` (shortest exact round-trip); ``row``
     and ``idx`` as integers.
     """
     r = result.result
@@ -92,11 +93,15 @@ def write_result_csv(path: str | os.PathLike, result: SmoothResult) -> Path:
             columns.append(_format_float_column(table[:, k]))
     columns.append(_format_float_column(r.lift))
     columns.append(point_status(r).tolist())
+    header = list(RESULT_CSV_COLUMNS)
+    if r.feed_dirs is not None:  # the local frame's X_L, so predict can re-evaluate lead/tilt exactly
+        header += ["fx", "fy", "fz"]
+        columns += [_format_float_column(r.feed_dirs[:, k]) for k in range(3)]
     path = Path(path)
     with atomic_path(path) as tmp:
         with open(tmp, "w", newline="") as fh:
             w = csv.writer(fh, lineterminator="\n")
-            w.writerow(RESULT_CSV_COLUMNS)
+            w.writerow(header)
             w.writerows(zip(*columns, strict=True))
     return path
 

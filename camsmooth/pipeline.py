@@ -388,7 +388,8 @@ class _Context:
             comp[s] = np.linalg.norm(acc, axis=1)
             g += gamma(T[s], self.t[s])
         res = MethodResult(method, self.cc.rows.copy(), self.idx.copy(), self.t.copy(), cc, nrm, cl, T, lead, tilt,
-                           A, B, A_vel, B_vel, A_acc, B_acc, xyz, delta, lift, lead_w.copy(), tilt_w.copy(), comp)
+                           A, B, A_vel, B_vel, A_acc, B_acc, xyz, delta, lift, lead_w.copy(), tilt_w.copy(), comp,
+                           feed_dirs=self.frames[:, :, 0].copy())
         res.metrics = self.metrics(res, g, unreachable, runtime)
         if self.model is not None:
             # ideal (the intended CL point and the axis the ideal machine would give for the

@@ -55,6 +55,7 @@ class MethodResult:
     tilt_window: np.ndarray
     compound_acc: np.ndarray
     metrics: dict[str, Any] = field(default_factory=dict)
+    feed_dirs: np.ndarray | None = None  # (N, 3) unit feed directions X_L used for lead/tilt
 
     def __len__(self) -> int:
         return len(self.t)
