@@ -207,3 +207,23 @@ def test_cli_smooth_writes_csv_gcode_report(tmp_path, wavy):
                            "lead", "tilt", "A", "B", "X", "Y", "Z", "delta"]
     assert (tmp_path / "rep" / "report.html").exists()
     assert "G01" in (tmp_path / "o.nc").read_text()
+
+
+def test_raster_path_by_axial_drop_on_a_mesh_then_smooth(wavy):
+    """Item 2: raster rows on a mesh by axial drop, contacts on the surface, then the pipeline."""
+    import camsmooth
+    from camsmooth.paths import raster_path_on_mesh
+
+    surf, _ = wavy
+    mesh = surf.mesh
+    cc = raster_path_on_mesh(mesh, CUTTER, np.array([0.0, 0.0, 1.0]), 4.0, 0.8, camsmooth.axial_drop)
+    assert len(np.unique(cc.rows)) >= 2
+    # contacts lie on the sinusoid (independent closed form) and normals agree with it
+    s = surf.parametric
+    z = s.point(cc.points[:, 0], cc.points[:, 1])[..., 2]
+    np.testing.assert_allclose(cc.points[:, 2], z, atol=5e-3)
+    n_true = s.normal(cc.points[:, 0], cc.points[:, 1])
+    inside = (cc.points[:, 1] > 0.5) & (cc.points[:, 1] < 11.5) & (cc.points[:, 0] > 0.5) & (cc.points[:, 0] < 39.5)
+    assert np.min(np.sum(cc.normals[inside] * n_true[inside], axis=1)) > np.cos(np.radians(1.0))
+    res = camsmooth.smooth(cc, surf, None, CUTTER, feed=2000.0, lead_range=LEAD, tilt_range=TILT, method="spline")
+    assert res.result.metrics["min_delta"] >= -1e-3
