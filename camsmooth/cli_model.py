@@ -83,15 +83,9 @@ def register(subparsers: Any) -> None:
     p = ssub.add_parser("recording", help="a machine recording (diagnosis)",
                         description="Simulate a machine recording from a program and a model "
                         "(camsmooth.diagnosis).")
-    try:
-        from .diagnosis import add_simulate_recording_arguments
-    except ImportError:  # pragma: no cover - diagnosis not installed
-        p.add_argument("--model", help="model JSON")
-        p.add_argument("--machine", help="machine TOML")
-        p.add_argument("--seed", type=int, default=0)
-        p.add_argument("-o", "--out", help="recording CSV to write")
-    else:
-        add_simulate_recording_arguments(p)
+    from .diagnosis import add_simulate_recording_arguments
+
+    add_simulate_recording_arguments(p)
     p.set_defaults(func=simulate_cli, simulate_kind="recording")
 
     pred = subparsers.add_parser("predict", help="predict the real tool tip and axis of a tool program",

@@ -1976,25 +1976,28 @@ def _discriminate_lag_offset(sel: Selector, result: Mapping[str, Any]) -> dict[s
     dof = max(len(taus) - 1, 1)
     spread = len(taus) > 1 and chi2 / dof > 4.0 and h_lag < h_common * (1 - 0.5 * sel.opt.margin)
     tau_ms = 1000 * mean
-    if shape_same:
+    delay_text = ", ".join(f"{a} {d['delay_ms']:.3g} ± {d['sd_ms']:.2g} ms" for a, d in delays.items())
+    if spread:
+        # one offset for every axis cannot fit then; comparing one common lag with one offset
+        # would compare two wrong models, so the shape test is not the argument here
+        verdict = (f"The fitted delays differ between axes beyond their uncertainties ({delay_text}; chi2/dof = "
+                   f"{chi2 / dof:.3g}): one clock offset between program and recording cannot produce that, "
+                   f"per-axis servo lags can (held-out {h_lag:.4g} floors against {h_off:.4g} for one offset).")
+    elif shape_same:
         verdict = (f"By the shape of the response the data cannot tell a servo lag from a clock offset: one common "
                    f"lag and one offset fit equally (held-out {h_common:.4g} vs {h_off:.4g} floors); with samples "
                    f"every {1000 * P.dt:.3g} ms against a lag time constant of about {tau_ms:.3g} ms the "
                    "exponential corners of a lag are not sampled.")
+        if len(taus) > 1:
+            verdict += (f" The per-axis delays ({delay_text}) agree within their uncertainties, as a single clock "
+                        "offset would also give.")
+        sep = separating_measurement("servo_lag", "time_offset")
+        verdict += " " + sep[0].upper() + sep[1:] + "."
     else:
         better = "servo lag" if h_common < h_off else "clock offset"
         verdict = (f"The shape of the response separates them: one common lag gives held-out {h_common:.4g} and one "
-                   f"offset {h_off:.4g} floors, favouring a {better}.")
-    if spread:
-        verdict += (" The fitted delays differ between axes beyond their uncertainties (" +
-                    ", ".join(f"{a} {d['delay_ms']:.3g} ± {d['sd_ms']:.2g} ms" for a, d in delays.items()) +
-                    f"; chi2/dof = {chi2 / dof:.3g}), which one clock offset between program and recording cannot "
-                    "produce; per-axis servo lags can.")
-    elif len(taus) > 1:
-        verdict += " The per-axis delays agree within their uncertainties, as a single clock offset would also give."
-    if shape_same:
-        sep = separating_measurement("servo_lag", "time_offset")
-        verdict += " " + sep[0].upper() + sep[1:] + "."
+                   f"offset {h_off:.4g} floors, favouring a {better}; the per-axis delays ({delay_text}) agree within "
+                   "their uncertainties.")
     return {"heldout_common_lag": h_common, "heldout_offset": h_off, "heldout_per_axis_lag": h_lag,
             "shape_distinguishes": not shape_same, "per_axis_delays": delays, "delays_differ": bool(spread),
             "chi2_per_dof": chi2 / dof, "verdict": verdict, "units": "held-out RMS in noise floors"}
@@ -2359,7 +2362,7 @@ def make_program(kind: str, duration: float = 20.0, rate: float = 500.0, seed: i
 def add_simulate_recording_arguments(parser: Any) -> None:
     """Arguments of `camsmooth simulate recording` (argparse parser)."""
     parser.add_argument("--program", required=True, help="program CSV (t, X, Y, Z mm, A, B deg, S rpm)")
-    parser.add_argument("--out", required=True, help="recording CSV to write")
+    parser.add_argument("-o", "--out", required=True, help="recording CSV to write")
     parser.add_argument("--machine", help="machine TOML (default: the ideal AB head)")
     parser.add_argument("--model", help="model JSON with the physics to simulate (ErrorModel + servo section)")
     parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
@@ -2369,7 +2372,8 @@ def add_simulate_recording_arguments(parser: Any) -> None:
     parser.add_argument("--rate", type=float, help="sampling rate Hz (default: the program's rows)")
     parser.add_argument("--channels", default="axes",
                         help="comma list of groups (axes, tip, axis) or channel names (default: axes)")
-    parser.add_argument("--noise-mm", type=float, default=0.0, help="white noise sigma on mm channels")
+    parser.add_argument("--noise", "--noise-mm", dest="noise_mm", type=float, default=0.0,
+                        help="white noise sigma on mm channels (mm)")
     parser.add_argument("--noise-deg", type=float, default=0.0, help="white noise sigma on A_act, B_act (deg)")
     parser.add_argument("--noise-axis", type=float, default=0.0, help="white noise sigma on axis_i/j/k")
     parser.add_argument("--quantise-mm", type=float, default=0.0, help="rounding step of mm channels")
