@@ -269,6 +269,16 @@ class Machine:
             return np.ones(values.shape, dtype=bool)
         return (values >= lim.min - tol) & (values <= lim.max + tol)
 
+    def inverse_candidates(self, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Every (A, B) reaching unit axes T (N, 3): both branches of ``inverse_axis`` with A and
+        B shifted by -2 pi, 0 and +2 pi. Returns candidates (N, 18, 2) rad and a mask (N, 18) of
+        those within the A and B travel: every solution within limits, per point."""
+        sols = self.inverse_axis(T)
+        shifts = np.array([-2 * np.pi, 0.0, 2 * np.pi])
+        grid = np.stack(np.meshgrid(shifts, shifts, indexing="ij"), -1)
+        cand = (sols[:, :, None, None, :] + grid[None, None]).reshape(len(sols), -1, 2)
+        return cand, self.within("A", cand[..., 0]) & self.within("B", cand[..., 1])
+
     def solve_row(self, T: np.ndarray, cl: np.ndarray | None = None,
                   previous: tuple[float, float] | None = None) -> IKResult:
         """Inverse kinematics along one row: for every point the (A, B) solution within the
@@ -281,14 +291,8 @@ class Machine:
         """
         T = np.atleast_2d(np.asarray(T, dtype=float))
         n = len(T)
-        sols = self.inverse_axis(T)  # (N, 2, 2)
         prev = np.array(previous if previous is not None else (0.0, 0.0), dtype=float)
-        # 2 pi shifts that bring each branch nearest the reference are chosen below per point;
-        # the candidate set per point is small (2 branches x 3 shifts for A and B).
-        shifts = np.array([-2 * np.pi, 0.0, 2 * np.pi])
-        cand = (sols[:, :, None, None, :] + np.stack(np.meshgrid(shifts, shifts, indexing="ij"), -1)[None, None])
-        cand = cand.reshape(n, -1, 2)  # (N, 18, 2)
-        ok = self.within("A", cand[..., 0]) & self.within("B", cand[..., 1])
+        cand, ok = self.inverse_candidates(T)
         out = np.empty((n, 2))
         reach = ok.any(axis=1)
         # A sequential choice is needed only where the reachable set is ambiguous; the usual case

@@ -13,6 +13,7 @@ Lead is in [0, pi/2) (positive lead puts the contact on the leading side of the 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -172,7 +173,7 @@ class Orientation:
 def initial_orientation(frames: np.ndarray, K_surface: np.ndarray, R: float, r: float,
                         lead_range: tuple[float, float], tilt_range: tuple[float, float],
                         prefer_lead: float | None = None, prefer_tilt: float | None = None,
-                        n_tilt: int = 9, point_names: list[str] | None = None) -> Orientation:
+                        n_tilt: int = 9, point_name: Callable[[int], str] | None = None) -> Orientation:
     """Initial orientation avoiding local gouging (METHODS section 1).
 
     Per point, the admissible lead window is [max(lead_min, lead_required), lead_max], where
@@ -181,7 +182,7 @@ def initial_orientation(frames: np.ndarray, K_surface: np.ndarray, R: float, r: 
     preferred lead and tilt (default: the window midpoints), with the lead raised to the
     curvature's requirement where needed. Raises InfeasibleError naming the first point where no
     lead in the window avoids gouging (e.g. a corner radius larger than the concave radius of the
-    surface along the feed).
+    surface along the feed); ``point_name(i)`` names point i in that message.
     """
     lmin, lmax = map(float, lead_range)
     tmin, tmax = map(float, tilt_range)
@@ -208,7 +209,7 @@ def initial_orientation(frames: np.ndarray, K_surface: np.ndarray, R: float, r: 
         any_feas = feas.any(axis=1)
         if not any_feas.all():
             i = int(np.flatnonzero(partial)[np.flatnonzero(~any_feas)[0]])
-            name = point_names[i] if point_names else f"point {i}"
+            name = point_name(i) if point_name else f"point {i}"
             kmax = float(np.max(np.linalg.eigvalsh(K_surface[i])))
             raise InfeasibleError(
                 f"{name}: no lead in [{np.degrees(lmin):g}, {np.degrees(lmax):g}] deg avoids local gouging "

@@ -125,14 +125,10 @@ def smooth(path: CCPath | str | Path, surface: Surface | str | Path, machine: Ma
     index = MeshIndex(surf.mesh)
     K_s = surface_curvature_tensors(np.asarray(surf.mesh.vertices), cc.points, frames, tree=index.tree)
     slices = cc.row_slices()
-    names = [""] * n
-    for s in slices:
-        for k in range(s.start, s.stop):
-            names[k] = f"row {cc.rows[k]}, point {k - s.start}"
-    orient = initial_orientation(frames, K_s, cutter.R, cutter.r, lead_range, tilt_range, prefer_lead,
-                                 prefer_tilt, point_names=names)
-    t = np.concatenate([row_times(cc.points[s], feed_arr[s]) for s in slices])
     idx = np.concatenate([np.arange(s.stop - s.start) for s in slices])
+    orient = initial_orientation(frames, K_s, cutter.R, cutter.r, lead_range, tilt_range, prefer_lead,
+                                 prefer_tilt, point_name=lambda i: f"row {cc.rows[i]}, point {idx[i]}")
+    t = np.concatenate([row_times(cc.points[s], feed_arr[s]) for s in slices])
 
     wanted = ["none"] + (["spline"] if method in ("spline", "nlp") else []) + (["nlp"] if method == "nlp" else [])
     ctx = _Context(cc, frames, t, idx, slices, nominal, real, cutter, index, orient, opts, model, compensate)
@@ -215,7 +211,7 @@ class _Context:
         for s in self.slices:
             r = self.nominal.solve_row(axes[s], previous=prev)
             A[s], B[s] = r.A, r.B
-            prev = (r.A[0], r.B[0])
+            prev = (r.A[-1], r.B[-1])  # a zig-zag row starts where the previous one ended
             bad.extend((r.unreachable + s.start).tolist())
         return A, B, np.asarray(bad, int)
 

@@ -126,3 +126,19 @@ def test_bad_machine_file(tmp_path, patch, words):
 def test_missing_machine_file_named(tmp_path):
     with pytest.raises(InputError, match="not found"):
         load_machine(str(tmp_path / "nope.toml"))
+
+
+def test_inverse_candidates_are_every_solution_within_limits():
+    m = _wide_machine()  # A in [-360, 360], B in [-180, 180] deg
+    T = m.tool_axis_np(np.radians([30.0, -120.0]), np.radians([20.0, -60.0]))
+    cand, ok = m.inverse_candidates(T)
+    for i in range(2):
+        sols = cand[i][ok[i]]
+        np.testing.assert_allclose(m.tool_axis_np(sols[:, 0], sols[:, 1]), np.tile(T[i], (len(sols), 1)), atol=1e-12)
+        # independent count: A = a0 + 2 pi k within +-360 deg (2 or 3 values per branch), B within +-180
+        expected = 0
+        for a0, b0 in m.inverse_axis(T[i:i + 1])[0]:
+            na = sum(-2 * np.pi <= a0 + 2 * np.pi * k <= 2 * np.pi for k in (-1, 0, 1))
+            nb = sum(-np.pi <= b0 + 2 * np.pi * k <= np.pi for k in (-1, 0, 1))
+            expected += na * nb
+        assert ok[i].sum() == expected >= 4
