@@ -23,14 +23,16 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 from camsmooth.diagnosis import diagnose, validate  # noqa: E402
 from camsmooth.recordings import concatenate, read_umich  # noqa: E402
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "umich-cnc-mill"
+# the recordings live in shared/ beside the repository; CAMSMOOTH_UMICH overrides
+DATA = Path(os.environ.get("CAMSMOOTH_UMICH",
+                           Path(__file__).resolve().parents[2] / "shared" / "data" / "umich-cnc-mill"))
 FIT = [1, 2, 3, 4, 5, 6]
 VALIDATE = [7, 8, 9, 10, 11, 12]
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", default=str(DATA if DATA.exists() else "/work/shared/data/umich-cnc-mill"))
+    ap.add_argument("--data", default=str(DATA), help="folder of experiment_NN.csv (default: %(default)s)")
     ap.add_argument("--report", help="write the plots and report.html here")
     args = ap.parse_args()
     data = Path(args.data)

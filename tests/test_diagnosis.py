@@ -6,10 +6,10 @@ from __future__ import annotations
 import argparse
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import UMICH, needs_umich  # noqa: E402
 from scipy.integrate import solve_ivp
 
 from camsmooth.cli import main as cli_main
@@ -38,9 +38,6 @@ from camsmooth.errormodel import ErrorModel
 from camsmooth.errors import InputError
 from camsmooth.kinematics import load_machine
 from camsmooth.recordings import Program, read_recording_csv, read_umich, write_program_csv, write_recording_csv
-
-UMICH = Path("/work/shared/data/umich-cnc-mill")
-needs_umich = pytest.mark.skipif(not (UMICH / "experiment_01.csv").exists(), reason="Michigan data not present")
 
 
 # ---- exact responses -------------------------------------------------------------------------

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import UMICH, needs_umich  # noqa: E402
 
 from camsmooth.errors import InputError
 from camsmooth.recordings import (
@@ -21,9 +21,6 @@ from camsmooth.recordings import (
     write_program_csv,
     write_recording_csv,
 )
-
-UMICH = Path("/work/shared/data/umich-cnc-mill")
-needs_umich = pytest.mark.skipif(not (UMICH / "experiment_01.csv").exists(), reason="Michigan data not present")
 
 
 # ---- quantisation ----------------------------------------------------------------------------
