@@ -70,20 +70,16 @@ def test_recording_round_trip(tmp_path):
     assert np.allclose(q.channels["B_act"], r.channels["B_act"])
 
 
-def test_bad_cell_names_row_and_column(tmp_path):
-    f = tmp_path / "r.csv"
-    f.write_text("t,X_act\n0,1\n0.1,abc\n0.2,3\n")
+@pytest.mark.parametrize("reader, text, row, column", [
+    (read_recording_csv, "t,X_act\n0,1\n0.1,abc\n0.2,3\n", 2, "X_act"),  # a bad cell
+    (read_program_csv, "t,X\n0,1\n0.2,2\n0.1,3\n", 3, "t"),  # time must increase
+])
+def test_bad_input_names_row_and_column(tmp_path, reader, text, row, column):
+    f = tmp_path / "in.csv"
+    f.write_text(text)
     with pytest.raises(InputError) as e:
-        read_recording_csv(f)
-    assert e.value.row == 2 and e.value.column == "X_act"
-
-
-def test_time_must_increase(tmp_path):
-    f = tmp_path / "p.csv"
-    f.write_text("t,X\n0,1\n0.2,2\n0.1,3\n")
-    with pytest.raises(InputError) as e:
-        read_program_csv(f)
-    assert e.value.row == 3 and e.value.column == "t"
+        reader(f)
+    assert e.value.row == row and e.value.column == column
 
 
 def test_missing_columns(tmp_path):
