@@ -181,7 +181,7 @@ def _run_nlp(ctx: _Context, machine: Machine, As: np.ndarray, Bs: np.ndarray, la
     lift = ctx.lift_fallback(An, Bn, needs_lift)
     res = ctx.finish(label, An, Bn, lift, np.zeros(0, int), time.perf_counter() - t0, lead_w, tilt_w)
     res.metrics["ipopt_iterations"] = int(sum(st.iterations for st in stats))
-    res.metrics["nlp_build_s"] = float(sum(sv.build_s for sv in solvers.values()))
+    res.metrics["nlp_build_s"] = float(sum(sv.build_s for sv in solvers.values()) + sum(st.build_s for st in stats))
     res.metrics["interference_passes"] = int(max((st.passes for st in stats), default=0))
     return res
 
@@ -190,6 +190,7 @@ def _run_nlp(ctx: _Context, machine: Machine, As: np.ndarray, Bs: np.ndarray, la
 class _RowStats:
     iterations: int
     passes: int
+    build_s: float = 0.0
 
 
 class _Context:
@@ -233,10 +234,12 @@ class _Context:
         A, B = A0, B0
         iters = 0
         passes = 0
+        build = 0.0
         prev_w = (lead_w.copy(), tilt_w.copy())
         for passes in range(1, self.opts.max_passes + 1):  # noqa: B007
             A_new, B_new, st = solver.solve(t, frames, A, B, lead_w, tilt_w)
             iters += st.iterations
+            build += st.build_s
             if not st.success:
                 viol = solver.constraint_report(t, A_new, B_new)
                 if passes == 1:
@@ -267,7 +270,7 @@ class _Context:
             no_clean[bad[~found]] = True
         T = solver.machine.tool_axis_np(A, B)
         d = self.delta(cc_to_cl(self.cutter, cc, nrm, T), T)
-        return A, B, lead_w, tilt_w, d < -FIX_TOL, _RowStats(iters, passes)
+        return A, B, lead_w, tilt_w, d < -FIX_TOL, _RowStats(iters, passes, build)
 
     def _clearance_at(self, s: slice, pts: np.ndarray, lead: np.ndarray, tilt: np.ndarray) -> np.ndarray:
         """Clearance (mm) of the tool at row-local points ``pts`` for the given lead/tilt (rad)."""
