@@ -27,6 +27,7 @@ import casadi as ca
 import numpy as np
 import scipy.sparse as sp
 from scipy.interpolate import CubicSpline
+from scipy.ndimage import binary_dilation
 
 from .errors import InfeasibleError
 from .kinematics import Machine
@@ -175,17 +176,8 @@ def _psd_part(a: ca.MX, b: ca.MX, c: ca.MX) -> tuple[ca.MX, ca.MX, ca.MX]:
 
 def _dilate(mask: np.ndarray, sizes: Sequence[int], k: int) -> np.ndarray:
     """``mask`` grown by k rows on each side within each group of rows (group lengths sizes)."""
-    out = np.zeros_like(mask)
-    start = 0
-    for m in sizes:
-        idx = np.flatnonzero(mask[start:start + m])
-        if idx.size:
-            marks = np.zeros(m + 1, int)
-            np.add.at(marks, np.clip(idx - k, 0, None), 1)
-            np.add.at(marks, np.minimum(idx + k + 1, m), -1)
-            out[start:start + m] = np.cumsum(marks)[:-1] > 0
-        start += m
-    return out
+    parts = np.split(mask, np.cumsum(sizes)[:-1])
+    return np.concatenate([binary_dilation(m, np.ones(2 * k + 1, bool)) if m.any() else m for m in parts])
 
 
 def _sparse_mx(nrow: int, ncol: int, rows: np.ndarray, cols: np.ndarray, vals: ca.MX) -> ca.MX:
