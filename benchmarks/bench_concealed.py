@@ -16,7 +16,7 @@ import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from camsmooth.diagnosis import CONCEALED_PROGRAMS, concealed_case, concealed_cases  # noqa: E402
+from camsmooth.diagnosis.engine import CONCEALED_PROGRAMS, concealed_case, concealed_cases  # noqa: E402
 
 
 def main() -> int:

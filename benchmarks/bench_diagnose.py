@@ -17,8 +17,8 @@ import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from camsmooth.diagnosis import diagnose, make_program, physics_from_settings, simulate_recording  # noqa: E402
-from camsmooth.recordings import (  # noqa: E402
+from camsmooth.diagnosis.engine import diagnose, make_program, physics_from_settings, simulate_recording  # noqa: E402
+from camsmooth.diagnosis.recordings import (  # noqa: E402
     read_program_csv,
     read_recording_csv,
     write_program_csv,

@@ -1,4 +1,4 @@
-"""Benchmark of camsmooth.interference: clearance poses/s and axial_drop points/s.
+"""Benchmark of camsmooth.geometry.clearance: clearance poses/s and axial_drop points/s.
 
 Surface: a 200 x 200 grid (40 000 vertices, 79 202 triangles) of the wavy sheet
 z = 4 sin(x/9) cos(y/13) + 0.02 x over 100 x 100 mm.  Poses: 6000 CC points on the sheet with
@@ -16,8 +16,8 @@ import time
 import numpy as np
 import trimesh
 
-from camsmooth.cutter import ToroidalCutter, cc_to_cl
-from camsmooth.interference import MeshIndex, axial_drop, clearance
+from camsmooth.geometry.clearance import MeshIndex, axial_drop, clearance
+from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl
 
 
 def surface(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -21,11 +21,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from camsmooth.cutter import ToroidalCutter  # noqa: E402
-from camsmooth.kinematics import load_machine  # noqa: E402
-from camsmooth.orientation import axis_from_lead_tilt, local_frames  # noqa: E402
-from camsmooth.pipeline import smooth  # noqa: E402
-from camsmooth.smoothing import RowNLP, gamma, spline_row  # noqa: E402
+from camsmooth.geometry.cutter import ToroidalCutter  # noqa: E402
+from camsmooth.machine.kinematics import load_machine  # noqa: E402
+from camsmooth.smoothing.nlp import RowNLP, gamma, spline_row  # noqa: E402
+from camsmooth.smoothing.orientation import axis_from_lead_tilt, local_frames  # noqa: E402
+from camsmooth.smoothing.pipeline import smooth  # noqa: E402
 
 LEAD = tuple(np.radians([2.0, 20.0]))
 TILT = tuple(np.radians([-15.0, 15.0]))
@@ -110,8 +110,8 @@ def bench_scaling(sizes: list[int], repeats: int = 3) -> None:
 def bench_demo() -> None:
     import tempfile
 
-    from camsmooth.output import write_gcode, write_result_csv
-    from camsmooth.report import write_report
+    from camsmooth.io.output import write_gcode, write_result_csv
+    from camsmooth.report.smoothing import write_report
 
     print("\n== whole demo pipeline (blade): smooth + CSV + G-code + report")
     t0 = time.perf_counter()

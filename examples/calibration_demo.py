@@ -23,10 +23,10 @@ from pathlib import Path
 
 import numpy as np
 
-from camsmooth import calibration as cal
-from camsmooth import simulate as sim
-from camsmooth.errormodel import GEOMETRIC_PARAMETERS, THERMAL_ELEMENTS, ErrorModel, compensate
-from camsmooth.kinematics import load_machine
+from camsmooth.machine import calibration as cal
+from camsmooth.machine import simulate as sim
+from camsmooth.machine.kinematics import load_machine
+from camsmooth.machine.model import GEOMETRIC_PARAMETERS, THERMAL_ELEMENTS, ErrorModel, compensate
 
 DATA = Path(__file__).resolve().parent / "data"
 

@@ -20,8 +20,8 @@ from pathlib import Path
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from camsmooth.diagnosis import diagnose, validate  # noqa: E402
-from camsmooth.recordings import concatenate, read_umich  # noqa: E402
+from camsmooth.diagnosis.engine import diagnose, validate  # noqa: E402
+from camsmooth.diagnosis.recordings import concatenate, read_umich  # noqa: E402
 
 # the recordings live in shared/ beside the repository; CAMSMOOTH_UMICH overrides
 DATA = Path(os.environ.get("CAMSMOOTH_UMICH",
@@ -82,7 +82,7 @@ def main() -> int:
                                          for a, d in lv["per_axis_delays"].items()))
     print(f"  {lv['verdict']}")
     if args.report:
-        from camsmooth.diagnosis_report import write_report
+        from camsmooth.report.diagnosis import write_report
 
         write_report(diag, args.report)
         print(f"\nreport: {args.report}/report.html")

@@ -20,10 +20,10 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from camsmooth.cutter import ToroidalCutter  # noqa: E402
-from camsmooth.errormodel import ErrorModel  # noqa: E402
-from camsmooth.paths import CCPath, read_cc_csv  # noqa: E402
-from camsmooth.pipeline import smooth  # noqa: E402
+from camsmooth.geometry.cutter import ToroidalCutter  # noqa: E402
+from camsmooth.geometry.paths import CCPath, read_cc_csv  # noqa: E402
+from camsmooth.machine.model import ErrorModel  # noqa: E402
+from camsmooth.smoothing.pipeline import smooth  # noqa: E402
 
 
 def main() -> int:

@@ -24,8 +24,8 @@ from scipy.spatial import cKDTree
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))  # run from a source checkout without installing
 
-from camsmooth.paths import read_cc_csv, write_cc_csv, zigzag_extents, zigzag_path  # noqa: E402
-from camsmooth.surfaces import (  # noqa: E402
+from camsmooth.geometry.paths import read_cc_csv, write_cc_csv, zigzag_extents, zigzag_path  # noqa: E402
+from camsmooth.geometry.surfaces import (  # noqa: E402
     BSplineSurface,
     ParametricSurface,
     Saddle,
@@ -216,7 +216,7 @@ SAMPLES = {"blade": blade, "saddle": saddle, "mould": mould}
 
 def grid_mesh(surface: ParametricSurface, us: np.ndarray, vs: np.ndarray) -> trimesh.Trimesh:
     """Triangle mesh on the parameter grid us x vs: vertex (i, j) = i * len(vs) + j, exact unit
-    vertex normals, two faces per cell wound like ``camsmooth.surfaces.tessellate`` (face normals
+    vertex normals, two faces per cell wound like ``camsmooth.geometry.surfaces.tessellate`` (face normals
     along Su x Sv, i.e. up)."""
     nu, nv = len(us), len(vs)
     U, V = np.meshgrid(us, vs, indexing="ij")

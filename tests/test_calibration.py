@@ -10,12 +10,12 @@ import json
 import numpy as np
 import pytest
 
-from camsmooth import calibration as cal
-from camsmooth import simulate as sim
-from camsmooth.cli_model import predict_table, register
-from camsmooth.errormodel import GEOMETRIC_PARAMETERS, THERMAL_ELEMENTS, ErrorModel, SpindleScrew
+from camsmooth.cli.model import predict_table, register
 from camsmooth.errors import InputError
-from camsmooth.kinematics import load_machine
+from camsmooth.machine import calibration as cal
+from camsmooth.machine import simulate as sim
+from camsmooth.machine.kinematics import load_machine
+from camsmooth.machine.model import GEOMETRIC_PARAMETERS, THERMAL_ELEMENTS, ErrorModel, SpindleScrew
 
 AXIS_ERRORS = {"EY0A": 0.020, "EZ0A": -0.035, "EB0A": 30e-6, "EC0A": -45e-6, "EX0B": 0.015, "EZ0B": -0.025,
                "EA0B": 40e-6, "EC0B": -20e-6}

@@ -1,4 +1,4 @@
-"""Tests of camsmooth.cutter: CC -> CL against a torus built point by point, signed distance
+"""Tests of camsmooth.geometry.cutter: CC -> CL against a torus built point by point, signed distance
 against dense surface samples and at constructed points, support points, bad input."""
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ import pytest
 from scipy.optimize import least_squares
 from scipy.spatial import cKDTree
 
-from camsmooth.cutter import ToroidalCutter, cc_to_cl, cl_to_cc, signed_distance, support_point
 from camsmooth.errors import InputError
+from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl, cl_to_cc, signed_distance, support_point
 
 RNG_SEED = 20240611
 

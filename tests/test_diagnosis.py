@@ -12,8 +12,8 @@ import pytest
 from conftest import UMICH, needs_umich  # noqa: E402
 from scipy.integrate import solve_ivp
 
-from camsmooth.cli import main as cli_main
-from camsmooth.diagnosis import (
+from camsmooth.cli.main import main as cli_main
+from camsmooth.diagnosis.engine import (
     CANDIDATES,
     Physics,
     Simulator,
@@ -34,10 +34,16 @@ from camsmooth.diagnosis import (
     simulate_recording_cli,
     validate,
 )
-from camsmooth.errormodel import ErrorModel
+from camsmooth.diagnosis.recordings import (
+    Program,
+    read_recording_csv,
+    read_umich,
+    write_program_csv,
+    write_recording_csv,
+)
 from camsmooth.errors import InputError
-from camsmooth.kinematics import load_machine
-from camsmooth.recordings import Program, read_recording_csv, read_umich, write_program_csv, write_recording_csv
+from camsmooth.machine.kinematics import load_machine
+from camsmooth.machine.model import ErrorModel
 
 
 # ---- exact responses -------------------------------------------------------------------------
@@ -180,7 +186,7 @@ def test_michigan_servo_lag_named_with_kv_per_axis():
 
 @needs_umich
 def test_michigan_fit_on_some_files_validates_on_others():
-    from camsmooth.recordings import concatenate
+    from camsmooth.diagnosis.recordings import concatenate
 
     p, r = concatenate([read_umich(UMICH / f"experiment_{i:02d}.csv") for i in (1, 2)])
     d = diagnose(p, r)
@@ -293,7 +299,7 @@ def test_cli_errors(tmp_path):
 
 
 def _run_raw(argv):
-    from camsmooth.cli import build_parser
+    from camsmooth.cli.main import build_parser
 
     args = build_parser().parse_args(argv)
     return args.func(args)

@@ -13,7 +13,9 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
-from camsmooth.errormodel import (
+from camsmooth.errors import InputError
+from camsmooth.machine.kinematics import exp_twist, load_machine
+from camsmooth.machine.model import (
     GEOMETRIC_NAMES,
     GEOMETRIC_PARAMETERS,
     ErrorModel,
@@ -22,8 +24,6 @@ from camsmooth.errormodel import (
     first_order_response,
     thermal_frame,
 )
-from camsmooth.errors import InputError
-from camsmooth.kinematics import exp_twist, load_machine
 
 GEO = {"EY0A": 0.020, "EZ0A": -0.035, "EB0A": 30e-6, "EC0A": -45e-6, "EX0B": 0.015, "EZ0B": -0.025,
        "EA0B": 40e-6, "EC0B": -20e-6, "EX0S": 0.010, "EY0S": -0.030, "EA0S": 25e-6, "EB0S": -15e-6,

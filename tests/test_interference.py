@@ -1,4 +1,4 @@
-"""Tests of camsmooth.interference: clearance against brute force and closed forms (touching,
+"""Tests of camsmooth.geometry.clearance: clearance against brute force and closed forms (touching,
 penetration, shank and holder gouges, caps, subdivision, chunking) and the axial drop against
 closed forms on a plane, a sphere and a cylinder, a dense-sampling bound and the clearance."""
 
@@ -11,9 +11,9 @@ import pytest
 import trimesh
 from scipy.optimize import minimize
 
-from camsmooth.cutter import ToroidalCutter, cc_to_cl, cl_to_cc, signed_distance
 from camsmooth.errors import InputError
-from camsmooth.interference import MeshIndex, axial_drop, clearance
+from camsmooth.geometry.clearance import MeshIndex, axial_drop, clearance
+from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl, cl_to_cc, signed_distance
 
 
 def _grid_mesh(n: int, size: float, height=None) -> trimesh.Trimesh:

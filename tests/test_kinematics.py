@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from camsmooth.errors import InputError
-from camsmooth.kinematics import DEFAULT_MACHINE_TOML, exp_twist, load_machine, machine_from_dict
+from camsmooth.machine.kinematics import DEFAULT_MACHINE_TOML, exp_twist, load_machine, machine_from_dict
 
 
 def _rx(a):

@@ -6,7 +6,7 @@ import pytest
 import trimesh
 
 from camsmooth.errors import InfeasibleError, InputError
-from camsmooth.orientation import (
+from camsmooth.smoothing.orientation import (
     axis_from_lead_tilt,
     cutter_curvature_tensors,
     initial_orientation,

@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 import trimesh
 
-from camsmooth import output
 from camsmooth.errors import InfeasibleError, InputError
-from camsmooth.kinematics import load_machine
-from camsmooth.output import RESULT_CSV_COLUMNS, point_status, read_result_csv, write_gcode, write_result_csv
-from camsmooth.result import OUTPUT_COLUMNS, MethodResult, SmoothResult
+from camsmooth.io import output
+from camsmooth.io.output import RESULT_CSV_COLUMNS, point_status, read_result_csv, write_gcode, write_result_csv
+from camsmooth.machine.kinematics import load_machine
+from camsmooth.smoothing.result import OUTPUT_COLUMNS, MethodResult, SmoothResult
 
 MACHINE = load_machine(None)
 CUTTER = SimpleNamespace(R=3.0, r=1.0, shank_length=40.0, diameter=8.0)

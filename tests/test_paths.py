@@ -1,4 +1,4 @@
-"""Tests of camsmooth.paths: CSV round trip and errors, feed-direction estimate, normal check
+"""Tests of camsmooth.geometry.paths: CSV round trip and errors, feed-direction estimate, normal check
 against a mesh, zig-zag paths on parametric surfaces and raster paths on meshes."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from camsmooth.errors import InputError
-from camsmooth.paths import (
+from camsmooth.geometry.paths import (
     CCPath,
     check_normals_against_mesh,
     estimate_feed_dirs,
@@ -17,7 +17,7 @@ from camsmooth.paths import (
     zigzag_extents,
     zigzag_path,
 )
-from camsmooth.surfaces import BSplineSurface, Cylinder, Plane, Saddle, SpherePatch, tessellate
+from camsmooth.geometry.surfaces import BSplineSurface, Cylinder, Plane, Saddle, SpherePatch, tessellate
 
 
 def _arc_path(n_rows=3, n=12, R=30.0, seed=0):

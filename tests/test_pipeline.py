@@ -10,13 +10,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from camsmooth.cutter import ToroidalCutter, signed_distance
 from camsmooth.errors import InfeasibleError
-from camsmooth.kinematics import DEFAULT_MACHINE_TOML, load_machine, machine_from_dict
-from camsmooth.orientation import lead_tilt_from_axis, local_frames
-from camsmooth.paths import CCPath, write_cc_csv, zigzag_path
-from camsmooth.pipeline import smooth
-from camsmooth.surfaces import Cylinder, Sinusoid, Surface, tessellate_to_tolerance
+from camsmooth.geometry.cutter import ToroidalCutter, signed_distance
+from camsmooth.geometry.paths import CCPath, write_cc_csv, zigzag_path
+from camsmooth.geometry.surfaces import Cylinder, Sinusoid, Surface, tessellate_to_tolerance
+from camsmooth.machine.kinematics import DEFAULT_MACHINE_TOML, load_machine, machine_from_dict
+from camsmooth.smoothing.orientation import lead_tilt_from_axis, local_frames
+from camsmooth.smoothing.pipeline import smooth
 
 CUTTER = ToroidalCutter(R=4.0, r=1.0)
 LEAD, TILT = (np.radians(2.0), np.radians(20.0)), (np.radians(-15.0), np.radians(15.0))
@@ -134,7 +134,7 @@ def test_infeasible_limits_name_the_binding_constraint(wavy):
 
 
 def test_error_model_keeps_real_windows_and_compensation_zeroes_tip_error(wavy):
-    from camsmooth.errormodel import ErrorModel
+    from camsmooth.machine.model import ErrorModel
 
     surf, path = wavy
     model = ErrorModel(geometric={"EB0A": 50e-6, "EC0A": 50e-6, "EY0A": 0.020})
@@ -152,7 +152,7 @@ def test_error_model_keeps_real_windows_and_compensation_zeroes_tip_error(wavy):
 def _cli(*args, cwd):
     root = str(Path(__file__).resolve().parent.parent)
     env = {**os.environ, "PYTHONPATH": root + os.pathsep + os.environ.get("PYTHONPATH", "")}
-    return subprocess.run([sys.executable, "-m", "camsmooth.cli", *args], cwd=cwd, capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "camsmooth.cli.main", *args], cwd=cwd, capture_output=True, text=True,
                           env=env)
 
 
@@ -212,7 +212,7 @@ def test_cli_smooth_writes_csv_gcode_report(tmp_path, wavy):
 def test_raster_path_by_axial_drop_on_a_mesh_then_smooth(wavy):
     """Item 2: raster rows on a mesh by axial drop, contacts on the surface, then the pipeline."""
     import camsmooth
-    from camsmooth.paths import raster_path_on_mesh
+    from camsmooth.geometry.paths import raster_path_on_mesh
 
     surf, _ = wavy
     mesh = surf.mesh

@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 from conftest import UMICH, needs_umich  # noqa: E402
 
-from camsmooth.errors import InputError
-from camsmooth.recordings import (
+from camsmooth.diagnosis.recordings import (
     Program,
     Recording,
     align,
@@ -21,6 +20,7 @@ from camsmooth.recordings import (
     write_program_csv,
     write_recording_csv,
 )
+from camsmooth.errors import InputError
 
 
 # ---- quantisation ----------------------------------------------------------------------------

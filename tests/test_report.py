@@ -14,10 +14,10 @@ import pytest
 import trimesh
 from matplotlib.image import imread
 
-from camsmooth import report
-from camsmooth.kinematics import load_machine
-from camsmooth.report import HTML_FILE, PLOT_FILES, SCENE_FILE, cumulative_time, write_report
-from camsmooth.result import MethodResult, SmoothResult
+from camsmooth.machine.kinematics import load_machine
+from camsmooth.report import smoothing as report
+from camsmooth.report.smoothing import HTML_FILE, PLOT_FILES, SCENE_FILE, cumulative_time, write_report
+from camsmooth.smoothing.result import MethodResult, SmoothResult
 
 MACHINE = load_machine(None)
 CUTTER = SimpleNamespace(R=3.0, r=1.0, shank_length=40.0, diameter=8.0)

@@ -8,10 +8,10 @@ import casadi as ca
 import numpy as np
 import pytest
 
-import camsmooth.smoothing as smoothing
-from camsmooth.kinematics import load_machine
-from camsmooth.orientation import axis_from_lead_tilt, local_frames
-from camsmooth.smoothing import RowNLP, _psd_part, fd_operators, gamma, spline_row
+import camsmooth.smoothing.nlp as smoothing
+from camsmooth.machine.kinematics import load_machine
+from camsmooth.smoothing.nlp import RowNLP, _psd_part, fd_operators, gamma, spline_row
+from camsmooth.smoothing.orientation import axis_from_lead_tilt, local_frames
 
 LEAD, TILT = np.radians([2.0, 20.0]), np.radians([-15.0, 15.0])
 

@@ -1,4 +1,4 @@
-"""Tests of camsmooth.surfaces: derivatives, curvature (value and sign), tessellation, definition
+"""Tests of camsmooth.geometry.surfaces: derivatives, curvature (value and sign), tessellation, definition
 files and mesh loading. Geometry is checked against finite differences and closed forms."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import pytest
 import trimesh
 
 from camsmooth.errors import InputError
-from camsmooth.surfaces import (
+from camsmooth.geometry.surfaces import (
     BSplineSurface,
     Cylinder,
     Plane,
@@ -257,7 +257,7 @@ def test_tessellate_to_tolerance_meets_chord_bound(name):
 
 def test_triangle_error_model_against_brute_force():
     """Max |4 (a l1 l2 + b l1 l3 + c l2 l3)| over the simplex, against a dense barycentric lattice."""
-    from camsmooth.surfaces import _triangle_max_error
+    from camsmooth.geometry.surfaces import _triangle_max_error
 
     rng = np.random.default_rng(7)
     abc = rng.normal(size=(200, 3))

@@ -28,8 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ._io import atomic_path
-from .errors import InputError
+from camsmooth.errors import InputError
+from camsmooth.io.atomic import atomic_path
 
 LINEAR_AXES = ("X", "Y", "Z")
 ROTARY_AXES = ("A", "B")

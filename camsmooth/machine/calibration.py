@@ -1,7 +1,7 @@
 """Identification of the error model from measurements: reference-sphere probing (rotary-axis
 location and orientation errors), spindle-error-analyser data (spindle screw parameters) and the
 ballbar cone test (spindle thermal elements). METHODS.md sections 2-5; model definitions in
-camsmooth.errormodel.
+camsmooth.machine.model.
 
 Every calibration returns a CalibrationReport: fitted parameters with standard uncertainties
 (from the Jacobian J at the solution and the residual variance s^2 = |r|^2 / (m - n):
@@ -46,8 +46,10 @@ from typing import Any
 import numpy as np
 from scipy.optimize import least_squares
 
-from ._io import atomic_path
-from .errormodel import (
+from camsmooth.errors import InputError
+from camsmooth.io.atomic import atomic_path
+from camsmooth.machine.kinematics import Machine, load_machine
+from camsmooth.machine.model import (
     GEOMETRIC_PARAMETERS,
     THERMAL_ELEMENTS,
     ErrorModel,
@@ -55,8 +57,6 @@ from .errormodel import (
     first_order_response,
     spindle_forward,
 )
-from .errors import InputError
-from .kinematics import Machine, load_machine
 
 RANK_TOL = 1e-7
 

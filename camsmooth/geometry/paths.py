@@ -36,9 +36,9 @@ from typing import Any
 import numpy as np
 import trimesh
 
-from camsmooth._io import write_text_atomic
 from camsmooth.errors import InputError
-from camsmooth.surfaces import ParametricSurface, surface_normals_at
+from camsmooth.geometry.surfaces import ParametricSurface, surface_normals_at
+from camsmooth.io.atomic import write_text_atomic
 
 __all__ = [
     "CCPath",
@@ -469,7 +469,7 @@ def raster_path_on_mesh(mesh: trimesh.Trimesh, cutter: Any, axis: Any, stepover:
     lines spaced ``stepover`` mm along e2 = T x e1, points ``spacing`` mm apart, both grids centred
     on the mesh's extent. The start points sit on a plane 1 mm (or 1 % of the mesh size) above the
     mesh's highest point along T. ``drop(mesh, cutter, points, axis)`` (e.g.
-    ``camsmooth.interference.axial_drop``) returns (cl, contact, contact_normal), each (N, 3), NaN
+    ``camsmooth.geometry.clearance.axial_drop``) returns (cl, contact, contact_normal), each (N, 3), NaN
     where the cutter misses. Misses split a line into separate rows; consecutive repeated contact
     points (the cutter rolling over an edge) are kept once; rows of fewer than 3 points are
     dropped. Lines alternate direction; rows are numbered 0, 1, ... in machining order. Feed

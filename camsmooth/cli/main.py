@@ -1,7 +1,7 @@
 """Command line: a thin layer over the Python API (degrees and mm/min here, radians inside).
 
-Verbs: smooth, path, demo (this module); calibrate, simulate, predict (camsmooth.cli_model);
-diagnose (camsmooth.cli_diagnose). Errors from bad input print one message and exit 2.
+Verbs: smooth, path, demo (this module); calibrate, simulate, predict (camsmooth.cli.model);
+diagnose (camsmooth.cli.diagnose). Errors from bad input print one message and exit 2.
 """
 
 from __future__ import annotations
@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import CamsmoothError, InputError
+from camsmooth.errors import CamsmoothError, InputError
 
-SAMPLES_DIR = Path(__file__).resolve().parent.parent / "surfaces"
+SAMPLES_DIR = Path(__file__).resolve().parents[2] / "surfaces"
 
 
 def _range(text: str, option: str) -> tuple[float, float]:
@@ -28,7 +28,7 @@ def _range(text: str, option: str) -> tuple[float, float]:
 
 
 def _cutter(args: argparse.Namespace):
-    from .cutter import ToroidalCutter
+    from camsmooth.geometry.cutter import ToroidalCutter
 
     kw = {}
     if args.shank_length is not None:
@@ -50,8 +50,8 @@ def _add_cutter_args(p: argparse.ArgumentParser, required: bool = True) -> None:
 
 
 def run_smooth(args: argparse.Namespace) -> int:
-    from .output import write_gcode, write_result_csv
-    from .pipeline import smooth
+    from camsmooth.io.output import write_gcode, write_result_csv
+    from camsmooth.smoothing.pipeline import smooth
 
     lead = _range(args.lead, "--lead")
     tilt = _range(args.tilt, "--tilt")
@@ -71,7 +71,7 @@ def _write_outputs(result, out_csv, gcode, report, feed, quiet, write_result_csv
         f = float(feed) if feed else float(np.median(result.inputs["feed"]))
         write_gcode(gcode, result, result.machine, result.cutter, f)
     if report:
-        from .report import write_report
+        from camsmooth.report.smoothing import write_report
 
         write_report(result, report)
     if not quiet:
@@ -94,14 +94,14 @@ def _print_summary(result) -> None:
 
 
 def run_path(args: argparse.Namespace) -> int:
-    from .paths import raster_path_on_mesh, write_cc_csv, zigzag_path
-    from .surfaces import load_surface
+    from camsmooth.geometry.paths import raster_path_on_mesh, write_cc_csv, zigzag_path
+    from camsmooth.geometry.surfaces import load_surface
 
     surf = load_surface(args.surface)
     if surf.parametric is not None and not args.raster:
         cc = zigzag_path(surf.parametric, args.stepover, args.spacing, along=args.along)
     else:
-        from .interference import axial_drop
+        from camsmooth.geometry.clearance import axial_drop
 
         if args.cutter_radius is None or args.corner_radius is None:
             raise InputError("a raster path on a mesh needs --cutter-radius and --corner-radius")
@@ -119,9 +119,9 @@ def run_path(args: argparse.Namespace) -> int:
 
 
 def run_demo(args: argparse.Namespace) -> int:
-    from .cutter import ToroidalCutter
-    from .output import write_gcode, write_result_csv
-    from .pipeline import smooth
+    from camsmooth.geometry.cutter import ToroidalCutter
+    from camsmooth.io.output import write_gcode, write_result_csv
+    from camsmooth.smoothing.pipeline import smooth
 
     samples = Path(args.samples) if args.samples else SAMPLES_DIR
     name = args.sample
@@ -188,9 +188,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=run_demo)
 
-    for module in ("cli_model", "cli_diagnose"):
+    for module in ("model", "diagnose"):
         try:
-            mod = __import__(f"camsmooth.{module}", fromlist=["register"])
+            mod = __import__(f"camsmooth.cli.{module}", fromlist=["register"])
         except ImportError:
             continue
         mod.register(sub)

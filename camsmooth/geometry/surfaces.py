@@ -33,8 +33,8 @@ import numpy as np
 import trimesh
 from scipy.interpolate import NdBSpline
 
-from camsmooth._io import atomic_path, write_text_atomic
 from camsmooth.errors import InputError
+from camsmooth.io.atomic import atomic_path, write_text_atomic
 
 __all__ = [
     "SurfaceDerivatives",

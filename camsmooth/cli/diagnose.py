@@ -1,4 +1,4 @@
-"""`camsmooth diagnose`: simulation versus recordings (camsmooth.diagnosis).
+"""`camsmooth diagnose`: simulation versus recordings (camsmooth.diagnosis.engine).
 
     camsmooth diagnose --program P.csv --recording R.csv [--machine M.toml] [--model MODEL.json]
                        --out FINDINGS.json [--report DIR] [--model-out NEW_MODEL.json]
@@ -6,7 +6,7 @@
                        [--validate FILE.csv ...]
 
 With ``--format umich`` each University of Michigan CNC-mill experiment file is read as program
-and recording at once (camsmooth.recordings.read_umich); several files are fitted together
+and recording at once (camsmooth.diagnosis.recordings.read_umich); several files are fitted together
 (kept apart in time), and ``--validate`` files are only predicted with the fitted model, never
 fitted. Outputs are written atomically; bad input raises InputError (exit 2 from the CLI).
 """
@@ -16,7 +16,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from .errors import InputError
+from camsmooth.errors import InputError
 
 
 def register(subparsers: Any) -> None:
@@ -48,7 +48,7 @@ def register(subparsers: Any) -> None:
 
 
 def _options(args: argparse.Namespace) -> Any:
-    from .diagnosis import CANDIDATES, Options
+    from camsmooth.diagnosis.engine import CANDIDATES, Options
 
     opt = Options()
     if args.folds < 2:
@@ -69,9 +69,9 @@ def _options(args: argparse.Namespace) -> Any:
 
 def run_diagnose(args: argparse.Namespace) -> int:
     """Run `camsmooth diagnose` (module docstring)."""
-    from .diagnosis import diagnose, load_model, validate, write_findings, write_model
-    from .kinematics import load_machine
-    from .recordings import concatenate, read_program_csv, read_recording_csv, read_umich
+    from camsmooth.diagnosis.engine import diagnose, load_model, validate, write_findings, write_model
+    from camsmooth.diagnosis.recordings import concatenate, read_program_csv, read_recording_csv, read_umich
+    from camsmooth.machine.kinematics import load_machine
 
     if args.format == "umich":
         if not args.files:
@@ -99,7 +99,7 @@ def run_diagnose(args: argparse.Namespace) -> int:
     if args.model_out:
         write_model(args.model_out, diag)
     if args.report:
-        from .diagnosis_report import write_report
+        from camsmooth.report.diagnosis import write_report
 
         write_report(diag, args.report)
     if not args.quiet:

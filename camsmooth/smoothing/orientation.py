@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .errors import InfeasibleError, InputError
+from camsmooth.errors import InfeasibleError, InputError
 
 
 def local_frames(normals: np.ndarray, feed_dirs: np.ndarray) -> np.ndarray:
@@ -67,7 +67,7 @@ def surface_curvature_tensors(vertices: np.ndarray, points: np.ndarray, frames: 
     the second fundamental form.
 
     Sign: positive where the surface bends toward the normal n (concave as seen from the tool),
-    the convention of camsmooth.surfaces. Exact for quadric patches. Anisotropic or one-sided
+    the convention of camsmooth.geometry.surfaces. Exact for quadric patches. Anisotropic or one-sided
     neighbourhoods (fine spacing along one parameter, surface boundaries) make the nearest
     vertices collinear; the neighbourhood grows per point until the fit is well conditioned.
     """

@@ -1,6 +1,6 @@
 """Program outputs: the per-point result CSV and the five-axis G-code.
 
-Files are written atomically (``camsmooth._io.atomic_path``): a failed write never leaves a
+Files are written atomically (``camsmooth.io.atomic.atomic_path``): a failed write never leaves a
 partial file. Units in files: mm, s, degrees (radians inside the code; CONVENTIONS.md).
 """
 
@@ -15,10 +15,10 @@ from typing import Any
 
 import numpy as np
 
-from . import __version__
-from ._io import atomic_path
-from .errors import InfeasibleError, InputError
-from .result import OUTPUT_COLUMNS, MethodResult, SmoothResult
+from camsmooth import __version__
+from camsmooth.errors import InfeasibleError, InputError
+from camsmooth.io.atomic import atomic_path
+from camsmooth.smoothing.result import OUTPUT_COLUMNS, MethodResult, SmoothResult
 
 #: Columns of the result CSV: OUTPUT_COLUMNS, then ``lift`` (mm) and ``status``.
 RESULT_CSV_COLUMNS: tuple[str, ...] = OUTPUT_COLUMNS + ("lift", "status")
@@ -75,7 +75,7 @@ def _format_float_column(values: np.ndarray) -> list[str]:
 def write_result_csv(path: str | os.PathLike, result: SmoothResult) -> Path:
     """Write the primary method's per-point table to ``path`` atomically; return the path.
 
-    Columns: RESULT_CSV_COLUMNS = OUTPUT_COLUMNS (mm, s, degrees; see camsmooth.result) then
+    Columns: RESULT_CSV_COLUMNS = OUTPUT_COLUMNS (mm, s, degrees; see camsmooth.smoothing.result) then
     ``lift`` (mm, fallback lift along the normal, 0 where none) and ``status`` (see
     ``point_status``), then ``fx,fy,fz`` (unit feed direction, the local frame's X_L) when the
     result carries them. Floats are written as Python ``repr`` (shortest exact round-trip); ``row``

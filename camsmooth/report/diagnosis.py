@@ -25,8 +25,8 @@ from typing import Any
 
 import numpy as np
 
-from ._io import atomic_dir
-from .recordings import AXES, ROTARY_AXES, channel_unit
+from camsmooth.diagnosis.recordings import AXES, ROTARY_AXES, channel_unit
+from camsmooth.io.atomic import atomic_dir
 
 MAX_LINE_POINTS = 20000
 MAX_SCATTER_POINTS = 15000
@@ -87,7 +87,7 @@ def plot_residual_time(diag: Any, path: Path) -> None:
 
 def _state_pairs(diag: Any, name: str, names: Sequence[str]) -> list[tuple[str, str, np.ndarray]]:
     """(channel, state label, state values at the fit samples) to plot for one effect."""
-    from .diagnosis import _cands
+    from camsmooth.diagnosis.engine import _cands
 
     P = diag.problem
     cand = _cands([name])[0]
@@ -137,7 +137,7 @@ def plot_effect(diag: Any, name: str, names: Sequence[str], path: Path) -> None:
 
 def _effect_residuals(diag: Any) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Per named effect, the residual at the fit samples of the final model without it and with it."""
-    from .diagnosis import _cands
+    from camsmooth.diagnosis.engine import _cands
 
     P = diag.problem
     final = diag.selection["final"]

@@ -1,5 +1,5 @@
 """The machine error model: geometric axis errors, the spindle screw model and spindle thermal
-drift, expressed as a perturbed product-of-exponentials chain (camsmooth.kinematics.Chain), so
+drift, expressed as a perturbed product-of-exponentials chain (camsmooth.machine.kinematics.Chain), so
 that the NLP smoother (CasADi symbols) and the simulators (numpy) evaluate the same machine.
 
 Geometric errors (ISO 230-1 style names; METHODS.md sections 3 and 4)
@@ -58,9 +58,9 @@ from typing import Any
 
 import numpy as np
 
-from ._io import write_text_atomic
-from .errors import InputError
-from .kinematics import Chain, Frame, Machine
+from camsmooth.errors import InputError
+from camsmooth.io.atomic import write_text_atomic
+from camsmooth.machine.kinematics import Chain, Frame, Machine
 
 # ----------------------------------------------------------------------------------------------
 # parameter tables

@@ -383,7 +383,7 @@ max = 1000.0
 
 
 def _number(table: Mapping[str, Any], key: str, where: str, file: str) -> float:
-    from .errors import InputError
+    from camsmooth.errors import InputError
 
     if key not in table:
         raise InputError(f"missing key '{key}' in [{where}]", file=file)
@@ -395,7 +395,7 @@ def _number(table: Mapping[str, Any], key: str, where: str, file: str) -> float:
 
 def machine_from_dict(data: Mapping[str, Any], source: str = "<machine>") -> Machine:
     """A Machine from the parsed machine TOML (degrees in the file, radians in the result)."""
-    from .errors import InputError
+    from camsmooth.errors import InputError
 
     m = data.get("machine")
     if not isinstance(m, Mapping):
@@ -437,7 +437,7 @@ def load_machine(path: str | None = None) -> Machine:
     """Read a machine TOML file (see DEFAULT_MACHINE_TOML); None gives the default machine."""
     import tomllib
 
-    from .errors import InputError
+    from camsmooth.errors import InputError
 
     if path is None:
         return machine_from_dict(tomllib.loads(DEFAULT_MACHINE_TOML), "<default machine>")

@@ -14,7 +14,7 @@ least ``shank_length - r`` above the tip, is covered by the holder when one is g
 body is only used for gouge checks near the surface.  When ``shank_length < 2 r`` the core
 degenerates to the disc at ``c0`` and the body is ``2 r`` tall.  For ``R = 0`` (ball nose) the
 core is a segment and the body a capsule.  Keeping the body convex is what makes the signed
-distance exact and the mesh clearance test (camsmooth.interference) exact.
+distance exact and the mesh clearance test (camsmooth.geometry.clearance) exact.
 
 The optional holder is the solid cylinder of radius ``holder_radius`` from
 ``tip + shank_length T`` to ``tip + (shank_length + holder_length) T``.

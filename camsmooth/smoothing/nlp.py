@@ -9,7 +9,7 @@ they obey the same bound.)
 
 NLP (METHODS section 1, step D, solved with CasADi + IPOPT): variables A_i, B_i (rad);
 minimise Gamma = sum_i |T''(t_i)|^2 over interior points, T(A, B) from the machine's POE chain
-(camsmooth.kinematics, through CasADi symbols), subject to A/B travel, segment velocity and
+(camsmooth.machine.kinematics, through CasADi symbols), subject to A/B travel, segment velocity and
 second-difference acceleration limits, and the per-point lead/tilt windows, which are linear in T
 in the local frame:
     cos(lead_max) <= n . T <= cos(lead_min),
@@ -29,8 +29,8 @@ import scipy.sparse as sp
 from scipy.interpolate import CubicSpline
 from scipy.ndimage import binary_dilation
 
-from .errors import InfeasibleError
-from .kinematics import Machine
+from camsmooth.errors import InfeasibleError
+from camsmooth.machine.kinematics import Machine
 
 # Limits are tightened by this fraction inside the NLP so that IPOPT's tolerance never shows
 # as a violation when the result is checked against the true limits.

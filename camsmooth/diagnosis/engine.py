@@ -39,7 +39,7 @@ Physics models (all in ``Simulator``; internal units mm, s, rad):
 - backlash: a direction-dependent error of the axis, -(b/2) sign(last commanded direction);
   the recorded axis actual is taken as the position of the axis itself (a scale at the load).
 - rotary_location, rotary_squareness, spindle_tilt, tool_length: ErrorModel geometric
-  parameters through the machine's product-of-exponentials chain (camsmooth.errormodel).
+  parameters through the machine's product-of-exponentials chain (camsmooth.machine.model).
 - spindle_runout: a tip displacement of radius r rotating once per spindle revolution, phase phi
   at spindle angle 0 (angle = integral of S since the program start), in the tool frame's xy.
 - thermal_drift: element e in dx, dy, dz (tip, mm, tool frame), exz, eyz (tool-axis tilt, rad)
@@ -57,10 +57,7 @@ from typing import Any
 
 import numpy as np
 
-from ._io import write_text_atomic
-from .errors import InputError
-from .kinematics import Machine, load_machine
-from .recordings import (
+from camsmooth.diagnosis.recordings import (
     AXES,
     AXIS_CHANNELS,
     CHANNELS,
@@ -74,6 +71,9 @@ from .recordings import (
     channel_unit,
     rms_step,
 )
+from camsmooth.errors import InputError
+from camsmooth.io.atomic import write_text_atomic
+from camsmooth.machine.kinematics import Machine, load_machine
 
 CANDIDATES = ("servo_lag", "time_offset", "backlash", "rotary_location", "rotary_squareness", "spindle_tilt",
               "spindle_runout", "tool_length", "thermal_drift")
@@ -91,7 +91,7 @@ class Physics:
     (s, 1/Kv; absent or 0 = follows its command exactly); offset_s: recording clock behind the
     program (s); backlash: reversal error per axis (mm; rad for A, B); geometric: ErrorModel
     parameters (mm, rad); thermal: element -> (gain per 1000 rpm, tau s); runout: (r cos phi,
-    r sin phi) mm. Geometric and thermal follow camsmooth.errormodel (ErrorModel) exactly."""
+    r sin phi) mm. Geometric and thermal follow camsmooth.machine.model (ErrorModel) exactly."""
 
     tau: dict[str, float] = field(default_factory=dict)
     offset_s: float = 0.0
@@ -154,7 +154,7 @@ def physics_from_model(data: Mapping[str, Any], source: str = "<model>") -> Phys
     geometric, spindle screw, thermal) plus the sections ``model_json`` adds: ``servo`` (Kv per
     axis 1/s, backlash mm or deg, time_offset_s) and ``spindle_runout`` (radius mm, phase_deg).
     A document with only ``servo`` / ``spindle_runout`` (no ErrorModel part) is accepted too."""
-    from .errormodel import ErrorModel
+    from camsmooth.machine.model import ErrorModel
 
     if not isinstance(data, Mapping):
         raise InputError("a model file holds a JSON object", file=source)
@@ -213,7 +213,7 @@ def model_json(ph: Physics, note: str = "") -> dict[str, Any]:
     plus ``servo`` (Kv per axis 1/s, backlash mm or deg, time_offset_s) and, when fitted,
     ``spindle_runout`` (radius mm, phase_deg). ``ErrorModel.from_dict`` reads it back (it
     ignores the extra sections); ``physics_from_model`` reads all of it."""
-    from .errormodel import ErrorModel
+    from camsmooth.machine.model import ErrorModel
 
     meta = dict(ph.meta)
     if note:
@@ -404,8 +404,8 @@ class _Knots:
 # geometric errors through the chain
 def geometric_machine(machine: Machine, geometric: Mapping[str, float], spindle: Any = None) -> Machine:
     """The machine with ErrorModel geometric parameters (and a spindle screw) applied:
-    ``ErrorModel(geometric, spindle).apply(machine)`` (camsmooth.errormodel has the definitions)."""
-    from .errormodel import ErrorModel
+    ``ErrorModel(geometric, spindle).apply(machine)`` (camsmooth.machine.model has the definitions)."""
+    from camsmooth.machine.model import ErrorModel
 
     geo = {k: float(v) for k, v in geometric.items() if v != 0.0}
     if not geo and spindle is None:
@@ -526,7 +526,7 @@ class Simulator:
                    for i in range(3)]
         if tilt:
             # the tilt convention of ErrorModel.thermal_frame: rotation by (eyz, -exz, 0) about the tip
-            from .errormodel import thermal_frame
+            from camsmooth.machine.model import thermal_frame
 
             Rt = thermal_frame(tilt).R
             loc = [Rt[0][2], Rt[1][2], Rt[2][2]]
@@ -2382,7 +2382,7 @@ def add_simulate_recording_arguments(parser: Any) -> None:
 
 def simulate_recording_cli(args: Any) -> int:
     """`camsmooth simulate recording`: write a recording CSV simulated from a program."""
-    from .recordings import read_program_csv, write_recording_csv
+    from camsmooth.diagnosis.recordings import read_program_csv, write_recording_csv
 
     program = read_program_csv(args.program)
     machine = load_machine(getattr(args, "machine", None))

@@ -7,7 +7,7 @@ tessellation remains: a tool placed at a CC point of the true surface "gouges" a
 chords lie above a concave region by up to that error.)
 
 * :func:`clearance` - minimum signed distance ``delta`` between the tool solid (cutter + shank +
-  holder, camsmooth.cutter) and the mesh triangles for many poses.  The minimum of a convex
+  holder, camsmooth.geometry.cutter) and the mesh triangles for many poses.  The minimum of a convex
   function over a triangle is attained in its interior (facet test, closed form via the support
   point of the core cylinder) or on an edge (1-D convex minimisation, golden section); deep
   penetrations where a triangle enters the core cylinder get a 2-D nested golden section.
@@ -34,8 +34,8 @@ import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
-from camsmooth.cutter import ToroidalCutter, _cylinder_sd, _cylinder_support
 from camsmooth.errors import InputError
+from camsmooth.geometry.cutter import ToroidalCutter, _cylinder_sd, _cylinder_support
 
 __all__ = ["Clearance", "Drop", "MeshIndex", "axial_drop", "clearance"]
 
@@ -424,7 +424,7 @@ def clearance(index: MeshIndex | trimesh.Trimesh, cutter: ToroidalCutter, tips: 
     ----------
     index : MeshIndex (or a trimesh.Trimesh, indexed on the fly).
     cutter : the tool; its solid is cutter + shank (convex) united with the holder
-        (camsmooth.cutter).
+        (camsmooth.geometry.cutter).
     tips : (N, 3) tool tips (CL points), mm, workpiece frame.
     axes : (N, 3) or (3,) tool axes (tip -> spindle), normalised here.
     margin : mm, >= 0.  Poses whose clearance is >= margin are reported as ``delta = margin``
@@ -489,7 +489,7 @@ class Drop:
     hit : (N,) bool, False where the tool's footprint misses the mesh.
 
     Unpacks as ``cl, contact, contact_normal = drop`` (the triple that
-    camsmooth.paths.raster_path_on_mesh expects of its ``drop`` function).
+    camsmooth.geometry.paths.raster_path_on_mesh expects of its ``drop`` function).
     """
 
     cl: np.ndarray

@@ -1,6 +1,6 @@
 """Measurement simulators: realistic probing, spindle-analyser and ballbar files from a given
 error model, with seeded Gaussian noise, for examples and tests (file formats in
-camsmooth.calibration). Each simulator evaluates the machine through ErrorModel.apply /
+camsmooth.machine.calibration). Each simulator evaluates the machine through ErrorModel.apply /
 SpindleScrew / ErrorModel.thermal_state, i.e. the same chain the calibration fits.
 """
 
@@ -10,10 +10,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .calibration import BallbarData, ProbeData, SpindleData, probe_offsets
-from .errormodel import ErrorModel, SpindleScrew, thermal_frame
-from .errors import InputError
-from .kinematics import Machine, load_machine
+from camsmooth.errors import InputError
+from camsmooth.machine.calibration import BallbarData, ProbeData, SpindleData, probe_offsets
+from camsmooth.machine.kinematics import Machine, load_machine
+from camsmooth.machine.model import ErrorModel, SpindleScrew, thermal_frame
 
 DEFAULT_NOISE = {"probe": 0.0005, "spindle": 0.0001, "ballbar": 0.001}  # mm, one standard deviation
 

@@ -28,7 +28,7 @@ class MethodResult:
     lift: distance the tool was lifted along the normal as the fallback (mm, 0 where none).
     lead_window, tilt_window: (N, 2) admissible [min, max] per point (rad) after curvature
     (gouge) tightening. compound_acc: |d^2 T / dt^2| per point (1/s^2).
-    metrics: summary (camsmooth.pipeline): gamma (1/s^4), peak_A_acc, peak_B_acc (deg/s^2),
+    metrics: summary (camsmooth.smoothing.pipeline): gamma (1/s^4), peak_A_acc, peak_B_acc (deg/s^2),
     min_delta, violations (dict name -> count), runtime_s, unclean_rows, unreachable.
     """
 

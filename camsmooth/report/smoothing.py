@@ -1,6 +1,6 @@
 """HTML report of a smoothing run: plots per method and a summary table.
 
-``write_report`` writes a folder (atomically, ``camsmooth._io.atomic_dir``) with one PNG per
+``write_report`` writes a folder (atomically, ``camsmooth.io.atomic.atomic_dir``) with one PNG per
 plot and a self-contained ``report.html`` that embeds the same PNGs as base64 data URIs, so
 the HTML alone still shows everything when moved.
 
@@ -32,16 +32,16 @@ from typing import Any
 
 import numpy as np
 
-from . import __version__
-from ._io import atomic_dir
-from .result import MethodResult, SmoothResult
+from camsmooth import __version__
+from camsmooth.io.atomic import atomic_dir
+from camsmooth.smoothing.result import MethodResult, SmoothResult
 
 #: PNG files of a report, in display order (``scene_3d.png`` only when rendering worked).
 PLOT_FILES: tuple[str, ...] = ("axes_angles.png", "axes_velocity.png", "axes_acceleration.png",
                                "compound_acceleration.png", "lead_tilt.png", "clearance.png")
 SCENE_FILE = "scene_3d.png"
 HTML_FILE = "report.html"
-#: Clearance tolerance drawn on the clearance plot (mm); matches camsmooth.output.
+#: Clearance tolerance drawn on the clearance plot (mm); matches camsmooth.io.output.
 CLEARANCE_TOL_MM = -1e-3
 
 _METHOD_ORDER = ("none", "spline", "nlp")
@@ -437,10 +437,10 @@ def render_scene_main(argv: Sequence[str]) -> int:
 
 
 def _start_render(npz: Path, png: Path) -> subprocess.Popen:
-    pkg_parent = str(Path(__file__).resolve().parents[1])
+    pkg_parent = str(Path(__file__).resolve().parents[2])
     env = dict(os.environ)
     env["PYTHONPATH"] = pkg_parent + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
-    code = ("import sys; from camsmooth.report import render_scene_main; "
+    code = ("import sys; from camsmooth.report.smoothing import render_scene_main; "
             "sys.exit(render_scene_main(sys.argv[1:]))")
     return subprocess.Popen([sys.executable, "-c", code, str(npz), str(png)], env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)

@@ -1,7 +1,7 @@
 """The smoothing pipeline: surface + CC path -> smooth, interference-free A/B program.
 
 ``smooth`` is the Python API the CLI calls. Steps (METHODS section 1): local frames and
-curvature-based windows (camsmooth.orientation) -> initial axes and inverse kinematics
+curvature-based windows (camsmooth.smoothing.orientation) -> initial axes and inverse kinematics
 ('none') -> the published spline method ('spline', lift-along-normal for interference) -> the
 NLP ('nlp', CasADi + IPOPT, with interference fixed by tightening the window where the tool
 gouges and re-solving; lift only as a reported fallback).
@@ -17,11 +17,14 @@ from typing import Any
 
 import numpy as np
 
-from .cutter import ToroidalCutter, cc_to_cl
-from .errors import InfeasibleError, InputError
-from .interference import MeshIndex, clearance
-from .kinematics import Machine, load_machine
-from .orientation import (
+from camsmooth.errors import InfeasibleError, InputError
+from camsmooth.geometry.clearance import MeshIndex, clearance
+from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl
+from camsmooth.geometry.paths import CCPath, check_normals_against_mesh, estimate_feed_dirs, read_cc_csv
+from camsmooth.geometry.surfaces import Surface, load_surface
+from camsmooth.machine.kinematics import Machine, load_machine
+from camsmooth.smoothing.nlp import RowNLP, elastic_diagnosis, fd_operators, gamma, rates, spline_row
+from camsmooth.smoothing.orientation import (
     Orientation,
     axis_from_lead_tilt,
     initial_orientation,
@@ -29,10 +32,7 @@ from .orientation import (
     local_frames,
     surface_curvature_tensors,
 )
-from .paths import CCPath, check_normals_against_mesh, estimate_feed_dirs, read_cc_csv
-from .result import MethodResult, SmoothResult
-from .smoothing import RowNLP, elastic_diagnosis, fd_operators, gamma, rates, spline_row
-from .surfaces import Surface, load_surface
+from camsmooth.smoothing.result import MethodResult, SmoothResult
 
 METHODS = ("none", "spline", "nlp")
 GOUGE_TOL = 1e-3  # mm: a delta below -GOUGE_TOL is interference (the issue's acceptance threshold)
@@ -91,7 +91,7 @@ def smooth(path: CCPath | str | Path, surface: Surface | str | Path, machine: Ma
     tilt_range: admissible windows (RADIANS; lead in [0, pi/2), tilt in (-pi/2, pi/2), local frame
     of METHODS section 1). method: 'none', 'spline' or 'nlp'; 'none' is always computed as the
     baseline and 'spline' whenever 'nlp' is (its warm start). model: an error model
-    (camsmooth.errormodel.ErrorModel or a JSON path): the NLP then smooths and windows the
+    (camsmooth.machine.model.ErrorModel or a JSON path): the NLP then smooths and windows the
     predicted real tool axis; compensate: also solve the linear axes so the predicted real tip is
     the CL point. Returns a SmoothResult (per-method arrays and metrics).
     """
@@ -107,7 +107,7 @@ def smooth(path: CCPath | str | Path, surface: Surface | str | Path, machine: Ma
     nominal = _as_machine(machine)
     real = nominal
     if model is not None:
-        from .errormodel import ErrorModel
+        from camsmooth.machine.model import ErrorModel
 
         model = model if isinstance(model, ErrorModel) else ErrorModel.from_json(model)
         real = model.apply(nominal)
@@ -405,7 +405,7 @@ class _Context:
 
     def metrics(self, r: MethodResult, g: float, unreachable: np.ndarray, runtime: float) -> dict[str, Any]:
         """Summary: gamma (1/s^4), peaks (deg/s^2), min delta (mm), violation counts per
-        constraint (samples outside the TRUE limits, the definitions of camsmooth.smoothing)."""
+        constraint (samples outside the TRUE limits, the definitions of camsmooth.smoothing.nlp)."""
         lim = self.nominal.limits
         viol: dict[str, int] = {}
         for name, q in (("A", r.A), ("B", r.B)):

@@ -2,7 +2,7 @@
 
 ``register(subparsers)`` adds them to the main parser's subparsers; each sub-command sets
 ``func`` to a handler taking the parsed args and returning an exit code (0), and the handlers
-are thin calls into camsmooth.calibration / simulate / errormodel. Bad input raises
+are thin calls into camsmooth.machine.calibration / simulate / errormodel. Bad input raises
 camsmooth.errors.InputError (the main CLI prints it). Units on the command line: mm, s, deg.
 
     camsmooth calibrate probe|spindle|ballbar MEASUREMENT.csv [--machine M.toml] [--base MODEL.json]
@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import InputError
+from camsmooth.errors import InputError
 
 
 def register(subparsers: Any) -> None:
@@ -78,12 +78,12 @@ def register(subparsers: Any) -> None:
             p.add_argument("--rpm", type=float, default=5000.0,
                            help="spindle speed while running (default 5000)")
         p.set_defaults(func=simulate_cli, simulate_kind=kind)
-    # `simulate recording` belongs to camsmooth.diagnosis: its arguments come from there, the
+    # `simulate recording` belongs to camsmooth.diagnosis.engine: its arguments come from there, the
     # handler is imported only when the sub-command runs.
     p = ssub.add_parser("recording", help="a machine recording (diagnosis)",
                         description="Simulate a machine recording from a program and a model "
-                        "(camsmooth.diagnosis).")
-    from .diagnosis import add_simulate_recording_arguments
+                        "(camsmooth.diagnosis.engine).")
+    from camsmooth.diagnosis.engine import add_simulate_recording_arguments
 
     add_simulate_recording_arguments(p)
     p.set_defaults(func=simulate_cli, simulate_kind="recording")
@@ -111,7 +111,7 @@ def _floats(text: str, what: str) -> list[float]:
 
 
 def _machine(args: argparse.Namespace) -> Any:
-    from .kinematics import load_machine
+    from camsmooth.machine.kinematics import load_machine
 
     return load_machine(getattr(args, "machine", None))
 
@@ -138,9 +138,9 @@ def _report_json(report: Any) -> dict[str, Any]:
 
 def calibrate_cli(args: argparse.Namespace) -> int:
     """`camsmooth calibrate KIND`: fit, print the summary, write the model (and report) JSON."""
-    from . import calibration
-    from ._io import write_text_atomic
-    from .errormodel import ErrorModel
+    from camsmooth.io.atomic import write_text_atomic
+    from camsmooth.machine import calibration
+    from camsmooth.machine.model import ErrorModel
 
     base = ErrorModel.from_json(args.base) if args.base else None
     kind = args.calibrate_kind
@@ -163,11 +163,11 @@ def simulate_cli(args: argparse.Namespace) -> int:
     """`camsmooth simulate KIND`: write a simulated measurement file."""
     kind = args.simulate_kind
     if kind == "recording":
-        from .diagnosis import simulate_recording_cli
+        from camsmooth.diagnosis.engine import simulate_recording_cli
 
         return simulate_recording_cli(args)
-    from . import calibration, simulate
-    from .errormodel import ErrorModel
+    from camsmooth.machine import calibration, simulate
+    from camsmooth.machine.model import ErrorModel
 
     model = ErrorModel.from_json(args.model)
     noise = simulate.DEFAULT_NOISE[kind] if args.noise is None else args.noise
@@ -196,9 +196,9 @@ def simulate_cli(args: argparse.Namespace) -> int:
 
 def predict_cli(args: argparse.Namespace) -> int:
     """`camsmooth predict`: real tool pose per commanded pose, written as CSV, summary printed."""
-    from ._io import atomic_path
-    from .errormodel import ErrorModel
-    from .output import read_result_csv
+    from camsmooth.io.atomic import atomic_path
+    from camsmooth.io.output import read_result_csv
+    from camsmooth.machine.model import ErrorModel
 
     model = ErrorModel.from_json(args.model)
     machine = _machine(args)
@@ -264,7 +264,7 @@ def predict_table(model: Any, machine: Any, cols: dict[str, np.ndarray], rpm: fl
            "axis_dev_urad": 1e6 * np.arccos(np.clip(np.sum(pred.axis * ideal_axis, axis=1), -1.0, 1.0))}
     need = ("x", "y", "z", "nx", "ny", "nz", "lead", "tilt")
     if all(k in cols for k in need):
-        from .orientation import lead_tilt_from_axis, local_frames
+        from camsmooth.smoothing.orientation import lead_tilt_from_axis, local_frames
 
         cc = np.column_stack([cols["x"], cols["y"], cols["z"]])
         n = np.column_stack([cols["nx"], cols["ny"], cols["nz"]])

@@ -1,0 +1,7 @@
+"""``python -m camsmooth``: the command line."""
+
+import sys
+
+from camsmooth.cli.main import main
+
+sys.exit(main())

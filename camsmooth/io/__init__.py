@@ -1,0 +1,1 @@
+"""File formats: atomic writes, the result CSV and G-code writers."""
