@@ -103,7 +103,7 @@ def bench_scaling(sizes: list[int], repeats: int = 3) -> None:
             times.append(st.time_s)
         best, med = min(times), float(np.median(times))
         print(f"{n:8d} {nlp.build_s:7.3f} {best:11.3f} / {med:6.3f} {nlp.build_s + med:8.3f} {st.iterations:6d} "
-              f"{st.rounds:6d} {st.rows:6d}/{sum(nlp.sizes):<7d} {n / (nlp.build_s + med):9.0f} "
+              f"{st.rounds:6d} {st.rows:6d}/{st.total_rows:<7d} {n / (nlp.build_s + med):9.0f} "
               f"{gamma(T, t):11.4g} {gamma(m.tool_axis_np(A, B), t):10.4g} {st.status}")
 
 

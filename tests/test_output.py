@@ -50,10 +50,11 @@ def make_method(name: str, n_rows: int = 2, n_pts: int = 50, amp: float = 0.3, s
                "peak_B_acc": float(np.abs(Ba).max()), "min_delta": float(delta.min()),
                "violations": {"A_acc": 0}, "runtime_s": 0.1,
                "unclean_rows": [], "unreachable": []}
-    return MethodResult(name, rows, idx, t, cc, normals, cl, T, lead, tilt, A, B, Av, Bv, Aa, Ba,
-                        MACHINE.linear_axes(cl, T), delta, lift,
-                        np.column_stack([lead - 0.1, lead + 0.1]), np.column_stack([tilt - 0.1, tilt + 0.1]),
-                        np.abs(Aa) + np.abs(Ba), metrics)
+    return MethodResult(method=name, rows=rows, idx=idx, t=t, cc=cc, normals=normals, cl=cl, axis=T, lead=lead,
+                        tilt=tilt, A=A, B=B, A_vel=Av, B_vel=Bv, A_acc=Aa, B_acc=Ba, xyz=MACHINE.linear_axes(cl, T),
+                        delta=delta, lift=lift, lead_window=np.column_stack([lead - 0.1, lead + 0.1]),
+                        tilt_window=np.column_stack([tilt - 0.1, tilt + 0.1]), compound_acc=np.abs(Aa) + np.abs(Ba),
+                        metrics=metrics)
 
 
 def make_result(n_rows: int = 2, n_pts: int = 50, primary: str = "nlp") -> SmoothResult:

@@ -54,9 +54,10 @@ def make_method(name: str, n_rows: int = 2, n_pts: int = 50, seed: int = 0) -> M
                "unreachable": [(1, 7), (0, 3)] if name == "nlp" else []}
     normals = np.tile([0.0, 0.0, 1.0], (len(t), 1))
     lead_w, tilt_w = np.column_stack([lead - 0.05, lead + 0.05]), np.column_stack([tilt - 0.1, tilt + 0.1])
-    return MethodResult(name, rows, idx, t, cc, normals, cc.copy(), T, lead, tilt, A, B, Av, Bv, Aa, Ba,
-                        MACHINE.linear_axes(cc, T), delta, np.zeros(len(t)), lead_w, tilt_w,
-                        np.abs(Aa) + np.abs(Ba) + 1e-3, metrics)
+    return MethodResult(method=name, rows=rows, idx=idx, t=t, cc=cc, normals=normals, cl=cc.copy(), axis=T,
+                        lead=lead, tilt=tilt, A=A, B=B, A_vel=Av, B_vel=Bv, A_acc=Aa, B_acc=Ba,
+                        xyz=MACHINE.linear_axes(cc, T), delta=delta, lift=np.zeros(len(t)), lead_window=lead_w,
+                        tilt_window=tilt_w, compound_acc=np.abs(Aa) + np.abs(Ba) + 1e-3, metrics=metrics)
 
 
 def make_result(n_rows: int = 2, n_pts: int = 50) -> SmoothResult:

@@ -62,7 +62,8 @@ def test_psd_part_matches_eigh():
 @pytest.mark.parametrize("machine", [load_machine(), perturbed_machine()], ids=["nominal", "perturbed"])
 def test_derivatives_match_automatic_differentiation(machine):
     """Objective, gradient, constraints, Jacobian and Hessian of the Lagrangian as IPOPT gets
-    them, against CasADi AD of the NLP written directly in SX with scipy difference operators."""
+    them, against CasADi AD of the NLP written directly in SX with scipy difference operators
+    (window rows and the accessibility map's lead floor and ceiling rows included)."""
     n = 9
     t, fr, T = wavy_row(n)
     t = np.concatenate([[0], np.cumsum(np.diff(t) * (1 + 0.5 * np.sin(np.arange(n - 1))))])  # non-uniform
@@ -71,8 +72,11 @@ def test_derivatives_match_automatic_differentiation(machine):
     rows = [np.arange(k) for k in nlp.sizes]
     solver, _ = nlp._solver(rows)
     scale = 0.37
-    p = nlp._params(t, fr, tw, scale)
     rng = np.random.default_rng(2)
+    cf = np.column_stack([rng.uniform(0.05, 0.2, n), rng.uniform(-0.3, 0.3, n), rng.uniform(-1, 1, n)])
+    cc = cf + np.array([0.2, 0.0, 0.0])
+    bounds = smoothing.LeadBounds(cf, cc, np.ones(n, bool), np.ones(n, bool))
+    p = nlp._params(t, fr, tw, scale, bounds)
     x = rng.uniform(-0.4, 0.4, 2 * n)
     lam_g = rng.standard_normal(sum(nlp.sizes))
     lam_f = 1.3
@@ -87,11 +91,14 @@ def test_derivatives_match_automatic_differentiation(machine):
     lo, hi = tw[:, :1] + smoothing.WINDOW_BACKOFF, tw[:, 1:] - smoothing.WINDOW_BACKOFF
     Cmin, Cmax = Y * np.cos(lo) - X * np.sin(lo), X * np.sin(hi) - Y * np.cos(hi)
     gw = [ca.sum2(ca.DM(C) * Ts) for C in (Z, Cmin, Cmax)]
+    x_, y_, z_ = (ca.sum2(ca.DM(C) * Ts) for C in (X, Y, Z))
+    tilt_, lead_ = ca.atan2(y_, x_), ca.atan2(ca.sqrt(x_ ** 2 + y_ ** 2), z_)
+    gw += [lead_ - ca.DM(C[:, 0]) - ca.DM(C[:, 1]) * tilt_ - ca.DM(C[:, 2]) * tilt_ ** 2 for C in (cf, cc)]
     g = ca.vertcat(ca.mtimes(D1, A), ca.mtimes(D1, B), ca.mtimes(D2, A), ca.mtimes(D2, B), *gw)
-    lw = ca.SX.sym("lw", 3 * n)
+    lw = ca.SX.sym("lw", 5 * n)
     ref = ca.Function("ref", [xs, lw], [f, ca.gradient(f, xs), g, ca.jacobian(g, xs),
                                         ca.hessian(lam_f * f, xs)[0], ca.hessian(ca.dot(lw, ca.vertcat(*gw)), xs)[0]])
-    f_r, grad_r, g_r, J_r, Hf_r, Hw_r = (np.asarray(ca.DM(v)) for v in ref(x, lam_g[-3 * n:]))
+    f_r, grad_r, g_r, J_r, Hf_r, Hw_r = (np.asarray(ca.DM(v)) for v in ref(x, lam_g[-5 * n:]))
 
     f_c, grad_c = (np.asarray(ca.DM(v)) for v in solver.get_function("nlp_grad_f")(x, p))
     g_c, J_c = (np.asarray(ca.DM(v)) for v in solver.get_function("nlp_jac_g")(x, p))
@@ -101,7 +108,7 @@ def test_derivatives_match_automatic_differentiation(machine):
     np.testing.assert_allclose(grad_c, grad_r, rtol=1e-10, atol=1e-12 * np.abs(grad_r).max())
     np.testing.assert_allclose(g_c, g_r, atol=1e-12)
     np.testing.assert_allclose(J_c, J_r, atol=1e-10)
-    # window curvature: only its positive semidefinite part, point by point
+    # window and clearance curvature: only its positive semidefinite part, point by point
     blocks = np.stack([Hw_r[2 * k:2 * k + 2, 2 * k:2 * k + 2] for k in range(n)])
     assert np.count_nonzero(Hw_r) == np.count_nonzero([b for b in blocks])  # block diagonal
     lam, V = np.linalg.eigh(blocks)
@@ -116,8 +123,9 @@ def _all_rows_feasible(nlp: RowNLP, t, fr, lw, tw, A, B) -> bool:
     x = np.empty(2 * nlp.n)
     x[0::2], x[1::2] = A, B
     _, _, lbg, ubg = nlp.bounds(lw)
-    g = np.asarray(nlp.g_all(x, nlp._params(t, fr, tw, 1.0))).ravel()
-    return bool(np.all((g >= lbg - 1e-9) & (g <= ubg + 1e-9)))
+    g = np.asarray(nlp.g_all(x, nlp._params(t, fr, tw, 1.0, smoothing.LeadBounds.none(nlp.n)))).ravel()
+    ok = (g >= lbg - 1e-9) & (g <= ubg + 1e-9)
+    return bool(np.all(ok[:sum(nlp.sizes[:7])]))  # no clearance rows in these rows
 
 
 @pytest.fixture(scope="module")
@@ -134,7 +142,7 @@ def binding_row():
     lw, tw = np.tile(LEAD, (n, 1)), np.tile(TILT, (n, 1))
     full = RowNLP(m, n, screening=False)
     A, B, st = full.solve(t, fr, A0, B0, lw, tw)
-    assert st.success and st.rows == sum(full.sizes)
+    assert st.success and st.rows == st.total_rows
     return m, t, fr, lw, tw, A0, B0, gamma(m.tool_axis_np(A, B), t)
 
 
@@ -144,7 +152,7 @@ def test_screening_brings_in_binding_rows(binding_row):
     assert nlp.screening  # long rows screen by default
     A, B, st = nlp.solve(t, fr, A0, B0, lw, tw)
     assert st.success, st.status
-    assert st.rounds >= 2 and st.rows < sum(nlp.sizes) / 2
+    assert st.rounds >= 2 and st.rows < st.total_rows / 2
     assert nlp.constraint_report(t, A, B) == []
     assert _all_rows_feasible(nlp, t, fr, lw, tw, A, B)
     D2 = fd_operators(t)[1]
@@ -157,6 +165,6 @@ def test_screening_falls_back_to_every_row(binding_row, monkeypatch):
     monkeypatch.setattr(smoothing, "SCREEN_ROUNDS", 1)
     nlp = RowNLP(m, len(t))
     A, B, st = nlp.solve(t, fr, A0, B0, lw, tw)
-    assert st.success and st.rows == sum(nlp.sizes) and st.rounds == 2
+    assert st.success and st.rows == st.total_rows and st.rounds == 2
     assert _all_rows_feasible(nlp, t, fr, lw, tw, A, B)
     assert gamma(m.tool_axis_np(A, B), t) == pytest.approx(g_full, rel=1e-9)

@@ -14,6 +14,7 @@ import numpy as np
 
 from camsmooth.errors import CamsmoothError, InputError
 
+DEFAULT_TOLERANCE_MM = 0.005  # camsmooth.smoothing.pipeline.DEFAULT_TOLERANCE (not imported: keep --help light)
 SAMPLES_DIR = Path(__file__).resolve().parents[2] / "surfaces"
 
 
@@ -50,16 +51,26 @@ def _add_cutter_args(p: argparse.ArgumentParser, required: bool = True) -> None:
 
 
 def run_smooth(args: argparse.Namespace) -> int:
+    from camsmooth.geometry.paths import read_cc_csv
+    from camsmooth.geometry.surfaces import load_surface
     from camsmooth.io.output import write_gcode, write_result_csv
-    from camsmooth.smoothing.pipeline import smooth
+    from camsmooth.machine.kinematics import load_machine
+    from camsmooth.smoothing.pipeline import SmoothOptions, smooth
 
     lead = _range(args.lead, "--lead")
     tilt = _range(args.tilt, "--tilt")
-    result = smooth(args.path, args.surface, args.machine, _cutter(args), feed=args.feed,
-                    lead_range=tuple(np.radians(lead)), tilt_range=tuple(np.radians(tilt)), method=args.method,
-                    prefer_lead=None if args.prefer_lead is None else np.radians(args.prefer_lead),
+    model = None
+    if args.model is not None:
+        from camsmooth.machine.model import ErrorModel
+
+        model = ErrorModel.from_json(args.model)
+    options = SmoothOptions(workers=args.workers, dask=args.dask)
+    result = smooth(read_cc_csv(args.path), load_surface(args.surface), load_machine(args.machine), _cutter(args),
+                    feed=args.feed, lead_range=tuple(np.radians(lead)), tilt_range=tuple(np.radians(tilt)),
+                    method=args.method, prefer_lead=None if args.prefer_lead is None else np.radians(args.prefer_lead),
                     prefer_tilt=None if args.prefer_tilt is None else np.radians(args.prefer_tilt),
-                    model=args.model, compensate=args.compensate, progress=not args.quiet)
+                    model=model, compensate=args.compensate, tolerance=args.tolerance, options=options,
+                    progress=not args.quiet)
     _write_outputs(result, args.output, args.gcode, args.report, args.feed, args.quiet, write_result_csv,
                    write_gcode)
     return 1 if (result.result.metrics["unclean_rows"] or result.result.metrics["unreachable"]) and args.strict else 0
@@ -133,7 +144,11 @@ def run_demo(args: argparse.Namespace) -> int:
     if not args.quiet:
         print(f"camsmooth demo: smoothing {path} on {mesh} (toroidal cutter R=4 r=1 mm, lead 2:20, tilt -15:15 deg, "
               f"default AB head) -> {out}/")
-    result = smooth(path, mesh, None, cutter, feed=2000.0, lead_range=tuple(np.radians([2.0, 20.0])),
+    from camsmooth.geometry.paths import read_cc_csv
+    from camsmooth.geometry.surfaces import load_surface
+
+    result = smooth(read_cc_csv(path), load_surface(mesh), None, cutter, feed=2000.0,
+                    lead_range=tuple(np.radians([2.0, 20.0])),
                     tilt_range=tuple(np.radians([-15.0, 15.0])), method="nlp", progress=not args.quiet)
     _write_outputs(result, out / f"{name}_smoothed.csv", out / f"{name}_smoothed.nc", out / "report", 2000.0,
                    args.quiet, write_result_csv, write_gcode)
@@ -158,6 +173,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--prefer-lead", type=float, default=None, help="preferred lead (deg; default window middle)")
     p.add_argument("--prefer-tilt", type=float, default=None, help="preferred tilt (deg; default window middle)")
     p.add_argument("--method", choices=("nlp", "spline", "none"), default="nlp")
+    p.add_argument("--tolerance", type=float, default=DEFAULT_TOLERANCE_MM, metavar="MM",
+                   help=f"the part's allowed deviation (mm, default {DEFAULT_TOLERANCE_MM:g}): a clearance below "
+                   "-MM is a gouge, for every clearance decision")
+    p.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="processes for the rows (default: all cores for programs of 5000 points or more)")
+    p.add_argument("--dask", default=None, metavar="ADDRESS",
+                   help="run the rows on a Dask cluster: a scheduler address, or 'local' for a LocalCluster "
+                   "(pip install 'camsmooth[dask]')")
     p.add_argument("--model", default=None, help="machine error model JSON: smooth the predicted real axis")
     p.add_argument("--compensate", action="store_true", help="with --model: command the axes so the "
                    "predicted real tool tip is the ideal one")

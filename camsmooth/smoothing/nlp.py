@@ -14,7 +14,10 @@ second-difference acceleration limits, and the per-point lead/tilt windows, whic
 in the local frame:
     cos(lead_max) <= n . T <= cos(lead_min),
     y cos(tilt_min) - x sin(tilt_min) >= 0,   x sin(tilt_max) - y cos(tilt_max) >= 0,
-with x = X_L . T, y = Y_L . T (tilt windows narrower than 180 degrees).
+with x = X_L . T, y = Y_L . T (tilt windows narrower than 180 degrees). Where the accessibility
+map (camsmooth.geometry.accessibility) found interference inside the window, clearance rows keep
+the axis in the clear region: lead >= floor(tilt) and lead <= ceiling(tilt), with
+lead = atan2(|(x, y)|, n . T), tilt = atan2(y, x) and floor, ceiling quadratics in tilt.
 """
 
 from __future__ import annotations
@@ -110,8 +113,8 @@ def _dm_sparse(M: sp.spmatrix) -> ca.DM:
 @dataclass
 class NLPStatus:
     """What IPOPT said: success flag, return status text, iterations (summed over screening
-    rounds), solve time (s), build time (s) of the solvers this solve needed, screening rounds
-    and the number of constraint rows in the last round."""
+    rounds), solve time (s), build time (s) of the solvers this solve needed, screening rounds,
+    the number of constraint rows in the last round and in the whole NLP."""
 
     success: bool
     status: str
@@ -120,12 +123,32 @@ class NLPStatus:
     build_s: float
     rounds: int = 1
     rows: int = 0
+    total_rows: int = 0
 
 
 # Constraint groups of one row, in the order of the NLP's g: segment velocities of A and B
 # (N-1 each), second differences of A and B (N-2 each), the lead window n.T and the two tilt
 # half-planes (N each).
-GROUPS = ("A velocity", "B velocity", "A acceleration", "B acceleration", "lead window", "tilt min", "tilt max")
+GROUPS = ("A velocity", "B velocity", "A acceleration", "B acceleration", "lead window", "tilt min", "tilt max",
+          "clear floor", "clear ceiling")
+N_LINEAR = 4  # the first groups are linear in (A, B); the rest are per-point functions of the tool axis
+
+
+@dataclass(frozen=True)
+class LeadBounds:
+    """Clearance constraints of one row from the accessibility map: per point, lead >= floor and
+    lead <= ceiling with floor, ceiling = c0 + c1 tilt + c2 tilt^2 (rad; (N, 3) coefficients), where
+    has_floor / has_ceiling (N,) say so (camsmooth.geometry.accessibility.ClearRegion)."""
+
+    floor: np.ndarray
+    ceiling: np.ndarray
+    has_floor: np.ndarray
+    has_ceiling: np.ndarray
+
+    @staticmethod
+    def none(n: int) -> LeadBounds:
+        z = np.zeros((n, 3))
+        return LeadBounds(z, z, np.zeros(n, bool), np.zeros(n, bool))
 
 # Constraint screening (an active-set outer loop around IPOPT; most of the 7N rows are slack at
 # the optimum, and IPOPT's linear algebra pays for every row). The lead-window rows are always in
@@ -160,6 +183,26 @@ def _axis_functions(machine: Machine, n: int) -> tuple[ca.Function, ca.Function,
     Taa, Tab, Tbb = ca.jtimes(Ta, a, one), ca.jtimes(Ta, b, one), ca.jtimes(Tb, b, one)
     return (ca.Function("axis", [a, b], [T]), ca.Function("axis_d1", [a, b], [T, Ta, Tb]),
             ca.Function("axis_d2", [a, b], [T, Ta, Tb, Taa, Tab, Tbb]))
+
+
+def _lead_functions(machine: Machine, n: int) -> ca.Function:
+    """lead(T) - c0 - c1 tilt(T) - c2 tilt(T)^2 per point and its first and second partials in A
+    and B (element-wise forward AD, as ``_axis_functions``), for axes T(A, B) of the machine's
+    chain and local frames X_L, Y_L, n (n x 3 each); lead = atan2(|(x, y)|, z), tilt = atan2(y, x)
+    in the local frame (rad). Inputs (A, B, X, Y, Z, C) with C the (n x 3) coefficients; outputs
+    (g, g_A, g_B, g_AA, g_AB, g_BB)."""
+    a, b = ca.MX.sym("A", n), ca.MX.sym("B", n)
+    X, Y, Z, C = (ca.MX.sym(k, n, 3) for k in "XYZC")
+    comps = machine.tool_axis(a, b)
+    T = ca.horzcat(*[c if isinstance(c, ca.MX) else ca.MX(ca.DM.ones(n) * float(c)) for c in comps])
+    x, y, z = ca.sum2(X * T), ca.sum2(Y * T), ca.sum2(Z * T)
+    tilt = ca.atan2(y, x)
+    lead = ca.atan2(ca.sqrt(x ** 2 + y ** 2 + 1e-24), z)
+    g = lead - C[:, 0] - C[:, 1] * tilt - C[:, 2] * tilt ** 2
+    one = ca.DM.ones(n)
+    ga, gb = ca.jtimes(g, a, one), ca.jtimes(g, b, one)
+    return ca.Function("lead_bound", [a, b, X, Y, Z, C],
+                       [g, ga, gb, ca.jtimes(ga, a, one), ca.jtimes(ga, b, one), ca.jtimes(gb, b, one)])
 
 
 def _psd_part(a: ca.MX, b: ca.MX, c: ca.MX) -> tuple[ca.MX, ca.MX, ca.MX]:
@@ -221,13 +264,15 @@ class RowNLP:
                         "ipopt.constr_viol_tol": 1e-10, "ipopt.acceptable_constr_viol_tol": 1e-9,
                         "ipopt.linear_solver": "mumps", "ipopt.mumps_mem_percent": 5}
         self.options.update(ipopt_options or {})
-        self.sizes = (n - 1, n - 1, n - 2, n - 2, n, n, n)
+        self.sizes = (n - 1, n - 1, n - 2, n - 2, n, n, n, n, n)
         axis0, axis1, axis2 = _axis_functions(machine, n)
+        bound = _lead_functions(machine, n)
         m1, m2 = n - 1, n - 2
         # parameters: 1/h (n-1), second-difference weights c0, c1, c2 (n-2 each), window
-        # coefficient vectors (normal, tilt-min and tilt-max rows; 3n each), objective scale.
+        # coefficient vectors (normal, tilt-min and tilt-max rows; 3n each), objective scale,
+        # the local frames' X_L and Y_L (3n each), floor and ceiling coefficients (3n each).
         x = ca.MX.sym("x", 2 * n)
-        p = ca.MX.sym("p", m1 + 3 * m2 + 9 * n + 1)
+        p = ca.MX.sym("p", m1 + 3 * m2 + 9 * n + 1 + 12 * n)
         self._x, self._p = x, p
         A, B = x[0::2], x[1::2]
         invh = p[0:m1]
@@ -235,6 +280,10 @@ class RowNLP:
         off = m1 + 3 * m2
         W = [ca.reshape(p[off + 3 * k * n:off + 3 * (k + 1) * n], n, 3) for k in range(3)]
         scale = p[off + 9 * n]
+        XL, YL, CF, CC = (ca.reshape(p[off + 9 * n + 1 + 3 * k * n:off + 9 * n + 1 + 3 * (k + 1) * n], n, 3)
+                          for k in range(4))
+        floor = bound(A, B, XL, YL, W[0], CF)
+        ceiling = bound(A, B, XL, YL, W[0], CC)
 
         def stencil(q: ca.MX) -> ca.MX:  # second differences of the rows of q
             cols = q.shape[1]
@@ -243,7 +292,7 @@ class RowNLP:
 
         def groups(T: ca.MX) -> list[ca.MX]:
             return [(A[1:n] - A[0:m1]) * invh, (B[1:n] - B[0:m1]) * invh, stencil(A), stencil(B),
-                    ca.sum2(W[0] * T), ca.sum2(W[1] * T), ca.sum2(W[2] * T)]
+                    ca.sum2(W[0] * T), ca.sum2(W[1] * T), ca.sum2(W[2] * T), floor[0], ceiling[0]]
 
         T0 = axis0(A, B)
         self._f = scale * ca.sumsqr(stencil(T0))
@@ -265,7 +314,9 @@ class RowNLP:
         self._grad_f = ca.Function("grad_f", [x, p], [scale * ca.sumsqr(r1), grad])
         self._g1 = groups(T1)
         self._jac_parts = {"invh": invh, "c": (c0, c1, c2),
-                           "win": [(ca.sum2(Wk * Ta1), ca.sum2(Wk * Tb1)) for Wk in W]}
+                           "win": [(ca.sum2(Wk * Ta1), ca.sum2(Wk * Tb1)) for Wk in W]
+                           + [(floor[1], floor[2]), (ceiling[1], ceiling[2])]}
+        self._bound_curv = (floor[3:6], ceiling[3:6])
 
         # second derivatives: kept as pieces; the window multipliers are scattered per solver
         T2, Ta, Tb, Taa, Tab, Tbb = axis2(A, B)
@@ -319,7 +370,7 @@ class RowNLP:
                 C += [2 * k + gi - 2, 2 * k + gi, 2 * k + gi + 2]
                 V += [c0[kl], c1[kl], c2[kl]]
             else:
-                dA, dB = self._jac_parts["win"][gi - 4]
+                dA, dB = self._jac_parts["win"][gi - N_LINEAR]
                 R += [r, r]
                 C += [2 * k, 2 * k + 1]
                 V += [dA[kl], dB[kl]]
@@ -335,20 +386,25 @@ class RowNLP:
         wo = 2 * scale * lam_f * u
         wc = ca.MX.zeros(n, 3)
         starts = np.cumsum([0] + [len(k) for k in rows])
-        for gi in range(4, 7):
+        bc = [ca.MX.zeros(n, 1) for _ in range(3)]  # curvature of the clearance rows, weighted
+        for gi in range(N_LINEAR, len(GROUPS)):
             k = np.asarray(rows[gi], np.int64)
             if len(k):
                 P = sp.csc_matrix((np.ones(len(k)), (k, np.arange(len(k)))), shape=(n, len(k)))
                 lam = ca.mtimes(_dm_sparse(P), lam_g[int(starts[gi]):int(starts[gi + 1])])
-                wc = wc + ca.repmat(lam, 1, 3) * W[gi - 4]
+                if gi < 7:
+                    wc = wc + ca.repmat(lam, 1, 3) * W[gi - N_LINEAR]
+                else:
+                    bc = [acc + lam * h for acc, h in zip(bc, self._bound_curv[gi - 7], strict=True)]
         S = 2 * scale * lam_f
-        # objective curvature exact; constraint curvature (window rows, weighted by their
-        # multipliers) replaced by its positive semidefinite part, point by point. Measured:
+        # objective curvature exact; constraint curvature (window and clearance rows, weighted by
+        # their multipliers) replaced by its positive semidefinite part, point by point. Measured:
         # the exact form makes IPOPT correct the inertia at nearly every iteration (several
         # factorizations each) on rough rows, clipping the objective's curvature too slows gentle
         # rows (saddle sample) down to hundreds of iterations; this split does neither.
         blocks = lambda w: (ca.sum2(w * Taa), ca.sum2(w * Tab), ca.sum2(w * Tbb))  # noqa: E731
-        a, b, c = (p_ + q_ for p_, q_ in zip(blocks(wo), _psd_part(*blocks(wc)), strict=True))
+        curv = [w + h for w, h in zip(blocks(wc), bc, strict=True)]
+        a, b, c = (p_ + q_ for p_, q_ in zip(blocks(wo), _psd_part(*curv), strict=True))
         vals = ca.vertcat(a + S * diag[0], b + S * diag[1],
                           c + S * diag[2], *[S * v for v in off1], *[S * v for v in off2])
         H = _sparse_mx(2 * n, 2 * n, self._hess_rows, self._hess_cols, vals)
@@ -362,7 +418,8 @@ class RowNLP:
         return solver, dt
 
     # ---- parameters and bounds ------------------------------------------------------------------
-    def _params(self, t: np.ndarray, frames: np.ndarray, tilt_window: np.ndarray, scale: float) -> np.ndarray:
+    def _params(self, t: np.ndarray, frames: np.ndarray, tilt_window: np.ndarray, scale: float,
+                bounds: LeadBounds) -> np.ndarray:
         h = np.diff(t)
         hl, hr = h[:-1], h[1:]
         X, Y, Z = frames[:, :, 0], frames[:, :, 1], frames[:, :, 2]
@@ -372,7 +429,8 @@ class RowNLP:
         cmin = Y * np.cos(tmin) - X * np.sin(tmin)
         cmax = X * np.sin(tmax) - Y * np.cos(tmax)
         return np.concatenate([1 / h, 2 / (hl * (hl + hr)), -2 / (hl * hr), 2 / (hr * (hl + hr)),
-                               Z.T.ravel(), cmin.T.ravel(), cmax.T.ravel(), [scale]])
+                               Z.T.ravel(), cmin.T.ravel(), cmax.T.ravel(), [scale], X.T.ravel(), Y.T.ravel(),
+                               np.asarray(bounds.floor, float).T.ravel(), np.asarray(bounds.ceiling, float).T.ravel()])
 
     def bounds(self, lead_window: np.ndarray) -> tuple[np.ndarray, ...]:
         """lbx, ubx, lbg, ubg (every row of GROUPS) for the current windows (limits backed off
@@ -394,10 +452,11 @@ class RowNLP:
         hi_l = np.maximum(lead_window[:, 1] - WINDOW_BACKOFF, lead_window.mean(axis=1))
         lbg = np.concatenate([np.full(n - 1, -la.vmax * f), np.full(n - 1, -lb.vmax * f),
                               np.full(n - 2, -la.amax * f), np.full(n - 2, -lb.amax * f),
-                              np.cos(hi_l), np.zeros(n), np.zeros(n)])
+                              np.cos(hi_l), np.zeros(n), np.zeros(n), np.full(n, WINDOW_BACKOFF), np.full(n, -np.inf)])
         ubg = np.concatenate([np.full(n - 1, la.vmax * f), np.full(n - 1, lb.vmax * f),
                               np.full(n - 2, la.amax * f), np.full(n - 2, lb.amax * f),
-                              np.cos(lo_l), np.full(n, np.inf), np.full(n, np.inf)])
+                              np.cos(lo_l), np.full(n, np.inf), np.full(n, np.inf), np.full(n, np.inf),
+                              np.full(n, -WINDOW_BACKOFF)])
         return lbx, ubx, lbg, ubg
 
     def _split(self, v: np.ndarray) -> list[np.ndarray]:
@@ -414,7 +473,8 @@ class RowNLP:
                                 np.full(self.sizes[1], lim["B"].vmax * SCREEN_MARGIN),
                                 np.full(self.sizes[2], lim["A"].amax * SCREEN_MARGIN),
                                 np.full(self.sizes[3], lim["B"].amax * SCREEN_MARGIN),
-                                np.full(self.sizes[4], np.inf), rho * SCREEN_TILT_MARGIN, rho * SCREEN_TILT_MARGIN])
+                                np.full(self.sizes[4], np.inf), rho * SCREEN_TILT_MARGIN, rho * SCREEN_TILT_MARGIN,
+                                np.full(2 * self.n, np.inf)])
         with np.errstate(invalid="ignore"):
             return np.minimum(g - lbg, ubg - g) < scale
 
@@ -431,11 +491,15 @@ class RowNLP:
 
     # ---- solve ----------------------------------------------------------------------------------
     def solve(self, t: np.ndarray, frames: np.ndarray, A0: np.ndarray, B0: np.ndarray, lead_window: np.ndarray,
-              tilt_window: np.ndarray) -> tuple[np.ndarray, np.ndarray, NLPStatus]:
+              tilt_window: np.ndarray, bounds: LeadBounds | None = None) -> tuple[np.ndarray, np.ndarray, NLPStatus]:
         """Solve one row: time stamps t (N,) s, local frames (N, 3, 3) (columns X_L, Y_L, n in
-        the workpiece frame), warm start (A0, B0) rad, lead/tilt windows (N, 2) rad. Returns A,
-        B (rad) and the status."""
+        the workpiece frame), warm start (A0, B0) rad, lead/tilt windows (N, 2) rad, clearance
+        bounds on the lead from the accessibility map (rows only where they apply). Returns A, B
+        (rad) and the status."""
         n = self.n
+        bounds = LeadBounds.none(n) if bounds is None else bounds
+        exists = np.concatenate([np.ones(sum(self.sizes[:7]), bool), np.asarray(bounds.has_floor, bool),
+                                 np.asarray(bounds.has_ceiling, bool)])
         t = np.asarray(t, float)
         x = np.empty(2 * n)
         x[0::2], x[1::2] = A0, B0
@@ -443,15 +507,16 @@ class RowNLP:
         lbx, ubx, lbg, ubg = self.bounds(lead_window)
         x = np.clip(x, lbx, ubx)
         t0 = time.perf_counter()
-        p = self._params(t, frames, tilt_window, scale)
+        p = self._params(t, frames, tilt_window, scale, bounds)
         x_start = x.copy()
         if self.screening:
             g = np.asarray(self.g_all(x, p)).ravel()
             outside = (g < lbg) | (g > ubg)
-            keep = (np.repeat([False] * 4 + [True] + [False] * 2, self.sizes) | self._row_ends()
-                    | (self._near(g, lbg, ubg) & ~outside))
+            # the lead and clearance rows are always in: they pin the trajectory
+            keep = exists & (np.repeat([False] * 4 + [True] + [False] * 2 + [True] * 2, self.sizes)
+                             | self._row_ends() | (self._near(g, lbg, ubg) & ~outside))
         else:
-            keep = np.ones(len(lbg), bool)
+            keep = exists.copy()
         build = iters = rounds = 0
         status, success = "not solved", False
         while True:
@@ -463,23 +528,24 @@ class RowNLP:
             iters += int(st.get("iter_count", 0))
             status, success = str(st["return_status"]), bool(st["success"])
             x = np.asarray(sol["x"]).ravel()
-            if keep.all():
+            if not (exists & ~keep).any():
                 break
             bad = np.zeros_like(keep)
             if success:
                 g = np.asarray(self.g_all(x, p)).ravel()
-                bad = ((g < lbg - 1e-9) | (g > ubg + 1e-9)) & ~keep
+                bad = ((g < lbg - 1e-9) | (g > ubg + 1e-9)) & ~keep & exists
                 if not bad.any():
                     break
             if not success or rounds >= SCREEN_ROUNDS:
                 # screening did not work out for this row: every row, from the original start
-                keep[:] = True
+                keep = exists.copy()
                 x = x_start.copy()
                 continue
-            keep |= _dilate(bad, self.sizes, SCREEN_DILATE) | self._near(g, lbg, ubg)
+            keep |= (_dilate(bad, self.sizes, SCREEN_DILATE) | self._near(g, lbg, ubg)) & exists
             x = x_start.copy()  # IPOPT restarts badly from a point that violates the new rows
         dt = time.perf_counter() - t0
-        return x[0::2], x[1::2], NLPStatus(success, status, iters, dt, build, rounds, int(keep.sum()))
+        return x[0::2], x[1::2], NLPStatus(success=success, status=status, iterations=iters, time_s=dt, build_s=build,
+                                           rounds=rounds, rows=int(keep.sum()), total_rows=int(exists.sum()))
 
     def constraint_report(self, t: np.ndarray, A: np.ndarray, B: np.ndarray) -> list[tuple[str, int, float]]:
         """Constraint groups violated by (A, B) against the TRUE limits (no back-off): a list of

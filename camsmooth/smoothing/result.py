@@ -15,7 +15,7 @@ OUTPUT_COLUMNS = ("row", "idx", "t", "x", "y", "z", "nx", "ny", "nz", "clx", "cl
                   "lead", "tilt", "A", "B", "X", "Y", "Z", "delta")
 
 
-@dataclass
+@dataclass(kw_only=True)
 class MethodResult:
     """The tool program one smoothing method produced.
 
@@ -64,7 +64,8 @@ class MethodResult:
 @dataclass
 class SmoothResult:
     """Everything one `smooth` call produced: a MethodResult per method run, the chosen one
-    (``primary``), and what went in (machine, cutter, surface source, path source, limits)."""
+    (``primary``), what went in (machine, cutter, surface source, path source, limits) and
+    warnings for the user (e.g. a tolerance below what the mesh can resolve)."""
 
     methods: dict[str, MethodResult]
     primary: str
@@ -72,6 +73,7 @@ class SmoothResult:
     cutter: Any
     surface_mesh: Any
     inputs: dict[str, Any] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def result(self) -> MethodResult:

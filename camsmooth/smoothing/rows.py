@@ -1,0 +1,326 @@
+"""One row of the NLP method, with the tool's clearance inside the optimisation.
+
+``solve_row`` is a pure function of a ``RowTask`` (the row's data) and a ``RowContext`` (what
+every row of one program shares), so rows run serially, in processes or on Dask with identical
+results (camsmooth.smoothing.parallel). Per row:
+
+1. Map: at the points where an orientation the pipeline already evaluated gouges (the 'none'
+   and 'spline' poses), and their neighbours within a cutter radius, compute the accessibility
+   map (camsmooth.geometry.accessibility): which lead/tilt of the window clears the mesh, as a
+   lead floor and ceiling smooth in tilt and a clear tilt range.
+2. Solve the NLP (camsmooth.smoothing.nlp.RowNLP) with those as constraints.
+3. Verify with the exact clearance only the poses that moved: a pose whose tool moved by less
+   than MOVE_TOL (a bound over the whole tool solid: tip displacement plus axis rotation times
+   the tool's reach) keeps its clearance; the first round checks every pose.
+4. Refine: points that gouge and were not mapped are mapped (step 1); mapped points that still
+   gouge (the map is a sampled approximation between its samples) get their floor or ceiling
+   moved to the exact boundary at the solution's tilt. Re-solve, from the last solution.
+
+The lift along the normal is the fallback only for points whose whole window the map found
+blocked (``blocked``; ``best_delta`` is the best clearance the map found there), and for points
+that the machine's limits keep from reaching their clear region (``unreachable_clear``); both are
+named by the pipeline with their size. Units: mm, s, rad; workpiece frame.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.ndimage import binary_dilation
+
+from camsmooth.errors import InfeasibleError
+from camsmooth.geometry.accessibility import accessibility_map, clear_region, pose_clearance
+from camsmooth.geometry.clearance import MeshIndex, clearance
+from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl
+from camsmooth.geometry.frames import lead_tilt_from_axis
+from camsmooth.machine.kinematics import Machine
+from camsmooth.smoothing.nlp import LeadBounds, RowNLP, elastic_diagnosis
+
+__all__ = ["RowContext", "RowOptions", "RowSolution", "RowTask", "solve_row"]
+
+MOVE_TOL = 1e-6  # mm: a pose whose tool moved less keeps its verified clearance
+MAP_FRACTION = 0.5  # the map calls an orientation clear at delta >= -MAP_FRACTION * tolerance
+REFINE_MARGIN = np.radians(0.05)  # rad: a floor moved to the exact boundary goes this much beyond
+
+
+@dataclass(frozen=True)
+class RowOptions:
+    """Tuning of the row solver: map grid (leads x tilts) and bisection steps, verification
+    rounds, IPOPT options."""
+
+    map_grid: tuple[int, int] = (9, 7)
+    map_refine: int = 6
+    max_rounds: int = 6
+    ipopt_options: dict | None = None
+
+
+@dataclass(frozen=True)
+class RowContext:
+    """What every row of one program shares: the machines the NLP may smooth on (a task names
+    one: the nominal machine, or the error model's real machine), the cutter, the mesh (vertices
+    (V, 3) mm and faces (F, 3)), the tolerance (mm: a clearance below -tolerance is a gouge) and the
+    options. ``key`` names the program so a worker builds its search structure once."""
+
+    machines: tuple[Machine, ...]
+    cutter: ToroidalCutter
+    vertices: np.ndarray
+    faces: np.ndarray
+    tolerance: float
+    options: RowOptions = field(default_factory=RowOptions)
+    key: str = ""
+
+
+@dataclass(frozen=True)
+class RowTask:
+    """One row: its id, time stamps t (N,) s, local frames (N, 3, 3), CC points and unit normals
+    (N, 3), lead/tilt windows (N, 2) rad, warm start (A0, B0) rad and the points where an
+    orientation evaluated before gouged (``risk``, (N,) bool); ``machine`` indexes
+    RowContext.machines."""
+
+    row: int
+    t: np.ndarray
+    frames: np.ndarray
+    cc: np.ndarray
+    normals: np.ndarray
+    lead_window: np.ndarray
+    tilt_window: np.ndarray
+    A0: np.ndarray
+    B0: np.ndarray
+    risk: np.ndarray
+    machine: int = 0
+
+
+@dataclass(frozen=True)
+class RowSolution:
+    """The row's program and how it was reached.
+
+    A, B: rad; delta: exact clearance of the final poses (mm); lift: along the normal (mm, 0
+    where none); lead_window, tilt_window: the windows with the map's tilt narrowing (rad);
+    mapped: points that got a map; blocked: points whose whole window the map found blocked;
+    unreachable_clear: mapped points with a clear region that the limits kept the solution out
+    of; best_delta: the best clearance the map found (mm, NaN where not mapped); iterations
+    (IPOPT, summed), rounds (solve/verify), clearance_evals (poses checked, map included),
+    solve_s, map_s, check_s: time in the NLP, the map and the verification (s).
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    delta: np.ndarray
+    lift: np.ndarray
+    lead_window: np.ndarray
+    tilt_window: np.ndarray
+    mapped: np.ndarray
+    blocked: np.ndarray
+    unreachable_clear: np.ndarray
+    best_delta: np.ndarray
+    iterations: int
+    rounds: int
+    clearance_evals: int
+    solve_s: float
+    map_s: float
+    check_s: float
+
+
+class _Worker:
+    """Per-process state built once per program: the mesh's search structure and the NLPs by
+    row length (both are pure caches: results never depend on them)."""
+
+    def __init__(self, ctx: RowContext) -> None:
+        import trimesh
+
+        self.index = MeshIndex(trimesh.Trimesh(ctx.vertices, ctx.faces, process=False))
+        self.nlps: dict[tuple[int, int], RowNLP] = {}
+
+    def nlp(self, ctx: RowContext, machine: int, n: int) -> RowNLP:
+        key = (machine, n)
+        if key not in self.nlps:
+            if len(self.nlps) >= 8:
+                self.nlps.pop(next(iter(self.nlps)))
+            self.nlps[key] = RowNLP(ctx.machines[machine], n, ipopt_options=ctx.options.ipopt_options)
+        return self.nlps[key]
+
+
+_WORKERS: dict[tuple[str, int], _Worker] = {}
+
+
+def _worker(ctx: RowContext) -> _Worker:
+    key = (ctx.key, 0 if ctx.key else id(ctx))
+    w = _WORKERS.get(key)
+    if w is None:
+        if len(_WORKERS) >= 2:
+            _WORKERS.pop(next(iter(_WORKERS)))
+        w = _WORKERS[key] = _Worker(ctx)
+    return w
+
+
+def tool_reach(cutter: ToroidalCutter) -> float:
+    """Largest distance (mm) from the tool tip to any point of the tool solid: the lever arm
+    that turns an axis rotation (rad) into a displacement bound."""
+    top = cutter.shank_length + (cutter.holder_length if cutter.holder_radius is not None else 0.0)
+    radius = max(cutter.R + cutter.r, cutter.holder_radius or 0.0)
+    return float(np.hypot(top, radius))
+
+
+def _neighbours(mask: np.ndarray, cc: np.ndarray, reach: float) -> np.ndarray:
+    """mask grown to the points within ``reach`` mm along the row (at least one point each side)."""
+    if not mask.any():
+        return mask
+    seg = np.linalg.norm(np.diff(cc, axis=0), axis=1)
+    k = int(np.clip(np.ceil(reach / max(float(np.median(seg)), 1e-9)), 1, 50))
+    return binary_dilation(mask, np.ones(2 * k + 1, bool))
+
+
+def solve_row(ctx: RowContext, task: RowTask) -> RowSolution:
+    """The NLP method on one row with the clearance inside the optimisation (module docstring).
+    Raises InfeasibleError naming the binding limit when no program meets the limits and the
+    windows."""
+    w = _worker(ctx)
+    cut, mach, opts = ctx.cutter, ctx.machines[task.machine], ctx.options
+    n = len(task.t)
+    tol = float(ctx.tolerance)
+    thr = MAP_FRACTION * tol
+    lw, tw = task.lead_window.copy(), task.tilt_window.copy()
+    floor, ceiling = np.zeros((n, 3)), np.zeros((n, 3))
+    has_floor, has_ceiling = np.zeros(n, bool), np.zeros(n, bool)
+    mapped, blocked = np.zeros(n, bool), np.zeros(n, bool)
+    best = np.full(n, np.nan)
+    delta = np.full(n, np.nan)
+    last_cl, last_T = np.full((n, 3), np.nan), np.full((n, 3), np.nan)
+    reach = tool_reach(cut)
+    nlp = w.nlp(ctx, task.machine, n)
+    A, B = task.A0, task.B0
+    good: tuple[np.ndarray, np.ndarray] | None = None
+    evals = iters = rounds = 0
+    t_solve = t_map = t_check = 0.0
+    to_map = _neighbours(task.risk, task.cc, cut.R + cut.r)
+    refine = np.zeros(n, bool)
+    for rounds in range(1, opts.max_rounds + 1):  # noqa: B007
+        t0 = time.perf_counter()
+        if to_map.any():
+            k = np.flatnonzero(to_map)
+            amap = accessibility_map(w.index, cut, task.cc[k], task.normals[k], task.frames[k], lw[k], tw[k], thr,
+                                     *opts.map_grid, refine=opts.map_refine)
+            evals += amap.delta.size + opts.map_refine * int(amap.floor_active.sum() + amap.ceiling_active.sum())
+            reg = clear_region(amap, lw[k])
+            floor[k], ceiling[k] = reg.floor, reg.ceiling
+            has_floor[k], has_ceiling[k] = reg.has_floor, reg.has_ceiling
+            tw[k] = np.where(reg.blocked[:, None], tw[k], reg.tilt_window)
+            blocked[k], best[k] = reg.blocked, reg.best_delta
+            mapped |= to_map
+        if refine.any():
+            evals += _move_bounds(w.index, cut, task, refine, A, B, mach, lw, floor, ceiling, has_floor, has_ceiling,
+                                  thr, opts.map_refine)
+        t_map += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        bounds = LeadBounds(floor, ceiling, has_floor.copy(), has_ceiling.copy())
+        A_new, B_new, st = nlp.solve(task.t, task.frames, A, B, lw, tw, bounds)
+        iters += st.iterations
+        t_solve += time.perf_counter() - t0
+        if not st.success:
+            if good is None:
+                _raise_infeasible(ctx, task, nlp, lw, tw, A_new, B_new, st.status, mapped.any())
+            A, B = good  # the last verified solution; what still gouges is named below
+            break
+        A, B = A_new, B_new
+        t0 = time.perf_counter()
+        T = mach.tool_axis_np(A, B)
+        cl = cc_to_cl(cut, task.cc, task.normals, T)
+        moved = (np.linalg.norm(cl - last_cl, axis=1) + reach * np.linalg.norm(T - last_T, axis=1))
+        check = ~(moved <= MOVE_TOL)  # NaN (never checked) included
+        if check.any():
+            delta[check] = clearance(w.index, cut, cl[check], T[check]).delta
+            last_cl[check], last_T[check] = cl[check], T[check]
+            evals += int(check.sum())
+        t_check += time.perf_counter() - t0
+        good = (A, B)
+        bad = (delta < -tol) & ~blocked
+        if not bad.any():
+            break
+        to_map = _neighbours(bad & ~mapped, task.cc, cut.R + cut.r) & ~mapped
+        refine = bad & mapped
+    # what still gouges: whole window blocked, or a clear region the limits did not let the
+    # solution reach
+    bad = delta < -tol
+    unreachable_clear = bad & ~blocked
+    lift = np.zeros(n)
+    if bad.any():
+        T = mach.tool_axis_np(A, B)
+        cl = cc_to_cl(cut, task.cc, task.normals, T)
+        lift, delta = lift_along_normal(w.index, cut, cl, T, task.normals, delta, bad, tol)
+    return RowSolution(A=A, B=B, delta=delta, lift=lift, lead_window=lw, tilt_window=tw, mapped=mapped,
+                       blocked=blocked, unreachable_clear=unreachable_clear, best_delta=best, iterations=iters,
+                       rounds=rounds, clearance_evals=evals, solve_s=t_solve, map_s=t_map, check_s=t_check)
+
+
+def _move_bounds(index: MeshIndex, cut: ToroidalCutter, task: RowTask, pts: np.ndarray, A: np.ndarray,
+                 B: np.ndarray, machine: Machine, lw: np.ndarray, floor: np.ndarray, ceiling: np.ndarray,
+                 has_floor: np.ndarray, has_ceiling: np.ndarray, thr: float, steps: int) -> int:
+    """Mapped points whose solution still gouges: at the solution's tilt, find by bisection the
+    exact clear boundary between the solution's lead and the window's other end and move the
+    floor (up) or ceiling (down) there plus REFINE_MARGIN, in place. Returns the clearance
+    evaluations made."""
+    k = np.flatnonzero(pts)
+    fr, cc, nrm = task.frames[k], task.cc[k], task.normals[k]
+    lead, tilt = lead_tilt_from_axis(machine.tool_axis_np(A[k], B[k]), fr)
+    hi_ok = pose_clearance(index, cut, cc, nrm, fr, lw[k, 1], tilt) >= -thr
+    lo_ok = ~hi_ok & (pose_clearance(index, cut, cc, nrm, fr, lw[k, 0], tilt) >= -thr)
+    # bisect toward the clear end: up for a floor, down for a ceiling
+    good = np.where(hi_ok, lw[k, 1], lw[k, 0])
+    bad = lead.copy()
+    for _ in range(steps + 2):
+        mid = 0.5 * (good + bad)
+        ok = pose_clearance(index, cut, cc, nrm, fr, mid, tilt) >= -thr
+        good, bad = np.where(ok, mid, good), np.where(ok, bad, mid)
+    p = np.stack([np.ones_like(tilt), tilt, tilt ** 2], -1)
+    for side, coef, has, sign in ((hi_ok, floor, has_floor, 1.0), (lo_ok, ceiling, has_ceiling, -1.0)):
+        j = k[side]
+        target = good[side] + sign * REFINE_MARGIN
+        fresh = ~has[j]
+        now = np.sum(coef[j] * p[side], -1)
+        coef[j[~fresh], 0] += sign * np.maximum(sign * (target - now), 0.0)[~fresh]
+        coef[j[fresh]] = np.column_stack([target[fresh], np.zeros((int(fresh.sum()), 2))])
+        has[j] = True
+    return 2 * len(k) + (steps + 2) * len(k)
+
+
+def lift_along_normal(index: MeshIndex, cut: ToroidalCutter, cl: np.ndarray, T: np.ndarray, normals: np.ndarray,
+          delta: np.ndarray, mask: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """The patent's fallback (METHODS section 1, step E(3)) at the masked points: move the tool
+    along the CC normal by the gouge depth and re-check, up to five times. Returns the lift (mm)
+    and the clearance after it."""
+    lift = np.zeros(len(cl))
+    delta = delta.copy()
+    todo = np.flatnonzero(mask)
+    for _ in range(5):
+        if todo.size == 0:
+            break
+        lift[todo] += -delta[todo] + 0.1 * tol
+        delta[todo] = clearance(index, cut, cl[todo] + lift[todo, None] * normals[todo], T[todo]).delta
+        todo = todo[delta[todo] < -0.5 * tol]
+    return lift, delta
+
+
+def _raise_infeasible(ctx: RowContext, task: RowTask, nlp: RowNLP, lw: np.ndarray, tw: np.ndarray, A: np.ndarray,
+                      B: np.ndarray, status: str, with_map: bool) -> None:
+    """Name the binding limit of a row no program can meet (elastic re-solve)."""
+    viol = nlp.constraint_report(task.t, A, B)
+    machine = ctx.machines[task.machine]
+    name, i, need = elastic_diagnosis(machine, task.t, task.frames, lw, tw, task.A0, task.B0)
+    unit = "deg/s" if "velocity" in name else "deg/s^2"
+    lim = machine.limits[name[0]]
+    have = np.degrees(lim.vmax if "velocity" in name else lim.amax)
+    i = min(i, len(task.t) - 1)
+    raise InfeasibleError(
+        f"row {task.row}: no program meets the limits (IPOPT: {status}); binding constraint: {name} limit "
+        f"{have:g} {unit} near point {i} (t = {task.t[i]:.3f} s): the lead/tilt windows"
+        f"{' and the clear regions of the accessibility map' if with_map else ''} need at least {need:.4g} {unit} "
+        "there" + (f"; also violated: {viol}" if viol else ""))
+
+
+def chunk_clearance(ctx: RowContext, poses: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """Exact clearance (mm) of a chunk of poses (tips (N, 3) mm, unit axes (N, 3)) against the
+    context's mesh: the pipeline's whole-program passes, run like rows."""
+    tips, axes = poses
+    return clearance(_worker(ctx).index, ctx.cutter, tips, axes).delta
