@@ -101,11 +101,13 @@ def ws(data, tmp_path, monkeypatch) -> Path:
 
 @pytest.fixture
 def no_render(monkeypatch):
-    """Reports without the 3D render child process (seconds each); the plots are still drawn."""
+    """Quick reports: no 3D render child process and no PNG rasterising (seconds each; the real
+    report is tested in test_report.py). The report's files and folder handling are the real ones."""
     import camsmooth.report.smoothing as rs
 
     real = rs.write_report
     monkeypatch.setattr(rs, "write_report", lambda result, out, **kw: real(result, out, render_3d=False, **kw))
+    monkeypatch.setattr(rs, "_save_png", lambda fig, path: Path(path).write_bytes(b"\x89PNG stand-in"))
 
 
 def snapshot(folder: Path) -> dict[str, tuple]:

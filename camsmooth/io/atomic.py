@@ -248,6 +248,9 @@ class OutputTransaction:
         """A temporary file beside ``path`` (missing folders are created; removed again on rollback)."""
         final = Path(path)
         self._check_new(final)
+        for s in self.staged:  # a folder to be replaced whole must not hold this output
+            if s.replace and s.final.exists():
+                _refuse_replace(s.final, (final,))
         try:
             _ensure_folder(final.parent, self.created)
         except OSError as exc:  # names a folder on the way: say which output needed it
@@ -264,7 +267,7 @@ class OutputTransaction:
         self._check_new(final)
         keep = tuple(str(k) for k in keep)
         if replace and final.exists():
-            _refuse_replace(final, keep)
+            _refuse_replace(final, keep + tuple(str(s.final) for s in self.staged))
         tmp = _stage_dir(final, replace, self.created)
         self.staged.append(_Staged(tmp, final, folder=True, replace=replace, keep=keep))
         return tmp
@@ -299,28 +302,24 @@ class OutputTransaction:
         plan = self._plan()
         undo: list[Callable[[], None]] = []
         trash: list[Path] = []
-        mask = threading.current_thread() is threading.main_thread() and hasattr(signal, "pthread_sigmask")
-        if mask:  # a signal between two renames would leave half a commit
-            old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
-        try:
-            for src, dst, remove in plan:
-                if remove is not None:
-                    trash.append(remove)
-                    continue
-                undo.append(_install(src, dst, trash))
-            self.committed = True
-        except BaseException:
-            for u in reversed(undo):
-                try:
-                    u()
-                except OSError:
-                    pass
-            raise
-        finally:
-            for t in trash:
-                _remove(t)
-            if mask:
-                signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
+        with _signals_deferred():  # a signal between two renames would leave half a commit
+            try:
+                for src, dst, remove in plan:
+                    if remove is not None:
+                        trash.append(remove)
+                        continue
+                    undo.append(_install(src, dst, trash))
+                self.committed = True
+            except BaseException:
+                for u in reversed(undo):
+                    try:
+                        u()
+                    except OSError:
+                        pass
+                raise
+            finally:
+                for t in trash:
+                    _remove(t)
 
     def rollback(self) -> None:
         """Remove every temporary, and the folders created for the outputs when left empty."""
@@ -331,6 +330,28 @@ class OutputTransaction:
                 folder.rmdir()
             except OSError:
                 pass
+
+
+@contextmanager
+def _signals_deferred() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM until the block is over, then deliver them to the handlers that were
+    installed. Python runs signal handlers in the main thread whichever thread the OS picked, so
+    swapping the Python-level handlers defers them reliably (a thread signal mask would not)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pending: list[int] = []
+    old = {}
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        if signal.getsignal(sig) is not None:  # None: a handler not set from Python, left alone
+            old[sig] = signal.signal(sig, lambda signum, frame: pending.append(signum))
+    try:
+        yield
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+        for sig in dict.fromkeys(pending):
+            signal.raise_signal(sig)
 
 
 def _remove(p: Path) -> None:
