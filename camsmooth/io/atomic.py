@@ -150,6 +150,13 @@ def write_atomic(path: str | os.PathLike, writer: Callable[[Path], None]) -> Non
 
 # ----------------------------------------------------------------------------------------------
 # folders
+def _home() -> Path | None:
+    try:
+        return Path(os.path.realpath(Path.home()))
+    except (RuntimeError, KeyError):  # no HOME and no password entry
+        return None
+
+
 def _refuse_replace(path: Path, keep: Iterable[str | os.PathLike] = ()) -> None:
     """OSError unless replacing the folder ``path`` whole is safe: not the current folder or an
     ancestor of it, not the home folder or the root, and holding none of the paths in ``keep``."""
@@ -158,7 +165,7 @@ def _refuse_replace(path: Path, keep: Iterable[str | os.PathLike] = ()) -> None:
     why = None
     if real == cwd or real in cwd.parents:
         why = "it is the current folder or holds it"
-    elif real == Path(os.path.realpath(Path.home())) or real.parent == real:
+    elif real == _home() or real.parent == real:
         why = "it is the home folder or the root"
     else:
         for k in keep:
@@ -392,6 +399,7 @@ def _install(src: Path, dst: Path, trash: list[Path]) -> Callable[[], None]:
     backup = None
     if dst.exists() or dst.is_symlink():
         backup = dst.with_name(f".{dst.name}{_TMP_TAG}old-{os.getpid()}-{id(src):x}")
+        _remove(backup)  # only ever a leftover of this module (the tag)
         try:
             os.link(dst, backup, follow_symlinks=False)
         except OSError:
