@@ -151,9 +151,6 @@ def fails(capsys, ws: Path, argv, *needles: str, code: int = 2) -> str:
         assert n in msg, msg
     assert snapshot(ws) == before, "files were left behind or changed"
     assert ".camsmooth-" not in msg, f"a temporary name in the message: {msg}"
-    if os.environ.get("DUMP_MESSAGES"):
-        with open(os.environ["DUMP_MESSAGES"], "a") as fh:
-            fh.write(msg + "\n")
     return msg
 
 
