@@ -1,14 +1,16 @@
 """`camsmooth diagnose`: simulation versus recordings (camsmooth.diagnosis.engine).
 
     camsmooth diagnose --program P.csv --recording R.csv [--machine M.toml] [--model MODEL.json]
-                       --out FINDINGS.json [--report DIR] [--model-out NEW_MODEL.json]
+                       --out FINDINGS.json [--report DIR [--force]] [--model-out NEW_MODEL.json]
     camsmooth diagnose --format umich FILE.csv [FILE.csv ...] --out FINDINGS.json [...]
                        [--validate FILE.csv ...]
 
 With ``--format umich`` each University of Michigan CNC-mill experiment file is read as program
 and recording at once (camsmooth.diagnosis.recordings.read_umich); several files are fitted together
 (kept apart in time), and ``--validate`` files are only predicted with the fitted model, never
-fitted. Outputs are written atomically; bad input raises InputError (exit 2 from the CLI).
+fitted. The outputs are one transaction (camsmooth.io.atomic.output_transaction); the report's files
+are written into DIR (other files left alone; --force replaces DIR whole); bad input raises
+InputError (exit 2 from the CLI).
 """
 
 from __future__ import annotations
@@ -16,7 +18,8 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from camsmooth.errors import InputError
+from camsmooth.cli.options import number
+from camsmooth.errors import CamsmoothError, InputError
 
 
 def register(subparsers: Any) -> None:
@@ -35,23 +38,46 @@ def register(subparsers: Any) -> None:
     p.add_argument("--machine", help="machine TOML (default: the ideal AB head)")
     p.add_argument("--model", help="current model JSON (ErrorModel JSON, optional servo section)")
     p.add_argument("--out", required=True, help="FINDINGS.json to write")
-    p.add_argument("--report", help="folder for the plots and report.html")
+    p.add_argument("--report", metavar="DIR", help="folder for the plots and report.html (its own files are "
+                   "replaced, other files there are left alone)")
+    p.add_argument("--force", action="store_true", help="with --report: replace the folder DIR whole")
     p.add_argument("--model-out", help="write the extended model JSON here (ErrorModel JSON + servo section)")
     p.add_argument("--validate", nargs="+", default=[], metavar="FILE.csv",
                    help="with --format umich: files to predict with the fitted model (not fitted)")
-    p.add_argument("--folds", type=int, default=5, help="blocked time folds for held-out scoring (default 5)")
-    p.add_argument("--max-fit-samples", type=int, default=None,
-                   help="fit on at most this many samples (an even random subset; default 120000)")
+    p.add_argument("--folds", type=number(ge=2, integer=True), default=5,
+                   help="blocked time folds for held-out scoring (>= 2, default 5)")
+    p.add_argument("--max-fit-samples", type=number(ge=100, integer=True), default=None, metavar="N",
+                   help="fit on at most N samples (an even random subset; N >= 100, default 120000)")
     p.add_argument("--candidates", help="comma list restricting the candidate library")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=run_diagnose)
+
+
+def load_physics(path: str | None, option: str = "--model") -> Any:
+    """The diagnosis model (camsmooth.diagnosis.engine.load_model) of a JSON file; every malformed
+    file is an InputError naming it."""
+    from camsmooth.cli.main import ERROR_MODEL_SECTIONS, check_json_sections
+    from camsmooth.diagnosis.engine import load_model
+
+    if path is not None:
+        check_json_sections(path, option, ERROR_MODEL_SECTIONS + ("servo", "spindle_runout"))
+    try:
+        return load_model(path)
+    except (CamsmoothError, OSError):
+        raise
+    except UnicodeDecodeError:
+        raise InputError(f"{option}: not a text (UTF-8) JSON file", file=str(path)) from None
+    except (AttributeError, TypeError, KeyError, ValueError) as exc:
+        # the model readers trust the JSON's types in places (a list where an object belongs)
+        raise InputError(f"{option}: not a valid model file (a value of the wrong type: {exc})",
+                         file=str(path)) from exc
 
 
 def _options(args: argparse.Namespace) -> Any:
     from camsmooth.diagnosis.engine import CANDIDATES, Options
 
     opt = Options()
-    if args.folds < 2:
+    if args.folds < 2:  # also checked while parsing; kept for callers that build args themselves
         raise InputError(f"--folds must be >= 2, got {args.folds}")
     opt.folds = args.folds
     if args.max_fit_samples is not None:
@@ -62,46 +88,57 @@ def _options(args: argparse.Namespace) -> Any:
         names = tuple(c.strip() for c in args.candidates.split(",") if c.strip())
         unknown = [c for c in names if c not in CANDIDATES]
         if unknown:
-            raise InputError(f"--candidates: unknown {unknown}; known: {', '.join(CANDIDATES)}")
+            raise InputError(f"--candidates: unknown {', '.join(unknown)}; known: {', '.join(CANDIDATES)}")
         opt.candidates = names
     return opt
 
 
 def run_diagnose(args: argparse.Namespace) -> int:
     """Run `camsmooth diagnose` (module docstring)."""
-    from camsmooth.diagnosis.engine import diagnose, load_model, validate, write_findings, write_model
+    from camsmooth.diagnosis.engine import diagnose, validate, write_findings, write_model
     from camsmooth.diagnosis.recordings import concatenate, read_program_csv, read_recording_csv, read_umich
+    from camsmooth.io.atomic import output_transaction
     from camsmooth.machine.kinematics import load_machine
 
+    if getattr(args, "force", False) and not args.report:
+        raise InputError("--force replaces the --report folder whole; it needs --report DIR")
     if args.format == "umich":
         if not args.files:
             raise InputError("--format umich needs at least one FILE.csv")
         if args.program or args.recording:
             raise InputError("--format umich reads program and recording from FILE.csv; drop --program/--recording")
-        pairs = [read_umich(f) for f in args.files]
-        program, recording = pairs[0] if len(pairs) == 1 else concatenate(pairs)
     else:
         if args.files:
-            raise InputError(f"unexpected file argument(s) {args.files} (use --program and --recording, or "
-                             "--format umich)")
+            raise InputError(f"unexpected file argument(s) {' '.join(args.files)} (use --program and --recording, "
+                             "or --format umich)")
         if not args.program or not args.recording:
             raise InputError("diagnose needs --program P.csv and --recording R.csv (or --format umich FILE.csv)")
         if args.validate:
             raise InputError("--validate is for --format umich files")
-        program = read_program_csv(args.program)
-        recording = read_recording_csv(args.recording)
-    machine = load_machine(args.machine)
-    base = load_model(args.model)
-    diag = diagnose(program, recording, machine, base, _options(args))
-    if args.validate:
-        diag.findings["validation"] = [validate(*read_umich(f), diag, machine) for f in args.validate]
-    write_findings(args.out, diag)
-    if args.model_out:
-        write_model(args.model_out, diag)
-    if args.report:
-        from camsmooth.report.diagnosis import write_report
+    options = _options(args)
+    inputs = [p for p in (*args.files, *args.validate, args.program, args.recording, args.machine, args.model) if p]
+    with output_transaction() as tx:
+        out = tx.file(args.out)
+        model_out = tx.file(args.model_out) if args.model_out else None
+        report = tx.folder(args.report, replace=getattr(args, "force", False), keep=inputs) if args.report else None
+        if args.format == "umich":
+            pairs = [read_umich(f) for f in args.files]
+            program, recording = pairs[0] if len(pairs) == 1 else concatenate(pairs)
+        else:
+            program = read_program_csv(args.program)
+            recording = read_recording_csv(args.recording)
+        machine = load_machine(args.machine)
+        base = load_physics(args.model)
+        diag = diagnose(program, recording, machine, base, options)
+        if args.validate:
+            diag.findings["validation"] = [validate(*read_umich(f), diag, machine) for f in args.validate]
+        write_findings(out, diag)
+        if model_out is not None:
+            write_model(model_out, diag)
+        if report is not None:
+            from camsmooth.report.diagnosis import write_report
 
-        write_report(diag, args.report)
+            write_report(diag, report)
     if not args.quiet:
         print(summary_text(diag.findings))
         print(f"findings: {args.out}" + (f"; report: {args.report}" if args.report else "")

@@ -1,31 +1,44 @@
 """Command line: a thin layer over the Python API (degrees and mm/min here, radians inside).
 
 Verbs: smooth, path, demo (this module); calibrate, simulate, predict (camsmooth.cli.model);
-diagnose (camsmooth.cli.diagnose). Errors from bad input print one message and exit 2.
+diagnose (camsmooth.cli.diagnose). Every numeric option is range-checked while the command line
+is parsed. All outputs of a command are one transaction (camsmooth.io.atomic.output_transaction):
+they appear together at the end or not at all.
+
+Exit status: 0 done; 1 with --strict when a row needed the lift fallback or a point was
+unreachable; 2 bad input or any other anticipated failure (one message on stderr, no output
+written); 70 internal error (a bug: one line on stderr, the traceback with --debug); 130
+interrupted by Ctrl-C (SIGINT); 143 terminated (SIGTERM).
 """
 
 from __future__ import annotations
 
 import argparse
+import re
+import signal
 import sys
+import threading
+import traceback
+import warnings
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from camsmooth.cli.options import CliParser, angle_range, number, vector3
 from camsmooth.errors import CamsmoothError, InputError
+from camsmooth.io.atomic import Terminated, output_transaction, raise_terminated
 
 DEFAULT_TOLERANCE_MM = 0.005  # camsmooth.smoothing.pipeline.DEFAULT_TOLERANCE (not imported: keep --help light)
 SAMPLES_DIR = Path(__file__).resolve().parents[2] / "surfaces"
 
+EXIT_OK, EXIT_STRICT, EXIT_INPUT, EXIT_BUG, EXIT_SIGINT, EXIT_SIGTERM = 0, 1, 2, 70, 130, 143
+#: Most CC points `camsmooth path` writes (a tiny --stepover or --spacing would exhaust memory).
+MAX_PATH_POINTS = 10_000_000
 
-def _range(text: str, option: str) -> tuple[float, float]:
-    try:
-        lo, hi = (float(v) for v in text.split(":"))
-    except ValueError:
-        raise InputError(f"{option} expects MIN:MAX in degrees, got {text!r}") from None
-    if not (np.isfinite(lo) and np.isfinite(hi)) or lo > hi:
-        raise InputError(f"{option} expects MIN:MAX with MIN <= MAX, got {text!r}")
-    return lo, hi
+_POSITIVE_MM = number(gt=0, unit="mm")
 
 
 def _cutter(args: argparse.Namespace):
@@ -41,42 +54,108 @@ def _cutter(args: argparse.Namespace):
 
 
 def _add_cutter_args(p: argparse.ArgumentParser, required: bool = True) -> None:
-    p.add_argument("--cutter-radius", type=float, required=required, metavar="R",
-                   help="ring radius R (mm); the cutter diameter is 2(R + r)")
-    p.add_argument("--corner-radius", type=float, required=required, metavar="r", help="corner radius r (mm)")
-    p.add_argument("--shank-length", type=float, default=None, metavar="L",
-                   help="length of the cylindrical part from the tip (mm, default 4 x (R + r))")
-    p.add_argument("--holder-radius", type=float, default=None, help="tool holder radius (mm, optional)")
-    p.add_argument("--holder-length", type=float, default=40.0, help="tool holder length (mm, default 40)")
+    p.add_argument("--cutter-radius", type=number(ge=0, unit="mm"), required=required, metavar="R",
+                   help="ring radius R (mm, >= 0; 0 is a ball nose); the cutter diameter is 2(R + r)")
+    p.add_argument("--corner-radius", type=_POSITIVE_MM, required=required, metavar="r",
+                   help="corner radius r (mm, > 0)")
+    p.add_argument("--shank-length", type=_POSITIVE_MM, default=None, metavar="L",
+                   help="length of the cylindrical part from the tip (mm, >= r; default 4 x (R + r))")
+    p.add_argument("--holder-radius", type=_POSITIVE_MM, default=None, metavar="RH",
+                   help="tool holder radius (mm, > R + r; optional)")
+    p.add_argument("--holder-length", type=_POSITIVE_MM, default=40.0, metavar="LH",
+                   help="tool holder length (mm, > 0; default 40)")
+
+
+def _json_kind(value: Any) -> str:
+    return {list: "an array", str: "a string", bool: "true/false", type(None): "null"}.get(
+        type(value), "a number" if isinstance(value, (int, float)) else type(value).__name__)
+
+
+def check_json_sections(path: str, option: str, sections: Sequence[str]) -> None:
+    """InputError naming the file and key when one of ``sections`` of a JSON object file is not
+    an object; files that cannot be read or parsed are left to their reader's messages."""
+    import json
+
+    if Path(path).is_dir():
+        raise InputError(f"{option}: is a folder, not a JSON file", file=path)
+    try:
+        doc = json.loads(Path(path).read_text(encoding="utf-8-sig"))
+    except (OSError, UnicodeDecodeError, ValueError):
+        return
+    if not isinstance(doc, dict):
+        raise InputError(f"the file must hold a JSON object {{...}}, not {_json_kind(doc)} ({option})", file=path)
+    for key in sections:
+        value = doc.get(key)
+        if value is not None and not isinstance(value, dict):
+            raise InputError(f"\"{key}\" must be an object {{...}}, not {_json_kind(value)} ({option})", file=path)
+
+
+#: Sections of an ErrorModel JSON that hold objects (camsmooth.machine.model, to_dict).
+ERROR_MODEL_SECTIONS = ("geometric", "spindle", "thermal", "meta")
+
+
+def load_error_model(path: str | None, option: str = "--model") -> Any:
+    """ErrorModel from a JSON file, or None; every malformed file is an InputError naming it."""
+    if path is None:
+        return None
+    from camsmooth.machine.model import ErrorModel
+
+    check_json_sections(path, option, ERROR_MODEL_SECTIONS)
+    try:
+        return ErrorModel.from_json(path)
+    except (CamsmoothError, OSError):
+        raise
+    except UnicodeDecodeError:
+        raise InputError(f"{option}: not a text (UTF-8) JSON file", file=str(path)) from None
+    except (AttributeError, TypeError, KeyError, ValueError) as exc:
+        # ErrorModel.from_dict trusts the JSON's types below the top level in places
+        raise InputError(f"{option}: not a valid camsmooth error model (a value of the wrong type: {exc})",
+                         file=str(path)) from exc
+
+
+def _check_outputs_options(args: argparse.Namespace) -> None:
+    if getattr(args, "force", False) and not getattr(args, "report", None):
+        raise InputError("--force replaces the --report folder whole; it needs --report DIR")
 
 
 def run_smooth(args: argparse.Namespace) -> int:
     from camsmooth.geometry.paths import read_cc_csv
     from camsmooth.geometry.surfaces import load_surface
-    from camsmooth.io.output import write_gcode, write_result_csv
     from camsmooth.machine.kinematics import load_machine
     from camsmooth.smoothing.pipeline import SmoothOptions, smooth
 
-    lead = _range(args.lead, "--lead")
-    tilt = _range(args.tilt, "--tilt")
-    model = None
-    if args.model is not None:
-        from camsmooth.machine.model import ErrorModel
+    _check_outputs_options(args)
+    lead, tilt = args.lead, args.tilt
+    for opt, value, (lo, hi) in (("--prefer-lead", args.prefer_lead, lead), ("--prefer-tilt", args.prefer_tilt, tilt)):
+        if value is not None and not lo <= value <= hi:
+            raise InputError(f"{opt} {value:g} deg lies outside the window {lo:g}:{hi:g} deg")
+    cutter = _cutter(args)
+    model = load_error_model(args.model)
+    inputs = [p for p in (args.path, args.surface, args.machine, args.model) if p]
+    with output_transaction() as tx:
+        # staged before the computation so that a bad output path fails at once
+        out_csv = tx.file(args.output)
+        gcode = tx.file(args.gcode) if args.gcode else None
+        report = tx.folder(args.report, replace=args.force, keep=inputs) if args.report else None
+        options = SmoothOptions(workers=args.workers, dask=args.dask)
+        result = smooth(read_cc_csv(args.path), load_surface(args.surface), load_machine(args.machine), cutter,
+                        feed=args.feed, lead_range=tuple(np.radians(lead)), tilt_range=tuple(np.radians(tilt)),
+                        method=args.method,
+                        prefer_lead=None if args.prefer_lead is None else np.radians(args.prefer_lead),
+                        prefer_tilt=None if args.prefer_tilt is None else np.radians(args.prefer_tilt),
+                        model=model, compensate=args.compensate, tolerance=args.tolerance, options=options,
+                        progress=not args.quiet)
+        _write_outputs(result, out_csv, gcode, report, args.feed)
+    if not args.quiet:
+        _print_summary(result)
+    m = result.result.metrics
+    return EXIT_STRICT if (m["unclean_rows"] or m["unreachable"]) and args.strict else EXIT_OK
 
-        model = ErrorModel.from_json(args.model)
-    options = SmoothOptions(workers=args.workers, dask=args.dask)
-    result = smooth(read_cc_csv(args.path), load_surface(args.surface), load_machine(args.machine), _cutter(args),
-                    feed=args.feed, lead_range=tuple(np.radians(lead)), tilt_range=tuple(np.radians(tilt)),
-                    method=args.method, prefer_lead=None if args.prefer_lead is None else np.radians(args.prefer_lead),
-                    prefer_tilt=None if args.prefer_tilt is None else np.radians(args.prefer_tilt),
-                    model=model, compensate=args.compensate, tolerance=args.tolerance, options=options,
-                    progress=not args.quiet)
-    _write_outputs(result, args.output, args.gcode, args.report, args.feed, args.quiet, write_result_csv,
-                   write_gcode)
-    return 1 if (result.result.metrics["unclean_rows"] or result.result.metrics["unreachable"]) and args.strict else 0
 
+def _write_outputs(result: Any, out_csv: Path, gcode: Path | None, report: Path | None, feed: float | None) -> None:
+    """Write the result CSV, G-code and report to (temporary) paths."""
+    from camsmooth.io.output import write_gcode, write_result_csv
 
-def _write_outputs(result, out_csv, gcode, report, feed, quiet, write_result_csv, write_gcode) -> None:
     write_result_csv(out_csv, result)
     if gcode:
         f = float(feed) if feed else float(np.median(result.inputs["feed"]))
@@ -85,8 +164,6 @@ def _write_outputs(result, out_csv, gcode, report, feed, quiet, write_result_csv
         from camsmooth.report.smoothing import write_report
 
         write_report(result, report)
-    if not quiet:
-        _print_summary(result)
 
 
 def _print_summary(result) -> None:
@@ -104,62 +181,83 @@ def _print_summary(result) -> None:
         print(f"WARNING: {len(m['unreachable'])} unreachable points, first {m['unreachable'][:5]}", file=sys.stderr)
 
 
+def _check_path_size(n_rows: float, n_points: float) -> None:
+    total = n_rows * n_points
+    if not total <= MAX_PATH_POINTS:
+        raise InputError(f"--stepover/--spacing would give about {total:.3g} CC points ({n_rows:.3g} rows of "
+                         f"{n_points:.3g}); at most {MAX_PATH_POINTS:.0e} are written: use larger steps")
+
+
 def run_path(args: argparse.Namespace) -> int:
-    from camsmooth.geometry.paths import raster_path_on_mesh, write_cc_csv, zigzag_path
+    from camsmooth.geometry.paths import raster_path_on_mesh, write_cc_csv, zigzag_extents, zigzag_path
     from camsmooth.geometry.surfaces import load_surface
 
-    surf = load_surface(args.surface)
-    if surf.parametric is not None and not args.raster:
-        cc = zigzag_path(surf.parametric, args.stepover, args.spacing, along=args.along)
-    else:
-        from camsmooth.geometry.clearance import axial_drop
+    with output_transaction() as tx:
+        out = tx.file(args.output)
+        surf = load_surface(args.surface)
+        if surf.parametric is not None and not args.raster:
+            length, width = zigzag_extents(surf.parametric, args.along)
+            _check_path_size(width / args.stepover + 1, length / args.spacing + 1)
+            cc = zigzag_path(surf.parametric, args.stepover, args.spacing, along=args.along)
+        else:
+            from camsmooth.geometry.clearance import axial_drop
 
-        if args.cutter_radius is None or args.corner_radius is None:
-            raise InputError("a raster path on a mesh needs --cutter-radius and --corner-radius")
-        axis = np.array([float(v) for v in args.axis.split(",")])
-        if axis.shape != (3,) or not np.isfinite(axis).all() or np.linalg.norm(axis) == 0:
-            raise InputError(f"--axis expects three numbers i,j,k, got {args.axis!r}")
-        cc = raster_path_on_mesh(surf.mesh, _cutter(args), axis / np.linalg.norm(axis), args.stepover,
-                                 args.spacing, axial_drop)
-    if args.feed is not None:
-        cc.feed = np.full(len(cc.points), float(args.feed))
-    write_cc_csv(args.output, cc)
+            if args.cutter_radius is None or args.corner_radius is None:
+                raise InputError("a raster path on a mesh needs --cutter-radius and --corner-radius")
+            axis = np.asarray(args.axis, dtype=float)
+            axis = axis / np.linalg.norm(axis)
+            size = float(np.ptp(np.asarray(surf.mesh.vertices), axis=0).max())
+            _check_path_size(size / args.stepover + 1, size / args.spacing + 1)
+            cc = raster_path_on_mesh(surf.mesh, _cutter(args), axis, args.stepover, args.spacing, axial_drop)
+            if len(cc.points) == 0:
+                raise InputError(f"the cutter touches the mesh nowhere along --axis {args.axis}: no CC points",
+                                 file=args.surface)
+        if args.feed is not None:
+            cc.feed = np.full(len(cc.points), float(args.feed))
+        write_cc_csv(out, cc)
     if not args.quiet:
         print(f"wrote {len(cc.points)} CC points in {len(cc.row_slices())} rows to {args.output}")
-    return 0
+    return EXIT_OK
 
 
 def run_demo(args: argparse.Namespace) -> int:
     from camsmooth.geometry.cutter import ToroidalCutter
-    from camsmooth.io.output import write_gcode, write_result_csv
     from camsmooth.smoothing.pipeline import smooth
 
     samples = Path(args.samples) if args.samples else SAMPLES_DIR
     name = args.sample
     path, mesh = samples / f"{name}_path.csv", samples / f"{name}.ply"
-    if not path.exists() or not mesh.exists():
+    if not path.is_file() or not mesh.is_file():
         raise InputError(f"sample {name!r} not found in {samples} (expected {path.name} and {mesh.name})")
     out = Path(args.out)
+    csv, nc, rep = out / f"{name}_smoothed.csv", out / f"{name}_smoothed.nc", out / "report"
     cutter = ToroidalCutter(R=4.0, r=1.0)
-    if not args.quiet:
-        print(f"camsmooth demo: smoothing {path} on {mesh} (toroidal cutter R=4 r=1 mm, lead 2:20, tilt -15:15 deg, "
-              f"default AB head) -> {out}/")
-    from camsmooth.geometry.paths import read_cc_csv
-    from camsmooth.geometry.surfaces import load_surface
+    with output_transaction() as tx:
+        tmp_csv, tmp_nc = tx.file(csv), tx.file(nc)
+        tmp_rep = tx.folder(rep, replace=args.force, keep=(path, mesh))
+        if not args.quiet:
+            print(f"camsmooth demo: smoothing {path} on {mesh} (toroidal cutter R=4 r=1 mm, lead 2:20, "
+                  f"tilt -15:15 deg, default AB head) -> {out}/")
+        from camsmooth.geometry.paths import read_cc_csv
+        from camsmooth.geometry.surfaces import load_surface
 
-    result = smooth(read_cc_csv(path), load_surface(mesh), None, cutter, feed=2000.0,
-                    lead_range=tuple(np.radians([2.0, 20.0])),
-                    tilt_range=tuple(np.radians([-15.0, 15.0])), method="nlp", progress=not args.quiet)
-    _write_outputs(result, out / f"{name}_smoothed.csv", out / f"{name}_smoothed.nc", out / "report", 2000.0,
-                   args.quiet, write_result_csv, write_gcode)
+        result = smooth(read_cc_csv(path), load_surface(mesh), None, cutter, feed=2000.0,
+                        lead_range=tuple(np.radians([2.0, 20.0])), tilt_range=tuple(np.radians([-15.0, 15.0])),
+                        method="nlp", progress=not args.quiet)
+        _write_outputs(result, tmp_csv, tmp_nc, tmp_rep, 2000.0)
     if not args.quiet:
-        csv, nc, html = out / f"{name}_smoothed.csv", out / f"{name}_smoothed.nc", out / "report" / "report.html"
-        print(f"wrote {csv}, {nc} and {html}")
-    return 0
+        _print_summary(result)
+        print(f"wrote {csv}, {nc} and {rep / 'report.html'}")
+    return EXIT_OK
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="camsmooth", description=__doc__.splitlines()[0])
+    parser = CliParser(prog="camsmooth", description=__doc__.split("\n\n")[0],
+                       epilog="Exit status: 0 done, 1 --strict and a lifted row, 2 bad input (one message), "
+                              "70 internal error (a bug), 130 Ctrl-C, 143 SIGTERM. --debug (anywhere on the "
+                              "command line) prints the traceback of an error.",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--debug", action="store_true", help="print the traceback of an error")
     sub = parser.add_subparsers(dest="verb", required=True)
 
     p = sub.add_parser("smooth", help="smooth a CC path: tool axes, A/B angles, interference check")
@@ -167,16 +265,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--surface", required=True, help="surface mesh (.stl/.obj/.ply) or definition (.toml)")
     p.add_argument("--machine", default=None, help="machine TOML (default: the built-in AB head)")
     _add_cutter_args(p)
-    p.add_argument("--feed", type=float, default=None, help="programmed feed F (mm/min) where the CSV has none")
-    p.add_argument("--lead", required=True, help="lead window MIN:MAX (deg), 0 <= MIN < MAX < 90")
-    p.add_argument("--tilt", required=True, help="tilt window MIN:MAX (deg), -90 < MIN <= MAX < 90")
-    p.add_argument("--prefer-lead", type=float, default=None, help="preferred lead (deg; default window middle)")
-    p.add_argument("--prefer-tilt", type=float, default=None, help="preferred tilt (deg; default window middle)")
+    p.add_argument("--feed", type=number(gt=0, unit="mm/min"), default=None, metavar="F",
+                   help="programmed feed F (mm/min, > 0) where the CSV has none")
+    p.add_argument("--lead", required=True, type=angle_range(0, 90, strict=True), metavar="MIN:MAX",
+                   help="lead window (deg), 0 <= MIN < MAX < 90")
+    p.add_argument("--tilt", required=True, type=angle_range(-90, 90, lo_open=True), metavar="MIN:MAX",
+                   help="tilt window (deg), -90 < MIN <= MAX < 90")
+    p.add_argument("--prefer-lead", type=number(ge=0, lt=90, unit="deg"), default=None, metavar="DEG",
+                   help="preferred lead (deg, inside the lead window; default its middle)")
+    p.add_argument("--prefer-tilt", type=number(gt=-90, lt=90, unit="deg"), default=None, metavar="DEG",
+                   help="preferred tilt (deg, inside the tilt window; default its middle)")
     p.add_argument("--method", choices=("nlp", "spline", "none"), default="nlp")
-    p.add_argument("--tolerance", type=float, default=DEFAULT_TOLERANCE_MM, metavar="MM",
+    p.add_argument("--tolerance", type=_POSITIVE_MM, default=DEFAULT_TOLERANCE_MM, metavar="MM",
                    help=f"the part's allowed deviation (mm, default {DEFAULT_TOLERANCE_MM:g}): a clearance below "
                    "-MM is a gouge, for every clearance decision")
-    p.add_argument("--workers", type=int, default=None, metavar="N",
+    p.add_argument("--workers", type=number(ge=1, le=1024, integer=True, unit=""), default=None, metavar="N",
                    help="processes for the rows (default: all cores for programs of 5000 points or more)")
     p.add_argument("--dask", default=None, metavar="ADDRESS",
                    help="run the rows on a Dask cluster: a scheduler address, or 'local' for a LocalCluster "
@@ -184,39 +287,45 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--model", default=None, help="machine error model JSON: smooth the predicted real axis")
     p.add_argument("--compensate", action="store_true", help="with --model: command the axes so the "
                    "predicted real tool tip is the ideal one")
-    p.add_argument("-o", "--output", required=True, help="output CSV")
+    p.add_argument("-o", "--output", required=True, help="output CSV (columns: README, 'File formats')")
     p.add_argument("--gcode", default=None, help="also write G-code (G01 X Y Z A B F)")
-    p.add_argument("--report", default=None, help="also write a report folder (PNG plots, render, report.html)")
+    p.add_argument("--report", default=None, metavar="DIR",
+                   help="also write a report (PNG plots, render, report.html) into the folder DIR; its own files "
+                        "are replaced, other files there are left alone")
+    p.add_argument("--force", action="store_true", help="with --report: replace the folder DIR whole")
     p.add_argument("--strict", action="store_true", help="exit 1 when a row needed the lift fallback")
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=run_smooth)
 
     p = sub.add_parser("path", help="generate a CC path: zig-zag on a definition, or raster by axial drop on a mesh")
     p.add_argument("--surface", required=True, help="surface definition (.toml) or mesh")
-    p.add_argument("--stepover", type=float, required=True, help="distance between rows (mm)")
-    p.add_argument("--spacing", type=float, required=True, help="distance between points along a row (mm)")
+    p.add_argument("--stepover", type=_POSITIVE_MM, required=True, metavar="MM",
+                   help="distance between rows (mm, > 0)")
+    p.add_argument("--spacing", type=_POSITIVE_MM, required=True, metavar="MM",
+                   help="distance between points along a row (mm, > 0)")
     p.add_argument("--along", choices=("u", "v"), default="u", help="iso-parametric direction of the rows")
     p.add_argument("--raster", action="store_true", help="raster rows by axial drop even for a definition")
-    p.add_argument("--axis", default="0,0,1", help="fixed tool axis i,j,k for the axial drop (default 0,0,1)")
+    p.add_argument("--axis", type=vector3, default=(0.0, 0.0, 1.0), metavar="I,J,K",
+                   help="fixed tool axis i,j,k for the axial drop (not all zero; default 0,0,1)")
     _add_cutter_args(p, required=False)
-    p.add_argument("--feed", type=float, default=None, help="write this feed (mm/min) into the CSV")
-    p.add_argument("-o", "--output", required=True)
+    p.add_argument("--feed", type=number(gt=0, unit="mm/min"), default=None, metavar="F",
+                   help="write this feed (mm/min, > 0) into the CSV")
+    p.add_argument("-o", "--output", required=True, help="CC path CSV to write")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=run_path)
 
     p = sub.add_parser("demo", help="smooth a shipped sample and write the CSV, G-code and report")
-    p.add_argument("--out", default="demo_out", help="output folder (default demo_out)")
+    p.add_argument("--out", default="demo_out", help="output folder (default demo_out); the report goes to OUT/report")
     p.add_argument("--sample", default="blade", help="sample name in surfaces/ (blade, saddle, mould)")
     p.add_argument("--samples", default=None, help="folder of the samples (default: the repository's surfaces/)")
+    p.add_argument("--force", action="store_true", help="replace the folder OUT/report whole")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=run_demo)
 
-    for module in ("model", "diagnose"):
-        try:
-            mod = __import__(f"camsmooth.cli.{module}", fromlist=["register"])
-        except ImportError:
-            continue
-        mod.register(sub)
+    from camsmooth.cli import diagnose, model
+
+    model.register(sub)
+    diagnose.register(sub)
     return parser
 
 
@@ -237,17 +346,81 @@ def _join_ranges(argv: list[str]) -> list[str]:
     return out
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(_join_ranges(list(sys.argv[1:] if argv is None else argv)))
+# ----------------------------------------------------------------------------------------------
+# the error boundary
+_NUMPY_REPR = re.compile(r"np\.(?:float|int|uint|bool|str|complex)_?\d*\(([^()]*)\)")
+
+
+def error_message(exc: BaseException) -> str:
+    """One line for an anticipated failure: the message, the file names, no numpy reprs."""
+    if isinstance(exc, OSError) and exc.strerror:
+        where = " -> ".join(str(f) for f in (exc.filename, exc.filename2) if f is not None)
+        text = f"{where}: {exc.strerror}" if where else exc.strerror
+    elif isinstance(exc, UnicodeDecodeError):
+        text = f"a file is not text (UTF-8): {exc.reason} at byte {exc.start}"
+    elif isinstance(exc, MemoryError):
+        text = "out of memory: the input is too large for this machine"
+    else:
+        text = str(exc) or type(exc).__name__
+    text = " ".join(line.strip() for line in text.splitlines() if line.strip())
+    return _NUMPY_REPR.sub(r"\1", text)
+
+
+def _show_warning(message: Any, category: type, filename: str, lineno: int, file: Any = None,
+                  line: str | None = None) -> None:
+    """Warnings as one line 'camsmooth: warning: ...' (never the Python source line)."""
+    print(f"camsmooth: warning: {error_message(Exception(str(message)))}", file=sys.stderr if file is None else file)
+
+
+@contextmanager
+def _sigterm_raises() -> Iterator[None]:
+    """SIGTERM raises Terminated while the command runs, so outputs in progress are cleaned up."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGTERM, raise_terminated)
     try:
-        return int(args.func(args) or 0)
-    except CamsmoothError as exc:
-        print(f"camsmooth: error: {exc}", file=sys.stderr)
-        return 2
-    except FileNotFoundError as exc:
-        print(f"camsmooth: error: {exc.filename}: file not found", file=sys.stderr)
-        return 2
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
+def run(args: argparse.Namespace, debug: bool = False) -> int:
+    """Run a parsed command inside the error boundary; return the exit status (module docstring)."""
+    with _sigterm_raises(), warnings.catch_warnings():
+        warnings.showwarning = _show_warning
+        try:
+            return int(args.func(args) or 0)
+        except Terminated:
+            print("camsmooth: terminated (SIGTERM); outputs not completed were removed", file=sys.stderr)
+            return EXIT_SIGTERM
+        except KeyboardInterrupt:
+            print("camsmooth: interrupted (Ctrl-C); outputs not completed were removed", file=sys.stderr)
+            return EXIT_SIGINT
+        except (CamsmoothError, OSError, UnicodeDecodeError, MemoryError) as exc:
+            if debug:
+                traceback.print_exc()
+            print(f"camsmooth: error: {error_message(exc)}", file=sys.stderr)
+            return EXIT_INPUT
+        except Exception as exc:
+            if debug:
+                traceback.print_exc()
+            hint = "" if debug else " (run with --debug for the traceback)"
+            print(f"camsmooth: internal error: {type(exc).__name__}: {error_message(exc)}. This is a bug in "
+                  f"camsmooth: please report it with the command line and the input files{hint}", file=sys.stderr)
+            return EXIT_BUG
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """The `camsmooth` command: parse ``argv`` (default sys.argv[1:]), run, return the exit status."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in argv
+    argv = [a for a in argv if a != "--debug"]
+    try:
+        args = build_parser().parse_args(_join_ranges(argv))
+    except SystemExit as exc:  # --help (0) or a bad option (2; CliParser printed one line)
+        return exc.code if isinstance(exc.code, int) else EXIT_INPUT
+    return run(args, debug=debug)
 
 
 if __name__ == "__main__":

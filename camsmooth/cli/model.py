@@ -23,7 +23,22 @@ from typing import Any
 
 import numpy as np
 
+from camsmooth.cli.main import _POSITIVE_MM, load_error_model
+from camsmooth.cli.options import number, number_list, tighten
 from camsmooth.errors import InputError
+
+#: Columns of the calibration measurement files, with units (camsmooth.machine.calibration).
+MEASUREMENT_COLUMNS = {
+    "probe": "A, B (deg) commanded rotary axes; X, Y, Z (mm) commanded linear axes; sx, sy, sz (mm) the sphere "
+             "centre the control computed with its nominal kinematics",
+    "spindle": "theta (deg) spindle angle; ext (mm) ball distance beyond the collet centre (two or more "
+               "values); x, y, z (mm) measured ball centre in the spindle frame",
+    "ballbar": "t (s) time of the set; rpm (1/min) spindle speed until the next set; angle (deg) bar elevation; "
+               "dir (+1 counter-clockwise, -1 clockwise); phi (deg) position on the circle; L0 (mm) bar "
+               "length; dL (mm) reading minus L0",
+}
+_NOISE = number(ge=0, unit="mm")
+_SEED = number(ge=0, integer=True)
 
 
 def register(subparsers: Any) -> None:
@@ -33,59 +48,74 @@ def register(subparsers: Any) -> None:
                                 "model JSON (prints parameters, uncertainties, residuals, Jacobian singular "
                                 "values and the parameters the data cannot determine).")
     csub = cal.add_subparsers(dest="calibrate_kind", metavar="KIND", required=True)
-    helps = {"probe": "rotary-axis errors from reference-sphere probing (columns A,B,X,Y,Z,sx,sy,sz)",
-             "spindle": "spindle screw from analyser data (columns theta,ext,x,y,z)",
-             "ballbar": "spindle thermal drift from a ballbar cone test (columns t,rpm,angle,dir,phi,L0,dL)"}
+    helps = {"probe": "rotary-axis errors from reference-sphere probing",
+             "spindle": "spindle screw from spindle-analyser data",
+             "ballbar": "spindle thermal drift from a ballbar cone test"}
     for kind, text in helps.items():
-        p = csub.add_parser(kind, help=text, description=text)
-        p.add_argument("measurement", help="measurement CSV file")
+        p = csub.add_parser(kind, help=text, description=f"{text[0].upper()}{text[1:]}. Measurement CSV "
+                            f"(one header row, comma separated) columns: {MEASUREMENT_COLUMNS[kind]}.")
+        p.add_argument("measurement", help=f"measurement CSV: {MEASUREMENT_COLUMNS[kind]}")
         p.add_argument("--machine", help="machine TOML (default: the built-in AB head)")
         p.add_argument("--base", help="model JSON to start from; its other parts are kept")
         p.add_argument("-o", "--output", required=True, help="model JSON to write")
         p.add_argument("--report", help="also write the calibration report as JSON")
         if kind == "spindle":
             p.add_argument("--no-pso", action="store_true", help="skip the particle-swarm comparison")
-            p.add_argument("--seed", type=int, default=0, help="PSO seed (default 0)")
+            p.add_argument("--seed", type=_SEED, default=0, help="PSO seed (whole number >= 0, default 0)")
         p.set_defaults(func=calibrate_cli, calibrate_kind=kind)
 
     sim = subparsers.add_parser("simulate", help="write simulated measurement files from an error model")
     ssub = sim.add_subparsers(dest="simulate_kind", metavar="KIND", required=True)
     for kind, text in (("probe", "reference-sphere probing"), ("spindle", "spindle-analyser data"),
                        ("ballbar", "ballbar cone test")):
-        p = ssub.add_parser(kind, help=text, description=f"Simulate {text} from an error model.")
+        p = ssub.add_parser(kind, help=text, description=f"Simulate {text} from an error model; the CSV has "
+                            f"the columns of `camsmooth calibrate {kind}`: {MEASUREMENT_COLUMNS[kind]}.")
         p.add_argument("--model", required=True, help="error model JSON")
         p.add_argument("--machine", help="machine TOML (default: the built-in AB head)")
-        p.add_argument("--noise", type=float, default=None,
-                       help="measurement noise, mm (one standard deviation)")
-        p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+        p.add_argument("--noise", type=_NOISE, default=None, metavar="MM",
+                       help="measurement noise, mm (one standard deviation, >= 0)")
+        p.add_argument("--seed", type=_SEED, default=0, help="random seed (whole number >= 0, default 0)")
         p.add_argument("-o", "--output", required=True, help="CSV file to write")
         if kind == "probe":
-            p.add_argument("--grid", type=int, default=11, help="N x N grid of A, B poses (default 11)")
-            p.add_argument("--max-angle", type=float, default=100.0, help="grid extent, +-deg (default 100)")
+            p.add_argument("--grid", type=number(ge=2, integer=True), default=11, metavar="N",
+                           help="N x N grid of A, B poses (N >= 2, default 11)")
+            p.add_argument("--max-angle", type=number(gt=0, unit="deg"), default=None, metavar="DEG",
+                           help="grid extent +-DEG (deg, > 0, within the machine's A and B travel; default: "
+                                "the largest the travel allows)")
         elif kind == "spindle":
-            p.add_argument("--exts", default="50,150",
-                           help="ball extensions beyond the collet, mm (default 50,150)")
-            p.add_argument("--revolutions", type=int, default=3)
-            p.add_argument("--samples", type=int, default=72, help="samples per revolution (default 72)")
+            p.add_argument("--exts", type=number_list(gt=0, unit="mm"), default=[50.0, 150.0], metavar="MM,MM",
+                           help="ball extensions beyond the collet, mm (each > 0, two or more; default 50,150)")
+            p.add_argument("--revolutions", type=number(ge=1, integer=True), default=3,
+                           help="spindle turns (>= 1, default 3)")
+            p.add_argument("--samples", type=number(ge=4, integer=True), default=72,
+                           help="samples per revolution (>= 4, default 72)")
         elif kind == "ballbar":
-            p.add_argument("--bar-length", type=float, default=150.0, help="mm (default 150)")
-            p.add_argument("--angles", default="30,60", help="bar angles, deg (default 30,60)")
-            p.add_argument("--step", type=float, default=0.1,
-                           help="sample spacing on the circle, deg (default 0.1)")
-            p.add_argument("--interval", type=float, default=900.0, help="time between sets, s (default 900)")
-            p.add_argument("--duration", type=float, default=14400.0, help="s (default 14400)")
-            p.add_argument("--heat", type=float, default=10800.0, help="spindle runs until this time, s")
-            p.add_argument("--rpm", type=float, default=5000.0,
-                           help="spindle speed while running (default 5000)")
+            p.add_argument("--bar-length", type=_POSITIVE_MM, default=150.0, metavar="MM",
+                           help="mm (> 0, default 150)")
+            p.add_argument("--angles", type=number_list(gt=0, lt=90, unit="deg"), default=[30.0, 60.0],
+                           metavar="DEG,DEG", help="bar elevations, deg (each > 0 and < 90; default 30,60)")
+            p.add_argument("--step", type=number(gt=0, le=120, unit="deg"), default=0.1, metavar="DEG",
+                           help="sample spacing on the circle, deg (> 0, dividing 360; default 0.1)")
+            p.add_argument("--interval", type=number(gt=0, unit="s"), default=900.0, metavar="S",
+                           help="time between sets, s (> 0, default 900)")
+            p.add_argument("--duration", type=number(ge=0, unit="s"), default=14400.0, metavar="S",
+                           help="time of the last set, s (>= 0, default 14400)")
+            p.add_argument("--heat", type=number(ge=0, unit="s"), default=10800.0, metavar="S",
+                           help="the spindle runs until this time, s (>= 0, default 10800)")
+            p.add_argument("--rpm", type=number(ge=0, unit="1/min"), default=5000.0,
+                           help="spindle speed while running, 1/min (>= 0, default 5000)")
         p.set_defaults(func=simulate_cli, simulate_kind=kind)
-    # `simulate recording` belongs to camsmooth.diagnosis.engine: its arguments come from there, the
-    # handler is imported only when the sub-command runs.
+    # `simulate recording` belongs to camsmooth.diagnosis.engine: its arguments come from there (ranges
+    # added here), the handler is imported only when the sub-command runs.
     p = ssub.add_parser("recording", help="a machine recording (diagnosis)",
                         description="Simulate a machine recording from a program and a model "
                         "(camsmooth.diagnosis.engine).")
     from camsmooth.diagnosis.engine import add_simulate_recording_arguments
 
     add_simulate_recording_arguments(p)
+    tighten(p, {"rate": (number(gt=0, unit="Hz"), "> 0"), "noise_mm": (_NOISE, ">= 0"),
+                "noise_deg": (number(ge=0, unit="deg"), ">= 0"), "noise_axis": (number(ge=0), ">= 0"),
+                "quantise_mm": (number(ge=0, unit="mm"), ">= 0"), "seed": (_SEED, "whole number >= 0")})
     p.set_defaults(func=simulate_cli, simulate_kind="recording")
 
     pred = subparsers.add_parser("predict", help="predict the real tool tip and axis of a tool program",
@@ -97,17 +127,10 @@ def register(subparsers: Any) -> None:
     pred.add_argument("--model", required=True, help="error model JSON")
     pred.add_argument("--machine", help="machine TOML (default: the built-in AB head)")
     pred.add_argument("-o", "--output", help="CSV to write (default: INPUT_predicted.csv beside the input)")
-    pred.add_argument("--rpm", type=float, default=None,
-                      help="spindle speed from the program start, for thermal drift (time = the file's t, "
-                      "rows run one after another)")
+    pred.add_argument("--rpm", type=number(ge=0, unit="1/min"), default=None,
+                      help="spindle speed from the program start, 1/min (>= 0), for thermal drift (time = the "
+                      "file's t, rows run one after another)")
     pred.set_defaults(func=predict_cli)
-
-
-def _floats(text: str, what: str) -> list[float]:
-    try:
-        return [float(v) for v in text.split(",") if v.strip()]
-    except ValueError:
-        raise InputError(f"{what}: expected comma-separated numbers, got {text!r}") from None
 
 
 def _machine(args: argparse.Namespace) -> Any:
@@ -138,86 +161,120 @@ def _report_json(report: Any) -> dict[str, Any]:
 
 def calibrate_cli(args: argparse.Namespace) -> int:
     """`camsmooth calibrate KIND`: fit, print the summary, write the model (and report) JSON."""
-    from camsmooth.io.atomic import write_text_atomic
+    from camsmooth.io.atomic import output_transaction, write_text_atomic
     from camsmooth.machine import calibration
-    from camsmooth.machine.model import ErrorModel
 
-    base = ErrorModel.from_json(args.base) if args.base else None
+    base = load_error_model(args.base, "--base")
     kind = args.calibrate_kind
-    if kind == "probe":
-        report = calibration.calibrate_probe(args.measurement, _machine(args), base)
-    elif kind == "spindle":
-        report = calibration.calibrate_spindle(args.measurement, base, pso_compare=not args.no_pso,
-                                               seed=args.seed)
-    else:
-        report = calibration.calibrate_ballbar(args.measurement, base)
+    with output_transaction() as tx:
+        out = tx.file(args.output)
+        rep = tx.file(args.report) if args.report else None
+        if kind == "probe":
+            report = calibration.calibrate_probe(args.measurement, _machine(args), base)
+        elif kind == "spindle":
+            report = calibration.calibrate_spindle(args.measurement, base, pso_compare=not args.no_pso,
+                                                   seed=args.seed)
+        else:
+            report = calibration.calibrate_ballbar(args.measurement, base)
+        report.model.to_json(out)
+        if rep is not None:
+            write_text_atomic(rep, json.dumps(_report_json(report), indent=1, default=str) + "\n")
     print(report.summary())
-    report.model.to_json(args.output)
-    if args.report:
-        write_text_atomic(args.report, json.dumps(_report_json(report), indent=1, default=str) + "\n")
-    print(f"wrote {args.output}")
+    print(f"wrote {args.output}" + (f" and {args.report}" if args.report else ""))
     return 0
+
+
+def _probe_extent(machine: Any, max_angle: float | None) -> float:
+    """The probe grid's +-extent (deg): ``max_angle`` checked against the A and B travel, or the
+    largest symmetric extent the travel allows."""
+    lims = {name: np.degrees([machine.limits[name].min, machine.limits[name].max]) for name in ("A", "B")}
+    allowed = min(min(-lo, hi) for lo, hi in lims.values())
+    travel = ", ".join(f"{n} [{lo:g}, {hi:g}] deg" for n, (lo, hi) in lims.items())
+    if allowed <= 0:
+        raise InputError(f"simulate probe: the machine's travel ({travel}) holds no grid symmetric about 0 deg")
+    if max_angle is None:
+        return float(allowed)
+    if max_angle > allowed + 1e-9:
+        raise InputError(f"--max-angle {max_angle:g} deg is beyond the machine's travel ({travel}): at most "
+                         f"{allowed:g} deg")
+    return float(max_angle)
 
 
 def simulate_cli(args: argparse.Namespace) -> int:
     """`camsmooth simulate KIND`: write a simulated measurement file."""
+    from camsmooth.io.atomic import output_transaction
+
     kind = args.simulate_kind
     if kind == "recording":
+        from camsmooth.cli.diagnose import load_physics
         from camsmooth.diagnosis.engine import simulate_recording_cli
 
-        return simulate_recording_cli(args)
+        load_physics(args.model)  # a malformed model is named here, before the engine reads it
+        return simulate_recording_cli(args)  # one output, written by atomic_path
     from camsmooth.machine import calibration, simulate
-    from camsmooth.machine.model import ErrorModel
 
-    model = ErrorModel.from_json(args.model)
+    model = load_error_model(args.model)
     noise = simulate.DEFAULT_NOISE[kind] if args.noise is None else args.noise
-    if noise < 0:
-        raise InputError(f"--noise must be >= 0 mm, got {noise}")
-    if kind == "probe":
-        machine = _machine(args)
-        poses = simulate.default_probe_poses(machine, args.grid, args.max_angle)
-        data = simulate.simulate_probe(model, machine, poses=poses, noise=noise, seed=args.seed)
-        calibration.write_probe_csv(args.output, data)
-    elif kind == "spindle":
-        data = simulate.simulate_spindle(model, exts=_floats(args.exts, "--exts"),
-                                         revolutions=args.revolutions, samples_per_rev=args.samples,
-                                         noise=noise, seed=args.seed)
-        calibration.write_spindle_csv(args.output, data)
-    else:
-        times, rpm = simulate.default_ballbar_schedule(args.duration, args.interval, args.heat, args.rpm)
-        data = simulate.simulate_ballbar(model, _machine(args), times=times, rpm=rpm,
-                                         bar_length=args.bar_length,
-                                         angles_deg=_floats(args.angles, "--angles"), step_deg=args.step,
-                                         noise=noise, seed=args.seed)
-        calibration.write_ballbar_csv(args.output, data)
+    with output_transaction() as tx:
+        out = tx.file(args.output)
+        if kind == "probe":
+            machine = _machine(args)
+            poses = simulate.default_probe_poses(machine, args.grid, _probe_extent(machine, args.max_angle))
+            data = simulate.simulate_probe(model, machine, poses=poses, noise=noise, seed=args.seed)
+            calibration.write_probe_csv(out, data)
+        elif kind == "spindle":
+            data = simulate.simulate_spindle(model, exts=args.exts, revolutions=args.revolutions,
+                                             samples_per_rev=args.samples, noise=noise, seed=args.seed)
+            calibration.write_spindle_csv(out, data)
+        else:
+            n = 360.0 / args.step
+            if abs(n - round(n)) > 1e-6 * n or round(n) < 3:
+                raise InputError(f"--step {args.step:g} deg must divide 360 deg into 3 or more steps")
+            if len(set(args.angles)) < 2:
+                raise InputError("--angles needs two or more different bar elevations, got "
+                                 + ",".join(f"{a:g}" for a in args.angles))
+            times, rpm = simulate.default_ballbar_schedule(args.duration, args.interval, args.heat, args.rpm)
+            data = simulate.simulate_ballbar(model, _machine(args), times=times, rpm=rpm,
+                                             bar_length=args.bar_length, angles_deg=args.angles,
+                                             step_deg=args.step, noise=noise, seed=args.seed)
+            calibration.write_ballbar_csv(out, data)
     print(f"wrote {args.output}")
     return 0
 
 
 def predict_cli(args: argparse.Namespace) -> int:
     """`camsmooth predict`: real tool pose per commanded pose, written as CSV, summary printed."""
-    from camsmooth.io.atomic import atomic_path
+    from camsmooth.io.atomic import output_transaction
     from camsmooth.io.output import read_result_csv
-    from camsmooth.machine.model import ErrorModel
 
-    model = ErrorModel.from_json(args.model)
+    model = load_error_model(args.model)
     machine = _machine(args)
+    need = ("A", "B", "X", "Y", "Z") + (("t",) if args.rpm is not None else ())
     cols = read_result_csv(args.input, required=("A", "B", "X", "Y", "Z"))
-    table = predict_table(model, machine, cols, args.rpm, source=args.input)
+    for name in need:
+        if name not in cols:
+            continue  # read_result_csv named the missing required columns; 't' is checked by predict_table
+        bad = ~np.isfinite(cols[name])
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise InputError("not a finite number", file=args.input, row=i + 1, column=name)
     src = Path(args.input)
     out = Path(args.output) if args.output else src.with_name(src.stem + "_predicted.csv")
-    names = list(cols) + [k for k in table if k not in cols]
-    data = {**cols, **table}
-    with atomic_path(out) as tmp:
+    with output_transaction() as tx:
+        tmp = tx.file(out)
+        table = predict_table(model, machine, cols, args.rpm, source=args.input)
+        names = list(cols) + [k for k in table if k not in cols]
+        data = {**cols, **table}
         with open(tmp, "w", newline="") as fh:
             w = csv.writer(fh, lineterminator="\n")
             w.writerow(names)
             for i in range(len(data["A"])):
                 w.writerow([_cell(data[k][i]) for k in names])
     dev, ang = table["tip_dev_um"], table["axis_dev_urad"]
-    print(f"{len(dev)} poses: tool-tip deviation max {dev.max():.3f} um, mean {dev.mean():.3f} um; "
-          f"tool-axis deviation max {ang.max():.3f} urad, mean {ang.mean():.3f} urad")
-    if "real_lead" in table:
+    if len(dev):
+        print(f"{len(dev)} poses: tool-tip deviation max {dev.max():.3f} um, mean {dev.mean():.3f} um; "
+              f"tool-axis deviation max {ang.max():.3f} urad, mean {ang.mean():.3f} urad")
+    if "real_lead" in table and np.isfinite(table["real_lead"]).any():
         dl = np.abs(table["real_lead"] - cols["lead"])
         dt = np.abs(table["real_tilt"] - cols["tilt"])
         print(f"lead change max {np.nanmax(dl) * 3600:.2f} arcsec, "

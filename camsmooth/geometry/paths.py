@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 import trimesh
+from scipy.spatial import cKDTree
 
 from camsmooth.errors import InputError
 from camsmooth.geometry.surfaces import ParametricSurface, surface_normals_at
@@ -46,6 +47,8 @@ __all__ = [
     "read_cc_csv",
     "write_cc_csv",
     "check_normals_against_mesh",
+    "check_contact_with_mesh",
+    "CONTACT_TOL",
     "zigzag_path",
     "zigzag_extents",
     "raster_path_on_mesh",
@@ -329,22 +332,83 @@ def write_cc_csv(path: str | Path, ccpath: CCPath) -> None:
     write_text_atomic(path, ",".join(cols) + "\n" + body + ("\n" if body else ""))
 
 
-def check_normals_against_mesh(path: CCPath, mesh: trimesh.Trimesh) -> None:
+def check_normals_against_mesh(path: CCPath, mesh: trimesh.Trimesh, mesh_file: str | None = None) -> None:
     """InputError naming the first CC point whose normal points into the material.
 
     A normal points into the material when n . m < 0, m the mesh face normal at the closest point
     (``surface_normals_at``; the mesh's face normals must point out of the material). The row
-    named is the 1-based index of the point in the path (the data row of its CSV file).
+    named is the 1-based index of the point in the path (the data row of its CSV file). When most
+    normals disagree, the likelier cause is a mesh wound the other way round (its face normals
+    pointing into the material), and the message says so, naming ``mesh_file`` when given.
     """
     m = surface_normals_at(mesh, path.points)
     dots = _dot(path.normals, m)
     bad = dots < 0
-    if np.any(bad):
-        k = int(np.flatnonzero(bad)[0])
-        raise InputError(f"normal points into the material (n . mesh normal = {dots[k]:.3g} at row id "
-                         f"{path.rows[k]}, point {path.points[k].round(6).tolist()}); "
-                         f"{int(np.sum(bad))} points affected", file=path.source, row=k + 1,
-                         column="nx,ny,nz")
+    if not np.any(bad):
+        return
+    k = int(np.flatnonzero(bad)[0])
+    nbad, n = int(np.sum(bad)), len(bad)
+    if 2 * nbad > n:
+        mesh_name = f"the mesh {mesh_file}" if mesh_file else "the mesh"
+        csv_name = f" in {path.source}" if path.source else ""
+        raise InputError(f"{nbad} of {n} CC normals{csv_name} point against the face normals of {mesh_name}: the "
+                         "mesh's face winding is probably flipped (its normals pointing into the material); "
+                         "re-export it with outward normals (or, if the mesh is right, the CSV's normals are "
+                         "reversed)", file=mesh_file)
+    raise InputError(f"normal points into the material (n . mesh normal = {float(dots[k]):.3g} at row id "
+                     f"{int(path.rows[k])}, point {path.points[k].round(6).tolist()}); "
+                     f"{nbad} of {n} points affected", file=path.source, row=k + 1, column="nx,ny,nz")
+
+
+#: Largest distance (mm) from a CC point to the surface mesh that still counts as contact: CC
+#: points lie on the surface, the mesh approximates it within its chord tolerance.
+CONTACT_TOL = 1.0
+
+
+def check_contact_with_mesh(path: CCPath, mesh: trimesh.Trimesh, max_distance: float = CONTACT_TOL) -> None:
+    """InputError when a CC point lies farther than ``max_distance`` mm from the surface mesh.
+
+    CC points are contact points on the surface; one far from the mesh means the path and the
+    mesh are in different frames or units, or belong to different parts, and every clearance
+    computed would be meaningless. The message names the file (``path.source``), the first
+    offending data rows (1-based point index, as in ``check_normals_against_mesh``) with their
+    distances (mm) and how many points are affected.
+
+    Cost: a KD-tree query over the mesh vertices for every point (a vertex within the tolerance
+    proves contact), and the exact distance (``trimesh.proximity.closest_point``) only for the
+    few points the vertex distance cannot decide: the surface lies within the longest edge of
+    some vertex, so a vertex distance above ``max_distance`` + longest edge proves no contact.
+    """
+    tol = float(max_distance)
+    if not (math.isfinite(tol) and tol >= 0):
+        raise InputError(f"max_distance must be a finite number >= 0 mm, got {max_distance!r}")
+    pts = np.asarray(path.points, dtype=float).reshape(-1, 3)
+    if len(pts) == 0:
+        return
+    faces = np.asarray(mesh.faces)
+    used = np.unique(faces)
+    V = np.asarray(mesh.vertices, dtype=float)
+    tree = mesh.kdtree if len(used) == len(V) else cKDTree(V[used])
+    d_vert, _ = tree.query(pts)
+    unsure = np.flatnonzero(d_vert > tol)
+    if len(unsure) == 0:
+        return
+    longest = float(np.max(mesh.edges_unique_length))
+    dist = d_vert.copy()  # an upper bound of the distance; exact where it decides
+    exact = unsure[d_vert[unsure] - longest <= tol]
+    if len(exact):
+        dist[exact] = trimesh.proximity.closest_point(mesh, pts[exact])[1]
+    far = np.flatnonzero(dist > tol)
+    if len(far) == 0:
+        return
+    first = far[:5]
+    d_first = trimesh.proximity.closest_point(mesh, pts[first])[1]
+    listed = ", ".join(f"{int(i) + 1} (row id {int(path.rows[i])}, {float(d):.4g} mm)"
+                       for i, d in zip(first, d_first, strict=True))
+    whole = "the whole path" if len(far) == len(pts) else f"{len(far)} of {len(pts)} CC points"
+    raise InputError(f"no contact within {tol:g} mm of the surface mesh: {whole} lie farther away; first at data "
+                     f"rows {listed}. Are the path and the surface in the same frame and units?",
+                     file=path.source, row=int(first[0]) + 1)
 
 
 # ---------------------------------------------------------------------------------------------

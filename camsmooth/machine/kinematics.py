@@ -389,52 +389,93 @@ def _number(table: Mapping[str, Any], key: str, where: str, file: str) -> float:
         raise InputError(f"missing key '{key}' in [{where}]", file=file)
     value = table[key]
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
-        raise InputError(f"[{where}] {key} must be a finite number, got {value!r}", file=file)
+        raise InputError(f"[{where}] {key} must be a finite number, got {_toml_repr(value)}", file=file)
     return float(value)
 
 
-def machine_from_dict(data: Mapping[str, Any], source: str = "<machine>") -> Machine:
-    """A Machine from the parsed machine TOML (degrees in the file, radians in the result)."""
+def _toml_repr(value: Any) -> str:
+    """A value as the TOML file spells it (strings quoted, tables as tables), for messages."""
+    if isinstance(value, Mapping):
+        return "a table"
+    if isinstance(value, list):
+        return "an array"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return f'"{value}"'
+    return str(value)
+
+
+def _table(parent: Mapping[str, Any], key: str, where: str, file: str,
+           required: bool = True) -> Mapping[str, Any] | None:
+    """The sub-table ``parent[key]``; InputError naming ``where`` when it is missing or not a table."""
     from camsmooth.errors import InputError
 
-    m = data.get("machine")
-    if not isinstance(m, Mapping):
-        raise InputError("missing [machine] table", file=source)
+    if key not in parent:
+        if required:
+            raise InputError(f"missing [{where}] table", file=file)
+        return None
+    t = parent[key]
+    if not isinstance(t, Mapping):
+        head, _, last = where.rpartition(".")
+        spelled = f"[{head}] {last} = {_toml_repr(t)}" if head else f"{where} = {_toml_repr(t)}"
+        raise InputError(f"{spelled}: [{where}] must be a table, not a value", file=file)
+    return t
+
+
+def machine_from_dict(data: Mapping[str, Any], source: str = "<machine>") -> Machine:
+    """A Machine from the parsed machine TOML (degrees in the file, radians in the result).
+
+    InputError naming ``source`` and the key for: a missing or wrongly typed table or key (a value
+    where a table belongs, a string or boolean where a number belongs), non-finite numbers, an
+    unsupported kind, pivot < 0, min >= max, vmax or amax <= 0, unknown axis tables.
+    """
+    from camsmooth.errors import InputError
+
+    m = _table(data, "machine", "machine", source)
     kind = m.get("kind")
     if kind != "AB-head":
-        raise InputError(f"[machine] kind = {kind!r} is not supported (supported: 'AB-head')", file=source)
+        shown = _toml_repr(kind) if kind is not None else "missing"
+        raise InputError(f"[machine] kind = {shown} is not supported (supported: \"AB-head\")", file=source)
     pivot = _number(m, "pivot", "machine", source)
     if pivot < 0:
-        raise InputError(f"[machine] pivot must be >= 0 mm, got {pivot}", file=source)
-    axes = data.get("axis", {})
-    limits: dict[str, AxisLimits] = {}
-    for name in ("A", "B"):
-        t = axes.get(name)
-        if not isinstance(t, Mapping):
-            raise InputError(f"missing [axis.{name}] table", file=source)
-        vals = {k: _number(t, k, f"axis.{name}", source) for k in ("min", "max", "vmax", "amax")}
-        if vals["min"] >= vals["max"]:
-            raise InputError(f"[axis.{name}] min {vals['min']} must be below max {vals['max']}", file=source)
-        for k in ("vmax", "amax"):
-            if vals[k] <= 0:
-                raise InputError(f"[axis.{name}] {k} must be > 0, got {vals[k]}", file=source)
-        limits[name] = AxisLimits(*(np.radians(vals[k]) for k in ("min", "max", "vmax", "amax")))
-    for name in ("X", "Y", "Z"):
-        t = axes.get(name)
-        if t is None:
-            continue
-        lo, hi = _number(t, "min", f"axis.{name}", source), _number(t, "max", f"axis.{name}", source)
-        if lo >= hi:
-            raise InputError(f"[axis.{name}] min {lo} must be below max {hi}", file=source)
-        limits[name] = AxisLimits(lo, hi)
+        raise InputError(f"[machine] pivot must be >= 0 mm, got {pivot:g}", file=source)
+    name = m.get("name", "AB head")
+    if not isinstance(name, str):
+        raise InputError(f"[machine] name must be a string, got {_toml_repr(name)}", file=source)
+    axes = _table(data, "axis", "axis", source, required=False) or {}
     unknown = set(axes) - {"A", "B", "X", "Y", "Z"}
     if unknown:
-        raise InputError(f"unknown axis table(s) {sorted(unknown)} (an AB head has A, B, X, Y, Z)", file=source)
-    return Machine(str(m.get("name", "AB head")), kind, pivot, ab_head_chain(pivot), limits)
+        raise InputError(f"unknown axis table(s) {', '.join(sorted(unknown))} (an AB head has A, B, X, Y, Z)",
+                         file=source)
+    limits: dict[str, AxisLimits] = {}
+    for ax in ("A", "B"):
+        t = _table(axes, ax, f"axis.{ax}", source)
+        vals = {k: _number(t, k, f"axis.{ax}", source) for k in ("min", "max", "vmax", "amax")}
+        if vals["min"] >= vals["max"]:
+            raise InputError(f"[axis.{ax}] min {vals['min']:g} must be below max {vals['max']:g}", file=source)
+        for k in ("vmax", "amax"):
+            if vals[k] <= 0:
+                raise InputError(f"[axis.{ax}] {k} must be > 0, got {vals[k]:g}", file=source)
+        limits[ax] = AxisLimits(*(np.radians(vals[k]) for k in ("min", "max", "vmax", "amax")))
+    for ax in ("X", "Y", "Z"):
+        t = _table(axes, ax, f"axis.{ax}", source, required=False)
+        if t is None:
+            continue
+        lo, hi = _number(t, "min", f"axis.{ax}", source), _number(t, "max", f"axis.{ax}", source)
+        if lo >= hi:
+            raise InputError(f"[axis.{ax}] min {lo:g} must be below max {hi:g}", file=source)
+        limits[ax] = AxisLimits(lo, hi)
+    return Machine(name, kind, pivot, ab_head_chain(pivot), limits)
 
 
 def load_machine(path: str | None = None) -> Machine:
-    """Read a machine TOML file (see DEFAULT_MACHINE_TOML); None gives the default machine."""
+    """Read a machine TOML file (see DEFAULT_MACHINE_TOML); None gives the default machine.
+
+    InputError naming the file when it is missing, a folder, unreadable, not UTF-8 text (a binary
+    file), not valid TOML, or has wrong contents (``machine_from_dict``). A UTF-8 byte-order mark
+    is accepted.
+    """
     import tomllib
 
     from camsmooth.errors import InputError
@@ -443,9 +484,19 @@ def load_machine(path: str | None = None) -> Machine:
         return machine_from_dict(tomllib.loads(DEFAULT_MACHINE_TOML), "<default machine>")
     try:
         with open(path, "rb") as fh:
-            data = tomllib.load(fh)
+            raw = fh.read()
     except FileNotFoundError:
         raise InputError("machine file not found", file=str(path)) from None
+    except IsADirectoryError:
+        raise InputError("is a folder, not a machine TOML file", file=str(path)) from None
+    except OSError as exc:
+        raise InputError(f"cannot read the machine file: {exc.strerror}", file=str(path)) from None
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"not a text (UTF-8) TOML file: binary data at byte {exc.start}", file=str(path)) from None
+    try:
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"not valid TOML: {exc}", file=str(path)) from None
     return machine_from_dict(data, str(path))

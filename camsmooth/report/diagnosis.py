@@ -211,12 +211,13 @@ def report_html(f: dict[str, Any], figures: Sequence[tuple[str, str]], thinned: 
     return "".join(parts)
 
 
-def write_report(diag: Any, directory: str | Path) -> Path:
-    """Write the figures and report.html into ``directory`` (replaced atomically)."""
+def write_report(diag: Any, directory: str | Path, *, replace: bool = False) -> Path:
+    """Write the figures and report.html into ``directory``: each file replaced atomically, other
+    files left alone; ``replace=True`` replaces the whole folder (``camsmooth.io.atomic.atomic_dir``)."""
     directory = Path(directory)
     diag.effect_residuals = _effect_residuals(diag)
     final = diag.selection["final"]
-    with atomic_dir(directory) as tmp:
+    with atomic_dir(directory, replace=replace) as tmp:
         figures = []
         plot_residual_time(diag, tmp / "residual_time.png")
         figures.append(("residual_time.png", "Residual against time, before and after"))
@@ -225,5 +226,5 @@ def write_report(diag: Any, directory: str | Path) -> Path:
             plot_effect(diag, name, final.pnames[name], tmp / fn)
             figures.append((fn, f"{name}: residual against the state that explains it"))
         thinned = len(diag.problem.t) > MAX_LINE_POINTS or len(diag.problem.fit_idx) > MAX_SCATTER_POINTS
-        (tmp / "report.html").write_text(report_html(diag.findings, figures, thinned))
+        (tmp / "report.html").write_text(report_html(diag.findings, figures, thinned), encoding="utf-8")
     return directory

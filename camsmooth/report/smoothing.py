@@ -1,6 +1,7 @@
 """HTML report of a smoothing run: plots per method and a summary table.
 
-``write_report`` writes a folder (atomically, ``camsmooth.io.atomic.atomic_dir``) with one PNG per
+``write_report`` writes its files into a folder (``camsmooth.io.atomic.atomic_dir``: each file
+replaced atomically, other files in the folder left alone) with one PNG per
 plot and a self-contained ``report.html`` that embeds the same PNGs as base64 data URIs, so
 the HTML alone still shows everything when moved.
 
@@ -636,8 +637,12 @@ def _img_tag(png: Path, alt: str) -> str:
 # ----------------------------------------------------------------------------------------------
 # entry point
 def write_report(result: SmoothResult, out_dir: str | os.PathLike, *, title: str | None = None,
-                 render_3d: bool = True, max_plot_points: int = 8000, max_axis_segments: int = 300) -> Path:
-    """Write the report folder ``out_dir`` atomically and return its path.
+                 render_3d: bool = True, max_plot_points: int = 8000, max_axis_segments: int = 300,
+                 replace: bool = False) -> Path:
+    """Write the report's files into the folder ``out_dir`` and return its path.
+
+    Each file is replaced atomically and other files in ``out_dir`` are left alone; with
+    ``replace=True`` the whole folder is replaced (``camsmooth.io.atomic.atomic_dir``).
 
     Contents: PLOT_FILES (matplotlib PNGs, cumulative program time on x), ``scene_3d.png``
     (pyvista, surface with tool axes before ('none') and after (primary method); absent with a
@@ -646,7 +651,7 @@ def write_report(result: SmoothResult, out_dir: str | os.PathLike, *, title: str
     of unclean rows and unreachable points). Angles in degrees, lengths in mm. Series longer than
     ``max_plot_points`` are drawn as a min/max envelope per bin; at most ``max_axis_segments``
     tool axes per method are drawn in 3D. An exception leaves no (partial) folder behind and an
-    existing ``out_dir`` untouched.
+    existing ``out_dir`` untouched. OSError (naming ``out_dir``) when it cannot be written.
     """
     if not result.methods:
         raise ValueError("SmoothResult has no methods to report")
@@ -660,7 +665,7 @@ def write_report(result: SmoothResult, out_dir: str | os.PathLike, *, title: str
         series.append(_Series(m, cumulative_time(m.t, m.rows), _row_starts(m.rows),
                               max(int(max_plot_points), 4), primary=name == result.primary))
     t_start = time.perf_counter()
-    with atomic_dir(out_dir) as tmp:
+    with atomic_dir(out_dir, replace=replace) as tmp:
         proc = None
         scene_note = "3D view not requested (render_3d=False)."
         scene_detail = ""

@@ -31,7 +31,7 @@ import numpy as np
 from camsmooth.errors import InputError
 from camsmooth.geometry.clearance import MeshIndex
 from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl
-from camsmooth.geometry.paths import CCPath, check_normals_against_mesh, estimate_feed_dirs
+from camsmooth.geometry.paths import CCPath, check_contact_with_mesh, check_normals_against_mesh, estimate_feed_dirs
 from camsmooth.geometry.surfaces import Surface, chord_deviation
 from camsmooth.machine.kinematics import Machine, load_machine
 from camsmooth.smoothing.nlp import fd_operators, gamma, rates, spline_row
@@ -164,7 +164,8 @@ def smooth(path: CCPath, surface: Surface, machine: Machine | None = None, cutte
         raise InputError(f"tolerance must be a positive length in mm, got {tolerance}")
     opts = options or SmoothOptions()
     t_start = time.perf_counter()
-    check_normals_against_mesh(path, surface.mesh)
+    check_contact_with_mesh(path, surface.mesh)
+    check_normals_against_mesh(path, surface.mesh, mesh_file=surface.source)
     nominal = machine if machine is not None else load_machine(None)
     real = nominal
     if model is not None:
