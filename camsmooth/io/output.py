@@ -18,6 +18,7 @@ import numpy as np
 from camsmooth import __version__
 from camsmooth.errors import InfeasibleError, InputError
 from camsmooth.io.atomic import atomic_path
+from camsmooth.io.table import read_table
 from camsmooth.smoothing.result import OUTPUT_COLUMNS, MethodResult, SmoothResult
 
 #: Columns of the result CSV: OUTPUT_COLUMNS, then ``lift`` (mm) and ``status``.
@@ -111,59 +112,16 @@ def read_result_csv(path: str | os.PathLike, required: Sequence[str] = OUTPUT_CO
     """Read a result CSV (as written by ``write_result_csv``) into column arrays.
 
     Returns name -> array for every column in the file: ``row`` and ``idx`` int64, ``status``
-    str, all others float (units as in the file: mm, s, degrees). Raises InputError naming the
-    file (and row/column) when the file is missing or empty, a ``required`` column is absent, a
-    row has the wrong number of fields or a value is not a number / not an integer.
+    str, all others float (NaN allowed: an unknown clearance is written as nan; units as in the
+    file: mm, s, degrees). Read by ``camsmooth.io.table.read_table``: InputError naming the file,
+    row and column when the file is missing or empty, a ``required`` column is absent, a row has
+    the wrong number of fields or a value is not a number / not an integer.
     """
-    path = Path(path)
-    try:
-        with open(path, newline="") as fh:
-            lines = [rec for rec in csv.reader(fh) if rec and any(f.strip() for f in rec)]
-    except FileNotFoundError:
-        raise InputError("result file not found", file=str(path)) from None
-    except (UnicodeDecodeError, csv.Error) as exc:
-        raise InputError(f"not a readable CSV file: {exc}", file=str(path)) from None
-    if not lines:
-        raise InputError("empty file (no header)", file=str(path), row=0)
-    header = [h.strip() for h in lines[0]]
-    dup = sorted({h for h in header if header.count(h) > 1})
-    if dup:
-        raise InputError(f"duplicate column(s) {dup}", file=str(path), row=0)
-    for name in required:
-        if name not in header:
-            raise InputError("missing column", file=str(path), row=0, column=name)
-    body = lines[1:]
-    for i, rec in enumerate(body, start=1):
-        if len(rec) != len(header):
-            raise InputError(f"expected {len(header)} fields, got {len(rec)}", file=str(path), row=i)
-    cells = list(zip(*body, strict=True)) if body else [()] * len(header)
-    out: dict[str, np.ndarray] = {}
-    for name, col in zip(header, cells, strict=True):
-        out[name] = _parse_column(col, name, path)
-    return out
-
-
-def _parse_column(col: Sequence[str], name: str, path: Path) -> np.ndarray:
-    if name in _STR_COLUMNS:
-        return np.array([c.strip() for c in col], dtype=str)
-    try:
-        values = np.array(col, dtype=float) if col else np.zeros(0)
-    except ValueError:
-        values = None
-    if values is None:
-        # only on the error path: find the first offending cell to name it
-        for i, c in enumerate(col, start=1):
-            try:
-                float(c)
-            except ValueError:
-                raise InputError(f"not a number: {c!r}", file=str(path), row=i, column=name) from None
-    if name in _INT_COLUMNS:
-        bad = ~np.isfinite(values) | (values != np.round(values))
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise InputError(f"not an integer: {col[i]!r}", file=str(path), row=i + 1, column=name)
-        return values.astype(np.int64)
-    return values
+    declared = tuple(dict.fromkeys(list(required) + list(_INT_COLUMNS) + list(_STR_COLUMNS)))
+    table = read_table(path, required, [c for c in declared if c not in required], integer=_INT_COLUMNS,
+                       text=_STR_COLUMNS, nonfinite=[c for c in declared if c not in _INT_COLUMNS],
+                       others="float", min_rows=0, what="result file")
+    return dict(table.columns)
 
 
 # ----------------------------------------------------------------------------------------------
