@@ -360,10 +360,12 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
             if last_tool is not None and tool_name is not None and last_tool.name == tool_name:
                 open_tp.tool = last_tool
         elif m == "END-OF-PATH":
+            if arc is not None:
+                raise InputError("CIRCLE is not followed by a GOTO (the arc has no end point)", file=file,
+                                 row=arc.line)
             if open_tp is not None:
                 open_tp.stop = len(st.pts)
                 open_tp = None
-            arc = None
         elif m == "TLDATA":
             kind = rec.args[0].lower() if rec.args else ""
             if kind == "mill":

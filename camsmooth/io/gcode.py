@@ -74,8 +74,9 @@ _SUBSTEPS = 16
 
 
 def _paren(text: str) -> str:
-    """An ISO comment; parentheses inside a comment would end it, so they become brackets."""
-    return "(" + text.replace("(", "[").replace(")", "]").replace("\n", " ") + ")"
+    """An ISO comment; parentheses inside a comment would end it, so they become brackets, and ';' (a
+    comment start for many parsers, pygcode among them) becomes ','."""
+    return "(" + text.replace("(", "[").replace(")", "]").replace(";", ",").replace("\n", " ") + ")"
 
 
 def _semicolon(text: str) -> str:
