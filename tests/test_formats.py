@@ -323,3 +323,36 @@ def test_load_program_detects_the_format_from_content(tmp_path):
         load_program(odd)
     with pytest.raises(InputError, match="not found"):
         load_program(tmp_path / "missing.cls")
+
+
+def test_apt_long_goto_runs_match_record_by_record(tmp_path):
+    """Long runs of plain GOTO lines are parsed at once; the result must equal the record-by-record
+    reading (forced here by a '$$' comment on every line) and the modal axis rule."""
+    rng = np.random.default_rng(5)
+    n = 60
+    pts = rng.normal(size=(n, 3))
+    ax = rng.normal(size=(n, 3)) * 0.2 + [0, 0, 1]
+    ax /= np.linalg.norm(ax, axis=1)[:, None]
+    given = rng.random(n) < 0.4
+    given[0] = False  # the first points take the axis in force before the run: (0, 0, 1)
+    recs = [f"GOTO/{p[0]:.4f},{p[1]:.4f},{p[2]:.4f}" + (f",{a[0]:.7f},{a[1]:.7f},{a[2]:.7f}" if g else "")
+            for p, a, g in zip(pts, ax, given, strict=True)]
+    head = "UNITS/MM\nFEDRAT/MMPM,300\nRAPID\n"
+    fast = read_apt(_write(tmp_path, "fast.cls", head + "\n".join(recs) + "\n"))
+    slow = read_apt(_write(tmp_path, "slow.cls", head + "\n".join(r + " $$ c" for r in recs) + "\n"))
+    np.testing.assert_array_equal(fast.tip, slow.tip)
+    np.testing.assert_allclose(fast.axis, slow.axis, atol=1e-15)
+    np.testing.assert_array_equal(fast.line, slow.line)
+    np.testing.assert_array_equal(fast.rapid, slow.rapid)
+    np.testing.assert_array_equal(fast.feed, slow.feed)
+    last = np.where(given, np.arange(n), -1)
+    last = np.maximum.accumulate(last)
+    expect = np.where((last >= 0)[:, None], np.round(ax, 7)[np.maximum(last, 0)], [0.0, 0.0, 1.0])
+    np.testing.assert_allclose(fast.axis, expect / np.linalg.norm(expect, axis=1)[:, None], atol=1e-12)
+    np.testing.assert_allclose(fast.tip, np.round(pts, 4), atol=1e-12)
+    assert fast.rapid[0] and not fast.rapid[1:].any() and fast.line[0] == 4
+    bad = list(recs)
+    bad[37] = "GOTO/1.0,2.0,x"
+    with pytest.raises(InputError) as exc:
+        read_apt(_write(tmp_path, "bad.cls", head + "\n".join(bad) + "\n"))
+    assert exc.value.row == 4 + 37 and "'x' is not a number" in str(exc.value)

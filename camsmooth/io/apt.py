@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -68,12 +69,18 @@ _FEED_UNIT = {"MMPM": ("mm", False), "IPM": ("inch", False), "MMPR": ("mm", True
               "PERMIN": (None, False), "PERREV": (None, True)}
 
 
-@dataclass
+@dataclass(slots=True)
 class _Record:
     line: int
     major: str
-    args: list[str]
+    args: list[str] | None  # None: a plain GOTO whose arguments are split when needed
     text: str
+    run: list[str] | None = None  # major "GOTO-RUN": consecutive plain GOTO lines from ``line`` on
+
+    def split(self) -> list[str]:
+        if self.args is None:
+            self.args = [a.strip() for a in self.text.partition("/")[2].split(",")]
+        return self.args
 
 
 def _records(text: str) -> list[_Record]:
@@ -81,7 +88,15 @@ def _records(text: str) -> list[_Record]:
     out: list[_Record] = []
     pending: tuple[int, str] | None = None
     for number, raw in enumerate(text.split("\n"), start=1):
-        body = raw.split("$$", 1)[0].rstrip()
+        if pending is None and raw.startswith("GOTO/") and "$" not in raw:
+            # the hot path: consecutive plain GOTO lines are kept as one run, parsed at once later
+            last = out[-1] if out else None
+            if last is not None and last.run is not None and last.line + len(last.run) == number:
+                last.run.append(raw)
+            else:
+                out.append(_Record(number, "GOTO-RUN", None, "", [raw]))
+            continue
+        body = raw.split("$$", 1)[0].rstrip() if "$" in raw else raw.rstrip()
         if pending is not None:
             start, prefix = pending
             body = prefix + body.strip()
@@ -121,6 +136,24 @@ def _numbers(rec: _Record, file: str, what: str, counts: tuple[int, ...], args: 
             raise InputError(f"malformed {what}: {a!r} is not a finite number", file=file, row=rec.line)
         out.append(v)
     return out
+
+
+def _goto_numbers(rec: _Record, file: str, what: str, args: list[str]) -> list[float]:
+    """The 3 or 6 numbers of a GOTO (fast path; the checked parser names what is wrong)."""
+    try:
+        v = [float(a) for a in args]
+    except ValueError:
+        v = []
+    if len(v) in (3, 6) and math.isfinite(sum(v)):
+        return v
+    return _numbers(rec, file, what, (3, 6), args)
+
+
+def _unit_tuple(i: float, j: float, k: float, rec: _Record, file: str) -> tuple[float, float, float]:
+    n = math.sqrt(i * i + j * j + k * k)
+    if n < 1e-12 or abs(n - 1.0) > UNIT_TOL:
+        _unit_axis(np.array([i, j, k]), rec, file, "tool axis (i, j, k)")
+    return (i / n, j / n, k / n)
 
 
 def _unit_axis(v: np.ndarray, rec: _Record, file: str, what: str) -> np.ndarray:
@@ -183,16 +216,89 @@ class _Arc:
 
 @dataclass
 class _State:
+    """Points in MCS coordinates, in blocks (numpy) and a pending list of single points."""
+
     file: str
     scale: float
     unit: str
     chord_tol: float
-    pts: list[np.ndarray] = field(default_factory=list)  # MCS tips
-    axes: list[np.ndarray] = field(default_factory=list)  # MCS axes
-    feed: list[float] = field(default_factory=list)
-    rapid: list[bool] = field(default_factory=list)
-    line: list[int] = field(default_factory=list)
-    xform: list[int] = field(default_factory=list)  # index into transforms per point
+    blocks: list[tuple[np.ndarray, ...]] = field(default_factory=list)
+    pending: list[tuple] = field(default_factory=list)  # (p, axis, rapid, feed, line, xform)
+    done: int = 0
+    last: tuple | None = None
+
+    @property
+    def count(self) -> int:
+        return self.done + len(self.pending)
+
+    def add(self, p: tuple, a: tuple, rapid: bool, feed: float, line: int, xform: int) -> None:
+        self.pending.append((p, a, rapid, math.nan if rapid else feed, line, xform))
+        self.last = p
+
+    def flush(self) -> None:
+        if self.pending:
+            p, a, r, f, ln, x = zip(*self.pending, strict=True)
+            self.blocks.append((np.asarray(p, float), np.asarray(a, float), np.asarray(r, bool),
+                                np.asarray(f, float), np.asarray(ln, np.int64), np.asarray(x, np.int64)))
+            self.done += len(self.pending)
+            self.pending = []
+
+    def add_block(self, P: np.ndarray, T: np.ndarray, rapid: np.ndarray, feed: np.ndarray, line: np.ndarray,
+                  xform: int) -> None:
+        self.flush()
+        self.blocks.append((P, T, rapid, feed, line, np.full(len(P), xform, np.int64)))
+        self.done += len(P)
+        self.last = tuple(P[-1].tolist())
+
+    def arrays(self) -> tuple[np.ndarray, ...]:
+        self.flush()
+        return tuple(np.concatenate([b[k] for b in self.blocks]) for k in range(6))
+
+
+def _bulk_goto(run: list[str], scale: float, axis: tuple) -> tuple[np.ndarray, np.ndarray] | None:
+    """Tips (n, 3) and modal axes (n, 3) of a run of plain GOTO records parsed at once (numpy), or
+    None when any record is malformed (the record-by-record path then names it)."""
+    import io
+
+    rests = [r[5:] for r in run]
+    n = len(run)
+    try:  # the usual case: every record of the run has the same count (3 or 6)
+        arr = np.loadtxt(io.StringIO("\n".join(rests)), delimiter=",", ndmin=2, comments=None)
+        counts = np.full(n, arr.shape[1], dtype=np.int64) if arr.shape[0] == n else None
+    except ValueError:
+        counts = None
+    if counts is None:
+        counts = np.fromiter((x.count(",") for x in rests), dtype=np.int64, count=n) + 1
+        arr = None
+    if not np.isin(counts, (3, 6)).all():
+        return None
+    P = np.empty((n, 3))
+    given = np.full(n, -1, dtype=np.int64)
+    V = np.zeros((0, 3))
+    for c in (3, 6):
+        sel = np.flatnonzero(counts == c)
+        if not len(sel):
+            continue
+        if arr is not None:
+            part = arr
+        else:
+            try:
+                part = np.loadtxt(io.StringIO("\n".join(rests[k] for k in sel)), delimiter=",", ndmin=2,
+                                  comments=None)
+            except ValueError:
+                return None
+        if part.shape != (len(sel), c) or not np.isfinite(part).all():
+            return None
+        P[sel] = part[:, :3]
+        if c == 6:
+            norm = np.linalg.norm(part[:, 3:], axis=1)
+            if ((norm < 1e-12) | (np.abs(norm - 1.0) > UNIT_TOL)).any():
+                return None
+            V = part[:, 3:] / norm[:, None]
+            given[sel] = np.arange(len(sel))
+    ff = np.maximum.accumulate(given)
+    T = np.where((ff >= 0)[:, None], V[np.maximum(ff, 0)] if len(V) else 0.0, np.asarray(axis, float))
+    return P * scale, T
 
 
 def _arc_points(p0: np.ndarray, p1: np.ndarray, arc: _Arc, tol: float, file: str) -> np.ndarray:
@@ -243,7 +349,7 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
     st = _State(file=file, scale=INCH_MM if unit == "inch" else 1.0, unit=unit, chord_tol=chord_tol)
     transforms: list[np.ndarray] = [np.eye(4)]
     cur_xform = 0
-    axis = np.array([0.0, 0.0, 1.0])
+    axis = (0.0, 0.0, 1.0)
     feed = math.nan
     feed_unit: tuple[str | None, bool] = (None, False)
     rpm: float | None = None
@@ -258,45 +364,69 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
     record_rapid = False
 
     def start_toolpath(name: str | None, line: int | None) -> ToolPath:
-        tp = ToolPath(name=name, tool=None, start=len(st.pts), stop=len(st.pts), line=line,
+        tp = ToolPath(name=name, tool=None, start=st.count, stop=st.count, line=line,
                       transform=transforms[cur_xform].copy())
         toolpaths.append(tp)
         return tp
 
-    def add_point(p: np.ndarray, a: np.ndarray, rapid: bool, line: int) -> None:
+    def add_point(p: tuple, a: tuple, rapid: bool, line: int) -> None:
         nonlocal open_tp
         if open_tp is None:
             open_tp = start_toolpath(None, None)
-        st.pts.append(p)
-        st.axes.append(a)
-        st.feed.append(math.nan if rapid else feed)
-        st.rapid.append(rapid)
-        st.line.append(line)
-        st.xform.append(cur_xform)
+        st.add(p, a, rapid, feed, line, cur_xform)
 
-    for rec in recs:
+    queue: deque[_Record] = deque()
+    i = 0
+    while i < len(recs) or queue:
+        if queue:
+            rec = queue.popleft()
+        else:
+            rec = recs[i]
+            i += 1
         m = rec.major
-        if m in ("GOTO", "FROM") or (not rec.args and last_motion == "GOTO" and _is_numbers(rec.text)):
+        if m == "GOTO-RUN":
+            texts = rec.run or []
+            if arc is not None:  # the first GOTO ends an arc: on its own, then the rest as a run
+                queue.appendleft(_Record(rec.line, "GOTO", None, texts[0].rstrip()))
+                if len(texts) > 1:
+                    queue.insert(1, _Record(rec.line + 1, "GOTO-RUN", None, "", texts[1:]))
+                continue
+            got = _bulk_goto(texts, st.scale, axis) if len(texts) >= 16 else None
+            if got is None:  # short, or something to report: record by record
+                queue.extendleft(_Record(rec.line + k, "GOTO", None, t.rstrip()) for k, t in
+                                 reversed(list(enumerate(texts))))
+                continue
+            P, Tm = got
+            if open_tp is None:
+                open_tp = start_toolpath(None, None)
+            rap = np.zeros(len(P), dtype=bool)
+            rap[0] = rapid_next
+            st.add_block(P, Tm, rap, np.where(rap, np.nan, feed), np.arange(rec.line, rec.line + len(P)), cur_xform)
+            axis = tuple(Tm[-1].tolist())
+            rapid_next = record_rapid = False
+            last_motion = "GOTO"
+            continue
+        if m in ("GOTO", "FROM") or (rec.args == [] and last_motion == "GOTO" and _is_numbers(rec.text)):
             if m not in ("GOTO", "FROM"):  # a further point of a multi-point GOTO
                 args = [a.strip() for a in rec.text.split(",")]
             else:
-                args = rec.args
-            v = _numbers(rec, file, m, (3, 6), args)
-            p = np.array(v[:3]) * st.scale
+                args = rec.split()
+            v = _goto_numbers(rec, file, m, args)
+            sc = st.scale
+            p = (v[0] * sc, v[1] * sc, v[2] * sc)
             if len(v) == 6:
-                axis = _unit_axis(np.array(v[3:]), rec, file, "tool axis (i, j, k)")
+                axis = _unit_tuple(v[3], v[4], v[5], rec, file)
             if m != "GOTO" and m != "FROM":
                 rapid = record_rapid  # further points of a multi-point GOTO move like its first
             else:
                 rapid = rapid_next or m == "FROM"
                 record_rapid = rapid
             if arc is not None:
-                if not st.pts:
+                if st.last is None:
                     raise InputError("CIRCLE before any position: the arc has no start point", file=file,
                                      row=arc.line)
-                p0 = st.pts[-1]
-                for q in _arc_points(p0, p, arc, chord_tol, file):
-                    add_point(q, axis, rapid, rec.line)
+                for q in _arc_points(np.array(st.last), np.array(p), arc, chord_tol, file).tolist():
+                    add_point(tuple(q), axis, rapid, rec.line)
                 arc = None
             add_point(p, axis, rapid, rec.line)
             if m == "GOTO":
@@ -342,7 +472,7 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
         elif m == "MSYS":
             transforms.append(_msys(rec, file, st.scale))
             cur_xform = len(transforms) - 1
-            if open_tp is not None and open_tp.start == len(st.pts):
+            if open_tp is not None and open_tp.start == st.count:
                 open_tp.transform = transforms[cur_xform].copy()
         elif m == "UNITS":
             word = rec.args[0].upper() if rec.args else ""
@@ -354,7 +484,7 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
                 st.scale = INCH_MM if unit == "inch" else 1.0
         elif m == "TOOL PATH":
             if open_tp is not None:
-                open_tp.stop = len(st.pts)
+                open_tp.stop = st.count
             tool_name = rec.args[2] if len(rec.args) > 2 and rec.args[1].upper() == "TOOL" else None
             open_tp = start_toolpath(rec.args[0] if rec.args and rec.args[0] else None, rec.line)
             if last_tool is not None and tool_name is not None and last_tool.name == tool_name:
@@ -364,7 +494,7 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
                 raise InputError("CIRCLE is not followed by a GOTO (the arc has no end point)", file=file,
                                  row=arc.line)
             if open_tp is not None:
-                open_tp.stop = len(st.pts)
+                open_tp.stop = st.count
                 open_tp = None
         elif m == "TLDATA":
             kind = rec.args[0].lower() if rec.args else ""
@@ -395,8 +525,8 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
     if arc is not None:
         raise InputError("CIRCLE is not followed by a GOTO (the arc has no end point)", file=file, row=arc.line)
     if open_tp is not None:
-        open_tp.stop = len(st.pts)
-    if not st.pts:
+        open_tp.stop = st.count
+    if st.count == 0:
         raise InputError("no GOTO record: the file holds no tool position", file=file)
     for major, lines in unknown.items():
         shown = ", ".join(str(x) for x in lines[:10]) + (f", ... ({len(lines)} in all)" if len(lines) > 10 else "")
@@ -424,26 +554,23 @@ def _with_number(tool: Tool, number: int) -> Tool:
 
 
 def _program(st: _State, transforms: list[np.ndarray], toolpaths: list[ToolPath], warnings: list[str]) -> CLProgram:
-    P = np.asarray(st.pts, dtype=float)
-    T = np.asarray(st.axes, dtype=float)
-    xf = np.asarray(st.xform, dtype=np.int64)
+    P, T, rapid, feed, line, xf = st.arrays()
     tip, axis = np.empty_like(P), np.empty_like(T)
     for k, M in enumerate(transforms):  # loop over coordinate systems (few), not points
         sel = xf == k
-        tip[sel] = P[sel] @ M[:3, :3].T + M[:3, 3]
-        axis[sel] = T[sel] @ M[:3, :3].T
-    rapid = np.asarray(st.rapid, dtype=bool)
+        # einsum: (N, 3) x (3, 3) through BLAS matmul is slower here than the plain sum of products
+        tip[sel] = np.einsum("ij,kj->ik", P[sel], M[:3, :3]) + M[:3, 3]
+        axis[sel] = np.einsum("ij,kj->ik", T[sel], M[:3, :3])
     # rows: runs of feed moves, split by rapids and by tool path boundaries
     tp_id = np.full(len(P), -1, dtype=np.int64)
     for k, tp in enumerate(toolpaths):
         tp_id[tp.start:tp.stop] = k
     new = ~rapid & np.r_[True, rapid[:-1] | (tp_id[1:] != tp_id[:-1])]
     rows = np.where(rapid, -1, np.cumsum(new) - 1)
-    feed = np.asarray(st.feed, dtype=float)
     unknown_feed = ~rapid & ~np.isfinite(feed)
     if unknown_feed.any():
-        lines = np.asarray(st.line)[unknown_feed]
+        lines = line[unknown_feed]
         warnings.append(f"{int(unknown_feed.sum())} feed move(s) before any FEDRAT (first on line {int(lines[0])}): "
                         "feed unknown (NaN)")
-    return CLProgram(tip=tip, axis=axis, rows=rows, feed=feed, rapid=rapid, line=np.asarray(st.line),
+    return CLProgram(tip=tip, axis=axis, rows=rows, feed=feed, rapid=rapid, line=line,
                      toolpaths=toolpaths, source=st.file, format="apt", warnings=warnings)

@@ -36,7 +36,6 @@ import difflib
 import io
 import math
 import os
-import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -48,7 +47,6 @@ from camsmooth.errors import InputError
 __all__ = ["Table", "read_table", "number_text", "read_text_file"]
 
 _OTHER_DELIMITERS = ((";", "';'"), ("\t", "a tab"), ("|", "'|'"))
-_BLANK_LINE = re.compile(r"(?:^|\n)[ \t]*(?=\n|$)")
 
 
 def number_text(value: float) -> str:
@@ -232,10 +230,11 @@ def read_table(path: str | os.PathLike, required: Sequence[str] = (), optional: 
     ignored = tuple(h for j, h in enumerate(header) if j not in used)
 
     # ---- records and their rows ---------------------------------------------------------------
-    body = re.sub(r"(?:\n[ \t]*)+$", "", "\n" + body)[1:] if body.strip() else ""
+    body = body.rstrip(" \t\n")  # trailing blank lines (and blanks after the last field) are nothing
+    probe = "\n" + body + "\n"
     if not body:
         rows = np.zeros(0, dtype=np.int64)
-    elif _BLANK_LINE.search(body):
+    elif "\n\n" in probe or "\n " in probe or "\n\t" in probe:  # maybe blank lines: sort them out line by line
         lines = body.split("\n")
         keep = [k for k, ln in enumerate(lines) if ln.strip()]
         rows = np.asarray(keep, dtype=np.int64) + 1
