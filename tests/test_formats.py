@@ -239,7 +239,7 @@ def test_apt_bad_input_names_file_and_line(tmp_path, body, needle, bad_line):
     with pytest.raises(InputError) as exc:
         read_apt(p)
     msg = str(exc.value)
-    assert needle in msg and str(p) in msg and exc.value.row == bad_line, msg
+    assert needle in msg and str(p) in msg and exc.value.line == bad_line and f"line {bad_line}" in msg, msg
 
 
 def test_apt_missing_tldata_named_at_the_tool_path(tmp_path):
@@ -355,4 +355,4 @@ def test_apt_long_goto_runs_match_record_by_record(tmp_path):
     bad[37] = "GOTO/1.0,2.0,x"
     with pytest.raises(InputError) as exc:
         read_apt(_write(tmp_path, "bad.cls", head + "\n".join(bad) + "\n"))
-    assert exc.value.row == 4 + 37 and "'x' is not a number" in str(exc.value)
+    assert exc.value.line == 4 + 37 and "'x' is not a number" in str(exc.value)

@@ -124,16 +124,16 @@ def _numbers(rec: _Record, file: str, what: str, counts: tuple[int, ...], args: 
     if len(args) not in counts:
         want = " or ".join(str(c) for c in counts)
         raise InputError(f"malformed {what}: expected {want} numbers, got {len(args)} ({rec.text!r})", file=file,
-                         row=rec.line)
+                         line=rec.line)
     out = []
     for a in args:
         try:
             v = float(a)
         except ValueError:
             raise InputError(f"malformed {what}: {a!r} is not a number ({rec.text!r})", file=file,
-                             row=rec.line) from None
+                             line=rec.line) from None
         if not math.isfinite(v):
-            raise InputError(f"malformed {what}: {a!r} is not a finite number", file=file, row=rec.line)
+            raise InputError(f"malformed {what}: {a!r} is not a finite number", file=file, line=rec.line)
         out.append(v)
     return out
 
@@ -160,7 +160,7 @@ def _unit_axis(v: np.ndarray, rec: _Record, file: str, what: str) -> np.ndarray:
     n = float(np.linalg.norm(v))
     if n < 1e-12 or abs(n - 1.0) > UNIT_TOL:
         raise InputError(f"{what} ({', '.join(f'{x:g}' for x in v)}) is not a unit vector (length {n:.9g}, "
-                         f"allowed 1 +- {UNIT_TOL:g})", file=file, row=rec.line)
+                         f"allowed 1 +- {UNIT_TOL:g})", file=file, line=rec.line)
     return v / n
 
 
@@ -174,7 +174,7 @@ def _file_unit(recs: list[_Record], file: str, units: str | None, warnings: list
             word = r.args[0].upper() if r.args else ""
             if word not in _UNIT_WORDS:
                 raise InputError(f"unknown units {word or r.text!r} (expected UNITS/MM or UNITS/INCHES)", file=file,
-                                 row=r.line)
+                                 line=r.line)
             return _UNIT_WORDS[word]
     seen: dict[str, int] = {}
     for r in recs:
@@ -197,7 +197,7 @@ def _msys(rec: _Record, file: str, scale: float) -> np.ndarray:
     X = _unit_axis(np.array(v[3:6]), rec, file, "MSYS X axis")
     Y = _unit_axis(np.array(v[6:9]), rec, file, "MSYS Y axis")
     if abs(float(X @ Y)) > 1e-4:
-        raise InputError(f"MSYS axes are not perpendicular (X.Y = {float(X @ Y):.3g})", file=file, row=rec.line)
+        raise InputError(f"MSYS axes are not perpendicular (X.Y = {float(X @ Y):.3g})", file=file, line=rec.line)
     Y = Y - (X @ Y) * X
     Y /= np.linalg.norm(Y)
     T = np.eye(4)
@@ -315,7 +315,7 @@ def _arc_points(p0: np.ndarray, p1: np.ndarray, arc: _Arc, tol: float, file: str
     for r, which in ((r0, "start"), (r1, "end")):
         if abs(r - arc.radius) > slack:
             raise InputError(f"CIRCLE: the arc's {which} point is {r:.6g} mm from the axis, the radius is "
-                             f"{arc.radius:.6g} mm", file=file, row=arc.line)
+                             f"{arc.radius:.6g} mm", file=file, line=arc.line)
     phi = math.atan2(float(np.cross(u0, u1) @ n), float(u0 @ u1))
     if phi <= 1e-12:
         phi += 2.0 * math.pi  # the sweep is in (0, 2 pi]; start = end is a full circle
@@ -424,7 +424,7 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
             if arc is not None:
                 if st.last is None:
                     raise InputError("CIRCLE before any position: the arc has no start point", file=file,
-                                     row=arc.line)
+                                     line=arc.line)
                 for q in _arc_points(np.array(st.last), np.array(p), arc, chord_tol, file).tolist():
                     add_point(tuple(q), axis, rapid, rec.line)
                 arc = None
@@ -441,18 +441,18 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
             nums = [a for a in rec.args if _is_number(a)]
             if len(nums) != 1 or len(words) > 1 or (words and words[0] not in _FEED_UNIT):
                 raise InputError(f"malformed FEDRAT: expected FEDRAT/[MMPM|IPM|MMPR|IPR,]f ({rec.text!r})",
-                                 file=file, row=rec.line)
+                                 file=file, line=rec.line)
             if words:
                 feed_unit = _FEED_UNIT[words[0]]
             value = float(nums[0])
             if not (value > 0 and math.isfinite(value)):
-                raise InputError(f"FEDRAT must be > 0, got {nums[0]}", file=file, row=rec.line)
+                raise InputError(f"FEDRAT must be > 0, got {nums[0]}", file=file, line=rec.line)
             length, per_rev = feed_unit
             scale = INCH_MM if (length or unit) == "inch" else 1.0
             if per_rev:
                 if not rpm:
                     raise InputError("feed per revolution without a spindle speed (SPINDL/RPM,n)", file=file,
-                                     row=rec.line)
+                                     line=rec.line)
                 value *= rpm
             feed = value * scale
         elif m == "SPINDL":
@@ -463,11 +463,11 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
             args = rec.args
             if "TIMES" in [a.upper() for a in args]:
                 raise InputError("CIRCLE with TIMES (a helix of several turns) is not supported", file=file,
-                                 row=rec.line)
+                                 line=rec.line)
             v = _numbers(rec, file, "CIRCLE", tuple(range(7, 12)), args)
             c_axis = _unit_axis(np.array(v[3:6]), rec, file, "CIRCLE axis")
             if not v[6] > 0:
-                raise InputError(f"CIRCLE radius must be > 0, got {v[6]:g}", file=file, row=rec.line)
+                raise InputError(f"CIRCLE radius must be > 0, got {v[6]:g}", file=file, line=rec.line)
             arc = _Arc(np.array(v[:3]) * st.scale, c_axis, v[6] * st.scale, rec.line)
         elif m == "MSYS":
             transforms.append(_msys(rec, file, st.scale))
@@ -478,7 +478,7 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
             word = rec.args[0].upper() if rec.args else ""
             if word not in _UNIT_WORDS:
                 raise InputError(f"unknown units {word or rec.text!r} (expected UNITS/MM or UNITS/INCHES)", file=file,
-                                 row=rec.line)
+                                 line=rec.line)
             if units is None:
                 unit = _UNIT_WORDS[word]
                 st.scale = INCH_MM if unit == "inch" else 1.0
@@ -492,7 +492,7 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
         elif m == "END-OF-PATH":
             if arc is not None:
                 raise InputError("CIRCLE is not followed by a GOTO (the arc has no end point)", file=file,
-                                 row=arc.line)
+                                 line=arc.line)
             if open_tp is not None:
                 open_tp.stop = st.count
                 open_tp = None
@@ -503,7 +503,7 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
                 d, r = v[0] * st.scale, v[1] * st.scale
                 if not (d > 0 and 0 <= r <= d / 2 + 1e-12):
                     raise InputError(f"TLDATA/MILL: need diameter > 0 and 0 <= corner radius <= diameter / 2, got "
-                                     f"D = {v[0]:g}, R = {v[1]:g}", file=file, row=rec.line)
+                                     f"D = {v[0]:g}, R = {v[1]:g}", file=file, line=rec.line)
                 tool = Tool(name=tool_name, kind="mill", diameter=d, corner_radius=min(r, d / 2),
                             length=v[2] * st.scale, line=rec.line)
             else:
@@ -523,7 +523,7 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
         else:
             unknown.setdefault(m, []).append(rec.line)
     if arc is not None:
-        raise InputError("CIRCLE is not followed by a GOTO (the arc has no end point)", file=file, row=arc.line)
+        raise InputError("CIRCLE is not followed by a GOTO (the arc has no end point)", file=file, line=arc.line)
     if open_tp is not None:
         open_tp.stop = st.count
     if st.count == 0:

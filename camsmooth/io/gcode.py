@@ -546,7 +546,7 @@ def read_gcode(path: str | os.PathLike, machine: Any = None) -> CLProgram:
                 state[w] = words[w]
         if any(math.isnan(v) for v in state.values()):
             missing = [w for w, v in state.items() if math.isnan(v)]
-            raise InputError(f"first motion block does not give {', '.join(missing)}", file=file, row=k)
+            raise InputError(f"first motion block does not give {', '.join(missing)}", file=file, line=k)
         joints.append([state[w] for w in ("X", "Y", "Z", "A", "B")])
         rapid.append(is_rapid)
         fword.append(math.nan if is_rapid else f_modal)
