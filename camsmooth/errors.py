@@ -12,15 +12,17 @@ class InputError(CamsmoothError, ValueError):
     """Bad input: a file, a column, a value or an option that cannot be used.
 
     The message names where: ``file``, 1-based data ``row`` (the header is row 0) and ``column``
-    when they are known.
+    when they are known; for files read line by line (APT/CLSF, G-code) the 1-based ``line``.
     """
 
     def __init__(self, message: str, *, file: str | None = None, row: int | None = None,
-                 column: str | None = None) -> None:
-        self.file, self.row, self.column = file, row, column
+                 column: str | None = None, line: int | None = None) -> None:
+        self.file, self.row, self.column, self.line = file, row, column, line
         where = []
         if file is not None:
             where.append(str(file))
+        if line is not None:
+            where.append(f"line {line}")
         if row is not None:
             where.append(f"row {row}")
         if column is not None:

@@ -21,7 +21,8 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from camsmooth.geometry.cutter import ToroidalCutter  # noqa: E402
-from camsmooth.geometry.paths import CCPath, read_cc_csv  # noqa: E402
+from camsmooth.geometry.paths import CCPath  # noqa: E402
+from camsmooth.io.ccpath import read_cc_csv  # noqa: E402
 from camsmooth.machine.model import ErrorModel  # noqa: E402
 from camsmooth.smoothing.pipeline import smooth  # noqa: E402
 

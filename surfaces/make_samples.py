@@ -24,7 +24,7 @@ from scipy.spatial import cKDTree
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))  # run from a source checkout without installing
 
-from camsmooth.geometry.paths import read_cc_csv, write_cc_csv, zigzag_extents, zigzag_path  # noqa: E402
+from camsmooth.geometry.paths import zigzag_extents, zigzag_path  # noqa: E402
 from camsmooth.geometry.surfaces import (  # noqa: E402
     BSplineSurface,
     ParametricSurface,
@@ -36,6 +36,7 @@ from camsmooth.geometry.surfaces import (  # noqa: E402
     save_definition,
     save_mesh,
 )
+from camsmooth.io.ccpath import read_cc_csv, write_cc_csv  # noqa: E402
 
 CHORD_TOL = 2e-4  # mm, required of the PLY mesh
 # PLY stores float32 vertices (rounding <= 4e-6 mm at 100 mm): tessellate a little tighter

@@ -25,7 +25,8 @@ import trimesh
 
 from camsmooth.cli.main import main
 from camsmooth.errors import InputError
-from camsmooth.geometry.paths import CCPath, check_contact_with_mesh, check_normals_against_mesh, write_cc_csv
+from camsmooth.geometry.paths import CCPath, check_contact_with_mesh, check_normals_against_mesh
+from camsmooth.io.ccpath import write_cc_csv
 from tests.conftest import ROOT
 
 NP_REPR = re.compile(r"np\.[a-z_]+\d*\(")

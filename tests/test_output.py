@@ -204,7 +204,17 @@ def test_gcode_round_trip_and_structure(tmp_path):
     np.testing.assert_allclose(cut[:, :3], r.xyz, atol=0.5e-4 + 1e-12)
     np.testing.assert_allclose(cut[:, 3], np.degrees(r.A), atol=0.5e-4 + 1e-12)
     np.testing.assert_allclose(cut[:, 4], np.degrees(r.B), atol=0.5e-4 + 1e-12)
-    assert np.all(feeds == 1500.0)
+    # G93 inverse time: F = 1 / block time, block time = tip path length / 1500 mm/min; the tip path of
+    # each block is sampled finely here (256 steps) with the machine chain, independently of the writer
+    moves_all = np.array([_xyzab(w) for _, w in moves])
+    is_cut = np.array([c == "G01" for c, _ in moves])
+    prev = moves_all[np.flatnonzero(is_cut) - 1]
+    s = np.linspace(0, 1, 257)[None, :, None]
+    q = prev[:, None, :] + s * (cut - prev)[:, None, :]
+    tips, _ = MACHINE.tool_pose_np(*np.radians(q[..., 3:]).reshape(-1, 2).T, *q[..., :3].reshape(-1, 3).T)
+    length = np.linalg.norm(np.diff(tips.reshape(len(cut), 257, 3), axis=1), axis=2).sum(axis=1)
+    np.testing.assert_allclose(feeds * length, 1500.0, rtol=1e-3)
+    assert "G93" in lines and lines.index("G93") < lines.index(next(ln for ln in lines if ln.startswith("G01")))
     # independent check through the machine chain (POE): the commanded axes put the tool tip on
     # the CL point with the planned tool axis
     tip, axis = MACHINE.tool_pose_np(np.radians(cut[:, 3]), np.radians(cut[:, 4]), *cut[:, :3].T)

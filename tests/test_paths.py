@@ -12,12 +12,11 @@ from camsmooth.geometry.paths import (
     check_normals_against_mesh,
     estimate_feed_dirs,
     raster_path_on_mesh,
-    read_cc_csv,
-    write_cc_csv,
     zigzag_extents,
     zigzag_path,
 )
 from camsmooth.geometry.surfaces import BSplineSurface, Cylinder, Plane, Saddle, SpherePatch, tessellate
+from camsmooth.io.ccpath import read_cc_csv, write_cc_csv
 
 
 def _arc_path(n_rows=3, n=12, R=30.0, seed=0):

@@ -12,8 +12,9 @@ import pytest
 
 from camsmooth.errors import InfeasibleError
 from camsmooth.geometry.cutter import ToroidalCutter, signed_distance
-from camsmooth.geometry.paths import CCPath, write_cc_csv, zigzag_path
+from camsmooth.geometry.paths import CCPath, zigzag_path
 from camsmooth.geometry.surfaces import Cylinder, Sinusoid, Surface, tessellate_to_tolerance
+from camsmooth.io.ccpath import write_cc_csv
 from camsmooth.machine.kinematics import DEFAULT_MACHINE_TOML, load_machine, machine_from_dict
 from camsmooth.smoothing.orientation import lead_tilt_from_axis, local_frames
 from camsmooth.smoothing.pipeline import smooth

@@ -15,8 +15,8 @@ import pytest
 import trimesh
 from scipy.spatial import cKDTree
 
-from camsmooth.geometry.paths import read_cc_csv
 from camsmooth.geometry.surfaces import BSplineSurface, Saddle, load_definition, load_surface
+from camsmooth.io.ccpath import read_cc_csv
 
 HERE = Path(__file__).resolve().parent.parent / "surfaces"
 SAMPLES = ("blade", "saddle", "mould")

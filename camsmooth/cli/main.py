@@ -119,8 +119,8 @@ def _check_outputs_options(args: argparse.Namespace) -> None:
 
 
 def run_smooth(args: argparse.Namespace) -> int:
-    from camsmooth.geometry.paths import read_cc_csv
     from camsmooth.geometry.surfaces import load_surface
+    from camsmooth.io.ccpath import read_cc_csv
     from camsmooth.machine.kinematics import load_machine
     from camsmooth.smoothing.pipeline import SmoothOptions, smooth
 
@@ -189,8 +189,9 @@ def _check_path_size(n_rows: float, n_points: float) -> None:
 
 
 def run_path(args: argparse.Namespace) -> int:
-    from camsmooth.geometry.paths import raster_path_on_mesh, write_cc_csv, zigzag_extents, zigzag_path
+    from camsmooth.geometry.paths import raster_path_on_mesh, zigzag_extents, zigzag_path
     from camsmooth.geometry.surfaces import load_surface
+    from camsmooth.io.ccpath import write_cc_csv
 
     with output_transaction() as tx:
         out = tx.file(args.output)
@@ -238,8 +239,8 @@ def run_demo(args: argparse.Namespace) -> int:
         if not args.quiet:
             print(f"camsmooth demo: smoothing {path} on {mesh} (toroidal cutter R=4 r=1 mm, lead 2:20, "
                   f"tilt -15:15 deg, default AB head) -> {out}/")
-        from camsmooth.geometry.paths import read_cc_csv
         from camsmooth.geometry.surfaces import load_surface
+        from camsmooth.io.ccpath import read_cc_csv
 
         result = smooth(read_cc_csv(path), load_surface(mesh), None, cutter, feed=2000.0,
                         lead_range=tuple(np.radians([2.0, 20.0])), tilt_range=tuple(np.radians([-15.0, 15.0])),

@@ -20,8 +20,6 @@ samples outside the time span of the program's segment are dropped, never extrap
 
 from __future__ import annotations
 
-import csv
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,6 +28,7 @@ import numpy as np
 
 from camsmooth.errors import InputError
 from camsmooth.io.atomic import atomic_path
+from camsmooth.io.table import number_text, read_table
 
 LINEAR_AXES = ("X", "Y", "Z")
 ROTARY_AXES = ("A", "B")
@@ -143,58 +142,15 @@ def rms_step(q: np.ndarray | float) -> float:
 # ----------------------------------------------------------------------------------------------
 # CSV reading
 def _read_table(path: str | Path) -> tuple[list[str], np.ndarray]:
-    """Header and float table of a CSV; bad cells raise InputError with row and column."""
-    path = Path(path)
-    try:
-        with open(path, newline="") as fh:
-            header = next(csv.reader(fh), None)
-    except FileNotFoundError:
-        raise InputError("file not found", file=str(path)) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read: {exc}", file=str(path)) from None
-    if not header:
-        raise InputError("empty file (a header row is required)", file=str(path), row=0)
-    header = [h.strip() for h in header]
-    for j, h in enumerate(header):
-        if not h:
-            raise InputError(f"empty column name in header (column {j + 1})", file=str(path), row=0)
-    dup = {h for h in header if header.count(h) > 1}
-    if dup:
-        raise InputError(f"duplicate column(s) {sorted(dup)}", file=str(path), row=0, column=sorted(dup)[0])
-    try:
-        data = np.loadtxt(path, delimiter=",", skiprows=1, dtype=float, ndmin=2, comments=None)
-    except ValueError:
-        data = None
-    if data is not None and data.size and data.shape[1] != len(header):
-        data = None
-    if data is None:
-        _locate_bad_cell(path, header)
-        raise InputError("could not parse the table", file=str(path))  # pragma: no cover
-    if data.size == 0:
-        raise InputError("no data rows", file=str(path), row=1)
-    bad = ~np.isfinite(data)
-    if bad.any():
-        i, j = np.argwhere(bad)[0]
-        raise InputError(f"value is not finite ({data[i, j]})", file=str(path), row=int(i) + 1, column=header[j])
-    return header, data
-
-
-def _locate_bad_cell(path: Path, header: list[str]) -> None:
-    with open(path, newline="") as fh:
-        reader = csv.reader(fh)
-        next(reader)
-        for i, row in enumerate(reader, start=1):
-            if len(row) != len(header):
-                raise InputError(f"row has {len(row)} fields, the header has {len(header)}", file=str(path),
-                                 row=i)
-            for j, cell in enumerate(row):
-                try:
-                    v = float(cell)
-                except ValueError:
-                    raise InputError(f"not a number: {cell!r}", file=str(path), row=i,
-                                     column=header[j]) from None
-                if not math.isfinite(v):
-                    raise InputError(f"value is not finite ({cell})", file=str(path), row=i, column=header[j])
+    """Header and float table of a CSV (camsmooth.io.table.read_table: every column numeric and
+    finite); bad cells raise InputError with row and column."""
+    t = read_table(path, others="float", what="CSV file")
+    for name in t.header:
+        bad = ~np.isfinite(t[name])
+        if bad.any():
+            k = int(np.argmax(bad))
+            raise t.error(f"value is not finite ({number_text(t[name][k])})", k, name)
+    return list(t.header), np.column_stack([t[h] for h in t.header])
 
 
 def _canonical(header: list[str], known: Sequence[str]) -> dict[str, int]:
@@ -339,44 +295,18 @@ def read_umich(path: str | Path) -> tuple[Program, Recording]:
     go to ``quantum`` (README of the data set).
     """
     path = str(path)
-    try:
-        with open(path, newline="") as fh:
-            rows = list(csv.reader(fh))
-    except FileNotFoundError:
-        raise InputError("file not found", file=path) from None
-    if not rows:
-        raise InputError("empty file", file=path, row=0)
-    header = [h.strip() for h in rows[0]]
     need = [f"{a}1_{k}" for a in LINEAR_AXES for k in ("CommandPosition", "ActualPosition", "CommandVelocity")]
-    idx = {}
-    for name in need + ["S1_CommandVelocity"]:
-        if name in header:
-            idx[name] = header.index(name)
-        elif name in need:
-            raise InputError(f"missing column '{name}' (not a Michigan CNC-mill experiment file?)", file=path,
-                             row=0, column=name)
-    body = rows[1:]
-    if not body:
-        raise InputError("no data rows", file=path, row=1)
-    n = len(body)
-    sample = np.empty(n)
-    cols = {k: np.empty(n) for k in idx}
-    for i, r in enumerate(body, start=1):
-        if len(r) != len(header):
-            raise InputError(f"row has {len(r)} fields, the header has {len(header)}", file=path, row=i)
-        try:
-            sample[i - 1] = float(r[0]) if header[0] == "" else float(i - 1)
-        except ValueError:
-            raise InputError(f"sample index is not a number: {r[0]!r}", file=path, row=i,
-                             column=header[0] or "index") from None
-        for k, j in idx.items():
-            try:
-                v = float(r[j])
-            except ValueError:
-                raise InputError(f"not a number: {r[j]!r}", file=path, row=i, column=k) from None
-            if not math.isfinite(v):
-                raise InputError(f"value is not finite ({r[j]})", file=path, row=i, column=k)
-            cols[k][i - 1] = v
+    try:
+        table = read_table(path, need, ["", "S1_CommandVelocity"], what="Michigan CNC-mill experiment file")
+    except InputError as exc:
+        if exc.row == 0 and exc.column in need:
+            raise InputError(f"missing column '{exc.column}' (not a Michigan CNC-mill experiment file?)",
+                             file=path, row=0, column=exc.column) from None
+        raise
+    n = len(table)
+    # the unnamed first column is the sample index (the files were written with pandas' index)
+    sample = table[""] if "" in table else np.arange(n, dtype=float)
+    cols = {k: table[k] for k in need + ["S1_CommandVelocity"] if k in table}
     t = sample * UMICH_PERIOD_S
     _check_time(t, path)
     h = np.diff(t)

@@ -1,36 +1,18 @@
-"""Cutter-contact (CC) paths: the CCPath type, the pinned CSV format, and simple path generators.
+"""Cutter-contact (CC) paths: the CCPath type and simple path generators.
 
 Frames and units: workpiece frame W, mm; feed in mm/min (as in the file). The CC normal n points
 from the material toward the tool (CONVENTIONS.md); the feed direction f is the unit tangent of
 the path in the direction of travel (X_L of the local frame, METHODS.md section 1).
 
-CSV format (pinned)
--------------------
-One header row, then one data row per CC point, in machining order. Column names are matched
-case-insensitively after stripping blanks; extra columns are ignored.
-
-- required: ``x, y, z`` (mm), ``nx, ny, nz`` (unit normal out of the material)
-- optional: ``row`` (integer row id; rows are contiguous runs of equal id; without it the file is
-  one row, id 0), ``fx, fy, fz`` (unit feed direction, all three or none), ``feed`` (mm/min, > 0)
-
-Errors (InputError naming the file, the 1-based data row = file line - 1, and the column):
-missing column (with a close misspelling suggested), unparsable or empty value, NaN or inf, zero
-normal, normal length off 1 by more than ``UNIT_TOL`` (within it the normal is normalised),
-non-integer row id, a row id that reappears after other rows, a row of fewer than 3 points,
-consecutive points of a row closer than ``REPEAT_TOL`` mm, feed <= 0, zero or non-unit feed
-direction (same rule as normals), feed direction not tangent (|f.n| > ``TANGENT_TOL``; within it
-f is projected onto the tangent plane). Blank lines are skipped (they keep their line number).
+The pinned CSV format of a CC path is read and written by ``camsmooth.io.ccpath``
+(``read_cc_csv``, ``write_cc_csv``).
 """
 
 from __future__ import annotations
 
-import csv
-import difflib
-import io
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -39,13 +21,10 @@ from scipy.spatial import cKDTree
 
 from camsmooth.errors import InputError
 from camsmooth.geometry.surfaces import ParametricSurface, surface_normals_at
-from camsmooth.io.atomic import write_text_atomic
 
 __all__ = [
     "CCPath",
     "estimate_feed_dirs",
-    "read_cc_csv",
-    "write_cc_csv",
     "check_normals_against_mesh",
     "check_contact_with_mesh",
     "CONTACT_TOL",
@@ -63,8 +42,6 @@ REPEAT_TOL = 1e-9  # mm: consecutive points of a row closer than this are a repe
 TANGENT_TOL = 1e-2  # |f . n| above this: feed direction not tangent (0.57 degrees)
 MIN_ROW_POINTS = 3
 
-REQUIRED = ("x", "y", "z", "nx", "ny", "nz")
-OPTIONAL = ("row", "fx", "fy", "fz", "feed")
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -165,171 +142,6 @@ def estimate_feed_dirs(points: Any, normals: Any, rows: Any) -> np.ndarray:
         raise InputError(f"cannot estimate a feed direction at point {k + 1} (row id {r[k]}): the row has a "
                          "single point or the step is along the normal", row=k + 1)
     return t / norm[:, None]
-
-
-# ---------------------------------------------------------------------------------------------
-# CSV
-
-
-def _parse_column(strings: list[str], line_nos: list[int], name: str, file: str) -> np.ndarray:
-    try:
-        return np.array(strings, dtype=float)
-    except ValueError:
-        pass
-    for s, row in zip(strings, line_nos, strict=True):
-        try:
-            float(s)
-        except ValueError:
-            what = "empty value" if not s.strip() else f"unparsable value {s.strip()!r}"
-            raise InputError(f"{what} (expected a number)", file=file, row=row, column=name) from None
-    raise InputError("unparsable values", file=file, column=name)  # pragma: no cover
-
-
-def _unit_vectors(v: np.ndarray, line_nos: np.ndarray, what: str, column: str, file: str) -> np.ndarray:
-    norm = np.linalg.norm(v, axis=1)
-    zero = norm < 1e-12
-    if np.any(zero):
-        k = int(np.flatnonzero(zero)[0])
-        raise InputError(f"zero {what}", file=file, row=int(line_nos[k]), column=column)
-    off = np.abs(norm - 1) > UNIT_TOL
-    if np.any(off):
-        k = int(np.flatnonzero(off)[0])
-        raise InputError(f"{what} is not a unit vector (length {norm[k]:.9g}, allowed 1 +- {UNIT_TOL:g})",
-                         file=file, row=int(line_nos[k]), column=column)
-    return v / norm[:, None]
-
-
-def read_cc_csv(path: str | Path) -> CCPath:
-    """Read a CC path from the pinned CSV format (module docstring); InputError on bad input."""
-    file = str(path)
-    try:
-        text = Path(path).read_text(encoding="utf-8-sig")
-    except OSError as exc:
-        raise InputError(f"cannot read CC path: {exc.strerror or exc}", file=file) from exc
-    except UnicodeDecodeError as exc:
-        raise InputError(f"not a text file: {exc}", file=file) from exc
-    try:
-        lines = list(csv.reader(io.StringIO(text)))
-    except csv.Error as exc:
-        raise InputError(f"not valid CSV: {exc}", file=file) from exc
-    if not lines or not any(f.strip() for line in lines for f in line):
-        raise InputError("empty file (expected a header row and data rows)", file=file)
-    header = [h.strip().lower() for h in lines[0]]
-    if not any(header):
-        raise InputError("the first line (header row) is empty", file=file, row=0)
-    col: dict[str, int] = {}
-    for i, h in enumerate(header):
-        if h in REQUIRED + OPTIONAL:
-            if h in col:
-                raise InputError("column appears twice in the header", file=file, row=0, column=h)
-            col[h] = i
-    unknown = [h for h in header if h and h not in REQUIRED + OPTIONAL]
-    feed_dir_cols = [c for c in ("fx", "fy", "fz") if c in col]
-    needed = list(REQUIRED) + (["fx", "fy", "fz"] if feed_dir_cols else [])
-    for name in needed:
-        if name not in col:
-            close = difflib.get_close_matches(name, unknown, n=1, cutoff=0.6)
-            hint = f" (found '{close[0]}': misspelt?)" if close else ""
-            why = "" if name in REQUIRED else f" (needed with {', '.join(feed_dir_cols)})"
-            raise InputError(f"missing column '{name}'{hint}{why}", file=file, row=0, column=name)
-
-    data = [(k, line) for k, line in enumerate(lines[1:], start=1) if any(f.strip() for f in line)]
-    if not data:
-        raise InputError("no data rows after the header", file=file)
-    used = [c for c in REQUIRED + OPTIONAL if c in col]
-    last = max(col[c] for c in used)
-    for k, line in data:
-        if len(line) > len(header):
-            raise InputError(f"{len(line)} fields but the header has {len(header)} (a decimal comma?)",
-                             file=file, row=k)
-        if len(line) <= last:
-            missing = next(c for c in used if col[c] >= len(line))
-            raise InputError(f"missing value ({len(line)} fields, header has {len(header)})",
-                             file=file, row=k, column=missing)
-    line_nos = [k for k, _ in data]
-    values: dict[str, np.ndarray] = {}
-    for c in used:
-        a = _parse_column([line[col[c]] for _, line in data], line_nos, c, file)
-        bad = ~np.isfinite(a)
-        if np.any(bad):
-            j = int(np.flatnonzero(bad)[0])
-            raise InputError(f"non-finite value {a[j]!r}", file=file, row=line_nos[j], column=c)
-        values[c] = a
-    rows_no = np.asarray(line_nos)
-
-    points = np.stack([values["x"], values["y"], values["z"]], axis=1)
-    normals = _unit_vectors(np.stack([values["nx"], values["ny"], values["nz"]], axis=1), rows_no, "normal",
-                            "nx,ny,nz", file)
-    if "row" in values:
-        r = values["row"]
-        nonint = (r != np.round(r)) | (np.abs(r) > 2**53)
-        if np.any(nonint):
-            j = int(np.flatnonzero(nonint)[0])
-            raise InputError(f"row id {data[j][1][col['row']].strip()!r} is not an integer", file=file,
-                             row=line_nos[j], column="row")
-        rows = r.astype(np.int64)
-    else:
-        rows = np.zeros(len(points), dtype=np.int64)
-    feed = None
-    if "feed" in values:
-        feed = values["feed"]
-        bad = ~(feed > 0)
-        if np.any(bad):
-            j = int(np.flatnonzero(bad)[0])
-            raise InputError(f"feed must be > 0 mm/min, got {feed[j]!r}", file=file, row=line_nos[j],
-                             column="feed")
-    feed_dirs = None
-    if feed_dir_cols:
-        f = _unit_vectors(np.stack([values["fx"], values["fy"], values["fz"]], axis=1), rows_no,
-                          "feed direction", "fx,fy,fz", file)
-        fn = _dot(f, normals)
-        bad = np.abs(fn) > TANGENT_TOL
-        if np.any(bad):
-            j = int(np.flatnonzero(bad)[0])
-            raise InputError(f"feed direction is not tangent to the surface (f.n = {fn[j]:.6g}, "
-                             f"|f.n| allowed <= {TANGENT_TOL:g})", file=file, row=line_nos[j],
-                             column="fx,fy,fz")
-        f = f - fn[:, None] * normals
-        feed_dirs = f / np.linalg.norm(f, axis=1)[:, None]
-
-    cc = CCPath(points=points, normals=normals, rows=rows, feed_dirs=feed_dirs, feed=feed, source=file)
-    starts, again = _row_runs(rows)
-    if again is not None:
-        raise InputError(f"row id {rows[again]} reappears after other rows (rows must be contiguous runs)",
-                         file=file, row=line_nos[again], column="row")
-    slices = cc.row_slices()
-    for sl in slices:
-        if sl.stop - sl.start < MIN_ROW_POINTS:
-            raise InputError(f"row id {rows[sl.start]} has {sl.stop - sl.start} point(s); at least "
-                             f"{MIN_ROW_POINTS} are needed", file=file, row=line_nos[sl.start], column="row")
-    step = np.linalg.norm(np.diff(points, axis=0), axis=1)
-    repeat = (step < REPEAT_TOL) & (rows[1:] == rows[:-1])
-    if np.any(repeat):
-        j = int(np.flatnonzero(repeat)[0]) + 1
-        raise InputError(f"point repeats the previous point of row id {rows[j]} "
-                         f"(distance {step[j - 1]:.3g} mm)", file=file, row=line_nos[j], column="x,y,z")
-    return cc
-
-
-def write_cc_csv(path: str | Path, ccpath: CCPath) -> None:
-    """Write ``ccpath`` in the pinned CSV format, atomically, with '%.17g' floats (exact round trip
-    with ``read_cc_csv``). Columns: x,y,z,nx,ny,nz,row[,fx,fy,fz][,feed]."""
-    cols = ["x", "y", "z", "nx", "ny", "nz", "row"]
-    blocks = [ccpath.points, ccpath.normals]
-    if ccpath.feed_dirs is not None:
-        cols += ["fx", "fy", "fz"]
-    if ccpath.feed is not None:
-        cols += ["feed"]
-    fmt_float = "%.17g"
-    parts = [np.char.mod(fmt_float, b) for b in blocks]
-    parts.append(np.char.mod("%d", ccpath.rows.reshape(-1, 1)))
-    if ccpath.feed_dirs is not None:
-        parts.append(np.char.mod(fmt_float, ccpath.feed_dirs))
-    if ccpath.feed is not None:
-        parts.append(np.char.mod(fmt_float, ccpath.feed.reshape(-1, 1)))
-    table = np.concatenate(parts, axis=1) if len(ccpath) else np.zeros((0, len(cols)), dtype=str)
-    body = "\n".join(",".join(r) for r in table.tolist())
-    write_text_atomic(path, ",".join(cols) + "\n" + body + ("\n" if body else ""))
 
 
 def check_normals_against_mesh(path: CCPath, mesh: trimesh.Trimesh, mesh_file: str | None = None) -> None:

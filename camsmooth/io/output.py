@@ -1,4 +1,5 @@
-"""Program outputs: the per-point result CSV and the five-axis G-code.
+"""Program outputs: the per-point result CSV (the five-axis G-code writer is camsmooth.io.gcode;
+``write_gcode`` is re-exported here for existing callers).
 
 Files are written atomically (``camsmooth.io.atomic.atomic_path``): a failed write never leaves a
 partial file. Units in files: mm, s, degrees (radians inside the code; CONVENTIONS.md).
@@ -7,18 +8,19 @@ partial file. Units in files: mm, s, degrees (radians inside the code; CONVENTIO
 from __future__ import annotations
 
 import csv
-import math
 import os
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
-from camsmooth import __version__
-from camsmooth.errors import InfeasibleError, InputError
 from camsmooth.io.atomic import atomic_path
+from camsmooth.io.gcode import DEFAULT_SAFE_HEIGHT_MM, write_gcode
+from camsmooth.io.table import read_table
 from camsmooth.smoothing.result import OUTPUT_COLUMNS, MethodResult, SmoothResult
+
+__all__ = ["RESULT_CSV_COLUMNS", "STATUSES", "INTERFERENCE_TOL_MM", "DEFAULT_SAFE_HEIGHT_MM", "point_status",
+           "write_result_csv", "read_result_csv", "write_gcode"]
 
 #: Columns of the result CSV: OUTPUT_COLUMNS, then ``lift`` (mm) and ``status``.
 RESULT_CSV_COLUMNS: tuple[str, ...] = OUTPUT_COLUMNS + ("lift", "status")
@@ -26,8 +28,6 @@ RESULT_CSV_COLUMNS: tuple[str, ...] = OUTPUT_COLUMNS + ("lift", "status")
 STATUSES: tuple[str, ...] = ("ok", "lifted", "interference", "unreachable")
 #: Clearance below which a point counts as interfering (mm): gouge tolerance of the pipeline.
 INTERFERENCE_TOL_MM = -1e-3
-#: Default retract height between rows, along the tool axis (mm).
-DEFAULT_SAFE_HEIGHT_MM = 10.0
 
 _INT_COLUMNS = ("row", "idx")
 _STR_COLUMNS = ("status",)
@@ -111,191 +111,13 @@ def read_result_csv(path: str | os.PathLike, required: Sequence[str] = OUTPUT_CO
     """Read a result CSV (as written by ``write_result_csv``) into column arrays.
 
     Returns name -> array for every column in the file: ``row`` and ``idx`` int64, ``status``
-    str, all others float (units as in the file: mm, s, degrees). Raises InputError naming the
-    file (and row/column) when the file is missing or empty, a ``required`` column is absent, a
-    row has the wrong number of fields or a value is not a number / not an integer.
+    str, all others float (NaN allowed: an unknown clearance is written as nan; units as in the
+    file: mm, s, degrees). Read by ``camsmooth.io.table.read_table``: InputError naming the file,
+    row and column when the file is missing or empty, a ``required`` column is absent, a row has
+    the wrong number of fields or a value is not a number / not an integer.
     """
-    path = Path(path)
-    try:
-        with open(path, newline="") as fh:
-            lines = [rec for rec in csv.reader(fh) if rec and any(f.strip() for f in rec)]
-    except FileNotFoundError:
-        raise InputError("result file not found", file=str(path)) from None
-    except (UnicodeDecodeError, csv.Error) as exc:
-        raise InputError(f"not a readable CSV file: {exc}", file=str(path)) from None
-    if not lines:
-        raise InputError("empty file (no header)", file=str(path), row=0)
-    header = [h.strip() for h in lines[0]]
-    dup = sorted({h for h in header if header.count(h) > 1})
-    if dup:
-        raise InputError(f"duplicate column(s) {dup}", file=str(path), row=0)
-    for name in required:
-        if name not in header:
-            raise InputError("missing column", file=str(path), row=0, column=name)
-    body = lines[1:]
-    for i, rec in enumerate(body, start=1):
-        if len(rec) != len(header):
-            raise InputError(f"expected {len(header)} fields, got {len(rec)}", file=str(path), row=i)
-    cells = list(zip(*body, strict=True)) if body else [()] * len(header)
-    out: dict[str, np.ndarray] = {}
-    for name, col in zip(header, cells, strict=True):
-        out[name] = _parse_column(col, name, path)
-    return out
-
-
-def _parse_column(col: Sequence[str], name: str, path: Path) -> np.ndarray:
-    if name in _STR_COLUMNS:
-        return np.array([c.strip() for c in col], dtype=str)
-    try:
-        values = np.array(col, dtype=float) if col else np.zeros(0)
-    except ValueError:
-        values = None
-    if values is None:
-        # only on the error path: find the first offending cell to name it
-        for i, c in enumerate(col, start=1):
-            try:
-                float(c)
-            except ValueError:
-                raise InputError(f"not a number: {c!r}", file=str(path), row=i, column=name) from None
-    if name in _INT_COLUMNS:
-        bad = ~np.isfinite(values) | (values != np.round(values))
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise InputError(f"not an integer: {col[i]!r}", file=str(path), row=i + 1, column=name)
-        return values.astype(np.int64)
-    return values
-
-
-# ----------------------------------------------------------------------------------------------
-# G-code
-def _comment(text: str) -> str:
-    """An ISO/Fanuc comment line; parentheses inside a comment end it, so they are replaced."""
-    return "(" + text.replace("(", "[").replace(")", "]").replace("\n", " ") + ")"
-
-
-def _fmt(value: float, decimals: int = 4) -> str:
-    s = f"{value:.{decimals}f}"
-    return "0." + "0" * decimals if s == "-0." + "0" * decimals else s
-
-
-def _move(code: str, xyz: np.ndarray, a_deg: float, b_deg: float, feed: float | None) -> str:
-    words = [code, "X" + _fmt(xyz[0]), "Y" + _fmt(xyz[1]), "Z" + _fmt(xyz[2]),
-             "A" + _fmt(a_deg), "B" + _fmt(b_deg)]
-    if feed is not None:
-        words.append("F" + _fmt(feed, 1))
-    return " ".join(words)
-
-
-def _row_slices(rows: np.ndarray) -> list[slice]:
-    """Contiguous runs of equal row id (rows are contiguous in path order)."""
-    rows = np.asarray(rows)
-    if len(rows) == 0:
-        return []
-    starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
-    ends = np.r_[starts[1:], len(rows)]
-    return [slice(int(s), int(e)) for s, e in zip(starts, ends, strict=True)]
-
-
-def _check_travel(machine: Any, r: MethodResult, A: np.ndarray, B: np.ndarray, xyz: np.ndarray,
-                  what: str) -> None:
-    """InfeasibleError naming axis, limit, row and point when a commanded value is out of travel."""
-    limits = getattr(machine, "limits", {}) or {}
-    for name, values in (("A", A), ("B", B), ("X", xyz[:, 0]), ("Y", xyz[:, 1]), ("Z", xyz[:, 2])):
-        lim = limits.get(name)
-        if lim is None:
-            continue
-        bad = (values < lim.min - 1e-9) | (values > lim.max + 1e-9)
-        if bad.any():
-            i = int(np.argmax(bad))
-            rotary = name in "AB"
-            conv = math.degrees if rotary else float
-            unit = "deg" if rotary else "mm"
-            raise InfeasibleError(
-                f"G-code {what}: axis {name} = {conv(values[i]):.4f} {unit} outside travel "
-                f"[{conv(lim.min):.4f}, {conv(lim.max):.4f}] {unit} "
-                f"at row {int(r.rows[i])}, point {int(r.idx[i])}")
-
-
-def write_gcode(path: str | os.PathLike, result: SmoothResult, machine: Any, cutter: Any, feed_mm_min: float,
-                *, safe_height: float = DEFAULT_SAFE_HEIGHT_MM, check_limits: bool = True) -> Path:
-    """Write the primary method's program as five-axis G-code to ``path`` atomically.
-
-    Layout: a header of comments (machine name, kind, pivot; tool R, r, diameter, shank; method;
-    generating program; inputs), ``G21`` (mm), ``G90`` (absolute), ``G94`` (feed per minute), then
-    per CC point ``G01 X Y Z A B F`` with X, Y, Z = ``result.xyz`` (pivot position, mm, 4
-    decimals; METHODS section 1: pivot = CL + L_p T), A, B in degrees (4 decimals, unwrapped as
-    in the result, not reduced to +-180) and F = ``feed_mm_min``. Each row is entered and left
-    through rapid moves (G00) ``safe_height`` mm up along the tool axis T of that row's first /
-    last point, with A and B held: moving the pivot by h T moves the tool tip by the same h T, so
-    the tool backs out of the surface along its own axis. Between rows the rapid goes from above
-    the last point of one row to above the first point of the next (A, B may turn during this
-    rapid, at the safe height). The program ends with ``M30``.
-
-    With ``check_limits`` (default) every commanded value, including the retract moves, is
-    checked against ``machine.limits`` and an InfeasibleError names the axis, travel, row and
-    point instead of writing a program the controller would reject. Non-finite values raise
-    InputError.
-    """
-    feed = float(feed_mm_min)
-    if not math.isfinite(feed) or feed <= 0:
-        raise InputError(f"feed must be a finite number > 0 mm/min, got {feed_mm_min!r}", column="feed")
-    h = float(safe_height)
-    if not math.isfinite(h) or h < 0:
-        raise InputError(f"safe height must be a finite number >= 0 mm, got {safe_height!r}")
-    r = result.result
-    xyz = np.asarray(r.xyz, dtype=float).reshape(-1, 3)
-    A = np.asarray(r.A, dtype=float)
-    B = np.asarray(r.B, dtype=float)
-    T = np.asarray(r.axis, dtype=float).reshape(-1, 3)
-    finite = np.isfinite(xyz).all(axis=1) & np.isfinite(A) & np.isfinite(B) & np.isfinite(T).all(axis=1)
-    if not finite.all():
-        i = int(np.argmin(finite))
-        raise InputError(f"non-finite axis value at row {int(r.rows[i])}, point {int(r.idx[i])}; "
-                         "cannot write G-code")
-    if check_limits:
-        _check_travel(machine, r, A, B, xyz, "point")
-        _check_travel(machine, r, A, B, xyz + h * T, f"retract ({h:g} mm along the tool axis)")
-
-    lines = _gcode_header(result, machine, cutter, feed, h)
-    a_deg, b_deg = np.degrees(A), np.degrees(B)
-    for sl in _row_slices(r.rows):
-        first, last = sl.start, sl.stop - 1
-        lines.append(_comment(f"row {int(r.rows[first])}: {sl.stop - sl.start} points"))
-        lines.append(_move("G00", xyz[first] + h * T[first], a_deg[first], b_deg[first], None))
-        lines.extend(_move("G01", xyz[i], a_deg[i], b_deg[i], feed) for i in range(sl.start, sl.stop))
-        lines.append(_move("G00", xyz[last] + h * T[last], a_deg[last], b_deg[last], None))
-    lines.append("M30")
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        tmp.write_text("\n".join(lines) + "\n")
-    return path
-
-
-def _gcode_header(result: SmoothResult, machine: Any, cutter: Any, feed: float, h: float) -> list[str]:
-    R, r_c = float(cutter.R), float(cutter.r)
-    diameter = float(getattr(cutter, "diameter", 2.0 * (R + r_c)))
-    shank = getattr(cutter, "shank_length", None)
-    shank_txt = "n/a" if shank is None else f"{float(shank):.4f} mm"
-    head = [
-        _comment(f"generated by camsmooth {__version__} - five-axis tool-axis smoothing"),
-        _comment(f"machine: {getattr(machine, 'name', '?')}, kind {getattr(machine, 'kind', '?')}, "
-                 f"pivot {float(getattr(machine, 'pivot', float('nan'))):.4f} mm"),
-        _comment(f"tool: toroidal R {R:.4f} mm, r {r_c:.4f} mm, diameter {diameter:.4f} mm, "
-                 f"shank {shank_txt}"),
-        _comment(f"method: {result.primary}; {len(result.result)} points"),
-    ]
-    head.extend(_comment(f"input {k}: {v}") for k, v in _simple_items(result.inputs))
-    head += [
-        _comment("X Y Z: pivot position mm; A B: degrees; F: mm/min"),
-        _comment(f"rows are entered and left by G00 {h:.4f} mm up along the tool axis"),
-        "G21",
-        "G90",
-        "G94",
-    ]
-    return head
-
-
-def _simple_items(inputs: dict[str, Any]) -> Iterable[tuple[str, Any]]:
-    for k, v in inputs.items():
-        if isinstance(v, (str, int, float, os.PathLike)) and not isinstance(v, bool):
-            yield str(k), v
+    declared = tuple(dict.fromkeys(list(required) + list(_INT_COLUMNS) + list(_STR_COLUMNS)))
+    table = read_table(path, required, [c for c in declared if c not in required], integer=_INT_COLUMNS,
+                       text=_STR_COLUMNS, nonfinite=[c for c in declared if c not in _INT_COLUMNS],
+                       others="float", min_rows=0, what="result file")
+    return dict(table.columns)

@@ -34,7 +34,6 @@ degrees):
 
 from __future__ import annotations
 
-import csv
 import math
 import os
 import time
@@ -48,6 +47,7 @@ from scipy.optimize import least_squares
 
 from camsmooth.errors import InputError
 from camsmooth.io.atomic import atomic_path
+from camsmooth.io.table import read_table as _read_table
 from camsmooth.machine.kinematics import Machine, load_machine
 from camsmooth.machine.model import (
     GEOMETRIC_PARAMETERS,
@@ -112,47 +112,9 @@ class BallbarData:
 
 def read_table(path: str | os.PathLike, columns: Sequence[str]) -> dict[str, np.ndarray]:
     """Read a numeric CSV with a header row; every listed column must be present and every cell
-    a finite number (InputError naming file, row and column otherwise). Other columns are kept."""
-    path = Path(path)
-    try:
-        with open(path, newline="") as fh:
-            lines = [rec for rec in csv.reader(fh) if rec and any(f.strip() for f in rec)]
-    except FileNotFoundError:
-        raise InputError("measurement file not found", file=str(path)) from None
-    except (UnicodeDecodeError, csv.Error) as exc:
-        raise InputError(f"not a readable CSV file: {exc}", file=str(path)) from None
-    if not lines:
-        raise InputError("empty file (no header)", file=str(path), row=0)
-    header = [h.strip() for h in lines[0]]
-    for name in columns:
-        if name not in header:
-            raise InputError(f"missing column (needed: {', '.join(columns)})", file=str(path), row=0,
-                             column=name)
-    body = lines[1:]
-    if not body:
-        raise InputError("no data rows", file=str(path), row=1)
-    for i, rec in enumerate(body, start=1):
-        if len(rec) != len(header):
-            raise InputError(f"expected {len(header)} fields, got {len(rec)}", file=str(path), row=i)
-    out: dict[str, np.ndarray] = {}
-    for j, name in enumerate(header):
-        col = [rec[j] for rec in body]
-        try:
-            values = np.array(col, dtype=float)
-        except ValueError:
-            for i, c in enumerate(col, start=1):
-                try:
-                    float(c)
-                except ValueError:
-                    raise InputError(f"not a number: {c!r}", file=str(path), row=i, column=name) from None
-            raise
-        bad = ~np.isfinite(values)
-        if bad.any() and name in columns:
-            i = int(np.argmax(bad))
-            raise InputError(f"not a finite number: {col[i].strip()!r}", file=str(path), row=i + 1,
-                             column=name)
-        out[name] = values
-    return out
+    a finite number (InputError naming file, row and column otherwise). Other columns are kept
+    (as floats). Parsing and row numbering: camsmooth.io.table.read_table."""
+    return dict(_read_table(path, columns, others="float", what="measurement file").columns)
 
 
 def _write_csv(path: str | os.PathLike, columns: Sequence[str], data: Sequence[np.ndarray],

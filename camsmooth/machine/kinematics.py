@@ -206,16 +206,41 @@ class AxisLimits:
     amax: float = float("inf")
 
 
+#: controller dialects of the G-code writer (camsmooth.io.gcode)
+POST_DIALECTS = ("generic", "linuxcnc", "fanuc", "heidenhain", "siemens")
+#: "machine": joint positions (X Y Z = pivot, A B) with inverse-time feed; "tcp": tool-tip
+#: coordinates and A B under the controller's tool-centre-point command
+POST_MODES = ("machine", "tcp")
+
+
+@dataclass(frozen=True)
+class PostConfig:
+    """How G-code is written for this machine (``[post]`` table of the machine file).
+
+    dialect: one of POST_DIALECTS; mode: one of POST_MODES (camsmooth.io.gcode documents both);
+    tool: the tool number the program calls / whose length offset TCP uses (default 1);
+    tcp_on, tcp_off: override the dialect's tool-centre-point commands (e.g. a LinuxCNC
+    configuration's own M-codes), None for the dialect's default.
+    """
+
+    dialect: str = "generic"
+    mode: str = "machine"
+    tool: int = 1
+    tcp_on: str | None = None
+    tcp_off: str | None = None
+
+
 @dataclass(frozen=True)
 class Machine:
     """A five-axis machine: its name, kind, pivot length (mm, head pivot to tool tip), the
-    chain and the limits per axis (radians inside the code)."""
+    chain, the limits per axis (radians inside the code) and the G-code post settings."""
 
     name: str
     kind: str
     pivot: float
     chain: Chain
     limits: Mapping[str, AxisLimits] = field(default_factory=dict)
+    post: PostConfig = field(default_factory=PostConfig)
 
     # ---- forward kinematics ----------------------------------------------------------------
     def tool_pose(self, A: Entry, B: Entry, X: Entry = 0.0, Y: Entry = 0.0, Z: Entry = 0.0
@@ -379,6 +404,13 @@ max = 1000.0
 [axis.Z]
 min = -1000.0
 max = 1000.0
+
+# G-code post (camsmooth.io.gcode): dialect = "generic" | "linuxcnc" | "fanuc" | "heidenhain" |
+# "siemens"; mode = "machine" (joint positions, inverse-time feed G93) | "tcp" (tool tip and A B
+# under the controller's tool-centre-point command, F = tip feed).
+[post]
+dialect = "generic"
+mode = "machine"
 """
 
 
@@ -466,7 +498,37 @@ def machine_from_dict(data: Mapping[str, Any], source: str = "<machine>") -> Mac
         if lo >= hi:
             raise InputError(f"[axis.{ax}] min {lo:g} must be below max {hi:g}", file=source)
         limits[ax] = AxisLimits(lo, hi)
-    return Machine(name, kind, pivot, ab_head_chain(pivot), limits)
+    return Machine(name, kind, pivot, ab_head_chain(pivot), limits,
+                   post_from_dict(data.get("post", {}), source))
+
+
+def post_from_dict(table: Any, source: str = "<machine>") -> PostConfig:
+    """The ``[post]`` table of a machine file as a PostConfig (defaults: generic, machine)."""
+    from camsmooth.errors import InputError
+
+    if not isinstance(table, Mapping):
+        raise InputError("[post] must be a table", file=source)
+    unknown = sorted(set(table) - {"dialect", "mode", "tool", "tcp_on", "tcp_off"})
+    if unknown:
+        raise InputError(f"unknown key(s) {unknown} in [post] (known: dialect, mode, tool, tcp_on, tcp_off)",
+                         file=source)
+    dialect = table.get("dialect", "generic")
+    if dialect not in POST_DIALECTS:
+        raise InputError(f"[post] dialect = {dialect!r} is not supported (supported: "
+                         f"{', '.join(repr(d) for d in POST_DIALECTS)})", file=source)
+    mode = table.get("mode", "machine")
+    if mode not in POST_MODES:
+        raise InputError(f"[post] mode = {mode!r} is not supported (supported: 'machine', 'tcp')", file=source)
+    tool = table.get("tool", 1)
+    if isinstance(tool, bool) or not isinstance(tool, int) or tool < 0:
+        raise InputError(f"[post] tool must be an integer >= 0, got {tool!r}", file=source)
+    cmds = {}
+    for key in ("tcp_on", "tcp_off"):
+        v = table.get(key)
+        if v is not None and (not isinstance(v, str) or not v.strip() or "\n" in v):
+            raise InputError(f"[post] {key} must be one line of text, got {v!r}", file=source)
+        cmds[key] = None if v is None else v.strip()
+    return PostConfig(dialect=dialect, mode=mode, tool=tool, **cmds)
 
 
 def load_machine(path: str | None = None) -> Machine:

@@ -153,7 +153,7 @@ def smooth(path: CCPath, surface: Surface, machine: Machine | None = None, cutte
     if method not in METHODS:
         raise InputError(f"unknown method {method!r} (choose from {', '.join(METHODS)})")
     if not isinstance(path, CCPath):
-        raise InputError(f"path must be a CCPath (read one with camsmooth.geometry.paths.read_cc_csv), got "
+        raise InputError(f"path must be a CCPath (read one with camsmooth.io.ccpath.read_cc_csv), got "
                          f"{type(path).__name__}")
     if not isinstance(surface, Surface):
         raise InputError(f"surface must be a Surface (load one with camsmooth.geometry.surfaces.load_surface), "

@@ -1,0 +1,576 @@
+"""APT CLDATA in the Siemens NX CLSF dialect -> CLProgram (tool tip and axis per point, mm).
+
+Records read (one per line; ``MAJOR/arg,arg,...`` or a bare major word):
+
+- ``$$`` starts a comment (to the end of the line); a line ending in a single ``$`` continues on
+  the next line (APT continuation).
+- ``TOOL PATH/name,TOOL,toolname``: starts a tool path (operation); ``END-OF-PATH`` ends it.
+  Points outside any tool path form an unnamed one.
+- ``TLDATA/MILL,D,R,L,taper,tip[,...]``: the tool path's milling cutter: diameter D, lower corner
+  radius R, length L (file units). Other ``TLDATA/`` kinds are kept by name, without dimensions.
+- ``LOAD/TOOL,n[,ADJUST,m]`` and ``LOADTL/n``: the tool number.
+- ``MSYS/x,y,z,a,b,c,d,e,f``: the machine coordinate system (MCS) the following points are given
+  in: origin (x, y, z) and the unit X (a, b, c) and Y (d, e, f) axes of the MCS in the absolute
+  (workpiece) frame; Z = X x Y. Points and axes are mapped to the workpiece frame:
+  p_W = o + [X Y Z] p_MCS, T_W = [X Y Z] T_MCS.
+- ``UNITS/MM`` or ``UNITS/INCHES`` (``INCH``): the length unit. NX often writes no UNITS record for
+  an inch part, only inch feeds: without UNITS the unit is taken from the feed units in the file
+  (IPM/IPR -> inch, MMPM/MMPR -> mm), else mm (with a warning), unless ``units=`` says. Inch
+  coordinates, radii, tool dimensions and feeds are converted to mm (1 in = 25.4 mm).
+- ``FEDRAT/[MMPM|IPM|MMPR|IPR|PERMIN|PERREV,]f`` (either order): the feed of the following moves,
+  converted to mm/min (per-revolution feeds times the ``SPINDL/[RPM,]n`` speed).
+- ``RAPID``: the next motion record is a rapid move (APT RAPID is not modal).
+- ``GOTO/x,y,z`` and ``GOTO/x,y,z,i,j,k``: a tool tip position and, when given, the unit tool
+  axis (tip -> spindle); the axis is modal (APT starts with (0, 0, 1)). Lines holding only
+  numbers after a GOTO are further points of it (multi-point GOTO). ``FROM/`` is read as a
+  rapid position.
+- ``CIRCLE/xc,yc,zc,i,j,k,r,t,f,d,e``: the next GOTO ends an arc about the centre c and axis
+  (i, j, k) of radius r, starting at the current point; NX gives the axis "assuming a clockwise
+  direction", i.e. the tool moves clockwise about (i, j, k) (counter-clockwise about -(i, j, k)).
+  The arc (a helix when start and end differ along the axis) is replaced by chords whose
+  deviation from it is at most ``chord_tol`` mm. A full circle when start = end. ``TIMES,n``
+  (multi-turn helix) is refused.
+- Known records that do not change the geometry (PAINT, PPRINT, PARTNO, COOLNT, SPINDL, SELECT,
+  INSERT, DISPLY, OPSKIP, OPSTOP, STOP, FINI, SET, MACHIN, CLRSRF) are skipped; any other record
+  is listed once among the warnings with the lines it appears on (``CUTCOM``, ``CYCLE`` ... are
+  not applied).
+
+Sources for the record formats: Siemens NX documentation, "User Defined Operations and CLSF ->
+CLSF Manager" (CIRCLE/ argument list, quoted on the Siemens PLM community forum thread "Circle
+record explanation"); the MSYS/ and TLDATA/MILL argument lists as documented in STEP Tools'
+APT-to-STEP-NC converter (apt2step, Apache-2.0) and the PTC Creo "CLDATA output for circular
+interpolation" page (CIRCLE/x,y,z,i,j,k,r after the start GOTO, end GOTO after it); the APT
+``$`` continuation and ``$$`` comment syntax and the non-modal RAPID as in that converter.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from camsmooth.errors import InputError
+from camsmooth.geometry.paths import UNIT_TOL
+from camsmooth.io.program import CLProgram, Tool, ToolPath
+from camsmooth.io.table import read_text_file
+
+__all__ = ["read_apt", "INCH_MM", "DEFAULT_CHORD_TOL"]
+
+INCH_MM = 25.4
+#: default chordal tolerance of the arc interpolation (mm)
+DEFAULT_CHORD_TOL = 1e-3
+_SKIPPED = {"PAINT", "PPRINT", "PARTNO", "COOLNT", "SELECT", "INSERT", "DISPLY", "OPSKIP", "OPSTOP", "STOP",
+            "FINI", "SET", "MACHIN", "CLRSRF", "REMARK", "PPFUN"}
+_UNIT_WORDS = {"MM": "mm", "MILLIMETERS": "mm", "INCHES": "inch", "INCH": "inch", "IN": "inch"}
+_FEED_UNIT = {"MMPM": ("mm", False), "IPM": ("inch", False), "MMPR": ("mm", True), "IPR": ("inch", True),
+              "PERMIN": (None, False), "PERREV": (None, True)}
+
+
+@dataclass(slots=True)
+class _Record:
+    line: int
+    major: str
+    args: list[str] | None  # None: a plain GOTO whose arguments are split when needed
+    text: str
+    run: list[str] | None = None  # major "GOTO-RUN": consecutive plain GOTO lines from ``line`` on
+
+    def split(self) -> list[str]:
+        if self.args is None:
+            self.args = [a.strip() for a in self.text.partition("/")[2].split(",")]
+        return self.args
+
+
+def _records(text: str) -> list[_Record]:
+    """Logical records: comments dropped, continuation lines joined, major word upper-cased."""
+    out: list[_Record] = []
+    pending: tuple[int, str] | None = None
+    for number, raw in enumerate(text.split("\n"), start=1):
+        if pending is None and raw.startswith("GOTO/") and "$" not in raw:
+            # the hot path: consecutive plain GOTO lines are kept as one run, parsed at once later
+            last = out[-1] if out else None
+            if last is not None and last.run is not None and last.line + len(last.run) == number:
+                last.run.append(raw)
+            else:
+                out.append(_Record(number, "GOTO-RUN", None, "", [raw]))
+            continue
+        body = raw.split("$$", 1)[0].rstrip() if "$" in raw else raw.rstrip()
+        if pending is not None:
+            start, prefix = pending
+            body = prefix + body.strip()
+        else:
+            start = number
+        if body.endswith("$"):
+            pending = (start, body[:-1].rstrip())
+            continue
+        pending = None
+        body = body.strip()
+        if not body:
+            continue
+        major, slash, rest = body.partition("/")
+        args = [a.strip() for a in rest.split(",")] if slash else []
+        out.append(_Record(start, major.strip().upper(), args, body))
+    if pending is not None:
+        out.append(_Record(pending[0], pending[1].partition("/")[0].strip().upper(),
+                           [a.strip() for a in pending[1].partition("/")[2].split(",")], pending[1]))
+    return out
+
+
+def _numbers(rec: _Record, file: str, what: str, counts: tuple[int, ...], args: list[str] | None = None
+             ) -> list[float]:
+    args = rec.args if args is None else args
+    if len(args) not in counts:
+        want = " or ".join(str(c) for c in counts)
+        raise InputError(f"malformed {what}: expected {want} numbers, got {len(args)} ({rec.text!r})", file=file,
+                         line=rec.line)
+    out = []
+    for a in args:
+        try:
+            v = float(a)
+        except ValueError:
+            raise InputError(f"malformed {what}: {a!r} is not a number ({rec.text!r})", file=file,
+                             line=rec.line) from None
+        if not math.isfinite(v):
+            raise InputError(f"malformed {what}: {a!r} is not a finite number", file=file, line=rec.line)
+        out.append(v)
+    return out
+
+
+def _goto_numbers(rec: _Record, file: str, what: str, args: list[str]) -> list[float]:
+    """The 3 or 6 numbers of a GOTO (fast path; the checked parser names what is wrong)."""
+    try:
+        v = [float(a) for a in args]
+    except ValueError:
+        v = []
+    if len(v) in (3, 6) and math.isfinite(sum(v)):
+        return v
+    return _numbers(rec, file, what, (3, 6), args)
+
+
+def _unit_tuple(i: float, j: float, k: float, rec: _Record, file: str) -> tuple[float, float, float]:
+    n = math.sqrt(i * i + j * j + k * k)
+    if n < 1e-12 or abs(n - 1.0) > UNIT_TOL:
+        _unit_axis(np.array([i, j, k]), rec, file, "tool axis (i, j, k)")
+    return (i / n, j / n, k / n)
+
+
+def _unit_axis(v: np.ndarray, rec: _Record, file: str, what: str) -> np.ndarray:
+    n = float(np.linalg.norm(v))
+    if n < 1e-12 or abs(n - 1.0) > UNIT_TOL:
+        raise InputError(f"{what} ({', '.join(f'{x:g}' for x in v)}) is not a unit vector (length {n:.9g}, "
+                         f"allowed 1 +- {UNIT_TOL:g})", file=file, line=rec.line)
+    return v / n
+
+
+def _file_unit(recs: list[_Record], file: str, units: str | None, warnings: list[str]) -> str:
+    if units is not None:
+        if units not in ("mm", "inch"):
+            raise InputError(f"units must be 'mm' or 'inch', got {units!r}", file=file)
+        return units
+    for r in recs:
+        if r.major == "UNITS":
+            word = r.args[0].upper() if r.args else ""
+            if word not in _UNIT_WORDS:
+                raise InputError(f"unknown units {word or r.text!r} (expected UNITS/MM or UNITS/INCHES)", file=file,
+                                 line=r.line)
+            return _UNIT_WORDS[word]
+    seen: dict[str, int] = {}
+    for r in recs:
+        if r.major == "FEDRAT":
+            for a in r.args:
+                u = _FEED_UNIT.get(a.upper(), (None, False))[0]
+                if u is not None:
+                    seen.setdefault(u, r.line)
+    if len(seen) == 2:
+        raise InputError(f"cannot tell the length unit: no UNITS/ record and both inch feeds (line {seen['inch']}) "
+                         f"and mm feeds (line {seen['mm']})", file=file)
+    if seen:
+        return next(iter(seen))
+    warnings.append("no UNITS/ record and no feed unit: lengths read as mm")
+    return "mm"
+
+
+def _msys(rec: _Record, file: str, scale: float) -> np.ndarray:
+    v = _numbers(rec, file, "MSYS", (9,))
+    X = _unit_axis(np.array(v[3:6]), rec, file, "MSYS X axis")
+    Y = _unit_axis(np.array(v[6:9]), rec, file, "MSYS Y axis")
+    if abs(float(X @ Y)) > 1e-4:
+        raise InputError(f"MSYS axes are not perpendicular (X.Y = {float(X @ Y):.3g})", file=file, line=rec.line)
+    Y = Y - (X @ Y) * X
+    Y /= np.linalg.norm(Y)
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([X, Y, np.cross(X, Y)])
+    T[:3, 3] = np.array(v[:3]) * scale
+    return T
+
+
+@dataclass
+class _Arc:
+    centre: np.ndarray
+    axis: np.ndarray
+    radius: float
+    line: int
+
+
+@dataclass
+class _State:
+    """Points in MCS coordinates, in blocks (numpy) and a pending list of single points."""
+
+    file: str
+    scale: float
+    unit: str
+    chord_tol: float
+    blocks: list[tuple[np.ndarray, ...]] = field(default_factory=list)
+    pending: list[tuple] = field(default_factory=list)  # (p, axis, rapid, feed, line, xform)
+    done: int = 0
+    last: tuple | None = None
+
+    @property
+    def count(self) -> int:
+        return self.done + len(self.pending)
+
+    def add(self, p: tuple, a: tuple, rapid: bool, feed: float, line: int, xform: int) -> None:
+        self.pending.append((p, a, rapid, math.nan if rapid else feed, line, xform))
+        self.last = p
+
+    def flush(self) -> None:
+        if self.pending:
+            p, a, r, f, ln, x = zip(*self.pending, strict=True)
+            self.blocks.append((np.asarray(p, float), np.asarray(a, float), np.asarray(r, bool),
+                                np.asarray(f, float), np.asarray(ln, np.int64), np.asarray(x, np.int64)))
+            self.done += len(self.pending)
+            self.pending = []
+
+    def add_block(self, P: np.ndarray, T: np.ndarray, rapid: np.ndarray, feed: np.ndarray, line: np.ndarray,
+                  xform: int) -> None:
+        self.flush()
+        self.blocks.append((P, T, rapid, feed, line, np.full(len(P), xform, np.int64)))
+        self.done += len(P)
+        self.last = tuple(P[-1].tolist())
+
+    def arrays(self) -> tuple[np.ndarray, ...]:
+        self.flush()
+        return tuple(np.concatenate([b[k] for b in self.blocks]) for k in range(6))
+
+
+def _bulk_goto(run: list[str], scale: float, axis: tuple) -> tuple[np.ndarray, np.ndarray] | None:
+    """Tips (n, 3) and modal axes (n, 3) of a run of plain GOTO records parsed at once (numpy), or
+    None when any record is malformed (the record-by-record path then names it)."""
+    import io
+
+    rests = [r[5:] for r in run]
+    n = len(run)
+    try:  # the usual case: every record of the run has the same count (3 or 6)
+        arr = np.loadtxt(io.StringIO("\n".join(rests)), delimiter=",", ndmin=2, comments=None)
+        counts = np.full(n, arr.shape[1], dtype=np.int64) if arr.shape[0] == n else None
+    except ValueError:
+        counts = None
+    if counts is None:
+        counts = np.fromiter((x.count(",") for x in rests), dtype=np.int64, count=n) + 1
+        arr = None
+    if not np.isin(counts, (3, 6)).all():
+        return None
+    P = np.empty((n, 3))
+    given = np.full(n, -1, dtype=np.int64)
+    V = np.zeros((0, 3))
+    for c in (3, 6):
+        sel = np.flatnonzero(counts == c)
+        if not len(sel):
+            continue
+        if arr is not None:
+            part = arr
+        else:
+            try:
+                part = np.loadtxt(io.StringIO("\n".join(rests[k] for k in sel)), delimiter=",", ndmin=2,
+                                  comments=None)
+            except ValueError:
+                return None
+        if part.shape != (len(sel), c) or not np.isfinite(part).all():
+            return None
+        P[sel] = part[:, :3]
+        if c == 6:
+            norm = np.linalg.norm(part[:, 3:], axis=1)
+            if ((norm < 1e-12) | (np.abs(norm - 1.0) > UNIT_TOL)).any():
+                return None
+            V = part[:, 3:] / norm[:, None]
+            given[sel] = np.arange(len(sel))
+    ff = np.maximum.accumulate(given)
+    T = np.where((ff >= 0)[:, None], V[np.maximum(ff, 0)] if len(V) else 0.0, np.asarray(axis, float))
+    return P * scale, T
+
+
+def _arc_points(p0: np.ndarray, p1: np.ndarray, arc: _Arc, tol: float, file: str) -> np.ndarray:
+    """Intermediate points (k-1, 3) of the arc from p0 to p1 (both excluded), chordal deviation <= tol.
+
+    Rotation: clockwise about arc.axis (NX CLSF convention), i.e. by the right-hand rule about
+    n = -axis; the height along n and the radius vary linearly with the angle (helix)."""
+    n = -arc.axis
+    v0, v1 = p0 - arc.centre, p1 - arc.centre
+    h0, h1 = float(v0 @ n), float(v1 @ n)
+    u0, u1 = v0 - h0 * n, v1 - h1 * n
+    r0, r1 = float(np.linalg.norm(u0)), float(np.linalg.norm(u1))
+    slack = max(10 * tol, 1e-3 * arc.radius, 1e-4)
+    for r, which in ((r0, "start"), (r1, "end")):
+        if abs(r - arc.radius) > slack:
+            raise InputError(f"CIRCLE: the arc's {which} point is {r:.6g} mm from the axis, the radius is "
+                             f"{arc.radius:.6g} mm", file=file, line=arc.line)
+    phi = math.atan2(float(np.cross(u0, u1) @ n), float(u0 @ u1))
+    if phi <= 1e-12:
+        phi += 2.0 * math.pi  # the sweep is in (0, 2 pi]; start = end is a full circle
+    r = max(r0, r1)
+    step = 2.0 * math.acos(max(-1.0, 1.0 - tol / r)) if tol < r else math.pi / 2
+    k = max(1, math.ceil(phi / min(step, math.pi / 2)))
+    s = np.arange(1, k) / k
+    th = phi * s
+    e1 = u0 / r0
+    e2 = np.cross(n, e1)
+    rad = r0 + (r1 - r0) * s
+    hh = h0 + (h1 - h0) * s
+    return arc.centre + (rad * np.cos(th))[:, None] * e1 + (rad * np.sin(th))[:, None] * e2 + hh[:, None] * n
+
+
+def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, units: str | None = None
+             ) -> CLProgram:
+    """Read an APT CLDATA / NX CLSF file (module docstring) as a CLProgram in mm, workpiece frame.
+
+    chord_tol: chordal tolerance of the CIRCLE interpolation (mm). units: 'mm' or 'inch' to
+    override the unit found in the file. InputError naming the file and line for a malformed
+    GOTO / CIRCLE / MSYS / FEDRAT / TLDATA, unknown units, a tool axis or MSYS axis that is not
+    unit, a CIRCLE not followed by a GOTO, a multi-turn helix, a file without any position.
+    """
+    file = str(path)
+    if not (chord_tol > 0 and math.isfinite(chord_tol)):
+        raise InputError(f"chord_tol must be a finite number > 0 mm, got {chord_tol!r}", file=file)
+    recs = _records(read_text_file(path, "APT file"))
+    warnings: list[str] = []
+    unit = _file_unit(recs, file, units, warnings)
+    st = _State(file=file, scale=INCH_MM if unit == "inch" else 1.0, unit=unit, chord_tol=chord_tol)
+    transforms: list[np.ndarray] = [np.eye(4)]
+    cur_xform = 0
+    axis = (0.0, 0.0, 1.0)
+    feed = math.nan
+    feed_unit: tuple[str | None, bool] = (None, False)
+    rpm: float | None = None
+    rapid_next = False
+    arc: _Arc | None = None
+    unknown: dict[str, list[int]] = {}
+    toolpaths: list[ToolPath] = []
+    open_tp: ToolPath | None = None
+    last_tool: Tool | None = None
+    tool_name: str | None = None
+    last_motion = ""
+    record_rapid = False
+
+    def start_toolpath(name: str | None, line: int | None) -> ToolPath:
+        tp = ToolPath(name=name, tool=None, start=st.count, stop=st.count, line=line,
+                      transform=transforms[cur_xform].copy())
+        toolpaths.append(tp)
+        return tp
+
+    def add_point(p: tuple, a: tuple, rapid: bool, line: int) -> None:
+        nonlocal open_tp
+        if open_tp is None:
+            open_tp = start_toolpath(None, None)
+        st.add(p, a, rapid, feed, line, cur_xform)
+
+    queue: deque[_Record] = deque()
+    i = 0
+    while i < len(recs) or queue:
+        if queue:
+            rec = queue.popleft()
+        else:
+            rec = recs[i]
+            i += 1
+        m = rec.major
+        if m == "GOTO-RUN":
+            texts = rec.run or []
+            if arc is not None:  # the first GOTO ends an arc: on its own, then the rest as a run
+                queue.appendleft(_Record(rec.line, "GOTO", None, texts[0].rstrip()))
+                if len(texts) > 1:
+                    queue.insert(1, _Record(rec.line + 1, "GOTO-RUN", None, "", texts[1:]))
+                continue
+            got = _bulk_goto(texts, st.scale, axis) if len(texts) >= 16 else None
+            if got is None:  # short, or something to report: record by record
+                queue.extendleft(_Record(rec.line + k, "GOTO", None, t.rstrip()) for k, t in
+                                 reversed(list(enumerate(texts))))
+                continue
+            P, Tm = got
+            if open_tp is None:
+                open_tp = start_toolpath(None, None)
+            rap = np.zeros(len(P), dtype=bool)
+            rap[0] = rapid_next
+            st.add_block(P, Tm, rap, np.where(rap, np.nan, feed), np.arange(rec.line, rec.line + len(P)), cur_xform)
+            axis = tuple(Tm[-1].tolist())
+            rapid_next = record_rapid = False
+            last_motion = "GOTO"
+            continue
+        if m in ("GOTO", "FROM") or (rec.args == [] and last_motion == "GOTO" and _is_numbers(rec.text)):
+            if m not in ("GOTO", "FROM"):  # a further point of a multi-point GOTO
+                args = [a.strip() for a in rec.text.split(",")]
+            else:
+                args = rec.split()
+            v = _goto_numbers(rec, file, m, args)
+            sc = st.scale
+            p = (v[0] * sc, v[1] * sc, v[2] * sc)
+            if len(v) == 6:
+                axis = _unit_tuple(v[3], v[4], v[5], rec, file)
+            if m != "GOTO" and m != "FROM":
+                rapid = record_rapid  # further points of a multi-point GOTO move like its first
+            else:
+                rapid = rapid_next or m == "FROM"
+                record_rapid = rapid
+            if arc is not None:
+                if st.last is None:
+                    raise InputError("CIRCLE before any position: the arc has no start point", file=file,
+                                     line=arc.line)
+                for q in _arc_points(np.array(st.last), np.array(p), arc, chord_tol, file).tolist():
+                    add_point(tuple(q), axis, rapid, rec.line)
+                arc = None
+            add_point(p, axis, rapid, rec.line)
+            if m == "GOTO":
+                rapid_next = False  # RAPID holds for the whole motion record (all its points)
+                last_motion = "GOTO"
+            continue
+        last_motion = m
+        if m == "RAPID":
+            rapid_next = True
+        elif m == "FEDRAT":
+            words = [a.upper() for a in rec.args if a and not _is_number(a)]
+            nums = [a for a in rec.args if _is_number(a)]
+            if len(nums) != 1 or len(words) > 1 or (words and words[0] not in _FEED_UNIT):
+                raise InputError(f"malformed FEDRAT: expected FEDRAT/[MMPM|IPM|MMPR|IPR,]f ({rec.text!r})",
+                                 file=file, line=rec.line)
+            if words:
+                feed_unit = _FEED_UNIT[words[0]]
+            value = float(nums[0])
+            if not (value > 0 and math.isfinite(value)):
+                raise InputError(f"FEDRAT must be > 0, got {nums[0]}", file=file, line=rec.line)
+            length, per_rev = feed_unit
+            scale = INCH_MM if (length or unit) == "inch" else 1.0
+            if per_rev:
+                if not rpm:
+                    raise InputError("feed per revolution without a spindle speed (SPINDL/RPM,n)", file=file,
+                                     line=rec.line)
+                value *= rpm
+            feed = value * scale
+        elif m == "SPINDL":
+            nums = [float(a) for a in rec.args if _is_number(a)]
+            if nums:
+                rpm = abs(nums[0])
+        elif m == "CIRCLE":
+            args = rec.args
+            if "TIMES" in [a.upper() for a in args]:
+                raise InputError("CIRCLE with TIMES (a helix of several turns) is not supported", file=file,
+                                 line=rec.line)
+            v = _numbers(rec, file, "CIRCLE", tuple(range(7, 12)), args)
+            c_axis = _unit_axis(np.array(v[3:6]), rec, file, "CIRCLE axis")
+            if not v[6] > 0:
+                raise InputError(f"CIRCLE radius must be > 0, got {v[6]:g}", file=file, line=rec.line)
+            arc = _Arc(np.array(v[:3]) * st.scale, c_axis, v[6] * st.scale, rec.line)
+        elif m == "MSYS":
+            transforms.append(_msys(rec, file, st.scale))
+            cur_xform = len(transforms) - 1
+            if open_tp is not None and open_tp.start == st.count:
+                open_tp.transform = transforms[cur_xform].copy()
+        elif m == "UNITS":
+            word = rec.args[0].upper() if rec.args else ""
+            if word not in _UNIT_WORDS:
+                raise InputError(f"unknown units {word or rec.text!r} (expected UNITS/MM or UNITS/INCHES)", file=file,
+                                 line=rec.line)
+            if units is None:
+                unit = _UNIT_WORDS[word]
+                st.scale = INCH_MM if unit == "inch" else 1.0
+        elif m == "TOOL PATH":
+            if open_tp is not None:
+                open_tp.stop = st.count
+            tool_name = rec.args[2] if len(rec.args) > 2 and rec.args[1].upper() == "TOOL" else None
+            open_tp = start_toolpath(rec.args[0] if rec.args and rec.args[0] else None, rec.line)
+            if last_tool is not None and tool_name is not None and last_tool.name == tool_name:
+                open_tp.tool = last_tool
+        elif m == "END-OF-PATH":
+            if arc is not None:
+                raise InputError("CIRCLE is not followed by a GOTO (the arc has no end point)", file=file,
+                                 line=arc.line)
+            if open_tp is not None:
+                open_tp.stop = st.count
+                open_tp = None
+        elif m == "TLDATA":
+            kind = rec.args[0].lower() if rec.args else ""
+            if kind == "mill":
+                v = _numbers(rec, file, "TLDATA/MILL", tuple(range(3, 12)), rec.args[1:])
+                d, r = v[0] * st.scale, v[1] * st.scale
+                if not (d > 0 and 0 <= r <= d / 2 + 1e-12):
+                    raise InputError(f"TLDATA/MILL: need diameter > 0 and 0 <= corner radius <= diameter / 2, got "
+                                     f"D = {v[0]:g}, R = {v[1]:g}", file=file, line=rec.line)
+                tool = Tool(name=tool_name, kind="mill", diameter=d, corner_radius=min(r, d / 2),
+                            length=v[2] * st.scale, line=rec.line)
+            else:
+                tool = Tool(name=tool_name, kind=kind or "unknown", diameter=None, corner_radius=None, line=rec.line)
+                warnings.append(f"line {rec.line}: TLDATA/{kind.upper()} kept without dimensions (only MILL is read)")
+            if open_tp is None:
+                open_tp = start_toolpath(None, None)
+            open_tp.tool = tool
+            last_tool = tool
+        elif m in ("LOAD", "LOADTL"):
+            nums = [a for a in rec.args if _is_number(a)]
+            if nums and open_tp is not None and open_tp.tool is not None:
+                open_tp.tool = _with_number(open_tp.tool, int(float(nums[0])))
+                last_tool = open_tp.tool
+        elif m in _SKIPPED:
+            pass
+        else:
+            unknown.setdefault(m, []).append(rec.line)
+    if arc is not None:
+        raise InputError("CIRCLE is not followed by a GOTO (the arc has no end point)", file=file, line=arc.line)
+    if open_tp is not None:
+        open_tp.stop = st.count
+    if st.count == 0:
+        raise InputError("no GOTO record: the file holds no tool position", file=file)
+    for major, lines in unknown.items():
+        shown = ", ".join(str(x) for x in lines[:10]) + (f", ... ({len(lines)} in all)" if len(lines) > 10 else "")
+        what = "line" if len(lines) == 1 else "lines"
+        warnings.append(f"record {major} ignored ({what} {shown})")
+    return _program(st, transforms, toolpaths, warnings)
+
+
+def _is_number(s: str) -> bool:
+    try:
+        float(s)
+    except ValueError:
+        return False
+    return True
+
+
+def _is_numbers(text: str) -> bool:
+    parts = [p.strip() for p in text.split(",")]
+    return len(parts) in (3, 6) and all(_is_number(p) for p in parts)
+
+
+def _with_number(tool: Tool, number: int) -> Tool:
+    return Tool(name=tool.name, kind=tool.kind, diameter=tool.diameter, corner_radius=tool.corner_radius,
+                length=tool.length, number=number, line=tool.line)
+
+
+def _program(st: _State, transforms: list[np.ndarray], toolpaths: list[ToolPath], warnings: list[str]) -> CLProgram:
+    P, T, rapid, feed, line, xf = st.arrays()
+    tip, axis = np.empty_like(P), np.empty_like(T)
+    for k, M in enumerate(transforms):  # loop over coordinate systems (few), not points
+        sel = xf == k
+        # einsum: (N, 3) x (3, 3) through BLAS matmul is slower here than the plain sum of products
+        tip[sel] = np.einsum("ij,kj->ik", P[sel], M[:3, :3]) + M[:3, 3]
+        axis[sel] = np.einsum("ij,kj->ik", T[sel], M[:3, :3])
+    # rows: runs of feed moves, split by rapids and by tool path boundaries
+    tp_id = np.full(len(P), -1, dtype=np.int64)
+    for k, tp in enumerate(toolpaths):
+        tp_id[tp.start:tp.stop] = k
+    new = ~rapid & np.r_[True, rapid[:-1] | (tp_id[1:] != tp_id[:-1])]
+    rows = np.where(rapid, -1, np.cumsum(new) - 1)
+    unknown_feed = ~rapid & ~np.isfinite(feed)
+    if unknown_feed.any():
+        lines = line[unknown_feed]
+        warnings.append(f"{int(unknown_feed.sum())} feed move(s) before any FEDRAT (first on line {int(lines[0])}): "
+                        "feed unknown (NaN)")
+    return CLProgram(tip=tip, axis=axis, rows=rows, feed=feed, rapid=rapid, line=line,
+                     toolpaths=toolpaths, source=st.file, format="apt", warnings=warnings)

@@ -1,0 +1,586 @@
+"""Five-axis G-code for real controllers: one writer with per-dialect tables, and a reader of the
+programs it writes (for round trips and ``load_program``).
+
+Dialects (``[post] dialect`` of the machine file, camsmooth.machine.kinematics.PostConfig):
+generic, linuxcnc, fanuc, siemens (ISO G-code) and heidenhain (Klartext, ``L`` blocks).
+Modes (``[post] mode``):
+
+- ``machine``: every block commands the joints, X Y Z = the head pivot (METHODS section 1:
+  pivot = CL + L_p T, no tool length compensation active) and A B, with **inverse-time feed**
+  (G93: F = 1 / block time in 1/min). The block time is the length of the path the tool tip
+  follows while the controller interpolates the joints linearly, divided by the programmed feed
+  of the block, so the tip moves at the programmed feed (a controller in G94 applies F to the
+  combined joint motion instead: LinuxCNC issue #2410, FreeCAD issue #18101). The tip path length
+  is the polyline length of the forward kinematics sampled at 8 and 16 sub-steps per block,
+  Richardson-extrapolated (error O(h^4)).
+  Heidenhain has no inverse-time feed: the TNC reads F on a rotary axis in degrees/min, and M116
+  (F in mm/min on rotary axes) works on rotary tables only, not on swivel heads (HEIDENHAIN
+  iTNC 530 / TNC 640 user's manuals, "Miscellaneous functions for rotary axes, M116"); the
+  writer refuses machine mode for Heidenhain: use mode = "tcp".
+- ``tcp``: every block commands the tool tip X Y Z (workpiece frame, mm) and the rotary axis
+  positions A B under the controller's tool-centre-point function, with F = the programmed tip
+  feed (G94, mm/min): Fanuc ``G43.4 H<tool>`` ... ``G49`` (type 1: rotary axis positions);
+  Siemens ``TRAORI`` ... ``TRAFOOF``; Heidenhain ``FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS``
+  ... ``FUNCTION RESET TCPM`` (the successor of M128, which HEIDENHAIN recommends instead);
+  LinuxCNC has no standard G-code for TCP: it switches to a TCP kinematics (switchkins) by a
+  configuration-defined M-code; the writer uses M429 (TCP, type 1) / M428 (identity, type 0) as
+  in the LinuxCNC 5-axis simulation configurations (LinuxCNC commit 135b0ce, "switchable
+  kinematics"); set ``[post] tcp_on / tcp_off`` for another configuration. The generic dialect
+  has no TCP command and refuses tcp mode.
+
+A and B sign convention (METHODS section 1; RS274NGC / ISO 841, as LinuxCNC's G-code manual
+states under "Rotational axes"): A turns about +X, B about +Y, both by the right-hand rule, and
+describe the tool's rotation relative to the workpiece: the tool axis (tip -> spindle) is
+T(A, B) = Rx(A) Ry(B) e_z = (sin B, -sin A cos B, cos A cos B). So A = +30 deg, B = 0 tilts the
+spindle toward -Y (T = (0, -0.5, 0.866)); A = 0, B = +30 deg toward +X (T = (0.5, 0, 0.866)).
+LinuxCNC issue #2435 lists kinematics modules that turn the other way; check a machine with a
+slow single-axis move before running a program.
+
+Program layout: header comments (machine, tool, method, inputs, post, conventions), the dialect's
+program start (units mm, absolute, plane XY, offsets cancelled), then per row: rapid to a point
+``safe_height`` mm above the row's first point along its tool axis, feed move onto it, the row at
+the programmed feed, rapid back out ``safe_height`` along the last point's axis (the tip backs
+out along its own axis, orientation held); between rows the rapid goes from above the last point
+of one row to above the first of the next (A and B may turn there, at the safe height). Program
+end: the dialect's end (TCP off, the usual retract to the top of Z travel for Fanuc ``G91 G28
+Z0.``, LinuxCNC ``G53 G00 Z0``, Heidenhain ``M140 MB MAX``; none for generic and Siemens), M30.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from camsmooth import __version__
+from camsmooth.errors import InfeasibleError, InputError
+from camsmooth.io.atomic import atomic_path
+from camsmooth.io.program import CLProgram, ToolPath
+from camsmooth.io.table import read_text_file
+from camsmooth.smoothing.result import MethodResult, SmoothResult
+
+__all__ = ["write_gcode", "read_gcode", "tip_path_lengths", "DEFAULT_SAFE_HEIGHT_MM", "DIALECTS"]
+
+#: Default retract height between rows, along the tool axis (mm).
+DEFAULT_SAFE_HEIGHT_MM = 10.0
+#: Sub-steps per block for the tip path length (Richardson with half as many).
+_SUBSTEPS = 16
+
+
+def _paren(text: str) -> str:
+    """An ISO comment; parentheses inside a comment would end it, so they become brackets, and ';' (a
+    comment start for many parsers, pygcode among them) becomes ','."""
+    return "(" + text.replace("(", "[").replace(")", "]").replace(";", ",").replace("\n", " ") + ")"
+
+
+def _semicolon(text: str) -> str:
+    return "; " + text.replace("\n", " ")
+
+
+@dataclass(frozen=True)
+class Dialect:
+    """How one controller family spells a program (see the module docstring)."""
+
+    name: str
+    comment: Callable[[str], str]
+    start: tuple[str, ...]
+    end: tuple[str, ...] = ("M30",)
+    home: tuple[str, ...] = ()
+    tcp_on: str | None = None
+    tcp_off: str | None = None
+    inverse_time: str | None = "G93"
+    per_minute: str = "G94"
+    klartext: bool = False
+    percent: bool = False
+
+
+DIALECTS: dict[str, Dialect] = {
+    "generic": Dialect("generic", _paren, ("G21", "G90", "G17")),
+    "linuxcnc": Dialect("linuxcnc", _paren, ("G21", "G90", "G17", "G40", "G49"), home=("G53 G00 Z0",),
+                        tcp_on="M429", tcp_off="M428"),
+    "fanuc": Dialect("fanuc", _paren, ("G21", "G90", "G17", "G40", "G49", "G80"), home=("G91 G28 Z0.", "G90"),
+                     tcp_on="G43.4 H{tool}", tcp_off="G49", percent=True),
+    "siemens": Dialect("siemens", _semicolon, ("G71", "G90", "G17", "G40"), tcp_on="TRAORI", tcp_off="TRAFOOF"),
+    "heidenhain": Dialect("heidenhain", _semicolon, (), end=("M30",), home=("M140 MB MAX",),
+                          tcp_on="FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS", tcp_off="FUNCTION RESET TCPM",
+                          inverse_time=None, per_minute="", klartext=True),
+}
+_POST_TAG = "camsmooth post:"
+
+
+# ----------------------------------------------------------------------------------------------
+# kinematics helpers
+def tip_path_lengths(machine: Any, q0: np.ndarray, q1: np.ndarray, substeps: int = _SUBSTEPS) -> np.ndarray:
+    """Length (mm) of the tool-tip path of each block when the joints move linearly from q0 to q1.
+
+    q0, q1: (M, 5) joints (X, Y, Z mm = pivot; A, B rad). The tip path tip(s) =
+    machine.tool_pose_np(q0 + s (q1 - q0)), s in [0, 1], is sampled at ``substeps`` and
+    ``substeps / 2`` intervals; the polyline lengths are Richardson-extrapolated (L = L_n +
+    (L_n - L_n/2) / 3) since a polyline's length error falls as 1 / n^2.
+    """
+    q0 = np.atleast_2d(np.asarray(q0, float))
+    q1 = np.atleast_2d(np.asarray(q1, float))
+    s = np.linspace(0.0, 1.0, substeps + 1)
+    q = q0[:, None, :] + s[None, :, None] * (q1 - q0)[:, None, :]
+    flat = q.reshape(-1, 5)
+    tip, _ = machine.tool_pose_np(flat[:, 3], flat[:, 4], flat[:, 0], flat[:, 1], flat[:, 2])
+    tip = tip.reshape(len(q0), substeps + 1, 3)
+    fine = np.linalg.norm(np.diff(tip, axis=1), axis=2).sum(axis=1)
+    coarse = np.linalg.norm(np.diff(tip[:, ::2], axis=1), axis=2).sum(axis=1)
+    return fine + (fine - coarse) / 3.0
+
+
+# ----------------------------------------------------------------------------------------------
+# number formats
+def _fmt(value: float, decimals: int = 4, sign: bool = False) -> str:
+    s = f"{value:.{decimals}f}"
+    if s.lstrip("-").strip("0.") == "":
+        s = "0." + "0" * decimals
+    if sign and not s.startswith("-"):
+        s = "+" + s
+    return s
+
+
+def _fmt_sig(value: float, digits: int = 7, max_decimals: int = 5) -> str:
+    """A positive number with at least ``digits`` significant digits (up to ``max_decimals``
+    decimals), fixed point (controllers do not read exponents)."""
+    exp = math.floor(math.log10(value)) if value > 0 else 0
+    decimals = min(max_decimals, max(1, digits - 1 - exp))
+    return f"{value:.{decimals}f}"
+
+
+# ----------------------------------------------------------------------------------------------
+# writer
+@dataclass
+class _Moves:
+    joints: np.ndarray  # (M, 5) X Y Z (pivot) A B
+    tips: np.ndarray  # (M, 3)
+    rapid: np.ndarray  # (M,) bool
+    feed: np.ndarray  # (M,) mm/min (nan for rapids)
+    row_start: list[tuple[int, int, int]] = field(default_factory=list)  # (move index, row id, points)
+
+
+def _check_travel(machine: Any, rows: np.ndarray, idx: np.ndarray, A: np.ndarray, B: np.ndarray, xyz: np.ndarray,
+                  what: str) -> None:
+    """InfeasibleError naming axis, limit, row and point when a commanded value is out of travel."""
+    limits = getattr(machine, "limits", {}) or {}
+    for name, values in (("A", A), ("B", B), ("X", xyz[:, 0]), ("Y", xyz[:, 1]), ("Z", xyz[:, 2])):
+        lim = limits.get(name)
+        if lim is None:
+            continue
+        bad = (values < lim.min - 1e-9) | (values > lim.max + 1e-9)
+        if bad.any():
+            i = int(np.argmax(bad))
+            rotary = name in "AB"
+            conv = math.degrees if rotary else float
+            unit = "deg" if rotary else "mm"
+            raise InfeasibleError(
+                f"G-code {what}: axis {name} = {conv(values[i]):.4f} {unit} outside travel "
+                f"[{conv(lim.min):.4f}, {conv(lim.max):.4f}] {unit} at row {int(rows[i])}, point {int(idx[i])}")
+
+
+def _row_slices(rows: np.ndarray) -> list[slice]:
+    rows = np.asarray(rows)
+    if len(rows) == 0:
+        return []
+    starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
+    ends = np.r_[starts[1:], len(rows)]
+    return [slice(int(s), int(e)) for s, e in zip(starts, ends, strict=True)]
+
+
+def _moves(rows: np.ndarray, joints: np.ndarray, tips: np.ndarray, T: np.ndarray, feed: np.ndarray,
+           h: float) -> _Moves:
+    """Entry rapid, row points, exit rapid per row (loop over rows, not points)."""
+    J, P, R, F, starts = [], [], [], [], []
+    up = np.zeros((1, 5))
+    count = 0
+    for sl in _row_slices(rows):
+        first, last = sl.start, sl.stop - 1
+        n = sl.stop - sl.start
+        up[0, :3] = h * T[first]
+        lift_first = joints[first:first + 1] + up
+        up_last = np.zeros((1, 5))
+        up_last[0, :3] = h * T[last]
+        lift_last = joints[last:last + 1] + up_last
+        J += [lift_first, joints[sl], lift_last]
+        P += [tips[first:first + 1] + h * T[first], tips[sl], tips[last:last + 1] + h * T[last]]
+        R += [np.array([True]), np.zeros(n, bool), np.array([True])]
+        F += [np.array([np.nan]), feed[sl], np.array([np.nan])]
+        starts.append((count, int(rows[first]), n))
+        count += n + 2
+    if not J:
+        return _Moves(np.zeros((0, 5)), np.zeros((0, 3)), np.zeros(0, bool), np.zeros(0), [])
+    return _Moves(np.concatenate(J), np.concatenate(P), np.concatenate(R), np.concatenate(F), starts)
+
+
+def _block_feeds(machine: Any, mv: _Moves, mode: str) -> tuple[np.ndarray, int]:
+    """F word per move: inverse time (1/min) in machine mode, the tip feed (mm/min) in tcp mode;
+    nan for rapids. Also the number of cut blocks whose tip does not move (time from the rotary
+    axes' speed limits)."""
+    F = np.full(len(mv.rapid), np.nan)
+    cut = np.flatnonzero(~mv.rapid)
+    if mode == "tcp" or len(cut) == 0:
+        F[cut] = mv.feed[cut]
+        return F, 0
+    q0 = mv.joints[cut - 1]  # a row always starts with its entry rapid, so cut - 1 >= 0
+    q1 = mv.joints[cut]
+    L = tip_path_lengths(machine, q0, q1)
+    t = L / mv.feed[cut]  # minutes
+    still = L < 1e-9
+    if still.any():
+        limits = getattr(machine, "limits", {}) or {}
+        rot = np.zeros(int(still.sum()))
+        for k, name in ((3, "A"), (4, "B")):
+            lim = limits.get(name)
+            if lim is not None and np.isfinite(lim.vmax):
+                rot = np.maximum(rot, np.abs(q1[still, k] - q0[still, k]) / lim.vmax / 60.0)
+        t[still] = np.maximum(rot, 1e-6)
+    F[cut] = 1.0 / t
+    return F, int(still.sum())
+
+
+def _header(dialect: Dialect, mode: str, machine: Any, cutter: Any, method: str, inputs: dict[str, Any],
+            n_points: int, h: float, still: int) -> list[str]:
+    c = dialect.comment
+    R, r_c = float(cutter.R), float(cutter.r)
+    diameter = float(getattr(cutter, "diameter", 2.0 * (R + r_c)))
+    shank = getattr(cutter, "shank_length", None)
+    shank_txt = "n/a" if shank is None else f"{float(shank):.4f} mm"
+    pivot = float(getattr(machine, "pivot", float("nan")))
+    head = [
+        c(f"generated by camsmooth {__version__} - five-axis tool-axis smoothing"),
+        c(f"machine: {getattr(machine, 'name', '?')}, kind {getattr(machine, 'kind', '?')}, pivot {pivot:.4f} mm"),
+        c(f"tool: toroidal R {R:.4f} mm, r {r_c:.4f} mm, diameter {diameter:.4f} mm, shank {shank_txt}"),
+        c(f"method: {method}; {n_points} points"),
+    ]
+    head.extend(c(f"input {k}: {v}") for k, v in _simple_items(inputs))
+    head.append(c(f"{_POST_TAG} dialect={dialect.name} mode={mode} units=mm pivot={pivot:.6f}"))
+    if mode == "machine":
+        head.append(c("X Y Z: head pivot position mm (no tool length compensation); A B: degrees"))
+        head.append(c("F: inverse time 1/min (G93), so the tool tip moves at the programmed feed"))
+        if still:
+            head.append(c(f"{still} block(s) turn A/B without moving the tip: timed by the rotary speed limits"))
+    else:
+        head.append(c("X Y Z: tool tip mm, workpiece frame; A B: rotary axis positions, degrees; F: tip feed mm/min"))
+    head.append(c("A B: right-hand rule about +X / +Y, tool relative to workpiece: T = Rx(A) Ry(B) e_z"))
+    head.append(c(f"rows are entered and left by rapids {h:.4f} mm up along the tool axis"))
+    return head
+
+
+def _simple_items(inputs: dict[str, Any]) -> Iterable[tuple[str, Any]]:
+    for k, v in inputs.items():
+        if isinstance(v, (str, int, float, os.PathLike)) and not isinstance(v, bool):
+            yield str(k), v
+
+
+def _iso_block(code: str, q: np.ndarray, f: float | None, f_text: Callable[[float], str]) -> str:
+    words = [code, "X" + _fmt(q[0]), "Y" + _fmt(q[1]), "Z" + _fmt(q[2]), "A" + _fmt(q[3]), "B" + _fmt(q[4])]
+    if f is not None:
+        words.append("F" + f_text(f))
+    return " ".join(words)
+
+
+def _klartext_block(q: np.ndarray, rapid: bool, f: float | None, f_text: Callable[[float], str]) -> str:
+    words = ["L", "X" + _fmt(q[0], sign=True), "Y" + _fmt(q[1], sign=True), "Z" + _fmt(q[2], sign=True),
+             "A" + _fmt(q[3], sign=True), "B" + _fmt(q[4], sign=True)]
+    if rapid:
+        words += ["R0", "FMAX"]
+    elif f is not None:
+        words.append("F" + f_text(f))
+    return " ".join(words)
+
+
+def write_gcode(path: str | os.PathLike, result: SmoothResult | MethodResult, machine: Any, cutter: Any,
+                feed_mm_min: float | np.ndarray, *, safe_height: float = DEFAULT_SAFE_HEIGHT_MM,
+                check_limits: bool = True, dialect: str | None = None, mode: str | None = None,
+                program_name: str = "CAMSMOOTH") -> Path:
+    """Write a method's program as five-axis G-code to ``path`` atomically (module docstring).
+
+    result: a SmoothResult (its primary method) or one MethodResult: rows, idx, cl (tool tip,
+    mm), axis (unit, tip -> spindle), A, B (rad), xyz (pivot, mm), all workpiece frame.
+    feed_mm_min: the programmed tip feed, mm/min, one number or one per point (the feed of the
+    move that ends at the point; a row's first value also sets its entry move). dialect, mode:
+    override ``machine.post`` (camsmooth.machine.kinematics.PostConfig). safe_height: retract
+    along the tool axis between rows (mm). Coordinates are written with 4 decimals (mm, deg).
+
+    With ``check_limits`` every commanded joint value (pivot X Y Z, A, B), the retracts included,
+    is checked against ``machine.limits``: InfeasibleError naming the axis, travel, row and point.
+    InputError for a feed that is not finite and > 0, non-finite coordinates, an unknown dialect or
+    mode, machine mode on Heidenhain, tcp mode on the generic dialect.
+    """
+    post = getattr(machine, "post", None)
+    dname = dialect or (post.dialect if post is not None else "generic")
+    mode = mode or (post.mode if post is not None else "machine")
+    if dname not in DIALECTS:
+        raise InputError(f"unknown G-code dialect {dname!r} (known: {', '.join(DIALECTS)})")
+    if mode not in ("machine", "tcp"):
+        raise InputError(f"unknown G-code mode {mode!r} (known: machine, tcp)")
+    d = DIALECTS[dname]
+    tool_no = int(getattr(post, "tool", 1) if post is not None else 1)
+    tcp_on = (getattr(post, "tcp_on", None) if post is not None else None) or d.tcp_on
+    tcp_off = (getattr(post, "tcp_off", None) if post is not None else None) or d.tcp_off
+    if mode == "machine" and d.inverse_time is None:
+        raise InputError("Heidenhain controls have no inverse-time feed and M116 does not apply to swivel heads, "
+                         "so machine mode cannot hold the tip feed: set [post] mode = \"tcp\" (FUNCTION TCPM)")
+    if mode == "tcp" and tcp_on is None:
+        raise InputError(f"the {dname} dialect has no tool-centre-point command: set [post] dialect to linuxcnc, "
+                         "fanuc, heidenhain or siemens, or mode = \"machine\"")
+    h = float(safe_height)
+    if not math.isfinite(h) or h < 0:
+        raise InputError(f"safe height must be a finite number >= 0 mm, got {safe_height!r}")
+
+    if isinstance(result, SmoothResult):
+        r, method, inputs = result.result, result.primary, result.inputs
+    else:
+        r, method, inputs = result, result.method, {}
+    rows = np.asarray(r.rows, dtype=np.int64)
+    idx = np.asarray(r.idx, dtype=np.int64)
+    xyz = np.asarray(r.xyz, dtype=float).reshape(-1, 3)
+    A = np.asarray(r.A, dtype=float)
+    B = np.asarray(r.B, dtype=float)
+    T = np.asarray(r.axis, dtype=float).reshape(-1, 3)
+    tip = np.asarray(r.cl, dtype=float).reshape(-1, 3)
+    n = len(rows)
+    feed_in = np.asarray(feed_mm_min, dtype=float)
+    if feed_in.ndim == 0:
+        if not (math.isfinite(float(feed_in)) and float(feed_in) > 0):
+            raise InputError(f"feed must be a finite number > 0 mm/min, got {float(feed_in)!r}", column="feed")
+        feed = np.full(n, float(feed_in))
+    else:
+        if feed_in.shape != (n,):
+            raise InputError(f"feed has {feed_in.size} values for {n} points", column="feed")
+        feed = feed_in.astype(float)
+        bad = ~(np.isfinite(feed) & (feed > 0))
+        if bad.any():
+            k = int(np.argmax(bad))
+            raise InputError(f"feed must be a finite number > 0 mm/min at row {int(rows[k])}, point {int(idx[k])}, "
+                             f"got {float(feed[k])!r}", column="feed")
+    finite = (np.isfinite(xyz).all(axis=1) & np.isfinite(A) & np.isfinite(B) & np.isfinite(T).all(axis=1)
+              & np.isfinite(tip).all(axis=1))
+    if not finite.all():
+        i = int(np.argmin(finite))
+        raise InputError(f"non-finite axis value at row {int(rows[i])}, point {int(idx[i])}; cannot write G-code")
+    if check_limits:
+        _check_travel(machine, rows, idx, A, B, xyz, "point")
+        _check_travel(machine, rows, idx, A, B, xyz + h * T, f"retract ({h:g} mm along the tool axis)")
+
+    joints = np.column_stack([xyz, A, B])
+    mv = _moves(rows, joints, tip, T, feed, h)
+    # the controller runs the values as written (4 decimals, mm and degrees): time the blocks on those
+    mv.joints[:, :3] = np.round(mv.joints[:, :3], 4)
+    mv.joints[:, 3:] = np.radians(np.round(np.degrees(mv.joints[:, 3:]), 4))
+    mv.tips = np.round(mv.tips, 4)
+    F, still = _block_feeds(machine, mv, mode)
+    lines = _program_open(d, program_name) + _header(d, mode, machine, cutter, method, inputs, n, h, still)
+    lines += _program_start(d, mode, tcp_on, tool_no)
+    deg = np.degrees
+    coords = np.column_stack([mv.joints[:, :3] if mode == "machine" else mv.tips, deg(mv.joints[:, 3:])])
+    f_text = _fmt_sig if mode == "machine" else (lambda v: _fmt(v, 1))
+    starts = {s: (row, cnt) for s, row, cnt in mv.row_start}
+    last_f: float | None = None
+    for m in range(len(coords)):  # one formatted line per block
+        if m in starts:
+            row, cnt = starts[m]
+            lines.append(d.comment(f"row {row}: {cnt} points"))
+        f: float | None = None
+        if not mv.rapid[m]:
+            f = float(F[m])
+            # F is modal in G94 and in Klartext: written when it changes or after a rapid
+            if mode == "tcp" and f == last_f and not mv.rapid[m - 1]:
+                f = None
+            else:
+                last_f = f
+        if d.klartext:
+            lines.append(_klartext_block(coords[m], bool(mv.rapid[m]), f, f_text))
+        else:
+            lines.append(_iso_block("G00" if mv.rapid[m] else "G01", coords[m], f, f_text))
+    lines += _program_end(d, mode, tcp_off, program_name)
+    if d.klartext:
+        lines = [f"{k} {ln}" for k, ln in enumerate(lines)]
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        tmp.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def _program_open(d: Dialect, name: str) -> list[str]:
+    """What must come first: Heidenhain's BEGIN PGM line, Fanuc's tape start and program number."""
+    if d.klartext:
+        return [f"BEGIN PGM {name} MM"]
+    if d.percent:
+        return ["%", f"O0001 {_paren(name)}"]
+    return []
+
+
+def _program_start(d: Dialect, mode: str, tcp_on: str | None, tool: int) -> list[str]:
+    if d.klartext:
+        out = [f"TOOL CALL {tool} Z"]
+        if mode == "tcp":
+            out.append(tcp_on or "")
+        return out
+    out = list(d.start)
+    if mode == "machine":
+        out.append(d.inverse_time or "")
+    else:
+        out.append(d.per_minute)
+        out.append((tcp_on or "").format(tool=tool))
+    return out
+
+
+def _program_end(d: Dialect, mode: str, tcp_off: str | None, name: str) -> list[str]:
+    out = []
+    if mode == "tcp" and tcp_off:
+        out.append(tcp_off)
+    if mode == "machine" and d.per_minute:
+        out.append(d.per_minute)
+    out += list(d.home) + list(d.end)
+    if d.klartext:
+        out.append(f"END PGM {name} MM")
+    if d.percent:
+        out.append("%")
+    return out
+
+
+# ----------------------------------------------------------------------------------------------
+# reader
+_WORD = re.compile(r"([A-Z])\s*([+-]?(?:\d+\.?\d*|\.\d+))")
+
+
+def _strip_comment(line: str, klartext: bool) -> str:
+    line = line.split(";", 1)[0]
+    if not klartext:
+        line = re.sub(r"\(.*?\)", "", line)
+    return line.strip()
+
+
+def read_gcode(path: str | os.PathLike, machine: Any = None) -> CLProgram:
+    """Read a program written by ``write_gcode`` (any dialect, either mode) as a CLProgram.
+
+    Tips and axes come from the blocks through the machine's kinematics: machine mode
+    tip, axis = machine.tool_pose_np(A, B, X, Y, Z); tcp mode tip = (X, Y, Z), axis =
+    machine.tool_axis_np(A, B). machine: a camsmooth Machine; None builds the nominal AB head with
+    the pivot length named in the file's header. Feed per point: tcp mode F; machine mode the
+    block's tip path length x F (inverse time); a G94 machine-mode file (older camsmooth output)
+    gives F as written, with a warning. Rapid blocks split rows; their points have row -1.
+    """
+    from camsmooth.machine.kinematics import Machine, ab_head_chain, load_machine
+
+    file = str(path)
+    text = read_text_file(path, "G-code file")
+    lines = text.split("\n")
+    tag = next((ln for ln in lines[:60] if _POST_TAG in ln), None)
+    info = dict(re.findall(r"(\w+)=([\w.+-]+)", tag.split(_POST_TAG, 1)[1])) if tag else {}
+    klartext = any("BEGIN PGM" in ln for ln in lines[:5])
+    dialect = info.get("dialect") or ("heidenhain" if klartext else "generic")
+    warnings: list[str] = []
+    if tag is None:
+        warnings.append("no camsmooth post header: read as generic G-code")
+    if machine is None:
+        base = load_machine(None)
+        pivot = float(info.get("pivot", base.pivot))
+        machine = Machine(base.name, base.kind, pivot, ab_head_chain(pivot), {}, base.post)
+    mode = info.get("mode")
+    tcp_words = {d.tcp_on.split()[0] for d in DIALECTS.values() if d.tcp_on}
+    joints: list[list[float]] = []
+    rapid: list[bool] = []
+    fword: list[float] = []
+    line_no: list[int] = []
+    inverse = False
+    inv_flag: list[bool] = []
+    units_inch = False
+    state = {"X": math.nan, "Y": math.nan, "Z": math.nan, "A": math.nan, "B": math.nan}
+    motion = None
+    f_modal = math.nan
+    tcp_seen = False
+    for k, raw in enumerate(lines, start=1):
+        s = _strip_comment(raw, klartext)
+        if not s or s.startswith("%"):
+            continue
+        if klartext:
+            s = re.sub(r"^\d+\s+", "", s)
+            if s.split()[0] in ("FUNCTION",) and "TCPM" in s and "RESET" not in s:
+                tcp_seen = True
+            if not s.startswith("L "):
+                continue
+            words = dict((w, float(v)) for w, v in _WORD.findall(s[2:].replace("FMAX", "")))
+            is_rapid = "FMAX" in s
+            if "F" in words:
+                f_modal = words["F"]
+        else:
+            if s.split()[0] in tcp_words:
+                tcp_seen = True
+            words_l = _WORD.findall(s.upper())
+            if any(w == "G" and float(v) in (28.0, 53.0, 91.0) for w, v in words_l):
+                continue  # returns to the reference point / machine coordinates: not part of the path
+            words = {}
+            for w, v in words_l:
+                if w == "G":
+                    g = float(v)
+                    if g in (0.0, 1.0):
+                        motion = int(g)
+                    elif g == 93.0:
+                        inverse = True
+                    elif g == 94.0:
+                        inverse = False
+                    elif g == 20.0:
+                        units_inch = True
+                    elif g == 43.4:
+                        tcp_seen = True
+                elif w in state or w == "F":
+                    words[w] = float(v)
+            if "F" in words:
+                f_modal = words["F"]
+            if motion is None or not any(w in state for w in words):
+                continue
+            is_rapid = motion == 0
+        if not any(w in state for w in words):
+            continue
+        for w in state:
+            if w in words:
+                state[w] = words[w]
+        if any(math.isnan(v) for v in state.values()):
+            missing = [w for w, v in state.items() if math.isnan(v)]
+            raise InputError(f"first motion block does not give {', '.join(missing)}", file=file, line=k)
+        joints.append([state[w] for w in ("X", "Y", "Z", "A", "B")])
+        rapid.append(is_rapid)
+        fword.append(math.nan if is_rapid else f_modal)
+        inv_flag.append(inverse)
+        line_no.append(k)
+    if not joints:
+        raise InputError("no motion block (G00/G01 or L with X Y Z A B)", file=file)
+    if units_inch:
+        raise InputError("inch programs (G20) are not read: camsmooth writes mm", file=file)
+    if mode is None:
+        mode = "tcp" if tcp_seen else "machine"
+    q = np.asarray(joints, dtype=float)
+    q[:, 3:] = np.radians(q[:, 3:])
+    rap = np.asarray(rapid, dtype=bool)
+    F = np.asarray(fword, dtype=float)
+    if mode == "machine":
+        tip, axis = machine.tool_pose_np(q[:, 3], q[:, 4], q[:, 0], q[:, 1], q[:, 2])
+        feed = np.full(len(q), np.nan)
+        cut = np.flatnonzero(~rap[1:]) + 1
+        inv = np.asarray(inv_flag, dtype=bool)[cut]
+        feed[cut] = np.where(inv, tip_path_lengths(machine, q[cut - 1], q[cut]) * F[cut], F[cut])
+        if not inv.all():
+            warnings.append("machine-mode program in feed per minute (G94): F applies to the joint motion, the tool "
+                            "tip feed is not known; feed = F as written")
+        if not rap[0]:
+            feed[0] = np.nan
+    else:
+        tip = q[:, :3].copy()
+        axis = machine.tool_axis_np(q[:, 3], q[:, 4])
+        feed = np.where(rap, np.nan, F)
+    new = ~rap & np.r_[True, rap[:-1]]
+    rows = np.where(rap, -1, np.cumsum(new) - 1)
+    tp = ToolPath(name=Path(file).stem, tool=None, start=0, stop=len(q), line=None)
+    prog = CLProgram(tip=tip, axis=axis, rows=rows, feed=feed, rapid=rap, line=np.asarray(line_no), toolpaths=[tp],
+                     source=file, format="gcode", warnings=warnings, angles=q[:, 3:])
+    prog.warnings.append(f"dialect {dialect}, mode {mode}")
+    return prog

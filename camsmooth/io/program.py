@@ -1,0 +1,275 @@
+"""Programs as they come in: the typed result of every program reader, and ``load_program``, the
+one entry point that picks the reader from the file's content (trimesh.exchange.load style: one
+loader per format, registered in ``LOADERS``).
+
+A cutter-location (CL) program is a sequence of tool poses: the tool tip (the centre of the
+cutter's bottom face, CONVENTIONS.md) and the unit tool axis from the tip toward the spindle, in
+the workpiece frame, mm. Formats and their readers:
+
+=========  =====================================  ==========================================
+format     reader                                 gives
+=========  =====================================  ==========================================
+apt        camsmooth.io.apt.read_apt              CLProgram (APT CLDATA, NX CLSF dialect)
+cl-csv     camsmooth.io.clcsv.read_cl_csv         CLProgram (x,y,z,i,j,k[,row][,feed])
+gcode      camsmooth.io.gcode.read_gcode          CLProgram (camsmooth's own G-code, any dialect)
+cc-csv     camsmooth.io.ccpath.read_cc_csv        CCPath (contact points and normals)
+=========  =====================================  ==========================================
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from camsmooth.errors import InputError
+from camsmooth.geometry.paths import CCPath
+
+__all__ = ["Tool", "ToolPath", "CLProgram", "load_program", "detect_format", "FORMATS", "LOADERS"]
+
+
+@dataclass(frozen=True)
+class Tool:
+    """A cutter as a CAM program declares it (APT ``TLDATA/MILL,D,R,L,...``).
+
+    kind: 'mill' (others as named by the file, lower case). diameter D and corner_radius r in
+    mm; a toroidal cutter has ring radius R = D/2 - r (CONVENTIONS.md: D = 2 (R + r)); a ball
+    end mill has r = D/2, a flat end mill r = 0. length: mm or None. name: the CAM tool name;
+    number: the tool number (``LOAD/TOOL,n``) or None. line: the line of the record that defined
+    it.
+    """
+
+    name: str | None
+    kind: str
+    diameter: float | None
+    corner_radius: float | None
+    length: float | None = None
+    number: int | None = None
+    line: int | None = None
+
+    @property
+    def ring_radius(self) -> float | None:
+        """R = D/2 - r (mm), the radius of the corner's centre circle; None when unknown."""
+        if self.diameter is None or self.corner_radius is None:
+            return None
+        return 0.5 * self.diameter - self.corner_radius
+
+
+@dataclass
+class ToolPath:
+    """One tool path (CAM operation) of a program: points ``start:stop`` of the CLProgram.
+
+    name: the operation name (``TOOL PATH/name``) or None; tool: the cutter or None when the file
+    declares none; line: the line that started it (None for formats without tool paths);
+    transform: the 4x4 MCS -> workpiece transform applied to its first point (identity when none).
+    """
+
+    name: str | None
+    tool: Tool | None
+    start: int
+    stop: int
+    line: int | None = None
+    transform: np.ndarray = field(default_factory=lambda: np.eye(4))
+
+    @property
+    def points(self) -> slice:
+        return slice(self.start, self.stop)
+
+
+@dataclass
+class CLProgram:
+    """A cutter-location program, per point in machining order.
+
+    tip: (N, 3) tool tip, mm, workpiece frame. axis: (N, 3) unit tool axis (tip -> spindle) or
+    None where the format gives none. rows: (N,) int64: cutting rows are runs of feed moves,
+    numbered 0, 1, ... over the whole program; a rapid move splits rows and its end point has row
+    -1. feed: (N,) mm/min of the move that ends at the point (NaN at rapid points and where the
+    file sets no feed). rapid: (N,) bool, the point is reached by a rapid move. line: (N,) int64
+    the line (data row for CSV) of the record that produced the point. toolpaths: contiguous
+    point ranges with name and tool. angles: (N, 2) commanded rotary angles A, B (rad) when the
+    file commands them (G-code) else None. source: the file; format: the reader's format name;
+    warnings: messages naming lines (records ignored, assumptions made).
+    """
+
+    tip: np.ndarray
+    axis: np.ndarray | None
+    rows: np.ndarray
+    feed: np.ndarray
+    rapid: np.ndarray
+    line: np.ndarray
+    toolpaths: list[ToolPath]
+    source: str | None = None
+    format: str = "cl"
+    warnings: list[str] = field(default_factory=list)
+    angles: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        self.tip = np.asarray(self.tip, dtype=float).reshape(-1, 3)
+        n = len(self.tip)
+        if self.axis is not None:
+            self.axis = np.asarray(self.axis, dtype=float).reshape(-1, 3)
+        self.rows = np.asarray(self.rows, dtype=np.int64).reshape(-1)
+        self.feed = np.asarray(self.feed, dtype=float).reshape(-1)
+        self.rapid = np.asarray(self.rapid, dtype=bool).reshape(-1)
+        self.line = np.asarray(self.line, dtype=np.int64).reshape(-1)
+        if self.angles is not None:
+            self.angles = np.asarray(self.angles, dtype=float).reshape(-1, 2)
+        for name in ("axis", "rows", "feed", "rapid", "line", "angles"):
+            a = getattr(self, name)
+            if a is not None and len(a) != n:
+                raise ValueError(f"CLProgram.{name} has {len(a)} entries for {n} points")
+
+    def __len__(self) -> int:
+        return len(self.tip)
+
+    def row_slices(self) -> list[slice]:
+        """Index ranges of the cutting rows (runs of equal row id >= 0), in order."""
+        r = self.rows
+        if len(r) == 0:
+            return []
+        starts = np.flatnonzero(np.r_[True, r[1:] != r[:-1]])
+        ends = np.r_[starts[1:], len(r)]
+        return [slice(int(s), int(e)) for s, e in zip(starts, ends, strict=True) if r[s] >= 0]
+
+    def cutting(self) -> CLProgram:
+        """A copy with the cutting points only (rapid points dropped; rows, tool paths and
+        angles kept). A tool path keeps its place with an empty range when all its points are
+        rapids."""
+        keep = self.rows >= 0
+        new_index = np.cumsum(np.r_[0, keep.astype(np.int64)])
+        tps = [ToolPath(tp.name, tp.tool, int(new_index[tp.start]), int(new_index[tp.stop]), tp.line,
+                        tp.transform) for tp in self.toolpaths]
+        return CLProgram(tip=self.tip[keep], axis=None if self.axis is None else self.axis[keep],
+                         rows=self.rows[keep], feed=self.feed[keep], rapid=self.rapid[keep], line=self.line[keep],
+                         toolpaths=tps, source=self.source, format=self.format, warnings=list(self.warnings),
+                         angles=None if self.angles is None else self.angles[keep])
+
+    def toolpath_of(self, index: int) -> ToolPath | None:
+        """The tool path holding point ``index`` (None if none does)."""
+        for tp in self.toolpaths:
+            if tp.start <= index < tp.stop:
+                return tp
+        return None
+
+    def require_axis(self) -> np.ndarray:
+        """The tool axes; InputError naming the file when the program has none."""
+        if self.axis is None:
+            raise InputError("the program gives no tool axis (a 3-axis program?)", file=self.source)
+        return self.axis
+
+    def require_tool(self, toolpath: ToolPath) -> Tool:
+        """The tool path's mill, with diameter and corner radius; InputError naming the file and
+        the line of the tool path when the file gives none (for APT: no ``TLDATA/MILL`` record)."""
+        tool = toolpath.tool
+        what = f"tool path '{toolpath.name}'" if toolpath.name else "the program"
+        where = f" (line {toolpath.line})" if toolpath.line is not None else ""
+        if tool is None:
+            hint = " (no TLDATA/MILL record)" if self.format == "apt" else ""
+            raise InputError(f"{what}{where} declares no tool{hint}: the cutter's diameter and corner radius "
+                             "are unknown", file=self.source, row=None)
+        if tool.kind != "mill" or tool.diameter is None or tool.corner_radius is None:
+            raise InputError(f"{what}{where}: tool '{tool.name}' is a {tool.kind} without diameter and corner "
+                             f"radius (line {tool.line}); a milling cutter (TLDATA/MILL) is needed",
+                             file=self.source)
+        return tool
+
+
+# ----------------------------------------------------------------------------------------------
+# format detection and the entry point
+FORMATS = ("apt", "cl-csv", "cc-csv", "gcode")
+_ALIASES = {"cls": "apt", "clsf": "apt", "cldata": "apt", "apt": "apt", "cl": "cl-csv", "cl-csv": "cl-csv",
+            "cc": "cc-csv", "cc-csv": "cc-csv", "gcode": "gcode", "nc": "gcode", "g-code": "gcode"}
+_APT_RECORD = re.compile(r"^\s*(TOOL PATH/|GOTO/|TLDATA/|MSYS/|FEDRAT/|RAPID\s*$|LOADTL/|LOAD/|PARTNO|UNITS/|"
+                         r"CIRCLE/|END-OF-PATH|FROM/|\$\$)", re.IGNORECASE | re.MULTILINE)
+_GCODE_LINE = re.compile(r"^\s*(%|O\d+|N\d+|G\d|M\d|\(|;|\d+\s+BEGIN PGM|BEGIN PGM|T\d|TRAORI)",
+                         re.IGNORECASE | re.MULTILINE)
+_EXTENSIONS = {".cls": "apt", ".clsf": "apt", ".apt": "apt", ".aptsource": "apt", ".cl": "apt",
+               ".nc": "gcode", ".ngc": "gcode", ".gcode": "gcode", ".tap": "gcode", ".mpf": "gcode",
+               ".h": "gcode", ".ptp": "gcode", ".cnc": "gcode"}
+
+
+def detect_format(path: str | os.PathLike, head: str | None = None) -> str:
+    """The format of a program file ('apt', 'cl-csv', 'cc-csv' or 'gcode') from its content: APT
+    records, a CSV header naming x,y,z and nx,ny,nz (CC) or i,j,k (CL), G-code blocks; the
+    extension decides only when the content does not. InputError when neither tells."""
+    file = str(path)
+    if head is None:
+        try:
+            with open(path, "rb") as fh:
+                raw = fh.read(65536)
+        except FileNotFoundError:
+            raise InputError("cannot read the program: file not found", file=file) from None
+        except OSError as exc:
+            raise InputError(f"cannot read the program: {exc.strerror or exc}", file=file) from None
+        head = raw.decode("utf-8-sig", errors="replace").replace("\r", "\n")
+    first = next((ln for ln in head.split("\n") if ln.strip()), "")
+    names = {h.strip().strip('"').lower() for h in re.split(r"[,;\t]", first)}
+    if {"x", "y", "z"} <= names:
+        if {"nx", "ny", "nz"} <= names:
+            return "cc-csv"
+        if {"i", "j", "k"} <= names:
+            return "cl-csv"
+    if _APT_RECORD.search(head):
+        return "apt"
+    if _GCODE_LINE.search(head):
+        return "gcode"
+    ext = Path(file).suffix.lower()
+    if ext in _EXTENSIONS:
+        return _EXTENSIONS[ext]
+    if ext == ".csv":
+        raise InputError(f"a CSV program needs a header naming x,y,z and i,j,k (CL) or nx,ny,nz (CC); "
+                         f"the first line is {first.strip()[:80]!r}", file=file, row=0)
+    raise InputError("cannot tell the program's format from its content (APT/CLSF, CL CSV, CC CSV or G-code); "
+                     "name it with format=", file=file)
+
+
+def _read_cc(path: str | os.PathLike, **_: Any) -> CCPath:
+    from camsmooth.io.ccpath import read_cc_csv
+
+    return read_cc_csv(path)
+
+
+def _read_apt(path: str | os.PathLike, **kw: Any) -> CLProgram:
+    from camsmooth.io.apt import read_apt
+
+    return read_apt(path, **{k: v for k, v in kw.items() if k in ("chord_tol", "units")})
+
+
+def _read_cl(path: str | os.PathLike, **_: Any) -> CLProgram:
+    from camsmooth.io.clcsv import read_cl_csv
+
+    return read_cl_csv(path)
+
+
+def _read_gcode(path: str | os.PathLike, **kw: Any) -> CLProgram:
+    from camsmooth.io.gcode import read_gcode
+
+    return read_gcode(path, **{k: v for k, v in kw.items() if k in ("machine",)})
+
+
+#: format name -> loader(path, **options); options a loader does not take are ignored
+LOADERS: dict[str, Callable[..., CLProgram | CCPath]] = {
+    "apt": _read_apt, "cl-csv": _read_cl, "cc-csv": _read_cc, "gcode": _read_gcode}
+
+
+def load_program(source: str | os.PathLike, format: str | None = None, **options: Any) -> CLProgram | CCPath:
+    """Read a program file: APT/CLSF, CL CSV or camsmooth's own G-code give a CLProgram, a CC CSV
+    a CCPath.
+
+    format: None (detected from the content, ``detect_format``) or one of FORMATS (aliases: cls,
+    clsf, cldata, cl, cc, nc). options: ``chord_tol`` (mm, APT arc interpolation), ``units``
+    ('mm' or 'inch', APT files without UNITS/ or feed units), ``machine`` (camsmooth Machine,
+    G-code in machine mode); a reader ignores options it does not take.
+    """
+    if format is None:
+        fmt = detect_format(source)
+    else:
+        fmt = _ALIASES.get(str(format).lower())
+        if fmt is None:
+            raise InputError(f"unknown program format {format!r} (known: {', '.join(FORMATS)})", file=str(source))
+    return LOADERS[fmt](source, **options)
