@@ -368,9 +368,9 @@ def test_diagnose_disk_full_on_the_report_leaves_no_findings_or_model(capsys, ws
 
 
 def test_path_disk_full_leaves_nothing(capsys, ws, monkeypatch):
-    import camsmooth.geometry.paths as paths
+    import camsmooth.io.ccpath as ccpath
 
-    monkeypatch.setattr(paths, "write_cc_csv", _disk_full)
+    monkeypatch.setattr(ccpath, "write_cc_csv", _disk_full)
     fails(capsys, ws, ["path", "--surface", "plane.ply", "--raster", "--cutter-radius", "4", "--corner-radius", "1",
                        "--stepover", "10", "--spacing", "5", "-o", "cc.csv"], "cc.csv", "No space")
 

@@ -227,9 +227,11 @@ def run_demo(args: argparse.Namespace) -> int:
 
     samples = Path(args.samples) if args.samples else SAMPLES_DIR
     name = args.sample
-    path, mesh = samples / f"{name}_path.csv", samples / f"{name}.ply"
+    path = samples / f"{name}_path.csv"
+    mesh = next((m for m in (samples / f"{name}.ply", samples / f"{name}.stl") if m.is_file()), samples / f"{name}.ply")
     if not path.is_file() or not mesh.is_file():
-        raise InputError(f"sample {name!r} not found in {samples} (expected {path.name} and {mesh.name})")
+        raise InputError(f"sample {name!r} not found in {samples} (expected {path.name} and {name}.ply or "
+                         f"{name}.stl)")
     out = Path(args.out)
     csv, nc, rep = out / f"{name}_smoothed.csv", out / f"{name}_smoothed.nc", out / "report"
     cutter = ToroidalCutter(R=4.0, r=1.0)
@@ -317,7 +319,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("demo", help="smooth a shipped sample and write the CSV, G-code and report")
     p.add_argument("--out", default="demo_out", help="output folder (default demo_out); the report goes to OUT/report")
-    p.add_argument("--sample", default="blade", help="sample name in surfaces/ (blade, saddle, mould)")
+    p.add_argument("--sample", default="blade", help="sample name in surfaces/ (blade, saddle, mould, wave)")
     p.add_argument("--samples", default=None, help="folder of the samples (default: the repository's surfaces/)")
     p.add_argument("--force", action="store_true", help="replace the folder OUT/report whole")
     p.add_argument("--quiet", action="store_true")
