@@ -68,8 +68,9 @@ def _method(seed: int = 3) -> tuple[MethodResult, np.ndarray]:
     n = len(rows)
     idx = np.concatenate([np.arange(np.sum(rows == k)) for k in range(3)])
     z0 = np.zeros(n)
-    m = MethodResult("nlp", rows, idx, z0, cl, T, cl, T, z0, z0, A, B, z0, z0, z0, z0, MACHINE.linear_axes(cl, T),
-                     z0, z0, np.zeros((n, 2)), np.zeros((n, 2)), z0)
+    m = MethodResult(method="nlp", rows=rows, idx=idx, t=z0, cc=cl, normals=T, cl=cl, axis=T, lead=z0, tilt=z0, A=A,
+                     B=B, A_vel=z0, B_vel=z0, A_acc=z0, B_acc=z0, xyz=MACHINE.linear_axes(cl, T), delta=z0, lift=z0,
+                     lead_window=np.zeros((n, 2)), tilt_window=np.zeros((n, 2)), compound_acc=z0)
     feed = 600.0 + 900.0 * rng.random(n)
     return m, feed
 
@@ -209,8 +210,9 @@ def test_sign_convention_in_written_program(tmp_path):
     ik = MACHINE.solve_row(T, cl)
     n = 3
     z0 = np.zeros(n)
-    m = MethodResult("cam", np.zeros(n, int), np.arange(n), z0, cl, T, cl, T, z0, z0, ik.A, ik.B, z0, z0, z0, z0,
-                     ik.xyz, z0, z0, np.zeros((n, 2)), np.zeros((n, 2)), z0)
+    m = MethodResult(method="cam", rows=np.zeros(n, int), idx=np.arange(n), t=z0, cc=cl, normals=T, cl=cl, axis=T,
+                     lead=z0, tilt=z0, A=ik.A, B=ik.B, A_vel=z0, B_vel=z0, A_acc=z0, B_acc=z0, xyz=ik.xyz, delta=z0,
+                     lift=z0, lead_window=np.zeros((n, 2)), tilt_window=np.zeros((n, 2)), compound_acc=z0)
     text = write_gcode(tmp_path / "s.nc", m, MACHINE, CUTTER, 500.0, dialect="linuxcnc", mode="tcp").read_text()
     blocks, _ = _pygcode_blocks(text, "linuxcnc")
     cut = np.array([b["pos"] for b in blocks if not b["rapid"]])

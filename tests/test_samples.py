@@ -47,11 +47,28 @@ def closest_on_mesh(mesh: trimesh.Trimesh, points: np.ndarray, k: int = 32) -> t
 
 
 def test_the_shipped_set():
-    assert sorted(p.stem for p in HERE.glob("*.toml")) == sorted(SAMPLES)
+    assert sorted(p.stem for p in HERE.glob("*.toml")) == sorted(SAMPLES + ("wave",))
     for name in SAMPLES:
         for f in (f"{name}.toml", f"{name}.ply", f"{name}_path.csv"):
             assert 0 < (HERE / f).stat().st_size < MAX_BYTES, f
+    for f in ("wave.toml", "wave.stl", "wave_path.csv"):
+        assert 0 < (HERE / f).stat().st_size < MAX_BYTES, f
     assert not list(HERE.glob("bump*"))
+
+
+def test_wave_is_an_unaligned_cad_like_mesh_with_concave_troughs():
+    """The wave sample's STL is a uniform 0.3 mm grid like a CAD export, not aligned with the
+    path: the CC points lie within its chord error of the mesh, on both sides; the troughs along
+    the rows are concave with radius down to 20 mm (closed form: 1 / (A kx^2))."""
+    s = load_definition(HERE / "wave.toml")
+    mesh = load_surface(HERE / "wave.stl").mesh
+    path = read_cc_csv(HERE / "wave_path.csv")
+    d, face = closest_on_mesh(mesh, path.points)
+    side = np.sum((path.points - mesh.triangles_center[face]) * mesh.face_normals[face], axis=1)
+    assert d.max() < 1e-3 and (side > 1e-5).any() and (side < -1e-5).any()
+    assert abs(1.0 / (s.amplitude * s.kx ** 2) - 20.0) < 0.05
+    counts = np.array([sl.stop - sl.start for sl in path.row_slices()])
+    assert len(counts) == 30 and counts.min() >= 190 and np.allclose(path.feed, 2000.0)
 
 
 def test_path_shape_and_feed(sample):

@@ -253,11 +253,11 @@ class RowNLP:
     """
 
     def __init__(self, machine: Machine, n: int, *, ipopt_options: dict | None = None,
-                 screening: bool | None = None) -> None:
+                 screening: bool | None = None, backoff: float = BACKOFF) -> None:
         t0 = time.perf_counter()
         if n < 3:
             raise InfeasibleError(f"a row needs at least 3 points to smooth, got {n}")
-        self.machine, self.n = machine, n
+        self.machine, self.n, self.backoff = machine, n, float(backoff)
         self.screening = n >= SCREEN_MIN_POINTS if screening is None else screening
         self.options = {"ipopt.print_level": 0, "print_time": 0, "ipopt.sb": "yes", "ipopt.max_iter": 500,
                         "ipopt.tol": 1e-6, "ipopt.acceptable_tol": 1e-4, "ipopt.mu_strategy": "adaptive",
@@ -434,12 +434,12 @@ class RowNLP:
 
     def bounds(self, lead_window: np.ndarray) -> tuple[np.ndarray, ...]:
         """lbx, ubx, lbg, ubg (every row of GROUPS) for the current windows (limits backed off
-        by BACKOFF, windows by WINDOW_BACKOFF)."""
+        by the fraction ``backoff``, BACKOFF by default; windows by WINDOW_BACKOFF)."""
         n, lim = self.n, self.machine.limits
         la, lb = lim["A"], lim["B"]
 
         def band(lo: float, hi: float) -> tuple[float, float]:
-            w = (hi - lo) * BACKOFF * 0.5
+            w = (hi - lo) * self.backoff * 0.5
             return lo + w, hi - w
 
         a_lo, a_hi = band(la.min, la.max)
@@ -447,7 +447,7 @@ class RowNLP:
         lbx = np.empty(2 * n)
         ubx = np.empty(2 * n)
         lbx[0::2], ubx[0::2], lbx[1::2], ubx[1::2] = a_lo, a_hi, b_lo, b_hi
-        f = 1.0 - BACKOFF
+        f = 1.0 - self.backoff
         lo_l = np.minimum(lead_window[:, 0] + WINDOW_BACKOFF, lead_window.mean(axis=1))
         hi_l = np.maximum(lead_window[:, 1] - WINDOW_BACKOFF, lead_window.mean(axis=1))
         lbg = np.concatenate([np.full(n - 1, -la.vmax * f), np.full(n - 1, -lb.vmax * f),

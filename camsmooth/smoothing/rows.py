@@ -8,7 +8,15 @@ results (camsmooth.smoothing.parallel). Per row:
    and 'spline' poses), and their neighbours within a cutter radius, compute the accessibility
    map (camsmooth.geometry.accessibility): which lead/tilt of the window clears the mesh, as a
    lead floor and ceiling smooth in tilt and a clear tilt range.
-2. Solve the NLP (camsmooth.smoothing.nlp.RowNLP) with those as constraints.
+2. Solve the NLP (camsmooth.smoothing.nlp.RowNLP) with those as constraints. On dense rows (CC
+   points closer in time than ``knot_dt``) the NLP's variables sit on every k-th point, the
+   *knots*, k = knot_dt / (median time step), and A, B in between are the cubic spline through
+   the knots (scipy CubicSpline, not-a-knot); every mapped point is a knot. The interpolated
+   program is then checked at every point against the travel, the velocity and acceleration
+   limits (the same finite differences as the metrics) and the windows; points that leave them
+   become knots and the row is solved again. Limits are backed off by KNOT_BACKOFF on such rows
+   so that this is rare. A 10 ms knot spacing is a servo loop's time scale (~100 Hz): the
+   axes cannot follow detail finer than that, and the samples' rows (9-12 ms) are solved whole.
 3. Verify with the exact clearance only the poses that moved: a pose whose tool moved by less
    than MOVE_TOL (a bound over the whole tool solid: tip displacement plus axis rotation times
    the tool's reach) keeps its clearance; the first round checks every pose.
@@ -28,6 +36,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.interpolate import CubicSpline
 from scipy.ndimage import binary_dilation
 
 from camsmooth.errors import InfeasibleError
@@ -36,11 +45,12 @@ from camsmooth.geometry.clearance import MeshIndex, clearance
 from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl
 from camsmooth.geometry.frames import lead_tilt_from_axis
 from camsmooth.machine.kinematics import Machine
-from camsmooth.smoothing.nlp import LeadBounds, RowNLP, elastic_diagnosis
+from camsmooth.smoothing.nlp import BACKOFF, LeadBounds, RowNLP, elastic_diagnosis, fd_operators
 
 __all__ = ["RowContext", "RowOptions", "RowSolution", "RowTask", "solve_row"]
 
 MOVE_TOL = 1e-6  # mm: a pose whose tool moved less keeps its verified clearance
+KNOT_BACKOFF = 0.02  # limits backed off by this fraction when the NLP runs on knots
 MAP_FRACTION = 0.5  # the map calls an orientation clear at delta >= -MAP_FRACTION * tolerance
 REFINE_MARGIN = np.radians(0.05)  # rad: a floor moved to the exact boundary goes this much beyond
 
@@ -48,11 +58,13 @@ REFINE_MARGIN = np.radians(0.05)  # rad: a floor moved to the exact boundary goe
 @dataclass(frozen=True)
 class RowOptions:
     """Tuning of the row solver: map grid (leads x tilts) and bisection steps, verification
-    rounds, IPOPT options."""
+    rounds, the knot spacing (s) of dense rows (module docstring, step 2; 0 solves every point)
+    and IPOPT options."""
 
     map_grid: tuple[int, int] = (9, 7)
     map_refine: int = 6
     max_rounds: int = 6
+    knot_dt: float = 0.01
     ipopt_options: dict | None = None
 
 
@@ -131,14 +143,15 @@ class _Worker:
         import trimesh
 
         self.index = MeshIndex(trimesh.Trimesh(ctx.vertices, ctx.faces, process=False))
-        self.nlps: dict[tuple[int, int], RowNLP] = {}
+        self.nlps: dict[tuple[int, int, float], RowNLP] = {}
 
-    def nlp(self, ctx: RowContext, machine: int, n: int) -> RowNLP:
-        key = (machine, n)
+    def nlp(self, ctx: RowContext, machine: int, n: int, backoff: float) -> RowNLP:
+        key = (machine, n, backoff)
         if key not in self.nlps:
             if len(self.nlps) >= 8:
                 self.nlps.pop(next(iter(self.nlps)))
-            self.nlps[key] = RowNLP(ctx.machines[machine], n, ipopt_options=ctx.options.ipopt_options)
+            self.nlps[key] = RowNLP(ctx.machines[machine], n, ipopt_options=ctx.options.ipopt_options,
+                                    backoff=backoff)
         return self.nlps[key]
 
 
@@ -189,7 +202,10 @@ def solve_row(ctx: RowContext, task: RowTask) -> RowSolution:
     delta = np.full(n, np.nan)
     last_cl, last_T = np.full((n, 3), np.nan), np.full((n, 3), np.nan)
     reach = tool_reach(cut)
-    nlp = w.nlp(ctx, task.machine, n)
+    stride = knot_stride(task.t, opts.knot_dt)
+    knots = np.zeros(n, bool)
+    knots[::stride] = knots[-1] = True
+    backoff = KNOT_BACKOFF if stride > 1 else BACKOFF
     A, B = task.A0, task.B0
     good: tuple[np.ndarray, np.ndarray] | None = None
     evals = iters = rounds = 0
@@ -214,16 +230,32 @@ def solve_row(ctx: RowContext, task: RowTask) -> RowSolution:
                                   thr, opts.map_refine)
         t_map += time.perf_counter() - t0
         t0 = time.perf_counter()
-        bounds = LeadBounds(floor, ceiling, has_floor.copy(), has_ceiling.copy())
-        A_new, B_new, st = nlp.solve(task.t, task.frames, A, B, lw, tw, bounds)
+        knots |= mapped  # clearance-constrained points carry their own variables
+        if rounds == opts.max_rounds:
+            knots[:] = True  # the last round solves every point, so its program meets every limit
+        kk = np.flatnonzero(knots)
+        nlp = w.nlp(ctx, task.machine, len(kk), backoff)
+        bounds = LeadBounds(floor[kk], ceiling[kk], has_floor[kk], has_ceiling[kk])
+        A_k, B_k, st = nlp.solve(task.t[kk], task.frames[kk], A[kk], B[kk], lw[kk], tw[kk], bounds)
         iters += st.iterations
         t_solve += time.perf_counter() - t0
+        if not st.success and len(kk) < n:
+            knots[:], backoff = True, BACKOFF  # the knots' wider back-off may be what binds: solve whole
+            continue
         if not st.success:
             if good is None:
-                _raise_infeasible(ctx, task, nlp, lw, tw, A_new, B_new, st.status, mapped.any())
+                _raise_infeasible(ctx, task, nlp, lw, tw, A_k, B_k, st.status, mapped.any())
             A, B = good  # the last verified solution; what still gouges is named below
             break
-        A, B = A_new, B_new
+        if len(kk) < n:
+            A, B = (CubicSpline(task.t[kk], q)(task.t) for q in (A_k, B_k))
+            off = _off_limits(mach, task, A, B, lw, tw) & ~knots
+            if off.any():  # the interpolation left a limit or a window: those points become knots
+                knots |= binary_dilation(off, np.ones(5, bool))
+                to_map[:] = refine[:] = False
+                continue
+        else:
+            A, B = A_k, B_k
         t0 = time.perf_counter()
         T = mach.tool_axis_np(A, B)
         cl = cc_to_cl(cut, task.cc, task.normals, T)
@@ -252,6 +284,37 @@ def solve_row(ctx: RowContext, task: RowTask) -> RowSolution:
     return RowSolution(A=A, B=B, delta=delta, lift=lift, lead_window=lw, tilt_window=tw, mapped=mapped,
                        blocked=blocked, unreachable_clear=unreachable_clear, best_delta=best, iterations=iters,
                        rounds=rounds, clearance_evals=evals, solve_s=t_solve, map_s=t_map, check_s=t_check)
+
+
+def knot_stride(t: np.ndarray, knot_dt: float) -> int:
+    """Every how many points a row's NLP variables sit (module docstring, step 2): the median
+    time step (s) into ``knot_dt`` (s), at least 1."""
+    if knot_dt <= 0 or len(t) < 8:
+        return 1
+    return max(1, int(knot_dt // max(float(np.median(np.diff(t))), 1e-12)))
+
+
+def _off_limits(machine: Machine, task: RowTask, A: np.ndarray, B: np.ndarray, lw: np.ndarray,
+                tw: np.ndarray) -> np.ndarray:
+    """Points where an interpolated program leaves the travel, the velocity or acceleration limit
+    (the finite differences of camsmooth.smoothing.nlp, against the true limits) or the lead/tilt
+    windows (rad)."""
+    D1, D2 = fd_operators(task.t)
+    off = np.zeros(len(A), bool)
+    for name, q in (("A", A), ("B", B)):
+        L = machine.limits[name]
+        off |= (q < L.min) | (q > L.max)
+        v = np.abs(D1 @ q) > L.vmax
+        off[:-1] |= v
+        off[1:] |= v
+        a = np.abs(D2 @ q) > L.amax
+        off[:-2] |= a
+        off[1:-1] |= a
+        off[2:] |= a
+    lead, tilt = lead_tilt_from_axis(machine.tool_axis_np(A, B), task.frames)
+    eps = 1e-9
+    off |= (lead < lw[:, 0] - eps) | (lead > lw[:, 1] + eps) | (tilt < tw[:, 0] - eps) | (tilt > tw[:, 1] + eps)
+    return off
 
 
 def _move_bounds(index: MeshIndex, cut: ToroidalCutter, task: RowTask, pts: np.ndarray, A: np.ndarray,
