@@ -37,8 +37,7 @@ from camsmooth.geometry.paths import (
     CCPath,
     _row_runs,
 )
-from camsmooth.io.atomic import write_text_atomic
-from camsmooth.io.table import Table, number_text, read_table
+from camsmooth.io.table import Table, number_text, read_table, write_table
 
 __all__ = ["read_cc_csv", "write_cc_csv", "unit_columns", "CC_REQUIRED", "CC_OPTIONAL"]
 
@@ -126,19 +125,17 @@ def read_cc_csv(path: str | os.PathLike) -> CCPath:
 
 
 def write_cc_csv(path: str | os.PathLike, ccpath: CCPath) -> None:
-    """Write ``ccpath`` in the pinned CSV format, atomically, with '%.17g' floats (exact round trip
-    with ``read_cc_csv``). Columns: x,y,z,nx,ny,nz,row[,fx,fy,fz][,feed]."""
-    cols = ["x", "y", "z", "nx", "ny", "nz", "row"]
+    """Write ``ccpath`` in the pinned CSV format, atomically, floats in their shortest exact
+    round-trip form (camsmooth.io.table.write_table). Columns: x,y,z,nx,ny,nz,row[,fx,fy,fz][,feed]."""
+    cols: dict[str, np.ndarray] = {}
+    for k, name in enumerate("xyz"):
+        cols[name] = ccpath.points[:, k]
+    for k, name in enumerate(("nx", "ny", "nz")):
+        cols[name] = ccpath.normals[:, k]
+    cols["row"] = np.asarray(ccpath.rows, np.int64)
     if ccpath.feed_dirs is not None:
-        cols += ["fx", "fy", "fz"]
+        for k, name in enumerate(("fx", "fy", "fz")):
+            cols[name] = ccpath.feed_dirs[:, k]
     if ccpath.feed is not None:
-        cols += ["feed"]
-    parts = [np.char.mod("%.17g", ccpath.points), np.char.mod("%.17g", ccpath.normals),
-             np.char.mod("%d", ccpath.rows.reshape(-1, 1))]
-    if ccpath.feed_dirs is not None:
-        parts.append(np.char.mod("%.17g", ccpath.feed_dirs))
-    if ccpath.feed is not None:
-        parts.append(np.char.mod("%.17g", ccpath.feed.reshape(-1, 1)))
-    table = np.concatenate(parts, axis=1) if len(ccpath) else np.zeros((0, len(cols)), dtype=str)
-    body = "\n".join(",".join(r) for r in table.tolist())
-    write_text_atomic(path, ",".join(cols) + "\n" + body + ("\n" if body else ""))
+        cols["feed"] = np.asarray(ccpath.feed, float)
+    write_table(path, cols)

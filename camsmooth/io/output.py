@@ -7,16 +7,14 @@ partial file. Units in files: mm, s, degrees (radians inside the code; CONVENTIO
 
 from __future__ import annotations
 
-import csv
 import os
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
-from camsmooth.io.atomic import atomic_path
 from camsmooth.io.gcode import DEFAULT_SAFE_HEIGHT_MM, write_gcode
-from camsmooth.io.table import read_table
+from camsmooth.io.table import read_table, write_table
 from camsmooth.smoothing.result import OUTPUT_COLUMNS, MethodResult, SmoothResult
 
 __all__ = ["RESULT_CSV_COLUMNS", "STATUSES", "INTERFERENCE_TOL_MM", "DEFAULT_SAFE_HEIGHT_MM", "point_status",
@@ -67,43 +65,28 @@ def point_status(result: MethodResult, tol: float = INTERFERENCE_TOL_MM) -> np.n
 
 # ----------------------------------------------------------------------------------------------
 # result CSV
-def _format_float_column(values: np.ndarray) -> list[str]:
-    """Shortest strings that read back to the same float (Python repr), 'nan', 'inf', '-inf'."""
-    return [repr(v) for v in np.asarray(values, dtype=float).tolist()]
-
-
 def write_result_csv(path: str | os.PathLike, result: SmoothResult) -> Path:
     """Write the primary method's per-point table to ``path`` atomically; return the path.
 
     Columns: RESULT_CSV_COLUMNS = OUTPUT_COLUMNS (mm, s, degrees; see camsmooth.smoothing.result) then
     ``lift`` (mm, fallback lift along the normal, 0 where none) and ``status`` (see
     ``point_status``), then ``fx,fy,fz`` (unit feed direction, the local frame's X_L) when the
-    result carries them. Floats are written as Python ``repr`` (shortest exact round-trip); ``row``
-    and ``idx`` as integers.
+    result carries them. Floats in their shortest exact round-trip form; ``row`` and ``idx`` as
+    integers (camsmooth.io.table.write_table).
     """
     r = result.result
     table = result.table()
     if table.shape[1] != len(OUTPUT_COLUMNS):
         raise ValueError(f"SmoothResult.table() has {table.shape[1]} columns, expected {len(OUTPUT_COLUMNS)}")
-    columns: list[list[str]] = []
+    columns: dict[str, np.ndarray] = {}
     for k, name in enumerate(OUTPUT_COLUMNS):
-        if name in _INT_COLUMNS:
-            columns.append([str(v) for v in np.asarray(table[:, k]).astype(np.int64).tolist()])
-        else:
-            columns.append(_format_float_column(table[:, k]))
-    columns.append(_format_float_column(r.lift))
-    columns.append(point_status(r).tolist())
-    header = list(RESULT_CSV_COLUMNS)
+        columns[name] = table[:, k].astype(np.int64) if name in _INT_COLUMNS else table[:, k]
+    columns["lift"] = np.asarray(r.lift, float)
+    columns["status"] = point_status(r)
     if r.feed_dirs is not None:  # the local frame's X_L, so predict can re-evaluate lead/tilt exactly
-        header += ["fx", "fy", "fz"]
-        columns += [_format_float_column(r.feed_dirs[:, k]) for k in range(3)]
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        with open(tmp, "w", newline="") as fh:
-            w = csv.writer(fh, lineterminator="\n")
-            w.writerow(header)
-            w.writerows(zip(*columns, strict=True))
-    return path
+        for k, name in enumerate(("fx", "fy", "fz")):
+            columns[name] = r.feed_dirs[:, k]
+    return write_table(path, columns)
 
 
 def read_result_csv(path: str | os.PathLike, required: Sequence[str] = OUTPUT_COLUMNS
