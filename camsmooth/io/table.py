@@ -26,8 +26,9 @@ Numeric columns are parsed by polars' CSV reader (Rust, multi-threaded: a millio
 rows in well under a second, see benchmarks/bench_io.py), falling back to ``numpy.loadtxt`` (C
 parser) for anything polars does not take as plain numbers, never by a Python loop per cell.
 The per-cell scan runs only on the error path, to name the first bad cell. NaN and inf are
-refused unless the column is listed in ``nonfinite``. Integer columns must hold integral values. Messages show values as written in
-the file or as plain Python numbers (no numpy reprs).
+refused unless the column is listed in ``nonfinite``. Integer columns must hold integral
+values. Messages show values as written in the file or as plain Python numbers (no numpy
+reprs).
 """
 
 from __future__ import annotations
