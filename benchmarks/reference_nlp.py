@@ -1,0 +1,111 @@
+"""An independent reference for the smoothing NLP: the plain formulation, written here.
+
+One row: variables A_i, B_i (rad) at every CC point; objective Gamma = sum over interior points
+of |T''|^2 with T'' by second differences written out from the time stamps; constraints written
+as angles (not the pipeline's half-planes and cosines): A, B within travel, velocities and
+accelerations within the limits, lead = atan2(|(x, y)|, z) within the lead window, tilt =
+atan2(y, x) within the tilt window, and where the accessibility map gives them lead >= floor(tilt)
+and lead <= ceiling(tilt). CasADi builds the exact Hessian by automatic differentiation; IPOPT
+solves from several starts and the best feasible solution is kept. Nothing of
+camsmooth.smoothing.nlp (structured derivatives, screening, knots, convexified curvature) is used.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from camsmooth.machine.kinematics import Machine
+
+
+@dataclass(frozen=True)
+class ReferenceRow:
+    A: np.ndarray
+    B: np.ndarray
+    gamma: float
+    start: str
+    feasible: bool
+    build_s: float
+    solve_s: float
+
+
+def second_differences(q: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """2 (v_i - v_(i-1)) / (h_(i-1) + h_i) with v the segment velocities (numpy, any leading axis)."""
+    h = np.diff(t)
+    v = np.diff(q, axis=0) / h.reshape(-1, *([1] * (q.ndim - 1)))
+    return 2 * np.diff(v, axis=0) / (h[:-1] + h[1:]).reshape(-1, *([1] * (q.ndim - 1)))
+
+
+def gamma_of(machine: Machine, A: np.ndarray, B: np.ndarray, t: np.ndarray) -> float:
+    return float(np.sum(second_differences(machine.tool_axis_np(A, B), t) ** 2))
+
+
+def build(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_w: np.ndarray, tilt_w: np.ndarray,
+          floor: np.ndarray | None = None, ceiling: np.ndarray | None = None, has_floor: np.ndarray | None = None,
+          has_ceiling: np.ndarray | None = None, tol: float = 1e-8) -> tuple[ca.Function, np.ndarray, ...]:
+    """The plain NLP of one row (module docstring) as an IPOPT solver and its bounds."""
+    n = len(t)
+    x = ca.SX.sym("x", 2 * n)
+    A, B = x[0::2], x[1::2]
+    T = ca.horzcat(*machine.tool_axis(A, B))
+    h = np.diff(t)
+
+    def vel(q):
+        return (q[1:] - q[:-1]) / ca.DM(h)
+
+    def acc(q):
+        v = vel(q)
+        return 2 * (v[1:] - v[:-1]) / ca.DM(h[:-1] + h[1:])
+
+    f = sum(ca.sumsqr(acc(T[:, k])) for k in range(3))
+    xl, yl, zl = (ca.sum2(T * ca.DM(frames[:, :, j])) for j in range(3))
+    tilt = ca.atan2(yl, xl)
+    lead = ca.atan2(ca.sqrt(xl ** 2 + yl ** 2), zl)
+    lim = machine.limits
+    g = [vel(A), vel(B), acc(A), acc(B), lead, tilt]
+    lbg = [np.full(n - 1, -lim["A"].vmax), np.full(n - 1, -lim["B"].vmax), np.full(n - 2, -lim["A"].amax),
+           np.full(n - 2, -lim["B"].amax), lead_w[:, 0], tilt_w[:, 0]]
+    ubg = [np.full(n - 1, lim["A"].vmax), np.full(n - 1, lim["B"].vmax), np.full(n - 2, lim["A"].amax),
+           np.full(n - 2, lim["B"].amax), lead_w[:, 1], tilt_w[:, 1]]
+    for coef, has, upper in ((floor, has_floor, False), (ceiling, has_ceiling, True)):
+        if coef is None or not np.any(has):
+            continue
+        k = np.flatnonzero(has)
+        bound = ca.DM(coef[k, 0]) + ca.DM(coef[k, 1]) * tilt[k.tolist()] + ca.DM(coef[k, 2]) * tilt[k.tolist()] ** 2
+        g.append(lead[k.tolist()] - bound)
+        lbg.append(np.full(len(k), -np.inf if upper else 0.0))
+        ubg.append(np.full(len(k), 0.0 if upper else np.inf))
+    solver = ca.nlpsol("reference", "ipopt", {"x": x, "f": f, "g": ca.vertcat(*g)},
+                       {"ipopt.print_level": 0, "print_time": 0, "ipopt.sb": "yes", "ipopt.tol": tol,
+                        "ipopt.max_iter": 3000})
+    lbx = np.tile([lim["A"].min, lim["B"].min], n)
+    ubx = np.tile([lim["A"].max, lim["B"].max], n)
+    return solver, lbx, ubx, np.concatenate(lbg), np.concatenate(ubg)
+
+
+def solve(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_w: np.ndarray, tilt_w: np.ndarray,
+          starts: dict[str, tuple[np.ndarray, np.ndarray]], **bounds) -> ReferenceRow:
+    """Best feasible solution (lowest Gamma) over the starts (name -> (A, B) rad)."""
+    import time
+
+    t0 = time.perf_counter()
+    solver, lbx, ubx, lbg, ubg = build(machine, t, frames, lead_w, tilt_w, **bounds)
+    build_s = time.perf_counter() - t0
+    best: ReferenceRow | None = None
+    t0 = time.perf_counter()
+    for name, (A0, B0) in starts.items():
+        x0 = np.empty(2 * len(t))
+        x0[0::2], x0[1::2] = A0, B0
+        sol = solver(x0=np.clip(x0, lbx, ubx), lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+        x = np.asarray(sol["x"]).ravel()
+        g = np.asarray(sol["g"]).ravel()
+        feasible = bool(solver.stats()["success"]) and bool(np.all(g >= lbg - 1e-7) and np.all(g <= ubg + 1e-7))
+        row = ReferenceRow(x[0::2], x[1::2], gamma_of(machine, x[0::2], x[1::2], t), name, feasible, build_s, 0.0)
+        if feasible and (best is None or row.gamma < best.gamma):
+            best = row
+    solve_s = time.perf_counter() - t0
+    if best is None:
+        return ReferenceRow(A0, B0, np.inf, "none feasible", False, build_s, solve_s)
+    return ReferenceRow(best.A, best.B, best.gamma, best.start, True, build_s, solve_s)
