@@ -1,0 +1,73 @@
+"""Where a cutter-location pose touches the mesh: CL -> CC with the surface.
+
+A CAM system's CL pose (tool tip and axis, workpiece frame, mm) places the tool tangent to the
+part at one point. The exact clearance (camsmooth.geometry.clearance) finds the mesh point
+nearest the tool solid, its *witness*; when the pose touches (|clearance| <= tolerance) that is
+the cutter-contact point, and the surface normal there is the tool's outward normal at the
+contact, -grad sd_tool(witness) (sd_tool: the signed distance of the cutter body,
+camsmooth.geometry.cutter; at a tangent contact the part's and the tool's normals coincide, and on
+a mesh edge or vertex the tool's normal is the one the CC -> CL formula of METHODS section 1
+needs). With these, ``cc_to_cl(cutter, cc, n, T)`` gives the pose back (tested).
+
+Where the flat bottom touches (n parallel to T) every point of the contact disc is a contact;
+the CC -> CL formula then puts the tip on the contact (CL = CC), so the tip is taken as the CC
+point when it lies on the mesh within the tolerance. Poses that do not touch (air moves,
+lead-ins) or that gouge beyond the tolerance are flagged, with their clearance.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from camsmooth.geometry.clearance import MeshIndex, clearance
+from camsmooth.geometry.cutter import ToroidalCutter, _cylinder_sd
+
+__all__ = ["Contacts", "contacts"]
+
+PARALLEL = 1e-9  # 1 - n.T below this: the flat bottom touches
+
+
+@dataclass(frozen=True)
+class Contacts:
+    """Contacts of N poses. points: (N, 3) contact points (mm; the witness where not touching);
+    normals: (N, 3) unit surface normals at the contact, from the material toward the tool;
+    clearance: (N,) the pose's clearance (mm, negative = gouge); touching: (N,) |clearance| <=
+    the tolerance. Workpiece frame."""
+
+    points: np.ndarray
+    normals: np.ndarray
+    clearance: np.ndarray
+    touching: np.ndarray
+
+
+def contacts(index: MeshIndex, cutter: ToroidalCutter, tips: np.ndarray, axes: np.ndarray,
+             tolerance: float) -> Contacts:
+    """Contact points and normals of CL poses (tips (N, 3) mm, unit axes (N, 3) tip -> spindle,
+    workpiece frame) on the mesh (module docstring)."""
+    tips = np.asarray(tips, float)
+    axes = np.asarray(axes, float)
+    axes = axes / np.linalg.norm(axes, axis=1, keepdims=True)
+    c = clearance(index, cutter, tips, axes)
+    w = np.where(np.isfinite(c.witness), c.witness, tips)
+    base = tips + cutter.r * axes
+    _, g = _cylinder_sd(base, axes, cutter.core_height, cutter.R, w, grad=True)
+    n = -g / np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-300)
+    flat = 1.0 - np.sum(n * axes, axis=1) < PARALLEL
+    if flat.any():  # the flat bottom: CL = CC where the tip lies on the mesh
+        d_tip = _tip_gap(index, tips[flat], axes[flat])
+        on = np.abs(d_tip) <= tolerance
+        k = np.flatnonzero(flat)[on]
+        w[k], n[k] = tips[k], axes[k]
+    touching = np.abs(c.delta) <= tolerance
+    return Contacts(points=w, normals=n, clearance=c.delta, touching=touching)
+
+
+def _tip_gap(index: MeshIndex, tips: np.ndarray, axes: np.ndarray) -> np.ndarray:
+    """Distance (mm) from each tip to the closest point of the mesh (trimesh.proximity)."""
+    import trimesh
+
+    mesh = trimesh.Trimesh(index.vertices, index.faces, process=False)
+    _, d, _ = trimesh.proximity.closest_point(mesh, tips)
+    return d
