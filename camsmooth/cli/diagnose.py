@@ -1,4 +1,4 @@
-"""`camsmooth diagnose`: simulation versus recordings (camsmooth.diagnosis.engine).
+"""`camsmooth diagnose`: simulation versus recordings (camsmooth.diagnosis).
 
     camsmooth diagnose --program P.csv --recording R.csv [--machine M.toml] [--model MODEL.json]
                        --out FINDINGS.json [--report DIR] [--model-out NEW_MODEL.json]
@@ -48,22 +48,24 @@ def register(subparsers: Any) -> None:
 
 
 def _options(args: argparse.Namespace) -> Any:
+    from dataclasses import replace
+
     from camsmooth.diagnosis.engine import CANDIDATES, Options
 
     opt = Options()
     if args.folds < 2:
         raise InputError(f"--folds must be >= 2, got {args.folds}")
-    opt.folds = args.folds
+    opt = replace(opt, folds=args.folds)
     if args.max_fit_samples is not None:
         if args.max_fit_samples < 100:
             raise InputError(f"--max-fit-samples must be >= 100, got {args.max_fit_samples}")
-        opt.max_fit_samples = args.max_fit_samples
+        opt = replace(opt, max_fit_samples=args.max_fit_samples)
     if args.candidates:
         names = tuple(c.strip() for c in args.candidates.split(",") if c.strip())
         unknown = [c for c in names if c not in CANDIDATES]
         if unknown:
             raise InputError(f"--candidates: unknown {unknown}; known: {', '.join(CANDIDATES)}")
-        opt.candidates = names
+        opt = replace(opt, candidates=names)
     return opt
 
 
@@ -94,7 +96,7 @@ def run_diagnose(args: argparse.Namespace) -> int:
     base = load_model(args.model)
     diag = diagnose(program, recording, machine, base, _options(args))
     if args.validate:
-        diag.findings["validation"] = [validate(*read_umich(f), diag, machine) for f in args.validate]
+        diag.result.validation = [validate(*read_umich(f), diag, machine) for f in args.validate]
     write_findings(args.out, diag)
     if args.model_out:
         write_model(args.model_out, diag)
