@@ -187,3 +187,30 @@ def test_type_errors_name_the_file_and_the_key(tmp_path, doc, key):
         ErrorModel.from_json(path)
     assert e.value.file == str(path)
     assert e.value.column == key
+
+
+def test_first_order_jumps_and_restarts_against_a_plain_loop():
+    """Zero-length intervals carry jumps of the input; restarts put the system at rest on its
+    input; equal and unequal steps take different code paths: all against the plain recurrence."""
+    rng = np.random.default_rng(5)
+    for uniform in (True, False):
+        t = np.arange(40) * 0.1 if uniform else np.cumsum(np.r_[0.0, rng.uniform(0.05, 0.15, 39)])
+        u = rng.normal(size=40)
+        restart = np.zeros(40, bool)
+        restart[[15, 30]] = True
+        s = interval_slopes(t, u)
+        s[[14, 29]] = 0.0  # across the restarts
+        tau = 0.2
+        e = first_order_knots(t, u, tau, slope=s, restart=restart)
+        ref = np.zeros(40)
+        ref[0] = u[0]
+        for k in range(39):
+            a = math.exp(-(t[k + 1] - t[k]) / tau)
+            jump = u[k + 1] - u[k] - s[k] * (t[k + 1] - t[k])
+            ref[k + 1] = 0.0 if restart[k + 1] else a * ref[k] + (1 - a) * tau * s[k] + jump
+        assert np.allclose(e, ref, atol=1e-12)
+    # a held step through repeated knot times (a jump): y = 2 (1 - exp(-(t - 1) / tau)) after t = 1
+    t = np.array([0.0, 1.0, 1.0, 2.0, 3.0])
+    u = np.array([0.0, 0.0, 2.0, 2.0, 2.0])
+    y = u - first_order_knots(t, u, 0.5)
+    assert np.allclose(y, [0, 0, 0, 2 * (1 - math.exp(-2)), 2 * (1 - math.exp(-4))], atol=1e-14)

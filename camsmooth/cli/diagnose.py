@@ -41,7 +41,7 @@ def register(subparsers: Any) -> None:
                    help="with --format umich: files to predict with the fitted model (not fitted)")
     p.add_argument("--folds", type=int, default=5, help="blocked time folds for held-out scoring (default 5)")
     p.add_argument("--max-fit-samples", type=int, default=None,
-                   help="fit on at most this many samples (an even random subset; default 120000)")
+                   help="fit on at most this many samples (an even random subset; default 60000)")
     p.add_argument("--candidates", help="comma list restricting the candidate library")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=run_diagnose)

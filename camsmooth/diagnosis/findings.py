@@ -202,7 +202,9 @@ def sentence_for(name: str, params: Mapping[str, Any], unc: Mapping[str, Any], h
 def discriminate_lag_offset(sel: Selector, result: Mapping[str, Any]) -> dict[str, Any] | None:
     """Whether the data tell a servo lag from a clock offset (on top of the other chosen terms):
     by shape (one common lag vs one offset: both one parameter) and by the per-axis spread of
-    the fitted delays (one clock offset delays every axis alike)."""
+    the fitted delays (one clock offset delays every axis alike). On the screening subset of a
+    long recording (``Selector.screener``)."""
+    sel = sel.screener()
     P = sel.P
     axes = [a for a in AXES if P.knots.moves(a)]
     if not axes:
@@ -346,7 +348,7 @@ def diagnose(program: Program, recording: Recording, machine: Machine | None = N
             sel = Selector(P, opt)
             res = sel.run()
     baseline, final = res["baseline"], res["final"]
-    rb = P.data - P.sim_all.run(P.base)
+    rb = P.resid0
     ra = P.data - P.sim_all.run(final.physics)
     rms_b_all = channel_rms(rb, P.valid, P.channels)
     rms_a_all = channel_rms(ra, P.valid, P.channels)

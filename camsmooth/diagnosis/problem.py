@@ -42,13 +42,25 @@ def _mad(x: np.ndarray) -> float:
     return float(1.4826 * np.median(np.abs(x - np.median(x))))
 
 
+WHITE_SAMPLES = 300_000
+
+
 def white_noise(residual: np.ndarray, segment: np.ndarray) -> float:
     """Robust white-noise sigma of a residual: 1.4826 MAD of its second differences (inside one
-    segment) / sqrt(6); smooth structure cancels, sparse events are ignored by the median."""
-    r = residual
-    same = (segment[2:] == segment[:-2])
-    d2 = (r[2:] - 2 * r[1:-1] + r[:-2])[same]
-    return _mad(d2) / math.sqrt(6.0)
+    segment) / sqrt(6); smooth structure cancels, sparse events are ignored by the median. On a
+    long recording, from WHITE_SAMPLES samples spread over it (20 contiguous blocks: second
+    differences need neighbours)."""
+    def d2(r: np.ndarray, seg: np.ndarray) -> np.ndarray:
+        same = seg[2:] == seg[:-2]
+        return (r[2:] - 2 * r[1:-1] + r[:-2])[same]
+
+    if len(residual) > WHITE_SAMPLES:
+        blk = WHITE_SAMPLES // 20
+        starts = np.linspace(0, len(residual) - blk, 20).astype(int)
+        diffs = np.concatenate([d2(residual[i:i + blk], segment[i:i + blk]) for i in starts])
+    else:
+        diffs = d2(residual, segment)
+    return _mad(diffs) / math.sqrt(6.0)
 
 
 def noise_floor(residual: np.ndarray, segment: np.ndarray, q_rec: np.ndarray, q_cmd: np.ndarray,
@@ -163,7 +175,9 @@ class Options:
     must reach this fraction of the sample period; resolvable_sigma: a parameter must differ
     from its base value by this many standard uncertainties; correlation_limit: parameters of
     two named terms correlated beyond it are reported; max_fit_samples: fits and scores use at
-    most this many samples (an even random subset, seeded) - final figures use all."""
+    most this many samples (an even random subset, seeded) - final figures use all;
+    screen_samples: each round ranks the terms on at most this many of those (the chosen one is
+    refitted and judged on all of them)."""
 
     folds: int = 5
     margin: float = 0.02
@@ -174,7 +188,8 @@ class Options:
     min_offset_periods: float = 0.1
     resolvable_sigma: float = 3.0
     correlation_limit: float = 0.9
-    max_fit_samples: int = 120_000
+    max_fit_samples: int = 60_000
+    screen_samples: int = 15_000
     max_terms: int = 6
     seed: int = 0
     candidates: tuple[str, ...] | None = None
@@ -183,7 +198,7 @@ class Options:
 @dataclass(frozen=True)
 class Problem:
     """Program, recording and everything the fits share, computed once by ``prepare``:
-    channels, data, floors, validity (outliers out), quantisation per sample, folds and the fit
+    channels, data, floors, validity (outliers out), the baseline residual (resid0), folds and the fit
     subset (``*_fit`` arrays, w_fit = 1 / floor), simulators on the fit subset and on all
     samples, the commanded states at the fit samples. ``memo`` holds the data-dependent choices
     terms make once per problem (which parameters the motion shows, starting values)."""
@@ -207,7 +222,7 @@ class Problem:
     sim_all: Simulator
     states: dict[str, np.ndarray]
     dt: float
-    quantum: np.ndarray
+    resid0: np.ndarray
     data_fit: np.ndarray
     w_fit: np.ndarray
     valid_fit: np.ndarray
@@ -242,6 +257,7 @@ def prepare(program: Program, recording: Recording, machine: Machine | None = No
     data = np.column_stack([al.channels[c] for c in channels])
     sim0 = sim_all.run(base)
     resid = data - sim0
+    del sim0
     k_all, _ = sim_all.loc(0.0)
     floor = np.empty_like(data)
     info = {}
@@ -264,7 +280,7 @@ def prepare(program: Program, recording: Recording, machine: Machine | None = No
         valid[:, j] = ~bad
         for i in np.flatnonzero(bad)[:50]:
             outliers.append({"channel": c, "t": float(al.t[i]), "recorded": float(data[i, j]),
-                             "simulated": float(sim0[i, j]), "residual": float(resid[i, j]),
+                             "simulated": float(data[i, j] - resid[i, j]), "residual": float(resid[i, j]),
                              "row": int(al.kept[i]) + 1})
         if bad.sum() > 50:
             outliers.append({"channel": c, "more": int(bad.sum() - 50)})
@@ -280,10 +296,8 @@ def prepare(program: Program, recording: Recording, machine: Machine | None = No
     sim_fit = Simulator(program, machine, al.t[fit_idx], al.segment[fit_idx], channels, knots)
     states = sim_fit.states()
     dt = float(np.median(np.diff(al.t))) if M > 1 else 1.0
-    quantum = np.column_stack([np.broadcast_to(np.asarray(al.quantum.get(c, 0.0), float), (M,))
-                               for c in channels])
     return Problem(program=program, machine=machine, aligned=al, base=base, channels=tuple(channels), knots=knots,
                    t=al.t, segment=al.segment, data=data, floor=floor, floor_info=info, valid=valid,
                    outliers=outliers, fit_idx=fit_idx, folds=folds, sim_fit=sim_fit, sim_all=sim_all, states=states,
-                   dt=dt, quantum=quantum, data_fit=data[fit_idx], w_fit=1.0 / floor[fit_idx],
+                   dt=dt, resid0=resid, data_fit=data[fit_idx], w_fit=1.0 / floor[fit_idx],
                    valid_fit=valid[fit_idx], options=opt)

@@ -86,14 +86,42 @@ def pooled(f: Fit) -> float:
 class Selector:
     """Greedy forward selection over the term library (module docstring)."""
 
-    def __init__(self, P: Problem, opt: Options) -> None:
+    def __init__(self, P: Problem, opt: Options, parent: Selector | None = None) -> None:
         self.P = P
         self.opt = opt
         self.cache: dict[tuple[str, ...], Fit] = {}
         self.elements: dict[tuple[str, ...], list[str]] = {}
         self.thermal_init: dict[tuple[str, ...], dict[str, tuple[float, float]]] = {}
-        self.excluded: dict[str, set[str]] = {}  # term -> parameter names held at base ('none measurable')
-        self.none: dict[str, list[str]] = {}  # term -> groups reported as 'none measurable'
+        # term -> parameter names held at base ('none measurable'), shared with a screening selector
+        self.excluded: dict[str, set[str]] = parent.excluded if parent else {}
+        self.none: dict[str, list[str]] = parent.none if parent else {}  # term -> groups 'none measurable'
+        self.linked: list[Selector] = [self]
+        self._screener: Selector | None = None
+
+    def screener(self) -> Selector:
+        """The selector that ranks terms each round: on an even random subset of
+        ``Options.screen_samples`` of the fit samples (seeded; folds kept) when the fit subset is
+        larger, else this one. Choices are always refitted and judged on the whole fit subset."""
+        if self._screener is not None:
+            return self._screener
+        P, opt = self.P, self.opt
+        nf = len(P.fit_idx)
+        if nf <= opt.screen_samples:
+            self._screener = self
+            return self
+        from dataclasses import replace
+
+        from camsmooth.diagnosis.simulator import Simulator
+
+        idx = np.sort(np.random.default_rng(opt.seed + 1).choice(nf, opt.screen_samples, replace=False))
+        fit_idx = P.fit_idx[idx]
+        sim = Simulator(P.program, P.machine, P.t[fit_idx], P.segment[fit_idx], P.channels, P.knots)
+        Ps = replace(P, fit_idx=fit_idx, folds=P.folds[idx], sim_fit=sim, states=sim.states(),
+                     data_fit=P.data_fit[idx], w_fit=P.w_fit[idx], valid_fit=P.valid_fit[idx])
+        self._screener = Selector(Ps, opt, parent=self)
+        self.linked.append(self._screener)
+        self._screener.linked = self.linked
+        return self._screener
 
     # ---- parameter vector <-> model -----------------------------------------------------------
     def _thermal_elements(self, key: tuple[str, ...], name: str) -> list[str]:
@@ -152,9 +180,30 @@ class Selector:
         def rfun(x: np.ndarray) -> np.ndarray:
             return self.resid(self._physics(terms, pnames, x))
 
-        f = self._fit_core(key, pnames, rfun, x0, lo, hi, scale, lambda x: self._physics(terms, pnames, x))
+        f = self._fit_core(key, pnames, rfun, x0, lo, hi, scale, lambda x: self._physics(terms, pnames, x),
+                           analytic=self._analytic(terms, pnames))
         self.cache[key] = f
         return f
+
+    def _analytic(self, terms: Sequence[Term], pnames: dict[str, list[str]], skip: int = 0
+                  ) -> Any:
+        """A function x -> per-parameter analytic Jacobian rows (None where a term has none), for
+        the terms after the first ``skip`` parameters; None when no term has analytic columns."""
+        P = self.P
+        probe = [t for t in terms if type(t).jacobian is not Term.jacobian]
+        if not probe:
+            return None
+
+        def rows(x: np.ndarray) -> list[np.ndarray | None]:
+            ph = self._physics(terms, pnames, x)
+            out: list[np.ndarray | None] = []
+            for t in terms:
+                names = pnames[t.name]
+                J = t.jacobian(P, ph, names) if names else None
+                out += [None] * len(names) if J is None else list(J)
+            return [None] * skip + out[skip:]
+
+        return rows
 
     def _empty_fit(self, key: tuple[str, ...], pnames: dict[str, list[str]]) -> Fit:
         P = self.P
@@ -173,17 +222,25 @@ class Selector:
                    n_eff * math.log(max(rss, 1e-300) / n), rms, rss, dict(rms), fold_rss, fold_n, resid_phys)
 
     def _fit_core(self, key, pnames, rfun, x0, lo, hi, scale, physics_of, known_jt=None,
-                  approximate: bool = False) -> Fit:
+                  approximate: bool = False, analytic: Any = None) -> Fit:
         """LM fit, covariance, blocked held-out scores. Held-out: for each fold, the parameters
         fitted without it, as one Gauss-Newton step from the full fit using only the other folds'
         rows of the Jacobian (exact for parameters that enter linearly, the first step of an exact
-        refit otherwise); the held-out residual is then simulated at those parameters."""
+        refit otherwise); the held-out residual is then simulated at those parameters (for a
+        screening fit, ``approximate``, predicted from the Jacobian too)."""
         P = self.P
         folds = P.folds
         K = int(folds.max()) + 1
         valid = P.valid_fit
+        jac = None
+        if analytic is not None:
+            def jac(z: np.ndarray, r: np.ndarray) -> np.ndarray:
+                known = analytic(z)
+                if known_jt is not None:
+                    known[:len(known_jt)] = list(known_jt)
+                return fitting.jacobian_t(rfun, z, 1e-4 * scale, r0=r, lo=lo, hi=hi, mask=valid, known=known)
         res = fitting.levenberg_marquardt(rfun, x0, lo=lo, hi=hi, step=1e-4 * scale, scale=scale, mask=valid,
-                                          known_jt=known_jt)
+                                          known_jt=known_jt, jac=jac)
         x, H, rss, Jt, r_valid = res.x, res.H, res.cost, res.Jt, res.r
         r = rfun(x)
         rr = np.where(valid, r, 0.0)
@@ -204,7 +261,12 @@ class Selector:
             if free.any():
                 dx[free] = -np.linalg.pinv(H_tr[np.ix_(free, free)]) @ g_tr[free]
             xk = np.clip(x + dx, lo, hi)
-            rk = rfun(xk)
+            if approximate:
+                # a screening fit: the held-out prediction linearised as well (r + J dx)
+                rk = r.copy()
+                rk[valid] += np.einsum("pm,p->m", Jt, xk - x)
+            else:
+                rk = rfun(xk)
             sel = folds == k
             test = valid & sel[:, None]
             held[sel] = rk[sel]
@@ -257,7 +319,8 @@ class Selector:
         resid = P.data_fit - P.sim_fit.run(base)
         x0 = np.concatenate([x_old, np.asarray(new.initial(P, base, new_names, resid), float)])
         x0 = np.clip(x0, lo + 1e-12 * (hi - lo), hi - 1e-12 * (hi - lo))
-        return self._fit_core(key, pnames, rfun, x0, lo, hi, scale, physics_of, known_jt=Jt_old, approximate=True)
+        return self._fit_core(key, pnames, rfun, x0, lo, hi, scale, physics_of, known_jt=Jt_old, approximate=True,
+                              analytic=self._analytic(terms, pnames, skip=p_old))
 
     def x_from(self, key: tuple[str, ...], ph: ErrorModel) -> np.ndarray:
         """The parameter vector of a term set read from a model (a warm start)."""
@@ -339,8 +402,9 @@ class Selector:
         self.excluded.setdefault(name, set()).update(params)
         self.none.setdefault(name, [])
         self.none[name] += [g for g in groups if g not in self.none[name]]
-        for k in [k for k in self.cache if name in k]:
-            del self.cache[k]
+        for sel in self.linked:
+            for k in [k for k in sel.cache if name in k]:
+                del sel.cache[k]
 
     def prune(self, key: tuple[str, ...], f: Fit, name: str) -> tuple[Fit | None, str | None]:
         """Apply the resolvability rule to term ``name`` in the exact fit f of ``key``: groups and
@@ -362,8 +426,9 @@ class Selector:
         """Undo the exclusions of a term that was refused (another set may resolve it)."""
         self.excluded.pop(name, None)
         self.none.pop(name, None)
-        for k in [k for k in self.cache if name in k]:
-            del self.cache[k]
+        for sel in self.linked:
+            for k in [k for k in sel.cache if name in k]:
+                del sel.cache[k]
 
     # ---- selection ----------------------------------------------------------------------------
     def run(self) -> dict[str, Any]:
@@ -380,18 +445,20 @@ class Selector:
         rejected: dict[str, dict[str, Any]] = {}
         equivalences: list[dict[str, Any]] = []
         t_start = time.perf_counter()
+        scr = self.screener()
         while len(active) < opt.max_terms:
             trials = {}
+            cur_s = scr.fit(tuple(active))
             for name in applicable:
                 if name in active:
                     continue
                 try:
-                    trials[name] = self._screen_pruned(current, name)
+                    trials[name] = scr._screen_pruned(cur_s, name)
                 except (ValueError, np.linalg.LinAlgError) as exc:
                     rejected[name] = {"name": name, "reason": f"fit failed: {exc}"}
             if not trials:
                 break
-            verdicts = {n: self._vetoed(n, f, self.judge(current, f)) for n, f in trials.items()}
+            verdicts = {n: scr._vetoed(n, f, scr.judge(cur_s, f)) for n, f in trials.items()}
             passing = [n for n, v in verdicts.items() if v["ok"]]
             for n, v in verdicts.items():
                 if not v["ok"]:
@@ -401,12 +468,13 @@ class Selector:
             best = exact = None
             while passing:
                 lowest = min(passing, key=lambda n: trials[n].heldout_rss)
-                group = [lowest] + [o for o in passing if o != lowest and self.equivalent(trials[lowest], trials[o])]
+                group = [lowest] + [o for o in passing if o != lowest and scr.equivalent(trials[lowest], trials[o])]
                 # equal within the noise: name the more common cause (library order) and report the
                 # pair as 'cannot tell apart'
                 cand = min(group, key=CANDIDATES.index)
                 key = tuple(active) + (cand,)
-                exact = self.fit(key, x0=trials[cand].x) if trials[cand].approximate else trials[cand]
+                exact = trials[cand] if scr is self and not trials[cand].approximate else \
+                    self.fit(key, x0=trials[cand].x)
                 exact, why = self.prune(key, exact, cand)
                 v = {"ok": False, "reason": why, "heldout_change_pct": None} if why else \
                     self._vetoed(cand, exact, self.judge(current, exact))

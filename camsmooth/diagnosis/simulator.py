@@ -68,6 +68,17 @@ class Knots:
         self.restart[self.starts] = True
         self.u: dict[str, np.ndarray] = {a: np.asarray(v, float) for a, v in program.axes.items()}
         self.slope = {a: self._slope(u) for a, u in self.u.items()}
+        # kept for the many lag time constants a fit tries (camsmooth.machine.model.first_order_knots)
+        self.dt: np.ndarray | float = np.diff(self.t)
+        self.jump: dict[str, np.ndarray | None] = {}
+        for a, u in self.u.items():
+            j = np.diff(u) - self.slope[a][:-1] * self.dt
+            j[self.restart[1:]] = 0.0
+            self.jump[a] = j if np.any(j) else None
+        if n > 1:
+            h0 = float(self.dt[0])
+            if h0 > 0 and float(np.max(np.abs(self.dt - h0))) <= 1e-9 * h0:
+                self.dt = h0
         self.S = None if program.S is None else np.asarray(program.S, float)
         if self.S is not None:
             # the spindle and thermal states run on through segment breaks (the clock does)
@@ -123,7 +134,8 @@ class Knots:
     def lag_error(self, a: str, tau: float) -> np.ndarray:
         """Following error of axis a at the knots for time constant tau (restarts at rest at each
         segment start)."""
-        return first_order_knots(self.t, self.u[a], tau, slope=self.slope[a], restart=self.restart)
+        return first_order_knots(self.t, self.u[a], tau, slope=self.slope[a], restart=self.restart, h=self.dt,
+                                 jump=self.jump[a])
 
     def follow(self, a: str, tau: float, k: np.ndarray, x: np.ndarray, e: np.ndarray | None = None) -> np.ndarray:
         """Axis a at the evaluation points through a first-order lag of time constant tau."""
@@ -207,7 +219,7 @@ class Simulator:
         if not encoder and a in LINEAR_AXES:
             coef = _positioning(ph, a)
             if coef:
-                y = y + sum(c * y ** p for p, c in coef)
+                y = y + sum(c * y ** p if p > 1 else c * y for p, c in coef)
         return y
 
     def _frame(self, ph: ErrorModel) -> Any:

@@ -426,8 +426,8 @@ def interval_slopes(t: np.ndarray, u: np.ndarray, hold: str = "linear") -> np.nd
 
 
 def first_order_knots(t: np.ndarray, u: np.ndarray, tau: float, *, slope: np.ndarray | None = None,
-                      hold: str = "linear", e0: float | None = None, restart: np.ndarray | None = None
-                      ) -> np.ndarray:
+                      hold: str = "linear", e0: float | None = None, restart: np.ndarray | None = None,
+                      h: np.ndarray | float | None = None, jump: np.ndarray | None = None) -> np.ndarray:
     """The following error e = u - y at the knots t (n,) of tau dy/dt = u - y, exactly.
 
     u (n,) is the input at the knots; between knots it is linear with ``slope`` (n,; default
@@ -436,7 +436,10 @@ def first_order_knots(t: np.ndarray, u: np.ndarray, tau: float, *, slope: np.nda
     y starts at 0, a cold start); ``restart`` (n,) bool: at these knots y restarts at rest on
     its input (e = 0, e.g. a new program segment). Recurrence, exact for this input:
     e_k+1 = a_k e_k + (1 - a_k) tau s_k + (u_k+1 - u_k - s_k h_k), a_k = exp(-h_k / tau).
-    Equal steps use scipy.signal.lfilter; others ``linear_recurrence``. tau > 0 (s)."""
+    Equal steps use scipy.signal.lfilter; others ``linear_recurrence``. tau > 0 (s). h (n-1,)
+    and jump (n-1,) (the bracketed term, 0 at restarts) may be passed in when the caller keeps them
+    for many time constants (the diagnosis does; a float h: equal steps of that size; jump None
+    with a slope given: no jumps)."""
     from scipy.signal import lfilter
 
     t = np.asarray(t, float)
@@ -446,28 +449,45 @@ def first_order_knots(t: np.ndarray, u: np.ndarray, tau: float, *, slope: np.nda
     e_start = float(u[0]) if e0 is None else float(e0)
     if n == 1:
         return np.array([0.0 if restart is not None and restart[0] else e_start])
-    h = np.diff(t)
-    with np.errstate(over="ignore", under="ignore"):
-        alpha = np.exp(-h / tau)
-    b = (1.0 - alpha) * tau * s[:-1]
-    jump = np.diff(u) - s[:-1] * h
-    if np.any(jump != 0.0):
-        b = b + jump
     rs = np.zeros(n, bool) if restart is None else np.asarray(restart, bool)
     if rs[0]:
         e_start = 0.0
-    starts = np.flatnonzero(np.r_[True, rs[1:]])
-    h0 = float(np.median(h))
-    uniform = h0 > 0 and float(np.max(np.abs(h - h0))) <= 1e-9 * h0 and len(starts) <= 5000
+    if isinstance(h, float):
+        uniform, hmax, hmin = True, h, h
+    else:
+        h = np.diff(t) if h is None else h
+        hmax, hmin = float(h.max()), float(h.min())
+        uniform = hmin > 0 and hmax - hmin <= 1e-9 * hmax
+    jumps = jump
+    if jumps is None and (slope is None and hold == "step" or hmin <= 0):
+        # the input's own jumps (across zero-length intervals, a held step)
+        jumps = np.diff(u) - s[:-1] * (h if not isinstance(h, float) else np.full(n - 1, h))
+        jumps[rs[1:]] = 0.0
+        if not np.any(jumps):
+            jumps = None
     if uniform:
-        al = math.exp(-h0 / tau)
+        alpha = math.exp(-hmax / tau)
+        coef = (1.0 - alpha) * tau
+    else:
+        with np.errstate(over="ignore", under="ignore"):
+            alpha = np.exp(-h / tau)
+        coef = (1.0 - alpha) * tau
+    starts = np.flatnonzero(rs)
+    if uniform and len(starts) <= 5000:
+        # e_k+1 = a e_k + coef s_k + jump_k: an IIR filter on the slopes (plus the jumps)
         e = np.empty(n)
-        ends = np.r_[starts[1:] - 1, n - 1]
-        for i0, i1 in zip(starts, ends, strict=True):
+        bounds = np.r_[0, starts[starts > 0], n]
+        for i0, i1 in zip(bounds[:-1], bounds[1:], strict=True):
             e[i0] = e_start if i0 == 0 else 0.0
-            if i1 > i0:
-                e[i0 + 1:i1 + 1] = lfilter([1.0], [1.0, -al], b[i0:i1], zi=np.array([al * e[i0]]))[0]
+            if i1 - 1 > i0:
+                zi = np.array([alpha * e[i0]])
+                if jumps is None:
+                    e[i0 + 1:i1] = lfilter([coef], [1.0, -alpha], s[i0:i1 - 1], zi=zi)[0]
+                else:
+                    e[i0 + 1:i1] = lfilter([1.0], [1.0, -alpha], coef * s[i0:i1 - 1] + jumps[i0:i1 - 1], zi=zi)[0]
         return e
+    b = coef * s[:-1] if jumps is None else coef * s[:-1] + jumps
+    alpha = np.broadcast_to(alpha, (n - 1,))
     if rs[1:].any():
         alpha = np.where(rs[1:], 0.0, alpha)
         b = np.where(rs[1:], 0.0, b)
@@ -517,17 +537,25 @@ def thermal_frame(state: Mapping[str, Any]) -> Frame:
 
 # ----------------------------------------------------------------------------------------------
 # the real chain: POE plus the linear axes' positioning and straightness
+def _power(q: Any, k: int) -> Any:
+    # products, not pow: exact for CasADi and several times faster for numpy arrays
+    out = q
+    for _ in range(k - 1):
+        out = out * q
+    return out
+
+
 def _poly(coef: Sequence[tuple[int, float]], q: Any) -> Any:
     out: Any = 0.0
     for k, c in coef:
-        out = out + c * q ** k
+        out = out + c * _power(q, k)
     return out
 
 
 def _dpoly(coef: Sequence[tuple[int, float]], q: Any) -> Any:
     out: Any = 0.0
     for k, c in coef:
-        out = out + k * c * q ** (k - 1)
+        out = out + k * c * (_power(q, k - 1) if k > 1 else 1.0)
     return out
 
 
@@ -561,7 +589,7 @@ class RealChain(Chain):
             if isinstance(v, float) and v == 0.0:
                 continue
             for i, k, c in terms:
-                d[i] = d[i] + c * v ** k
+                d[i] = d[i] + c * _power(v, k)
         return d
 
     def forward(self, q: Mapping[str, Any]) -> Frame:

@@ -11,8 +11,69 @@ are dropped on their own when the recording does not resolve them."""
 
 from __future__ import annotations
 
+import math
+
+import numpy as np
+
 from camsmooth.diagnosis.recordings import LINEAR_AXES, TIP_CHANNELS
 from camsmooth.diagnosis.terms.base import Geometric, travel
+from camsmooth.machine.model import POSITIONING, STRAIGHTNESS
+
+
+def _directions(model) -> dict[str, np.ndarray]:
+    """The real directions of X, Y, Z (camsmooth.machine.model: squareness)."""
+    g = model.get
+    c, a, b = g("EC0Y"), g("EA0Z"), g("EB0Z")
+    return {"X": np.array([1.0, 0.0, 0.0]), "Y": np.array([-math.sin(c), math.cos(c), 0.0]),
+            "Z": np.array([math.sin(b), -math.sin(a) * math.cos(b), math.cos(a) * math.cos(b)])}
+
+
+def _power(y, k):
+    return y if k == 1 else y ** k
+
+
+def linear_jacobian(P, model, names) -> np.ndarray:
+    """Exact columns of the floor-weighted residual for the linear-axis parameters: the carriages
+    sit at the base of the chain, so a parameter moves the tip along a fixed direction by a
+    polynomial of the axis position: d tip / d EAAk = w_A y^k, d tip_B / d EBAk = y^k,
+    d tip / d EC0Y = (y + E_YY(y)) d w_Y / d EC0Y (likewise for Z); an external axis channel
+    moves by y^k (y the axis position after lag and backlash, w the real axis direction)."""
+    sim = P.sim_fit
+    n, C = P.data_fit.shape
+    w = _directions(model)
+    y = {a: np.broadcast_to(np.asarray(sim.axis(a, model), float), (n,)) for a in LINEAR_AXES}
+    tip = [P.channels.index(c) if c in P.channels else None for c in TIP_CHANNELS]
+    rows = []
+    for name in names:
+        D = np.zeros((n, C))
+        if name in POSITIONING:
+            a, k = POSITIONING[name]
+            col = _power(y[a], k)
+            if f"{a}_act" in P.channels:
+                D[:, P.channels.index(f"{a}_act")] = col
+            for i, j in enumerate(tip):
+                if j is not None:
+                    D[:, j] = w[a][i] * col
+        elif name in STRAIGHTNESS:
+            a, b, k = STRAIGHTNESS[name]
+            j = tip[LINEAR_AXES.index(b)]
+            if j is not None:
+                D[:, j] = _power(y[a], k)
+        else:
+            g = model.get
+            if name == "EC0Y":
+                a, c = "Y", g("EC0Y")
+                dw = np.array([-math.cos(c), -math.sin(c), 0.0])
+            else:
+                a, ea, eb = "Z", g("EA0Z"), g("EB0Z")
+                dw = (np.array([0.0, -math.cos(ea) * math.cos(eb), -math.sin(ea) * math.cos(eb)]) if name == "EA0Z"
+                      else np.array([math.cos(eb), math.sin(ea) * math.sin(eb), -math.cos(ea) * math.sin(eb)]))
+            q = y[a] + sum(model.get(p) * _power(y[a], k) for p, (b, k) in POSITIONING.items() if b == a)
+            for i, j in enumerate(tip):
+                if j is not None:
+                    D[:, j] = dw[i] * q
+        rows.append(-(D * P.w_fit)[P.valid_fit])
+    return np.stack(rows)
 
 
 def _pos_state(P, names):
@@ -21,6 +82,9 @@ def _pos_state(P, names):
 
 
 class LinearPositioning(Geometric):
+    def jacobian(self, P, model, names):
+        return linear_jacobian(P, model, names)
+
     name = "linear_positioning"
     channels_seen = ("X_act", "Y_act", "Z_act") + TIP_CHANNELS
     what = "The linear axes position off their scale"
@@ -50,6 +114,9 @@ class LinearPositioning(Geometric):
 
 
 class LinearStraightness(Geometric):
+    def jacobian(self, P, model, names):
+        return linear_jacobian(P, model, names)
+
     name = "linear_straightness"
     channels_seen = TIP_CHANNELS
     what = "The linear axes move off their straight lines"
@@ -72,6 +139,9 @@ class LinearStraightness(Geometric):
 
 
 class LinearSquareness(Geometric):
+    def jacobian(self, P, model, names):
+        return linear_jacobian(P, model, names)
+
     name = "linear_squareness"
     channels_seen = TIP_CHANNELS
     what = "The linear axes are out of square"
