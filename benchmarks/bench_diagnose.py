@@ -19,13 +19,13 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 from benchmarks.synthetic import make_program  # noqa: E402
 from camsmooth.diagnosis.findings import diagnose  # noqa: E402
-from camsmooth.diagnosis.simulator import physics_from_settings, simulate_recording  # noqa: E402
 from camsmooth.diagnosis.recordings import (  # noqa: E402
     read_program_csv,
     read_recording_csv,
     write_program_csv,
     write_recording_csv,
 )
+from camsmooth.diagnosis.simulator import physics_from_settings, simulate_recording  # noqa: E402
 
 
 def main() -> int:
