@@ -450,6 +450,7 @@ def concealed_cases(seeds: Sequence[int] = (1, 2)) -> list[Case]:
                  seed=s, noise=0.001, rate=250.0),
             Case("rotary", _settings("backlash"), ("backlash",), "backlash with A, B", seed=s),
             Case("rotary", _settings("servo_lag"), ("servo_lag",), "lag with A, B", seed=s),
+            Case("rotary", {"Kv_X": 40.0}, ("servo_lag",), "lag on X only, with A, B", seed=s, noise=0.0003),
             # rotary head geometry on the tip
             Case("rotary", _settings("rotary_location"), ("rotary_location",), "rotary location", seed=s),
             Case("rotary", _settings("rotary_squareness"), ("rotary_squareness",), "rotary squareness", seed=s),

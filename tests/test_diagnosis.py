@@ -197,8 +197,16 @@ def test_michigan_fit_on_some_files_validates_on_others():
 # ---- concealed effects (closed-form recordings) -------------------------------------------------
 CASES = {c.label: c for c in concealed_cases((1,))}
 QUICK = ["null, axes 500 Hz", "null, rotary with tip and axis", "lag on X only", "backlash X, Y only",
-         "lag + backlash", "rotary location", "machine growth + rotary location", "machine growth, no rotary motion",
-         "positioning + reversal (laser)", "squareness"]
+         "lag + backlash", "clock offset 5 ms", "rotary location", "rotary squareness", "spindle tilt", "tool length",
+         "runout", "spindle-frame growth", "machine growth + rotary location", "machine growth, no rotary motion",
+         "positioning + reversal (laser)", "straightness", "squareness"]
+
+
+def test_the_quick_cases_cover_every_term():
+    from camsmooth.diagnosis.terms import CANDIDATES
+
+    named = {n for label in QUICK for n in CASES[label].named}
+    assert named == set(CANDIDATES)
 
 
 @pytest.mark.parametrize("label", QUICK)
@@ -211,9 +219,14 @@ def test_concealed_effects_named_exactly(label):
     assert not r["bad"], (label, r["errors"])
 
 
-def test_lag_on_one_axis_reports_the_others_as_not_measurable():
-    r = run_case(CASES["lag on X only"], diagnose)
-    assert r["none_measurable"]["servo_lag"] == ["Y", "Z"]
+@pytest.mark.parametrize("label, others", [("lag on X only", ["Y", "Z"]),
+                                           ("lag on X only, with A, B", ["Y", "Z", "A", "B"])])
+def test_lag_on_one_axis_reports_the_others_as_not_measurable(label, others):
+    """The issue's case: a lag on X only is named with Kv_X and 'none measurable' on the other
+    axes, never with a gain at its bound."""
+    r = run_case(CASES[label], diagnose)
+    assert r["exact"] and not r["bad"]
+    assert r["none_measurable"]["servo_lag"] == others
 
 
 def test_sub_period_clock_offset_is_not_a_finding():
