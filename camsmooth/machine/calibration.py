@@ -347,7 +347,11 @@ def validate_probe(data: ProbeData) -> None:
 
 def probe_offsets(model: ErrorModel, machine: Machine, data: ProbeData) -> np.ndarray:
     """g = real tool tip - nominal tool tip (N,3) mm at the probing poses."""
-    real = model.apply(machine).tool_pose_np(data.A, data.B, data.X, data.Y, data.Z)[0]
+    from camsmooth.machine.model import frame_tip_axis
+
+    q = {"A": np.asarray(data.A, float), "B": np.asarray(data.B, float), "X": np.asarray(data.X, float),
+         "Y": np.asarray(data.Y, float), "Z": np.asarray(data.Z, float)}
+    real = frame_tip_axis(model.real_frame(machine, q), len(data.A))[0]
     nominal = machine.tool_pose_np(data.A, data.B, data.X, data.Y, data.Z)[0]
     return real - nominal
 
