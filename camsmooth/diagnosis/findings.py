@@ -210,8 +210,8 @@ def discriminate_lag_offset(sel: Selector, result: Mapping[str, Any]) -> dict[st
     if not axes:
         return None
     others = tuple(n for n in result["active"] if n not in ("servo_lag", "time_offset"))
-    f_lag = sel.fit(others + ("servo_lag",))
-    f_off = sel.fit(others + ("time_offset",))
+    f_lag = sel.fit_set(others + ("servo_lag",))
+    f_off = sel.fit_set(others + ("time_offset",))
     if "servo_lag" not in f_lag.pnames or not f_lag.pnames["servo_lag"]:
         return None
     base = f_lag.physics.copy()

@@ -205,6 +205,14 @@ class Selector:
 
         return rows
 
+    def fit_set(self, names: Sequence[str]) -> Fit:
+        """A fit of this set of terms in any order (a cached one when there is one)."""
+        want = set(names)
+        for k, f in self.cache.items():
+            if set(k) == want and len(k) == len(want):
+                return f
+        return self.fit(tuple(names))
+
     def _empty_fit(self, key: tuple[str, ...], pnames: dict[str, list[str]]) -> Fit:
         P = self.P
         folds, valid = P.folds, P.valid_fit
@@ -240,7 +248,7 @@ class Selector:
                     known[:len(known_jt)] = list(known_jt)
                 return fitting.jacobian_t(rfun, z, 1e-4 * scale, r0=r, lo=lo, hi=hi, mask=valid, known=known)
         res = fitting.levenberg_marquardt(rfun, x0, lo=lo, hi=hi, step=1e-4 * scale, scale=scale, mask=valid,
-                                          known_jt=known_jt, jac=jac)
+                                          known_jt=known_jt, jac=jac, rtol=1e-7)
         x, H, rss, Jt, r_valid = res.x, res.H, res.cost, res.Jt, res.r
         r = rfun(x)
         rr = np.where(valid, r, 0.0)
