@@ -4,7 +4,8 @@ A synthetic 'lines' program (X, Y, Z rest-to-rest moves with reversals, spindle 
 simulated with a concealed servo lag (Kv X 40, Y 60, Z 80 1/s) and backlash (X 10, Y 15,
 Z 20 um), white noise 1 um, on the axis actuals and the measured tool tip (6 channels). The
 script prints the wall and CPU time of `diagnose` on the arrays (and the load average: wall time
-on a busy machine says little), of reading the two CSV files, and what was found. Run:  python benchmarks/bench_diagnose.py [--minutes 30] [--rate 1000] [--csv]
+on a busy machine says little), of reading the two CSV files, and what was found.
+Run:  python benchmarks/bench_diagnose.py [--minutes 30] [--rate 1000] [--csv]
 """
 
 from __future__ import annotations

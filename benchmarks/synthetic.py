@@ -409,6 +409,7 @@ class Case:
     rate: float | None = None
     seed: int = 1
     apart: tuple[str, ...] = field(default_factory=tuple)
+    quantum: float = 0.0  # rounding step of the mm channels (a recording's resolution)
 
 
 def _settings(*names: str, axes: Sequence[str] | None = None, **override: float) -> dict[str, float]:
@@ -471,6 +472,13 @@ def concealed_cases(seeds: Sequence[int] = (1, 2)) -> list[Case]:
             Case("grid", _settings("linear_positioning"), ("linear_positioning",), "positioning on the tip", seed=s),
             Case("grid", _settings("linear_straightness"), ("linear_straightness",), "straightness", seed=s),
             Case("grid", _settings("linear_squareness"), ("linear_squareness",), "squareness", seed=s),
+            # harder: coarse sampling, more noise and a quantised recording; pairs on one program
+            Case("lines", _settings("servo_lag", axes=xyz), ("servo_lag",), "lag, 100 Hz, 2 um noise, 1 um steps",
+                 seed=s, noise=0.002, rate=100.0, quantum=0.001),
+            Case("spindle", _settings("spindle_runout", "thermal_drift"), ("spindle_runout", "thermal_drift"),
+                 "runout + spindle growth", seed=s),
+            Case("grid", _settings("linear_positioning", "backlash", axes=xyz), ("linear_positioning", "backlash"),
+                 "positioning + backlash on the tip", seed=s),
         ]
     return out
 
@@ -485,8 +493,14 @@ def program_for(case: Case) -> Program:
 def recording_for(case: Case, program: Program) -> Recording:
     chans, _, noise = PROGRAMS[case.kind]
     sig = case.noise if case.noise is not None else noise
-    return record(program, case.truth, channels=chans,
-                  noise={"axes": sig, "tip": sig, "rotary": sig * 1e-3, "axis": sig * 1e-3}, seed=case.seed + 1000)
+    rec = record(program, case.truth, channels=chans,
+                 noise={"axes": sig, "tip": sig, "rotary": sig * 1e-3, "axis": sig * 1e-3}, seed=case.seed + 1000)
+    if case.quantum:
+        for c in rec.channels:
+            if c in ("X_act", "Y_act", "Z_act", "tip_x", "tip_y", "tip_z"):
+                rec.channels[c] = np.round(rec.channels[c] / case.quantum) * case.quantum
+                rec.quantum[c] = np.full(len(rec.t), case.quantum)
+    return rec
 
 
 def _got(par: Mapping[str, Mapping[str, Any]], k: str) -> float | None:

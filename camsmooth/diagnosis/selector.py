@@ -502,7 +502,11 @@ class Selector:
             rejected.pop(best, None)
             current = exact
             active, current = self._backward(active, current, rejected)
-        # survives the joint refit: every kept term is checked again in the final joint fit
+        # survives the joint refit: every kept term is checked again in the final joint fit, with the
+        # axes or elements held back while other terms were missing given another chance
+        for name in active:
+            if self.excluded.get(name):
+                self._forget(name)
         changed = True
         while changed and active:
             changed = False
@@ -603,7 +607,8 @@ class Selector:
         held_change = math.sqrt(after.heldout_rss / max(before.heldout_rss, 1e-300)) - 1.0
         per_fold_better = int(np.sum(after.fold_rss < before.fold_rss))
         K = len(after.fold_rss)
-        n_eff = before.n_eff
+        # the noise shows best in the residual of the better model: the larger effective count
+        n_eff = max(before.n_eff, after.n_eff)
         dp = len(after.x) - len(before.x)
         dbic = n_eff * math.log(max(after.rss, 1e-300) / max(before.rss, 1e-300)) + dp * math.log(max(n_eff, 2.0))
         out = {"fit_change_pct": 100 * fit_change, "heldout_change_pct": 100 * held_change, "delta_bic": dbic,

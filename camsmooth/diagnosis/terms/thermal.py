@@ -142,7 +142,7 @@ class ThermalDrift(Term):
         parts = [f"{e} gain {fmt(params[e + '_gain'])} per 1000 rpm, tau {fmt(params[e + '_tau'], 's')}"
                  for e in els]
         where = ("The spindle grows thermally" if self.frame == "spindle"
-                 else "The machine's axes and column grow thermally (machine frame)")
+                 else "The machine's axes and column grow thermally, in the machine frame")
         return f"{where} ({'; '.join(parts)}{none_text(none)})"
 
     def veto(self, P, names, x):
