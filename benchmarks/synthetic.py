@@ -384,6 +384,7 @@ EFFECTS: dict[str, dict[str, float]] = {
 #: program kind -> (channels, default rate Hz, default noise mm)
 PROGRAMS: dict[str, tuple[tuple[str, ...], float, float]] = {
     "lines": (("axes",), 500.0, 0.0003),
+    "p2p": (("axes",), 500.0, 0.0003),
     "lines_tip": (("axes", "tip"), 250.0, 0.001),
     "circles": (("axes",), 250.0, 0.001),
     "rotary": (("axes", "tip", "axis"), 250.0, 0.001),
@@ -450,6 +451,11 @@ def concealed_cases(seeds: Sequence[int] = (1, 2)) -> list[Case]:
             Case("lines", _settings("servo_lag", "backlash", axes=xyz), ("servo_lag", "backlash"), "lag + backlash",
                  seed=s, noise=0.001, rate=250.0),
             Case("rotary", _settings("backlash"), ("backlash",), "backlash with A, B", seed=s),
+            # the recordings: 500 Hz point-to-point moves of X, Y, Z, A, B, 0.3 um noise
+            Case("p2p", {"backlash_X": 0.012}, ("backlash",), "backlash X only, p2p 500 Hz", seed=s),
+            Case("p2p", {"backlash_X": 0.030, "backlash_Y": 0.015}, ("backlash",), "backlash X, Y, p2p 500 Hz",
+                 seed=s),
+            Case("p2p", {}, (), "null, p2p 500 Hz", seed=s),
             Case("rotary", _settings("servo_lag"), ("servo_lag",), "lag with A, B", seed=s),
             Case("rotary", {"Kv_X": 40.0}, ("servo_lag",), "lag on X only, with A, B", seed=s, noise=0.0003),
             # rotary head geometry on the tip
@@ -485,9 +491,9 @@ def concealed_cases(seeds: Sequence[int] = (1, 2)) -> list[Case]:
 
 def program_for(case: Case) -> Program:
     chans, rate, _ = PROGRAMS[case.kind]
-    kind = "lines" if case.kind == "lines_tip" else case.kind
-    return make_special_program(kind, rate=case.rate or rate, seed=case.seed,
-                                duration=8.0 if kind in ("lines", "circles", "rotary") else None)
+    kind = {"lines_tip": "lines", "p2p": "rotary"}.get(case.kind, case.kind)
+    duration = 40.0 if case.kind == "p2p" else (8.0 if kind in ("lines", "circles", "rotary") else None)
+    return make_special_program(kind, rate=case.rate or rate, seed=case.seed, duration=duration)
 
 
 def recording_for(case: Case, program: Program) -> Recording:

@@ -341,10 +341,8 @@ def diagnose(program: Program, recording: Recording, machine: Machine | None = N
         w_new = {c: white_noise(ra[:, j], P.segment) for j, c in enumerate(P.channels)}
         w_old = {c: P.floor_info[c]["white"] for c in P.channels}
         if any(w_new[c] < 0.8 * w_old[c] and w_old[c] > P.floor_info[c]["quantisation_rms"] for c in P.channels):
-            outliers = P.outliers
             P = prepare(program, recording, machine, base, opt, white={c: min(w_new[c], w_old[c]) for c in w_new},
-                        valid=P.valid)
-            P.outliers[:] = outliers
+                        valid=P.valid, outliers=P.outliers)
             sel = Selector(P, opt)
             res = sel.run()
     baseline, final = res["baseline"], res["final"]

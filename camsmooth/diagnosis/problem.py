@@ -243,10 +243,11 @@ def _command_quantum(program: Program, channel: str, knots: Knots, k: np.ndarray
 
 def prepare(program: Program, recording: Recording, machine: Machine | None = None,
             base: ErrorModel | None = None, options: Options | None = None,
-            white: Mapping[str, float] | None = None, valid: np.ndarray | None = None) -> Problem:
+            white: Mapping[str, float] | None = None, valid: np.ndarray | None = None,
+            outliers: list[dict[str, Any]] | None = None) -> Problem:
     """Align, simulate the baseline, estimate floors, mark outliers, make folds and the fit
-    subset (module docstring). white / valid: white-noise sigmas and the outlier mask to use
-    instead of estimating them (the second pass of ``diagnose``)."""
+    subset (module docstring). white / valid / outliers: white-noise sigmas, the outlier mask and
+    its list to use instead of estimating them (the second pass of ``diagnose``)."""
     opt = options or Options()
     machine = machine or load_machine(None)
     base = base or ErrorModel()
@@ -271,6 +272,7 @@ def prepare(program: Program, recording: Recording, machine: Machine | None = No
         floor[:, j] = np.maximum(f, tiny)
         inf["unit"] = channel_unit(c)
         info[c] = inf
+    given_outliers = outliers
     outliers = []
     given_valid = valid
     valid = np.ones_like(data, dtype=bool) if given_valid is None else given_valid
@@ -298,6 +300,6 @@ def prepare(program: Program, recording: Recording, machine: Machine | None = No
     dt = float(np.median(np.diff(al.t))) if M > 1 else 1.0
     return Problem(program=program, machine=machine, aligned=al, base=base, channels=tuple(channels), knots=knots,
                    t=al.t, segment=al.segment, data=data, floor=floor, floor_info=info, valid=valid,
-                   outliers=outliers, fit_idx=fit_idx, folds=folds, sim_fit=sim_fit, sim_all=sim_all, states=states,
+                   outliers=outliers if given_outliers is None else list(given_outliers), fit_idx=fit_idx, folds=folds, sim_fit=sim_fit, sim_all=sim_all, states=states,
                    dt=dt, resid0=resid, data_fit=data[fit_idx], w_fit=1.0 / floor[fit_idx],
                    valid_fit=valid[fit_idx], options=opt)
