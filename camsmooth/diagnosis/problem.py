@@ -300,6 +300,7 @@ def prepare(program: Program, recording: Recording, machine: Machine | None = No
     dt = float(np.median(np.diff(al.t))) if M > 1 else 1.0
     return Problem(program=program, machine=machine, aligned=al, base=base, channels=tuple(channels), knots=knots,
                    t=al.t, segment=al.segment, data=data, floor=floor, floor_info=info, valid=valid,
-                   outliers=outliers if given_outliers is None else list(given_outliers), fit_idx=fit_idx, folds=folds, sim_fit=sim_fit, sim_all=sim_all, states=states,
+                   outliers=outliers if given_outliers is None else list(given_outliers), fit_idx=fit_idx,
+                   folds=folds, sim_fit=sim_fit, sim_all=sim_all, states=states,
                    dt=dt, resid0=resid, data_fit=data[fit_idx], w_fit=1.0 / floor[fit_idx],
                    valid_fit=valid[fit_idx], options=opt)
