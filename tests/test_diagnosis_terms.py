@@ -61,3 +61,17 @@ def test_term_lookup():
     assert term("linear_squareness").name == "linear_squareness"
     with pytest.raises(KeyError):
         term("magic")
+
+
+def test_correlations_between_named_terms_come_from_the_joint_covariance():
+    from camsmooth.diagnosis.findings import _correlations
+    from camsmooth.diagnosis.selector import Fit
+
+    cov = np.array([[4.0, 0.0, 1.9], [0.0, 1.0, 0.1], [1.9, 0.1, 1.0]])  # corr(tau_X, b_X) = 0.95
+    z = np.zeros(3)
+    f = Fit(("servo_lag", "backlash"), {"servo_lag": ["tau_X", "tau_Y"], "backlash": ["b_X"]}, z, ErrorModel(), cov,
+            1.0, 10, 10.0, 0.0, {}, 1.0, {}, z, z)
+    out = _correlations(f, "servo_lag", 0.9)
+    assert [(c["parameter"], c["other_parameter"], c["strong"]) for c in out] == [("tau_X", "b_X", True)]
+    assert out[0]["correlation"] == pytest.approx(0.95)
+    assert _correlations(f, "backlash", 0.9)[0]["other_parameter"] == "tau_X"

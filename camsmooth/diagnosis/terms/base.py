@@ -13,7 +13,6 @@ the simulator.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -130,11 +129,6 @@ def gn_initial(P: Problem, term: Term, model: ErrorModel, names: Sequence[str], 
     return np.clip(x0 + step, lo + 1e-12 * (hi - lo), hi - 1e-12 * (hi - lo))
 
 
-def unit_scale(unit: str) -> float:
-    """A typical size of a geometric parameter of this unit (1 um or 1 urad effect)."""
-    return {"mm": 1e-3, "rad": 1e-6}.get(unit, 1e-6)
-
-
 class Geometric(Term):
     """Geometric model parameters through the chain; only the parameters the program's motion
     can show (checked by the rank of their columns at the base model) are fitted."""
@@ -214,7 +208,3 @@ def rotary_state(P: Problem) -> tuple[str, np.ndarray, str]:
         if P.knots.moves(a):
             return f"rotary axis {a} (deg)", np.degrees(P.states[f"pos_{a}"]), "deg"
     return "elapsed time (s)", P.states["elapsed"], "s"
-
-
-def finite_or_none(v: float) -> float | None:
-    return float(v) if math.isfinite(v) else None
