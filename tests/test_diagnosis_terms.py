@@ -75,3 +75,31 @@ def test_correlations_between_named_terms_come_from_the_joint_covariance():
     assert [(c["parameter"], c["other_parameter"], c["strong"]) for c in out] == [("tau_X", "b_X", True)]
     assert out[0]["correlation"] == pytest.approx(0.95)
     assert _correlations(f, "backlash", 0.9)[0]["other_parameter"] == "tau_X"
+
+
+def test_backlash_jacobian_from_the_screws_matches_finite_differences():
+    """Tool tip, tool axis and axis channels on a five-axis program with geometric errors: the
+    backlash columns built from the chain's space Jacobian equal central differences."""
+    from benchmarks.synthetic import make_program
+
+    prog = make_program("rotary", duration=4.0, rate=50.0, seed=2, spindle=6000.0)
+    rec = record(prog, {}, channels=("axes", "tip", "axis"), noise={"axes": 1e-3, "tip": 1e-3, "rotary": 1e-6,
+                                                                    "axis": 1e-6}, seed=1)
+    P = prepare(prog, rec)
+    t = term("backlash")
+    names = [p.name for p in t.params(P)]
+    model = ErrorModel({"EY0A": 0.02, "EC0B": 1e-4, "EXX": 1e-3, "EYX2": 1e-5, "EC0Y": 1e-4},
+                       tau={"X": 0.02, "A": 0.03}, backlash={"X": 0.01, "B": 2e-4},
+                       thermal={"dz": {"gain": 0.01, "tau": 2.0}})
+    J = t.jacobian(P, model, names)
+
+    def resid(m):
+        return ((P.data_fit - P.sim_fit.run(m)) * P.w_fit)[P.valid_fit]
+
+    for i, n in enumerate(names):
+        h = 1e-6
+        mp, mm = model.copy(), model.copy()
+        t.write(mp, [n], [model.backlash.get(n[2:], 0.0) + h])
+        t.write(mm, [n], [model.backlash.get(n[2:], 0.0) - h])
+        fd = (resid(mp) - resid(mm)) / (2 * h)
+        assert np.allclose(J[i], fd, rtol=1e-5, atol=1e-6 * np.max(np.abs(fd))), n

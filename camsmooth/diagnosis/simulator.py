@@ -233,6 +233,50 @@ class Simulator:
             self._pose.put(key, ErrorModel(dict(ph.geometric), ph.spindle).chain(self.machine).forward(q), limit=4)
         return self._pose[key]
 
+    def joint_derivatives(self, ph: ErrorModel, axes: Sequence[str]) -> dict[str, np.ndarray]:
+        """d channels / d q_a (n, C) for the actual position q_a of each axis in ``axes`` (after lag
+        and backlash), at the evaluation times: on the axis's own external channel 1 + E_AA'(q),
+        on the tool tip v_a + w_a x tip and on the tool axis w_a x T, (w_a, v_a) the space Jacobian
+        column of the model's chain (camsmooth.machine.kinematics.space_jacobian, from the screws;
+        Modern Robotics' JacobianSpace), scaled by the positioning error's slope and plus the
+        straightness slope for a linear axis."""
+        from camsmooth.machine.kinematics import space_jacobian
+        from camsmooth.machine.model import RealChain, frame_tip_axis
+
+        n, C = len(self.t), len(self.channels)
+        q = {a: np.broadcast_to(np.asarray(self.axis(a, ph), float), (n,)) for a in AXES}
+        out = {a: np.zeros((n, C)) for a in axes}
+        dpos = {}
+        for a in axes:
+            coef = _positioning(ph, a) if a in LINEAR_AXES else ()
+            dpos[a] = 1.0 + sum(k * c * (q[a] ** (k - 1) if k > 1 else 1.0) for k, c in coef)
+            if f"{a}_act" in self.channels:
+                out[a][:, self.channels.index(f"{a}_act")] = dpos[a]
+        if not self.need_pose:
+            return out
+        chain = ErrorModel(dict(ph.geometric), ph.spindle).chain(self.machine)
+        qj = chain.joint_values(q) if isinstance(chain, RealChain) else q
+        J = space_jacobian(chain, qj)
+        angle = self.spindle_angle(ph.offset_s) if self.kn.S is not None and ph.runout != (0.0, 0.0) else None
+        tip, ax = frame_tip_axis(ph.real_frame(self.machine, {}, self.thermal_state(ph), angle,
+                                               frame=self._frame(ph)), n)
+        for a in axes:
+            i = chain.names.index(a)
+            w, v = J[:, :3, i], J[:, 3:, i]
+            dtip = (v + np.cross(w, tip)) * np.asarray(dpos[a]).reshape(-1, 1)
+            dax = np.cross(w, ax) * np.asarray(dpos[a]).reshape(-1, 1)
+            if isinstance(chain, RealChain):
+                for name, terms in chain.straightness:
+                    if name == a:
+                        for d, k, c in terms:
+                            dtip[:, d] += k * c * (q[a] ** (k - 1) if k > 1 else 1.0)
+            for j, c in enumerate(self.channels):
+                if c in TIP_CHANNELS:
+                    out[a][:, j] = dtip[:, TIP_CHANNELS.index(c)]
+                elif c in DIR_CHANNELS:
+                    out[a][:, j] = dax[:, DIR_CHANNELS.index(c)]
+        return out
+
     def thermal_unit(self, tau: float, offset: float) -> np.ndarray:
         key = (tau, offset)
         if key not in self._therm:

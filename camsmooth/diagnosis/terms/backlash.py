@@ -33,6 +33,20 @@ class Backlash(Term):
     def read(self, model, names):
         return np.array([model.backlash.get(n[2:], 0.0) for n in names])
 
+    def jacobian(self, P, model, names):
+        """Exact columns: the axis stands -(b/2) sign(last commanded direction) off its lagged
+        command, so d channel / d b = -(1/2) dir d channel / d q (the chain's space Jacobian,
+        ``Simulator.joint_derivatives``)."""
+        sim = P.sim_fit
+        axes = [n[2:] for n in names]
+        dq = sim.joint_derivatives(model, axes)
+        k, _ = sim.loc(model.offset_s)
+        rows = []
+        for a in axes:
+            d = -0.5 * P.knots.direction(a)[k]
+            rows.append(-(dq[a] * d[:, None] * P.w_fit)[P.valid_fit])
+        return np.stack(rows)
+
     def report(self, names, x, sd):
         par, unc, unit = {}, {}, {}
         for n, v, s in zip(names, x, sd, strict=True):
