@@ -256,7 +256,7 @@ class Simulator:
             return out
         chain = ErrorModel(dict(ph.geometric), ph.spindle).chain(self.machine)
         qj = chain.joint_values(q) if isinstance(chain, RealChain) else q
-        J = space_jacobian(chain, qj)
+        J = space_jacobian(chain, qj, axes)
         angle = self.spindle_angle(ph.offset_s) if self.kn.S is not None and ph.runout != (0.0, 0.0) else None
         tip, ax = frame_tip_axis(ph.real_frame(self.machine, {}, self.thermal_state(ph), angle,
                                                frame=self._frame(ph)), n)
