@@ -392,3 +392,24 @@ def test_mis_set_model_parameter_is_refitted():
     assert e["name"] == "servo_lag" and e["parameters"]["Kv_X"] == pytest.approx(45, rel=0.01)
     assert "mis-set" in e["sentence"] and e["model_had"]["Kv_X"] == pytest.approx(30)
     assert diagnose(prog, rec, base=truth).findings["named"] == []
+
+
+def test_a_length_below_the_recording_resolution_is_not_a_finding():
+    """A tool 0.4 um too long, on a tool tip recorded in whole micrometres with 0.2 um of noise:
+    clear in the statistics of 2000 samples, below what the channel resolves - not named, and the
+    rejection says why; the same error at 40 um is named."""
+    from benchmarks.synthetic import make_special_program, record
+
+    prog = make_special_program("rotary", rate=250.0, seed=3, duration=8.0)
+
+    def diagnosed(ez0t):
+        rec = record(prog, {"EZ0T": ez0t}, channels=("tip",), noise={"tip": 2e-4}, seed=9)
+        for c in rec.channels:
+            rec.channels[c] = np.round(rec.channels[c] / 1e-3) * 1e-3
+            rec.quantum[c] = np.full(len(rec.t), 1e-3)
+        return diagnose(prog, rec).findings
+
+    f = diagnosed(0.0004)
+    assert f["named"] == []  # nor does another geometric term pick it up
+    assert "below the recording's resolution" in {r["name"]: r["reason"] for r in f["rejected"]}["tool_length"]
+    assert diagnosed(0.04)["named"] == ["tool_length"]

@@ -159,6 +159,22 @@ class Geometric(Term):
         return [Param(c[0], -c[2], c[2], c[3], c[1], c[4], bool(c[5]) if len(c) > 5 else False)
                 for c in cands if c[0] in keep]
 
+    def unresolvable(self, P, names, x, sd):
+        """A geometric error whose effect on the tool stays below the resolution (quantisation
+        step) of every channel that sees it is not a finding, however many samples average it."""
+        chans = [c for c in self.present(P) if channel_is_length(c) and P.floor_info[c]["q_recording_rms"] > 0]
+        if not chans:
+            return None
+        m = P.base.copy()
+        self.write(m, names, x)
+        d = P.sim_fit.run(m) - P.sim_fit.run(P.base)
+        peaks = {c: float(np.max(np.abs(d[:, P.channels.index(c)]))) for c in chans}
+        if all(peaks[c] < P.floor_info[c]["q_recording_rms"] for c in chans):
+            worst = max(chans, key=lambda c: peaks[c] / P.floor_info[c]["q_recording_rms"])
+            return (f"its largest effect ({peaks[worst] * 1e3:.3g} um on {worst}) stays below the recording's "
+                    f"resolution ({P.floor_info[worst]['q_recording_rms'] * 1e3:.3g} um)")
+        return None
+
     def write(self, model, names, x):
         for n, v in zip(names, x, strict=True):
             model.geometric[n] = float(v)
@@ -201,6 +217,10 @@ def travel(P: Problem, a: str) -> float:
     """The largest |position| (mm) axis a reaches in the program (at least 1 mm)."""
     u = P.knots.u.get(a)
     return max(1.0, float(np.max(np.abs(u)))) if u is not None else 1.0
+
+
+def channel_is_length(c: str) -> bool:
+    return c in TIP_CHANNELS or c in ("X_act", "Y_act", "Z_act")
 
 
 def rotary_state(P: Problem) -> tuple[str, np.ndarray, str]:
