@@ -413,3 +413,24 @@ def test_a_length_below_the_recording_resolution_is_not_a_finding():
     assert f["named"] == []  # nor does another geometric term pick it up
     assert "below the recording's resolution" in {r["name"]: r["reason"] for r in f["rejected"]}["tool_length"]
     assert diagnosed(0.04)["named"] == ["tool_length"]
+
+
+def test_simulator_thermal_is_the_models_thermal_state_when_the_speed_changes():
+    """One thermal model: with the spindle speed stepping and ramping between program rows, the
+    diagnosis simulator's tool tip equals ErrorModel.real_frame with ErrorModel.thermal_state
+    (speed linear between rows) - the same integrator, not a second one."""
+    from camsmooth.machine.model import frame_tip_axis
+
+    t = np.linspace(0.0, 60.0, 601)
+    S = np.interp(t, [0, 10, 10.1, 30, 45, 60], [0, 0, 9000, 9000, 2000, 2000])
+    A = np.radians(20 * np.sin(t / 7))
+    prog = Program(t=t, axes={"X": np.zeros_like(t), "A": A, "B": 0.5 * A}, S=S)
+    th = {"dz": {"gain": 0.01, "tau": 8.0}, "mx": {"gain": -0.004, "tau": 15.0}, "exz": {"gain": 2e-5, "tau": 5.0}}
+    model = ErrorModel({"EY0A": 0.01}, thermal=th)
+    rec = simulate_recording(prog, physics=model, channels=["tip", "axis"])
+    q = {"X": prog.axes["X"], "A": A, "B": 0.5 * A}
+    tip, axis = frame_tip_axis(model.real_frame(load_machine(None), q, model.thermal_state(t, S, hold="linear")),
+                               len(t))
+    assert np.allclose(np.column_stack([rec.channels[c] for c in ("tip_x", "tip_y", "tip_z")]), tip, atol=1e-12)
+    assert np.allclose(np.column_stack([rec.channels[c] for c in ("axis_i", "axis_j", "axis_k")]), axis,
+                       atol=1e-14)
