@@ -1,10 +1,16 @@
-"""The full concealed-effect sweep: every candidate alone, the pairs and the null case, on four
-programs (linear moves with reversals, circles, A/B rotary sweeps, spindle-speed steps) at
-several noise levels and seeds. diagnose sees only the program and the recording; a case is
-right when exactly the hidden effects are named and their parameters are within 10%.
+"""The concealed-effect benchmark (issue 11): the seeded catalogue of benchmarks/synthetic.py -
+every term alone, the common pairs and nulls; axis channels at several rates and noise levels,
+tool-tip and tool-axis channels, thermal runs with varying spindle speed in both frames, linear-axis
+positioning, straightness and squareness - recorded by closed forms written independently of
+camsmooth's simulator, then diagnosed from the program and the recording only.
 
-Run:  python benchmarks/bench_concealed.py [--noise 0.0005 0.002 0.005] [--seeds 1 2] [--quick]
-Prints every case that went wrong, the success rate, the null-case false alarms and the time.
+A case is right when exactly the hidden terms are named (or, where the program cannot separate
+two terms, the pair is reported as 'cannot tell apart') and every hidden parameter is within 10%
+(time constants of thermal growth are printed, not checked).
+
+Run:  python benchmarks/bench_concealed.py [--seeds 1 2] [--only LABEL ...]
+Prints every case, the success rate, false positives on the nulls, the pairs reported as 'cannot
+tell apart', the parameter errors (lag and offset separately) and the time.
 """
 
 from __future__ import annotations
@@ -16,44 +22,54 @@ import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from camsmooth.diagnosis.engine import CONCEALED_PROGRAMS, concealed_case, concealed_cases  # noqa: E402
+from benchmarks.synthetic import concealed_cases, run_case  # noqa: E402
+from camsmooth.diagnosis.findings import diagnose  # noqa: E402
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--noise", type=float, nargs="+", default=[0.0005, 0.002, 0.005],
-                    help="white noise sigma on mm channels (rad channels get 1e-3 of it)")
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2])
-    ap.add_argument("--kinds", nargs="+", default=list(CONCEALED_PROGRAMS))
-    ap.add_argument("--quick", action="store_true", help="short recordings (as the test suite uses)")
+    ap.add_argument("--only", nargs="+", help="run only the cases with these labels")
     args = ap.parse_args()
     t0 = time.perf_counter()
+    cases = [c for c in concealed_cases(args.seeds) if not args.only or c.label in args.only]
     results = []
-    for seed in args.seeds:
-        for noise in args.noise:
-            for kind, names in concealed_cases(args.kinds):
-                kw = {}
-                if args.quick:
-                    kw = {"duration": 20.0 if kind == "spindle" else 8.0, "rate": 100.0 if kind == "spindle" else 250.0}
-                r = concealed_case(kind, names, noise, seed=seed, **kw)
-                results.append(r)
-                if not r["ok"]:
-                    print(f"WRONG {kind:8s} noise {noise:g} seed {seed} hidden {list(names)}: {r['problems']}",
-                          flush=True)
+    for c in cases:
+        r = run_case(c, diagnose)
+        ok = (r["exact"] or r["apart"]) and not r["bad"]
+        r["ok"] = ok
+        results.append(r)
+        errs = ", ".join(f"{k} {100 * v:.2g}%" if v is not None else f"{k} missing" for k, v in r["errors"].items())
+        none = {k: v for k, v in r["none_measurable"].items() if v and k != "unexplained"}
+        print(f"{'ok   ' if ok else 'WRONG'} seed {c.seed} {c.kind:12s} {c.label:36s} named {r['named']}"
+              f"{' (cannot tell apart: ' + str(r['apart_pairs']) + ')' if r['apart_pairs'] else ''}"
+              f"{' none measurable ' + str(none) if none else ''} [{errs}] {r['seconds']:.1f} s", flush=True)
     n = len(results)
     ok = sum(r["ok"] for r in results)
-    null = [r for r in results if not r["effects"]]
-    false_alarms = sum(bool(r["named"]) for r in null)
-    single = [r for r in results if len(r["effects"]) == 1]
-    pairs = [r for r in results if len(r["effects"]) == 2]
-    print(f"cases {n}: right {ok} ({100 * ok / n:.1f}%); single effects {sum(r['ok'] for r in single)}/{len(single)}, "
-          f"pairs {sum(r['ok'] for r in pairs)}/{len(pairs)}, null cases with something named "
-          f"{false_alarms}/{len(null)}")
-    print(f"samples per case {min(r['samples'] for r in results)}-{max(r['samples'] for r in results)}; "
-          f"diagnose time per case median {sorted(r['seconds'] for r in results)[n // 2]:.2f} s; "
-          f"total {time.perf_counter() - t0:.0f} s")
+    exact = sum(r["exact"] and not r["bad"] for r in results)
+    null = [r for r in results if not r["case"].named]
+    false_pos = sum(bool(r["named"]) for r in null)
+    apart = [r for r in results if r["apart_pairs"]]
+    lag_off = [v for r in results for k, v in r["errors"].items() if k.startswith("Kv_") or k == "offset_s"]
+    others = [v for r in results for k, v in r["errors"].items() if not (k.startswith("Kv_") or k == "offset_s")]
+    print(f"\ncases {n}: right {ok} ({100 * ok / n:.1f}%), named exactly {exact}; null cases {len(null)} with "
+          f"something named {false_pos}")
+    print(f"cases reporting a pair as 'cannot tell apart': {len(apart)} "
+          f"({sorted({tuple(p) for r in apart for p in r['apart_pairs']})})")
+    if lag_off:
+        print(f"lag and clock-offset parameters: {len(lag_off)}, largest error "
+              f"{100 * max(v for v in lag_off if v is not None):.2f}%, all within 10%: "
+              f"{all(v is not None and v <= 0.10 for v in lag_off)}")
+    if others:
+        good = [v for v in others if v is not None]
+        print(f"other parameters: {len(others)}, median error {100 * sorted(good)[len(good) // 2]:.2f}%, largest "
+              f"{100 * max(good):.2f}%, within 10%: {sum(v <= 0.10 for v in good)}/{len(others)}")
+    secs = sorted(r["seconds"] for r in results)
+    print(f"samples per case {min(r['samples'] for r in results)}-{max(r['samples'] for r in results)}; diagnose time "
+          f"per case median {secs[n // 2]:.2f} s, max {secs[-1]:.1f} s; total {time.perf_counter() - t0:.0f} s")
     print(f"BENCH concealed_success_pct {100 * ok / n:.1f}")
-    return 0
+    print(f"BENCH concealed_null_false_positives {false_pos}")
+    return 0 if ok >= 0.95 * n and false_pos == 0 else 1
 
 
 if __name__ == "__main__":

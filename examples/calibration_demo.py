@@ -26,7 +26,7 @@ import numpy as np
 from camsmooth.machine import calibration as cal
 from camsmooth.machine import simulate as sim
 from camsmooth.machine.kinematics import load_machine
-from camsmooth.machine.model import GEOMETRIC_PARAMETERS, THERMAL_ELEMENTS, ErrorModel, compensate
+from camsmooth.machine.model import GEOMETRIC_PARAMETERS, SPINDLE_THERMAL, ErrorModel, compensate
 
 DATA = Path(__file__).resolve().parent / "data"
 
@@ -105,7 +105,7 @@ def ballbar(truth: ErrorModel, machine, quick: bool) -> None:
     rep = cal.calibrate_ballbar(data)
     dt = time.perf_counter() - t0
     st = truth.thermal_state(times, rpm)
-    true = np.column_stack([st[k] for k in THERMAL_ELEMENTS])
+    true = np.column_stack([st[k] for k in SPINDLE_THERMAL])
     scale = np.array([1e3, 1e3, 1e3, 1e6, 1e6])
     ls = (rep.details["elements"] - true) * scale
     tri = (rep.details["trilateration"] - true) * scale
@@ -129,8 +129,8 @@ def ballbar(truth: ErrorModel, machine, quick: bool) -> None:
     print(f"   max |error| trilateration, every triple: dx {ma[0]:.3f}, dy {ma[1]:.3f}, dz {ma[2]:.3f} um; "
           f"exz {ma[3]:.2f}, eyz {ma[4]:.2f} urad (on uniform circles this is ~ the LS estimate)")
     print("   first-order response fitted to the LS elements (gain per 1000 rpm, tau):")
-    for k in THERMAL_ELEMENTS:
-        s, unit = (1e3, "um") if THERMAL_ELEMENTS[k] == "mm" else (1e6, "urad")
+    for k in SPINDLE_THERMAL:
+        s, unit = (1e3, "um") if SPINDLE_THERMAL[k] == "mm" else (1e6, "urad")
         g, tau = rep.parameters[f"{k}.gain"], rep.parameters[f"{k}.tau"]
         print(f"     {k:<3}: gain {g * s:7.3f} +- {rep.uncertainties[f'{k}.gain'] * s:.3f} {unit} (true "
               f"{truth.thermal[k]['gain'] * s:6.3f}), tau {tau:7.1f} +- "

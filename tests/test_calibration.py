@@ -15,7 +15,7 @@ from camsmooth.errors import InputError
 from camsmooth.machine import calibration as cal
 from camsmooth.machine import simulate as sim
 from camsmooth.machine.kinematics import load_machine
-from camsmooth.machine.model import GEOMETRIC_PARAMETERS, THERMAL_ELEMENTS, ErrorModel, SpindleScrew
+from camsmooth.machine.model import GEOMETRIC_PARAMETERS, SPINDLE_THERMAL, ErrorModel, SpindleScrew
 
 AXIS_ERRORS = {"EY0A": 0.020, "EZ0A": -0.035, "EB0A": 30e-6, "EC0A": -45e-6, "EX0B": 0.015, "EZ0B": -0.025,
                "EA0B": 40e-6, "EC0B": -20e-6}
@@ -170,7 +170,7 @@ def ballbar(machine):
     data = sim.simulate_ballbar(truth, machine, times=times, rpm=rpm, step_deg=0.02, noise=0.001, seed=1)
     rep = cal.calibrate_ballbar(data)
     state = truth.thermal_state(times, rpm)
-    return rep, np.column_stack([state[k] for k in THERMAL_ELEMENTS]), data
+    return rep, np.column_stack([state[k] for k in SPINDLE_THERMAL]), data
 
 
 def test_ballbar_least_squares_recovers_the_drift(ballbar):

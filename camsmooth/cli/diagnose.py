@@ -1,4 +1,4 @@
-"""`camsmooth diagnose`: simulation versus recordings (camsmooth.diagnosis.engine).
+"""`camsmooth diagnose`: simulation versus recordings (camsmooth.diagnosis).
 
     camsmooth diagnose --program P.csv --recording R.csv [--machine M.toml] [--model MODEL.json]
                        --out FINDINGS.json [--report DIR [--force]] [--model-out NEW_MODEL.json]
@@ -47,7 +47,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--folds", type=number(ge=2, integer=True), default=5,
                    help="blocked time folds for held-out scoring (>= 2, default 5)")
     p.add_argument("--max-fit-samples", type=number(ge=100, integer=True), default=None, metavar="N",
-                   help="fit on at most N samples (an even random subset; N >= 100, default 120000)")
+                   help="fit on at most N samples (an even random subset; N >= 100, default 60000)")
     p.add_argument("--candidates", help="comma list restricting the candidate library")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=run_diagnose)
@@ -74,22 +74,24 @@ def load_physics(path: str | None, option: str = "--model") -> Any:
 
 
 def _options(args: argparse.Namespace) -> Any:
+    from dataclasses import replace
+
     from camsmooth.diagnosis.engine import CANDIDATES, Options
 
     opt = Options()
     if args.folds < 2:  # also checked while parsing; kept for callers that build args themselves
         raise InputError(f"--folds must be >= 2, got {args.folds}")
-    opt.folds = args.folds
+    opt = replace(opt, folds=args.folds)
     if args.max_fit_samples is not None:
         if args.max_fit_samples < 100:
             raise InputError(f"--max-fit-samples must be >= 100, got {args.max_fit_samples}")
-        opt.max_fit_samples = args.max_fit_samples
+        opt = replace(opt, max_fit_samples=args.max_fit_samples)
     if args.candidates:
         names = tuple(c.strip() for c in args.candidates.split(",") if c.strip())
         unknown = [c for c in names if c not in CANDIDATES]
         if unknown:
             raise InputError(f"--candidates: unknown {', '.join(unknown)}; known: {', '.join(CANDIDATES)}")
-        opt.candidates = names
+        opt = replace(opt, candidates=names)
     return opt
 
 
@@ -131,7 +133,7 @@ def run_diagnose(args: argparse.Namespace) -> int:
         base = load_physics(args.model)
         diag = diagnose(program, recording, machine, base, options)
         if args.validate:
-            diag.findings["validation"] = [validate(*read_umich(f), diag, machine) for f in args.validate]
+            diag.result.validation = [validate(*read_umich(f), diag, machine) for f in args.validate]
         write_findings(out, diag)
         if model_out is not None:
             write_model(model_out, diag)

@@ -1,2 +1,12 @@
-"""Simulation versus recordings: recordings, the simulator and the candidate physics that
-explain a residual (METHODS section 6)."""
+"""Simulation versus recordings (METHODS section 6), built as a library of physics terms:
+
+- ``recordings``: program and recording CSVs, the Michigan adapter, alignment;
+- ``simulator``: the program's knots and the simulator (the machine model
+  camsmooth.machine.model.ErrorModel, its one real pose and one first-order integrator);
+- ``problem``: noise floors, outliers, located intervals, ``Options`` and the frozen ``Problem``;
+- ``terms``: one module per physics term, one interface (``terms.base.Term``);
+- ``selector``: fitting (camsmooth.machine.fitting), held-out scoring and the rule that names a
+  term only when it is physics the user can act on;
+- ``findings``: ``diagnose``, ``validate`` and the typed findings (FINDINGS.json);
+- ``model_io``: the model JSON; ``engine``: the public names gathered in one place.
+"""

@@ -14,7 +14,7 @@ states only). Other columns are ignored and listed in the notes.
 Alignment (``align``): the program is a piecewise-linear command between its rows (a first-order
 hold, what a controller's linear interpolator executes); it is evaluated *exactly* at the
 recording's own sample times, never resampled onto a common grid, and the servo and thermal
-responses are integrated exactly for that piecewise-linear input (diagnosis.py). Recording
+responses are integrated exactly for that piecewise-linear input (camsmooth.diagnosis.simulator). Recording
 samples outside the time span of the program's segment are dropped, never extrapolated.
 """
 

@@ -43,22 +43,22 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from camsmooth.errors import InputError
 from camsmooth.io.atomic import atomic_path
 from camsmooth.io.table import read_table as _read_table
+from camsmooth.machine import fitting
 from camsmooth.machine.kinematics import Machine, load_machine
 from camsmooth.machine.model import (
     GEOMETRIC_PARAMETERS,
-    THERMAL_ELEMENTS,
+    SPINDLE_THERMAL,
     ErrorModel,
     SpindleScrew,
     first_order_response,
     spindle_forward,
 )
 
-RANK_TOL = 1e-7
+RANK_TOL = fitting.RANK_TOL
 
 PROBE_COLUMNS = ("A", "B", "X", "Y", "Z", "sx", "sy", "sz")
 SPINDLE_COLUMNS = ("theta", "ext", "x", "y", "z")
@@ -239,54 +239,10 @@ def _fmt_res(v: float, unit: str) -> str:
 
 
 # ----------------------------------------------------------------------------------------------
-# shared numerics
+# shared numerics (camsmooth.machine.fitting)
 def _central_jacobian(fun: Callable[[np.ndarray], np.ndarray], x: np.ndarray, h: float | np.ndarray
                       ) -> np.ndarray:
-    h = np.broadcast_to(np.asarray(h, float), x.shape)
-    cols = []
-    for k in range(len(x)):
-        e = np.zeros_like(x)
-        e[k] = h[k]
-        cols.append((fun(x + e) - fun(x - e)) / (2.0 * h[k]))
-    return np.column_stack(cols)
-
-
-def select_identifiable(J: np.ndarray, names: Sequence[str], groups: Sequence[Sequence[int]] | None = None,
-                        keep: Sequence[int] = (), tol: float = RANK_TOL, units: Sequence[str] | None = None
-                        ) -> tuple[list[int], dict[int, str]]:
-    """Greedy rank analysis. J: (m, n) Jacobian; groups: column index groups in priority order
-    (a group, e.g. a runout's two Cartesian components, is kept or dropped together); keep:
-    columns always kept (nuisance parameters); units: the unit of each column's parameter (for
-    the messages). A group is kept when adding it keeps the column-normalised matrix at full rank
-    (smallest/largest singular value > tol). Returns the kept columns and, for each dropped
-    column, the combination of kept columns that has the same effect on the measurement."""
-    norms = np.linalg.norm(J, axis=0)
-    Jn = J / np.where(norms > 0, norms, 1.0)
-    units = list(units) if units is not None else [""] * len(names)
-    kept = list(keep)
-    dropped: dict[int, str] = {}
-    groups = [[i] for i in range(J.shape[1]) if i not in keep] if groups is None else groups
-    for grp in groups:
-        if all(norms[i] == 0 for i in grp):
-            for i in grp:
-                dropped[i] = "no effect on the measurement (at the base values of the others)"
-            continue
-        trial = kept + list(grp)
-        s = np.linalg.svd(Jn[:, trial], compute_uv=False)
-        if s[-1] > tol * s[0]:
-            kept = trial
-            continue
-        for i in grp:
-            if norms[i] == 0:
-                dropped[i] = "no effect on the measurement (at the base values of the others)"
-                continue
-            coef, *_ = np.linalg.lstsq(J[:, kept], J[:, i], rcond=None)
-            big = np.max(np.abs(coef)) if len(coef) else 0.0
-            terms = [f"{c:+.4g} {units[k]} of {names[k]}".replace("  ", " ")
-                     for c, k in zip(coef, kept, strict=True) if abs(c) > 1e-3 * big]
-            dropped[i] = (f"1 {units[i]} of it has the same effect as " + ", ".join(terms)) if terms else \
-                "not separable from the others"
-    return kept, dropped
+    return fitting.jacobian_t(fun, x, h, central=True).T
 
 
 @dataclass
@@ -299,27 +255,24 @@ class _Fit:
 
 
 def _lsq(fun: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, h: float = 1e-3) -> _Fit:
-    """least_squares with central-difference Jacobian; covariance s^2 (J^T J)^-1. _Fit.nfev counts
-    every model evaluation, the Jacobian's included."""
+    """Least squares by the shared Levenberg-Marquardt (central-difference Jacobian); covariance
+    s^2 (J^T J)^-1. _Fit.nfev counts every model evaluation, the Jacobian's included."""
     calls = [0]
 
     def counted(x: np.ndarray) -> np.ndarray:
         calls[0] += 1
         return fun(x)
 
-    res = least_squares(counted, x0, jac=lambda x: _central_jacobian(counted, x, h), method="lm",
-                        xtol=1e-12, ftol=1e-12, gtol=1e-12)
-    J = _central_jacobian(counted, res.x, h)
+    res = fitting.levenberg_marquardt(counted, x0, step=h, central=True, rtol=1e-15, xtol=1e-12, max_iter=100,
+                                      scale=np.ones(len(x0)))
+    J = res.Jt.T
     m, n = J.shape
-    r = fun(res.x)
-    s2 = float(r @ r) / max(m - n, 1)
-    cov = s2 * np.linalg.pinv(J.T @ J)
-    return _Fit(res.x, cov, float(np.sqrt(np.mean(r * r))), J, calls[0])
+    cov = fitting.covariance(res.H, res.cost, m)
+    return _Fit(res.x, cov, float(np.sqrt(res.cost / m)), J, calls[0])
 
 
-def _sv(J: np.ndarray) -> tuple[np.ndarray, float]:
-    s = np.linalg.svd(J, compute_uv=False)
-    return s, float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+select_identifiable = fitting.select_identifiable
+_sv = fitting.singular_values
 
 
 # ----------------------------------------------------------------------------------------------
@@ -356,7 +309,11 @@ def validate_probe(data: ProbeData) -> None:
 
 def probe_offsets(model: ErrorModel, machine: Machine, data: ProbeData) -> np.ndarray:
     """g = real tool tip - nominal tool tip (N,3) mm at the probing poses."""
-    real = model.apply(machine).tool_pose_np(data.A, data.B, data.X, data.Y, data.Z)[0]
+    from camsmooth.machine.model import frame_tip_axis
+
+    q = {"A": np.asarray(data.A, float), "B": np.asarray(data.B, float), "X": np.asarray(data.X, float),
+         "Y": np.asarray(data.Y, float), "Z": np.asarray(data.Z, float)}
+    real = frame_tip_axis(model.real_frame(machine, q), len(data.A))[0]
     nominal = machine.tool_pose_np(data.A, data.B, data.X, data.Y, data.Z)[0]
     return real - nominal
 
@@ -435,8 +392,9 @@ def calibrate_probe(data: ProbeData | str | os.PathLike, machine: Machine | None
     def fun(x: np.ndarray) -> np.ndarray:
         return residual(x, fit_names, fit_scales)
 
-    r_before = least_squares(lambda c: residual(np.concatenate([x_base[fit_idx], c]), fit_names, fit_scales),
-                             x0[-3:], method="lm").fun
+    r_before = fitting.levenberg_marquardt(
+        lambda c: residual(np.concatenate([x_base[fit_idx], c]), fit_names, fit_scales), x0[-3:], step=1e-3,
+        central=True, rtol=1e-15, xtol=1e-12, scale=np.ones(3)).r
     fit = _lsq(fun, x0f)
     sd = np.sqrt(np.diag(fit.cov))
     params = {p: float(v) for p, v in zip(fit_names, fit.x[:-3] * fit_scales, strict=True)}
@@ -546,7 +504,7 @@ def pso(fun: Callable[[np.ndarray], np.ndarray], lower: np.ndarray, upper: np.nd
 def calibrate_spindle(data: SpindleData | str | os.PathLike, base: ErrorModel | None = None, *,
                       pso_compare: bool = True, seed: int = 0) -> CalibrationReport:
     """Identify the spindle screw parameters (SpindleScrew) from analyser data (ball centres over
-    spindle revolutions at two or more ball heights). Least squares (scipy.optimize.least_squares)
+    spindle revolutions at two or more ball heights). Least squares (camsmooth.machine.fitting)
     on the identifiable parameters (runouts in Cartesian form internally, reported as r, theta);
     the collet offsets rho1, rho2 and collet length h1 are confounded with the bearing runouts
     (the data show only the tool line relative to the rotation axis) and are reported as such.
@@ -925,8 +883,9 @@ def fit_thermal_response(times: np.ndarray, rpm: np.ndarray, values: np.ndarray,
     def fun(x: np.ndarray) -> np.ndarray:
         return wv - x[0] * resp(math.exp(x[1]))
 
-    res = least_squares(fun, [g_s, math.log(tau_s)], method="lm")
-    J = res.jac
+    res = fitting.levenberg_marquardt(fun, np.array([g_s, math.log(tau_s)]), step=1e-7, central=True,
+                                      rtol=1e-15, xtol=1e-12, scale=np.ones(2), max_iter=100)
+    J = res.Jt.T
     Jn = J / np.maximum(np.linalg.norm(J, axis=0), 1e-300)
     s = np.linalg.svd(Jn, compute_uv=False)
     if len(v) < 3 or s[-1] < 1e-4 * s[0]:
@@ -967,13 +926,13 @@ def calibrate_ballbar(data: BallbarData | str | os.PathLike, base: ErrorModel | 
     unc: dict[str, float] = {}
     units: dict[str, str] = {}
     reasons: dict[str, str] = {}
-    for j, name in enumerate(THERMAL_ELEMENTS):
+    for j, name in enumerate(SPINDLE_THERMAL):
         idx = n_setup + 5 * np.arange(K - 1) + j
         cov_j = cov[np.ix_(idx, idx)] * _EL_SCALE[j] ** 2
         tau0 = float(base.thermal.get(name, {}).get("tau", 1800.0))
         g, tau, ug, ut, why = fit_thermal_response(cir.times, cir.rpm, el[:, j], cov_j, tau0)
         thermal[name] = {"gain": g, "tau": tau}
-        unit = THERMAL_ELEMENTS[name]
+        unit = SPINDLE_THERMAL[name]
         params[f"{name}.gain"], unc[f"{name}.gain"], units[f"{name}.gain"] = g, ug, f"{unit}/1000rpm"
         params[f"{name}.tau"], unc[f"{name}.tau"], units[f"{name}.tau"] = tau, ut, "s"
         if why:

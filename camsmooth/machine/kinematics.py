@@ -562,3 +562,39 @@ def load_machine(path: str | None = None) -> Machine:
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"not valid TOML: {exc}", file=str(path)) from None
     return machine_from_dict(data, str(path))
+
+
+def space_jacobian(chain: Chain, q: Mapping[str, Any], joints: Sequence[str] | None = None) -> np.ndarray:
+    """The space Jacobian J_s(q) of the chain (Modern Robotics eq. (5.11), JacobianSpace):
+    column i is the spatial twist of joint i at q, J_si = Ad(exp([S_1] q_1) ... exp([S_i-1] q_i-1)) S_i,
+    as (w, v) with w the angular and v the linear part, workpiece frame. q: joint name -> float or
+    numpy array (N,) (missing joints at 0); joints: the columns wanted (default all; others are
+    left 0 and the product stops after the last one wanted). Returns (N, 6, n_joints) (N = 1 for
+    scalars), rows (w_x, w_y, w_z, v_x, v_y, v_z). The velocity of a point p carried by the tool
+    frame is v + w x p, so d tip / d q_i = v_i + w_i x tip and d T / d q_i = w_i x T (T the tool
+    axis)."""
+    screws = chain.joint_screws()
+    names = chain.names
+    want = set(names if joints is None else joints)
+    last = max(i for i, nm in enumerate(names) if nm in want) if want else -1
+    vals = [np.atleast_1d(np.asarray(q.get(j.name, 0.0), dtype=float)) for j in chain.joints]
+    n = max(len(v) for v in vals)
+    J = np.zeros((n, 6, len(screws)))
+    R: np.ndarray | None = None  # None while the prefix is a pure translation (prismatic joints)
+    p = np.zeros((n, 3))
+    for i, ((w, v), qi) in enumerate(zip(screws, vals, strict=True)):
+        if i > last:
+            break
+        if names[i] in want:
+            ws = np.broadcast_to(w, (n, 3)) if R is None else R @ w
+            J[:, :3, i] = ws
+            J[:, 3:, i] = (np.broadcast_to(v, (n, 3)) if R is None else R @ v) + np.cross(p, ws)
+        if not np.any(w):  # prismatic: the prefix moves by R v q
+            step = np.outer(np.broadcast_to(qi, (n,)), v)
+            p = p + (step if R is None else np.einsum("nij,nj->ni", R, step))
+            continue
+        T = exp_twist(w, v, np.broadcast_to(qi, (n,))).to_numpy(n)
+        Rp = np.broadcast_to(np.eye(3), (n, 3, 3)) if R is None else R
+        p = p + np.einsum("nij,nj->ni", Rp, T[:, :3, 3])
+        R = Rp @ T[:, :3, :3]
+    return J

@@ -1,9 +1,10 @@
-"""The machine error model: geometric axis errors, the spindle screw model and spindle thermal
-drift, expressed as a perturbed product-of-exponentials chain (camsmooth.machine.kinematics.Chain), so
-that the NLP smoother (CasADi symbols) and the simulators (numpy) evaluate the same machine.
+"""The machine model: every modelled deviation of the real machine from the nominal one, in one
+class (``ErrorModel``) with one JSON reader/writer and one function for the real pose
+(``ErrorModel.real_frame``), used by the smoother (CasADi), ``predict``, the calibration
+simulators and the diagnosis simulator (numpy).
 
-Geometric errors (ISO 230-1 style names; METHODS.md sections 3 and 4)
----------------------------------------------------------------------
+Geometric errors of the rotary axes, spindle and tool (ISO 230-1 style names; METHODS.md sections 3, 4)
+-------------------------------------------------------------------------------------------------------
 All at the home configuration (all axes at 0), workpiece frame W, right-hand rule.
 
 * A axis (nominal: the x axis through the head pivot p0): the real A axis is the line through
@@ -22,7 +23,7 @@ All at the home configuration (all axes at 0), workpiece frame W, right-hand rul
 * EZ0T: tool-length error, positive = tool longer than nominal (tip further from the spindle).
 
 Axis-line errors change only the joint screws (S = (w, -w x p)); spindle, tool, spindle-screw
-and thermal errors change only the home pose M:
+and spindle-frame thermal errors change only the home pose M:
 
     M = [R_S, p0 + (EX0S, EY0S, 0) - R_S p0] M_nominal Trans(0, 0, -EZ0T) T_screw T_thermal,
 
@@ -36,14 +37,45 @@ and C rows agree with the exact POE error to O(S^2) as written. The stated A row
 any frame: its e_y term must read -S_az + S_az cos a - S_ay sin a (the sign of the S_ay sin a
 term is flipped in the source); e_z is as stated.
 
-Spindle thermal drift (METHODS section 5)
------------------------------------------
-Five elements, in the spindle (tool) frame at the tool tip: dx, dy, dz (mm) the displacement of
-the tool tip, exz, eyz (rad) the tilt of the spindle in the xz and yz planes, such that a point
-of the spindle a height h above the tip (along the tool axis T) moves by
-(dx - exz h, dy - eyz h, dz), i.e. a rotation by (eyz, -exz, 0) about the tip and the real axis
-is ~ (-exz, -eyz, 1). Each element e follows tau de/dt = gain * rpm / 1000 - e from a cold start
-(e = 0); see ``ErrorModel.thermal_state``.
+Geometric errors of the linear axes (ISO 230-1: positioning, straightness, squareness)
+--------------------------------------------------------------------------------------
+For the linear axes X, Y, Z (positions q in mm, measured from the machine zero):
+
+* positioning E_AA(q) = EAA q + EAA2 q^2 + EAA3 q^3 (mm; EAA the scale error in mm per mm of
+  travel, EAA2, EAA3 the smooth pitch error of the screw): the carriage of axis A really moves
+  to q + E_AA(q). Seen by an external measurement of the axis (a laser on the carriage) and by
+  the tool tip; not by the axis's own encoder.
+* straightness E_BA(q) = EBA2 q^2 + EBA3 q^3 (mm): the carriage of axis A moves off its line
+  in direction B (B another linear axis). Its linear part is the squareness below, so
+  straightness starts with q^2 (ISO 230-1 takes straightness about the reference line).
+* squareness, the real directions of Y and Z relative to X (the reference axis): Y along
+  Rz(EC0Y) e_y = (-sin EC0Y, cos EC0Y, 0), Z along Rx(EA0Z) Ry(EB0Z) e_z (the convention of the
+  spindle tilt above). EC0Y > 0: the angle between +X and +Y is 90 deg + EC0Y.
+
+Squareness changes the screws of Y and Z; positioning changes the joint values the chain sees;
+straightness is a translation of the head carriage (``RealChain``). These work in numpy and
+CasADi alike.
+
+Servo, reversal and clock (the controller side; used by the diagnosis, METHODS section 6)
+---------------------------------------------------------------------------------------
+``tau[a]``: axis a follows its command through a first-order lag of time constant 1/Kv (s);
+``backlash[a]``: reversal error (mm; rad for A, B): the axis stands -(b/2) sign(last commanded
+direction) off its command; ``offset_s``: the recording clock runs this far behind the
+program's. ``runout = (r cos phi, r sin phi)`` (mm): the tool tip runs out once per spindle
+revolution, (r cos(theta + phi), r sin(theta + phi)) in the tool frame's xy at spindle angle theta.
+
+Thermal growth (METHODS section 5): one first-order model in two frames
+------------------------------------------------------------------------
+Spindle frame (moves with the head): dx, dy, dz (mm) the displacement of the tool tip in the
+tool frame, exz, eyz (rad) the tilt of the spindle in the xz and yz planes, such that a point of
+the spindle a height h above the tip (along the tool axis T) moves by (dx - exz h, dy - eyz h,
+dz), i.e. a rotation by (eyz, -exz, 0) about the tip and the real axis is ~ (-exz, -eyz, 1).
+Machine frame (the axes, column and ram growing; independent of the head's pose): mx, my, mz
+(mm) the displacement of the tool tip along the workpiece frame's x, y, z.
+Each element e follows tau de/dt = gain * rpm / 1000 - e from a cold start (e = 0), integrated
+exactly by ``first_order_knots`` (the one first-order integrator of the project, also used for
+the servo lag): the speed is held between samples (``hold='step'``) or linear between program
+rows (``hold='linear'``); see ``ErrorModel.thermal_state``.
 """
 
 from __future__ import annotations
@@ -60,11 +92,11 @@ import numpy as np
 
 from camsmooth.errors import InputError
 from camsmooth.io.atomic import write_text_atomic
-from camsmooth.machine.kinematics import Chain, Frame, Machine
+from camsmooth.machine.kinematics import IDENTITY, Chain, Frame, Machine
 
 # ----------------------------------------------------------------------------------------------
 # parameter tables
-GEOMETRIC_PARAMETERS: dict[str, tuple[str, str]] = {
+ROTARY_GEOMETRIC: dict[str, tuple[str, str]] = {
     "EY0A": ("mm", "A axis line offset in y"),
     "EZ0A": ("mm", "A axis line offset in z"),
     "EB0A": ("rad", "A axis squareness, rotation about y"),
@@ -79,9 +111,30 @@ GEOMETRIC_PARAMETERS: dict[str, tuple[str, str]] = {
     "EB0S": ("rad", "spindle axis tilt about y, about the pivot"),
     "EZ0T": ("mm", "tool length error, positive = longer"),
 }
+LINEAR_AXES = ("X", "Y", "Z")
+#: positioning: name -> (axis, power of q); straightness: name -> (axis, direction, power)
+POSITIONING: dict[str, tuple[str, int]] = {f"E{a}{a}{'' if k == 1 else k}": (a, k) for a in LINEAR_AXES
+                                           for k in (1, 2, 3)}
+STRAIGHTNESS: dict[str, tuple[str, str, int]] = {f"E{b}{a}{k}": (a, b, k) for a in LINEAR_AXES
+                                                 for b in LINEAR_AXES if b != a for k in (2, 3)}
+SQUARENESS: dict[str, str] = {"EC0Y": "Y", "EB0Z": "Z", "EA0Z": "Z"}
+_POWER_UNIT = {1: "1", 2: "1/mm", 3: "1/mm2"}
+LINEAR_GEOMETRIC: dict[str, tuple[str, str]] = {
+    **{n: (_POWER_UNIT[k], f"{a} positioning error, coefficient of {a}^{k}"
+           + (" (scale)" if k == 1 else " (pitch)")) for n, (a, k) in POSITIONING.items()},
+    **{n: (_POWER_UNIT[k], f"straightness of {a} in {b}, coefficient of {a}^{k}")
+       for n, (a, b, k) in STRAIGHTNESS.items()},
+    "EC0Y": ("rad", "squareness of Y to X, rotation about z"),
+    "EB0Z": ("rad", "squareness of Z to X, rotation about y"),
+    "EA0Z": ("rad", "squareness of Z to Y, rotation about x"),
+}
+GEOMETRIC_PARAMETERS: dict[str, tuple[str, str]] = {**ROTARY_GEOMETRIC, **LINEAR_GEOMETRIC}
 GEOMETRIC_NAMES: tuple[str, ...] = tuple(GEOMETRIC_PARAMETERS)
 
-THERMAL_ELEMENTS: dict[str, str] = {"dx": "mm", "dy": "mm", "dz": "mm", "exz": "rad", "eyz": "rad"}
+SPINDLE_THERMAL: dict[str, str] = {"dx": "mm", "dy": "mm", "dz": "mm", "exz": "rad", "eyz": "rad"}
+MACHINE_THERMAL: dict[str, str] = {"mx": "mm", "my": "mm", "mz": "mm"}
+THERMAL_ELEMENTS: dict[str, str] = {**SPINDLE_THERMAL, **MACHINE_THERMAL}
+SERVO_AXES = ("X", "Y", "Z", "A", "B")
 
 FORMAT = "camsmooth-error-model"
 FORMAT_VERSION = 1
@@ -90,11 +143,14 @@ FORMAT_VERSION = 1
 _LENGTH_UNITS = {"mm": 1.0, "um": 1e-3, "m": 1e3}
 _ANGLE_UNITS = {"rad": 1.0, "mrad": 1e-3, "urad": 1e-6, "deg": math.pi / 180.0}
 _TIME_UNITS = {"s": 1.0, "min": 60.0, "h": 3600.0}
-_UNITLESS = {"1": 1.0, "": 1.0}
+_UNITLESS = {"1": 1.0, "": 1.0, "mm/mm": 1.0, "um/mm": 1e-3, "um/m": 1e-6, "ppm": 1e-6}
+_PER_MM = {"1/mm": 1.0, "mm/mm2": 1.0, "um/mm2": 1e-3}
+_PER_MM2 = {"1/mm2": 1.0, "mm/mm3": 1.0, "um/mm3": 1e-3}
 
 
 def _units_for(unit: str) -> dict[str, float]:
-    return {"mm": _LENGTH_UNITS, "rad": _ANGLE_UNITS, "s": _TIME_UNITS, "1": _UNITLESS}[unit]
+    return {"mm": _LENGTH_UNITS, "rad": _ANGLE_UNITS, "s": _TIME_UNITS, "1": _UNITLESS, "1/mm": _PER_MM,
+            "1/mm2": _PER_MM2}[unit]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -318,7 +374,234 @@ def spindle_forward(a1: Any, b1: Any, a2: Any, b2: Any, ca: Any, cb: Any, rho1: 
 
 
 # ----------------------------------------------------------------------------------------------
-# the error model
+# the one first-order integrator (thermal growth and servo lag)
+def linear_recurrence(alpha: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """x[0] = 0, x[k+1] = alpha[k] x[k] + b[k] for k < n; returns x (n + 1,).
+
+    Blocked sequential scan: the n steps are cut into about sqrt(n) blocks; one pass runs all
+    blocks side by side (zero start), a short pass carries the block start values, a last
+    vectorised step adds them. Pure multiply-adds, so no loss of precision for small alpha.
+    """
+    n = len(alpha)
+    if n == 0:
+        return np.zeros(1)
+    L = max(1, int(math.sqrt(n)))
+    nb = -(-n // L)
+    pad = nb * L - n
+    A = np.concatenate([alpha, np.ones(pad)]).reshape(nb, L).T.copy()
+    B = np.concatenate([b, np.zeros(pad)]).reshape(nb, L).T.copy()
+    X = np.empty((L + 1, nb))
+    P = np.empty((L + 1, nb))
+    X[0] = 0.0
+    P[0] = 1.0
+    for j in range(L):
+        np.multiply(A[j], X[j], out=X[j + 1])
+        X[j + 1] += B[j]
+        np.multiply(A[j], P[j], out=P[j + 1])
+    starts = np.empty(nb)
+    c = 0.0
+    pl, xl = P[L].tolist(), X[L].tolist()
+    for m in range(nb):
+        starts[m] = c
+        c = pl[m] * c + xl[m]
+    full = X[:L] + P[:L] * starts[None, :]
+    out = np.empty(n + 1)
+    out[:n] = full.T.reshape(-1)[:n]
+    out[n] = c if pad == 0 else full.T.reshape(-1)[n]
+    return out
+
+
+def interval_slopes(t: np.ndarray, u: np.ndarray, hold: str = "linear") -> np.ndarray:
+    """Slope of u on each interval [t_k, t_k+1) (n,; the last is 0): (u_k+1 - u_k) / h_k for
+    hold 'linear' (0 across zero-length intervals, i.e. jumps), 0 for hold 'step'."""
+    n = len(t)
+    s = np.zeros(n)
+    if hold == "linear" and n > 1:
+        h = np.diff(t)
+        ok = h > 0
+        s[:-1][ok] = np.diff(u)[ok] / h[ok]
+    elif hold not in ("linear", "step"):
+        raise ValueError(f"hold must be 'linear' or 'step', got {hold!r}")
+    return s
+
+
+def first_order_knots(t: np.ndarray, u: np.ndarray, tau: float, *, slope: np.ndarray | None = None,
+                      hold: str = "linear", e0: float | None = None, restart: np.ndarray | None = None,
+                      h: np.ndarray | float | None = None, jump: np.ndarray | None = None) -> np.ndarray:
+    """The following error e = u - y at the knots t (n,) of tau dy/dt = u - y, exactly.
+
+    u (n,) is the input at the knots; between knots it is linear with ``slope`` (n,; default
+    ``interval_slopes(t, u, hold)``; an interval whose slope differs from the knots' difference
+    carries a jump at its end) or held (hold 'step', slope 0). Start: e[0] = e0 (default u[0]:
+    y starts at 0, a cold start); ``restart`` (n,) bool: at these knots y restarts at rest on
+    its input (e = 0, e.g. a new program segment). Recurrence, exact for this input:
+    e_k+1 = a_k e_k + (1 - a_k) tau s_k + (u_k+1 - u_k - s_k h_k), a_k = exp(-h_k / tau).
+    Equal steps use scipy.signal.lfilter; others ``linear_recurrence``. tau > 0 (s). h (n-1,)
+    and jump (n-1,) (the bracketed term, 0 at restarts) may be passed in when the caller keeps them
+    for many time constants (the diagnosis does; a float h: equal steps of that size; jump None
+    with a slope given: no jumps)."""
+    from scipy.signal import lfilter
+
+    t = np.asarray(t, float)
+    u = np.asarray(u, float)
+    n = len(t)
+    s = interval_slopes(t, u, hold) if slope is None else np.asarray(slope, float)
+    e_start = float(u[0]) if e0 is None else float(e0)
+    if n == 1:
+        return np.array([0.0 if restart is not None and restart[0] else e_start])
+    rs = np.zeros(n, bool) if restart is None else np.asarray(restart, bool)
+    if rs[0]:
+        e_start = 0.0
+    if isinstance(h, float):
+        uniform, hmax, hmin = True, h, h
+    else:
+        h = np.diff(t) if h is None else h
+        hmax, hmin = float(h.max()), float(h.min())
+        uniform = hmin > 0 and hmax - hmin <= 1e-9 * hmax
+    jumps = jump
+    if jumps is None and (slope is None and hold == "step" or hmin <= 0):
+        # the input's own jumps (across zero-length intervals, a held step)
+        jumps = np.diff(u) - s[:-1] * (h if not isinstance(h, float) else np.full(n - 1, h))
+        jumps[rs[1:]] = 0.0
+        if not np.any(jumps):
+            jumps = None
+    if uniform:
+        alpha = math.exp(-hmax / tau)
+        coef = (1.0 - alpha) * tau
+    else:
+        with np.errstate(over="ignore", under="ignore"):
+            alpha = np.exp(-h / tau)
+        coef = (1.0 - alpha) * tau
+    starts = np.flatnonzero(rs)
+    if uniform and len(starts) <= 5000:
+        # e_k+1 = a e_k + coef s_k + jump_k: an IIR filter on the slopes (plus the jumps)
+        e = np.empty(n)
+        bounds = np.r_[0, starts[starts > 0], n]
+        for i0, i1 in zip(bounds[:-1], bounds[1:], strict=True):
+            e[i0] = e_start if i0 == 0 else 0.0
+            if i1 - 1 > i0:
+                zi = np.array([alpha * e[i0]])
+                if jumps is None:
+                    e[i0 + 1:i1] = lfilter([coef], [1.0, -alpha], s[i0:i1 - 1], zi=zi)[0]
+                else:
+                    e[i0 + 1:i1] = lfilter([1.0], [1.0, -alpha], coef * s[i0:i1 - 1] + jumps[i0:i1 - 1], zi=zi)[0]
+        return e
+    b = coef * s[:-1] if jumps is None else coef * s[:-1] + jumps
+    alpha = np.broadcast_to(alpha, (n - 1,))
+    if rs[1:].any():
+        alpha = np.where(rs[1:], 0.0, alpha)
+        b = np.where(rs[1:], 0.0, b)
+    return linear_recurrence(alpha, b) + np.r_[1.0, np.cumprod(alpha)] * e_start
+
+
+def first_order_between(u: np.ndarray, slope: np.ndarray, e: np.ndarray, tau: float, k: np.ndarray,
+                        x: np.ndarray) -> np.ndarray:
+    """y at t_k + x (0 <= x <= h_k) from the knot values of ``first_order_knots``: the input is
+    u_k + s_k x there and e(x) = a e_k + (1 - a) tau s_k, a = exp(-x / tau) (exact)."""
+    a = np.exp(-x / tau)
+    s = slope[k]
+    return u[k] + s * x - (a * e[k] + (1.0 - a) * tau * s)
+
+
+def first_order_response(t: np.ndarray, u: np.ndarray, gain: float, tau: float, hold: str = "step"
+                         ) -> np.ndarray:
+    """gain * y(t) at the knots of tau dy/dt = u - y, y(t[0]) = 0, for u held (u[k] on
+    [t[k], t[k+1]); hold 'step') or linear between knots (hold 'linear'). ``first_order_knots``."""
+    t = np.asarray(t, float)
+    u = np.asarray(u, float)
+    if len(t) < 2 or gain == 0.0:
+        return np.zeros_like(t)
+    return gain * (u - first_order_knots(t, u, tau, hold=hold))
+
+
+def thermal_frame(state: Mapping[str, Any]) -> Frame:
+    """The tool-tip-frame transform of a spindle-frame thermal state (module docstring):
+    translation (dx, dy, dz) and rotation by the vector (eyz, -exz, 0) (exact Rodrigues). Entries
+    may be floats or numpy arrays (N,). Machine-frame elements (mx, my, mz) are not part of it."""
+    dx, dy, dz = (state.get(k, 0.0) for k in ("dx", "dy", "dz"))
+    wx = np.asarray(state.get("eyz", 0.0), dtype=float)
+    wy = -np.asarray(state.get("exz", 0.0), dtype=float)
+    ang = np.hypot(wx, wy)
+    safe = np.where(ang > 0, ang, 1.0)
+    kx, ky = np.where(ang > 0, wx / safe, 1.0), np.where(ang > 0, wy / safe, 0.0)
+    s, c = np.sin(ang), np.cos(ang)
+    omc = 1.0 - c
+    # R = I + s K + (1 - c) K^2 for the unit axis k = (kx, ky, 0)
+    R = ((1.0 - omc * ky * ky, omc * kx * ky, s * ky),
+         (omc * kx * ky, 1.0 - omc * kx * kx, -s * kx),
+         (-s * ky, s * kx, c))
+    if all(np.ndim(v) == 0 for v in (dx, dy, dz, wx, wy)):
+        return Frame(tuple(tuple(float(x) for x in row) for row in R), (float(dx), float(dy), float(dz)))
+    return Frame(R, (dx, dy, dz))
+
+
+# ----------------------------------------------------------------------------------------------
+# the real chain: POE plus the linear axes' positioning and straightness
+def _power(q: Any, k: int) -> Any:
+    # products, not pow: exact for CasADi and several times faster for numpy arrays
+    out = q
+    for _ in range(k - 1):
+        out = out * q
+    return out
+
+
+def _poly(coef: Sequence[tuple[int, float]], q: Any) -> Any:
+    out: Any = 0.0
+    for k, c in coef:
+        out = out + c * _power(q, k)
+    return out
+
+
+def _dpoly(coef: Sequence[tuple[int, float]], q: Any) -> Any:
+    out: Any = 0.0
+    for k, c in coef:
+        out = out + k * c * (_power(q, k - 1) if k > 1 else 1.0)
+    return out
+
+
+@dataclass(frozen=True)
+class RealChain(Chain):
+    """A Chain whose linear joints carry positioning errors (the joint value q becomes
+    q + E_AA(q)) and straightness (the carriage moves off its line by E_BA(q) along B), a base
+    translation ``base`` (machine-frame thermal growth, mm) added to the tip, plus the screws and
+    home pose of the rotary and spindle errors (module docstring). numpy and CasADi alike.
+    positioning: joint -> ((power, coefficient), ...); straightness: joint -> ((direction
+    index, power, coefficient), ...)."""
+
+    positioning: tuple[tuple[str, tuple[tuple[int, float], ...]], ...] = ()
+    straightness: tuple[tuple[str, tuple[tuple[int, int, float], ...]], ...] = ()
+    base: tuple[Any, Any, Any] = (0.0, 0.0, 0.0)
+
+    def joint_values(self, q: Mapping[str, Any]) -> dict[str, Any]:
+        """The joint values the chain's screws see: q + E_AA(q) on the linear axes."""
+        out = dict(q)
+        for name, coef in self.positioning:
+            v = q.get(name, 0.0)
+            if not (isinstance(v, float) and v == 0.0):
+                out[name] = v + _poly(coef, v)
+        return out
+
+    def offset(self, q: Mapping[str, Any]) -> list[Any]:
+        """The straightness translation plus ``base`` (mm, workpiece frame) at joint values q."""
+        d: list[Any] = list(self.base)
+        for name, terms in self.straightness:
+            v = q.get(name, 0.0)
+            if isinstance(v, float) and v == 0.0:
+                continue
+            for i, k, c in terms:
+                d[i] = d[i] + c * _power(v, k)
+        return d
+
+    def forward(self, q: Mapping[str, Any]) -> Frame:
+        f = Chain.forward(self, self.joint_values(q))
+        d = self.offset(q)
+        if all(isinstance(v, float) and v == 0.0 for v in d):
+            return f
+        return Frame(f.R, tuple(f.p[i] + d[i] for i in range(3)))
+
+
+# ----------------------------------------------------------------------------------------------
+# the machine model
 @dataclass
 class Prediction:
     """Predicted real tool pose for commanded axes. tip, ideal_tip: (N,3) mm; axis, ideal_axis:
@@ -333,29 +616,44 @@ class Prediction:
     axis_dev_urad: np.ndarray
 
 
+def _finite_number(v: Any) -> bool:
+    return not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v)
+
+
 @dataclass
 class ErrorModel:
-    """A machine error model (see the module docstring for every definition).
+    """The machine model (module docstring for every definition; internal units mm, s, rad).
 
-    geometric: name -> value (GEOMETRIC_PARAMETERS: mm or rad; missing names are 0).
+    geometric: name -> value (GEOMETRIC_PARAMETERS; missing names are 0).
     spindle: the spindle screw model, or None (no spindle screw errors).
-    thermal: element (dx, dy, dz, exz, eyz) -> {"gain": value at steady state per 1000 rpm
-    (mm or rad), "tau": time constant (s)}; missing elements do not drift.
+    thermal: element (THERMAL_ELEMENTS) -> {"gain": steady value per 1000 rpm (mm or rad),
+    "tau": time constant (s)}; missing elements do not drift.
     meta: free-form provenance (strings/numbers), stored in the JSON file as is.
+    tau: servo time constant 1/Kv per axis (s; absent or 0: follows its command exactly).
+    backlash: reversal error per axis (mm; rad for A, B). offset_s: recording clock behind the
+    program (s). runout: (r cos phi, r sin phi) of the 1x-revolution tip runout (mm).
     """
 
     geometric: dict[str, float] = field(default_factory=dict)
     spindle: SpindleScrew | None = None
     thermal: dict[str, dict] = field(default_factory=dict)
     meta: dict[str, Any] = field(default_factory=dict)
+    tau: dict[str, float] = field(default_factory=dict)
+    backlash: dict[str, float] = field(default_factory=dict)
+    offset_s: float = 0.0
+    runout: tuple[float, float] = (0.0, 0.0)
 
     def __post_init__(self) -> None:
+        for what, table in (("geometric", self.geometric), ("thermal", self.thermal), ("tau", self.tau),
+                            ("backlash", self.backlash), ("meta", self.meta)):
+            if not isinstance(table, Mapping):
+                raise InputError(f"{what} must be a mapping, got {type(table).__name__}")
         unknown = sorted(set(self.geometric) - set(GEOMETRIC_NAMES))
         if unknown:
             raise InputError(f"unknown geometric error parameter(s) {unknown}; "
                              f"known: {list(GEOMETRIC_NAMES)}")
         for k, v in self.geometric.items():
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            if not _finite_number(v):
                 raise InputError(f"geometric error {k} must be a finite number, got {v!r}")
         unknown = sorted(set(self.thermal) - set(THERMAL_ELEMENTS))
         if unknown:
@@ -363,8 +661,20 @@ class ErrorModel:
         for k, d in self.thermal.items():
             if not isinstance(d, Mapping) or set(d) != {"gain", "tau"}:
                 raise InputError(f"thermal element {k} must be {{'gain': ..., 'tau': ...}}, got {d!r}")
-            if not (math.isfinite(d["gain"]) and math.isfinite(d["tau"]) and d["tau"] > 0):
+            if not (_finite_number(d["gain"]) and _finite_number(d["tau"]) and d["tau"] > 0):
                 raise InputError(f"thermal element {k}: gain must be finite and tau > 0 s, got {dict(d)}")
+        for what, table in (("servo time constant", self.tau), ("backlash", self.backlash)):
+            for a, v in table.items():
+                if a not in SERVO_AXES:
+                    raise InputError(f"{what}: axis {a!r} is not one of {SERVO_AXES}")
+                if not _finite_number(v) or (what != "backlash" and v < 0):
+                    raise InputError(f"{what} of {a} must be a finite number{' >= 0' if what != 'backlash' else ''}, "
+                                     f"got {v!r}")
+        if not _finite_number(self.offset_s):
+            raise InputError(f"time offset must be a finite number of s, got {self.offset_s!r}")
+        if len(self.runout) != 2 or not all(_finite_number(v) for v in self.runout):
+            raise InputError(f"runout must be two finite numbers (mm), got {self.runout!r}")
+        self.runout = (float(self.runout[0]), float(self.runout[1]))
 
     def get(self, name: str) -> float:
         """Geometric parameter value (0 when missing)."""
@@ -372,9 +682,22 @@ class ErrorModel:
             raise KeyError(name)
         return float(self.geometric.get(name, 0.0))
 
+    def copy(self) -> ErrorModel:
+        """An independent copy (the tables copied; the spindle screw and meta values shared)."""
+        return ErrorModel(dict(self.geometric), self.spindle, {k: dict(d) for k, d in self.thermal.items()},
+                          dict(self.meta), dict(self.tau), dict(self.backlash), float(self.offset_s),
+                          tuple(self.runout))
+
+    @property
+    def Kv(self) -> dict[str, float]:
+        """Servo gain per axis (1/s; inf for an axis without lag)."""
+        return {a: (1.0 / t if t > 0 else math.inf) for a, t in self.tau.items()}
+
     # ---- JSON ------------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
-        """The JSON document: every value with its unit beside it."""
+        """The JSON document: every value with its unit beside it; ``servo`` and
+        ``spindle_runout`` only when set (Kv in 1/s, backlash mm or deg, time offset s; runout
+        radius mm and phase deg)."""
         doc: dict[str, Any] = {"format": FORMAT, "version": FORMAT_VERSION}
         doc["geometric"] = {k: {"value": float(v), "unit": GEOMETRIC_PARAMETERS[k][0]}
                             for k, v in self.geometric.items()}
@@ -384,49 +707,101 @@ class ErrorModel:
                               "tau": {"value": float(d["tau"]), "unit": "s"}}
                           for k, d in self.thermal.items()}
         doc["meta"] = self.meta
+        kv = {a: 1.0 / t for a, t in self.tau.items() if t > 0}
+        bl = {a: (math.degrees(b) if a in ("A", "B") else b) for a, b in self.backlash.items() if b != 0.0}
+        if kv or bl or self.offset_s != 0.0:
+            doc["servo"] = {"Kv": kv, "backlash": bl, "time_offset_s": float(self.offset_s),
+                            "units": {"Kv": "1/s", "backlash": "mm (deg for A, B)", "time_offset_s": "s"}}
+        if self.runout != (0.0, 0.0):
+            doc["spindle_runout"] = {"radius": float(math.hypot(*self.runout)),
+                                     "phase_deg": float(math.degrees(math.atan2(self.runout[1], self.runout[0]))),
+                                     "units": {"radius": "mm", "phase_deg": "deg at spindle angle 0"}}
         return doc
 
     @staticmethod
-    def from_dict(doc: Mapping[str, Any], source: str = "<model>") -> ErrorModel:
-        """Inverse of ``to_dict``; accepts other units (um, urad, mrad, deg, min, h) and converts."""
-        if not isinstance(doc, Mapping) or doc.get("format") != FORMAT:
-            raise InputError(f"not a camsmooth error model (expected \"format\": \"{FORMAT}\")", file=source)
-        if doc.get("version") != FORMAT_VERSION:
-            raise InputError(f"unsupported model version {doc.get('version')!r} "
-                             f"(supported: {FORMAT_VERSION})", file=source)
+    def from_dict(doc: Any, source: str = "<model>") -> ErrorModel:
+        """Inverse of ``to_dict``; accepts other units (um, urad, mrad, deg, min, h) and converts.
+        A document holding only ``servo`` / ``spindle_runout`` (no ``format``) is accepted too.
+        Every type error raises InputError naming the file and the key."""
+        if not isinstance(doc, Mapping):
+            raise InputError(f"a model file holds a JSON object, got {type(doc).__name__}", file=source)
+        bare = "format" not in doc and not ({"geometric", "thermal", "spindle"} & set(doc))
+        if not bare:
+            if doc.get("format") != FORMAT:
+                raise InputError(f"not a camsmooth error model (expected \"format\": \"{FORMAT}\")", file=source,
+                                 column="format")
+            if doc.get("version") != FORMAT_VERSION:
+                raise InputError(f"unsupported model version {doc.get('version')!r} "
+                                 f"(supported: {FORMAT_VERSION})", file=source, column="version")
         geo = {}
-        for k, item in (doc.get("geometric") or {}).items():
+        for k, item in _section(doc, "geometric", source).items():
             if k not in GEOMETRIC_PARAMETERS:
-                raise InputError(f"unknown geometric error parameter {k!r}", file=source)
+                raise InputError(f"unknown geometric error parameter {k!r}", file=source, column=f"geometric.{k}")
             geo[k] = _value(item, GEOMETRIC_PARAMETERS[k][0], f"geometric.{k}", source)
         spindle = None
         sp = doc.get("spindle")
         if sp is not None:
             if not isinstance(sp, Mapping):
-                raise InputError("spindle must be an object or null", file=source)
+                raise InputError("spindle must be an object or null", file=source, column="spindle")
             unknown = sorted(set(sp) - set(SpindleScrew.UNITS))
             if unknown:
-                raise InputError(f"unknown spindle screw parameter(s) {unknown}", file=source)
-            spindle = SpindleScrew(**{k: _value(v, SpindleScrew.UNITS[k], f"spindle.{k}", source)
-                                      for k, v in sp.items()})
+                raise InputError(f"unknown spindle screw parameter(s) {unknown}", file=source,
+                                 column=f"spindle.{unknown[0]}")
+            try:
+                spindle = SpindleScrew(**{k: _value(v, SpindleScrew.UNITS[k], f"spindle.{k}", source)
+                                          for k, v in sp.items()})
+            except InputError as exc:
+                if exc.file:
+                    raise
+                raise InputError(str(exc), file=source, column="spindle") from None
         thermal = {}
-        for k, item in (doc.get("thermal") or {}).items():
+        for k, item in _section(doc, "thermal", source).items():
+            where = f"thermal.{k}"
             if k not in THERMAL_ELEMENTS:
-                raise InputError(f"unknown thermal element {k!r}", file=source)
+                raise InputError(f"unknown thermal element {k!r}", file=source, column=where)
             if not isinstance(item, Mapping) or set(item) != {"gain", "tau"}:
-                raise InputError(f"thermal.{k} must hold 'gain' and 'tau'", file=source)
+                raise InputError(f"{where} must hold 'gain' and 'tau'", file=source, column=where)
             gain = item["gain"]
-            unit = gain.get("unit", "") if isinstance(gain, Mapping) else ""
-            base = unit.split("/")[0] if unit.endswith("/1000rpm") else None
+            if not isinstance(gain, Mapping):
+                raise InputError(f"{where}.gain: expected {{\"value\": ..., \"unit\": ...}}", file=source,
+                                 column=f"{where}.gain")
+            unit = gain.get("unit", "")
+            base = unit.split("/")[0] if isinstance(unit, str) and unit.endswith("/1000rpm") else None
             if base is None:
-                raise InputError(f"thermal.{k}.gain: unit must be '<unit>/1000rpm', got {unit!r}",
-                                 file=source)
-            g = _value({"value": gain.get("value"), "unit": base}, THERMAL_ELEMENTS[k], f"thermal.{k}.gain",
-                       source)
-            thermal[k] = {"gain": g, "tau": _value(item["tau"], "s", f"thermal.{k}.tau", source)}
+                raise InputError(f"{where}.gain: unit must be '<unit>/1000rpm', got {unit!r}", file=source,
+                                 column=f"{where}.gain")
+            g = _value({"value": gain.get("value"), "unit": base}, THERMAL_ELEMENTS[k], f"{where}.gain", source)
+            tau = _value(item["tau"], "s", f"{where}.tau", source)
+            if tau <= 0:
+                raise InputError(f"{where}: tau > 0 s required, got {tau}", file=source, column=f"{where}.tau")
+            thermal[k] = {"gain": g, "tau": tau}
         meta = doc.get("meta") or {}
+        if not isinstance(meta, Mapping):
+            raise InputError("meta must be an object", file=source, column="meta")
+        servo = _section(doc, "servo", source)
+        tau_s: dict[str, float] = {}
+        for a, kv in _section(servo, "Kv", source, "servo.").items():
+            kv = _number(kv, source, f"servo.Kv.{a}")
+            if a not in SERVO_AXES or kv <= 0:
+                raise InputError(f"servo Kv needs an axis of {SERVO_AXES} and a value > 0 1/s", file=source,
+                                 column=f"servo.Kv.{a}")
+            tau_s[a] = 1.0 / kv
+        backlash: dict[str, float] = {}
+        for a, b in _section(servo, "backlash", source, "servo.").items():
+            if a not in SERVO_AXES:
+                raise InputError(f"backlash axis {a!r} is not one of {SERVO_AXES}", file=source,
+                                 column=f"servo.backlash.{a}")
+            b = _number(b, source, f"servo.backlash.{a}")
+            backlash[a] = math.radians(b) if a in ("A", "B") else b
+        offset = _number(servo.get("time_offset_s", 0.0), source, "servo.time_offset_s")
+        ro = _section(doc, "spindle_runout", source)
+        runout = (0.0, 0.0)
+        if ro:
+            r = _number(ro.get("radius", 0.0), source, "spindle_runout.radius")
+            phi = math.radians(_number(ro.get("phase_deg", 0.0), source, "spindle_runout.phase_deg"))
+            runout = (r * math.cos(phi), r * math.sin(phi))
         try:
-            return ErrorModel(geo, spindle, thermal, dict(meta))
+            return ErrorModel(geo, spindle, thermal, dict(meta), tau_s, backlash, offset, runout)
         except InputError as exc:
             raise InputError(str(exc), file=source) from None
 
@@ -438,15 +813,18 @@ class ErrorModel:
 
     @staticmethod
     def from_json(path: str | os.PathLike) -> ErrorModel:
-        """Read a model written by ``to_json`` (InputError on a missing or malformed file)."""
+        """Read a model written by ``to_json`` (InputError naming the file, and the key where
+        one is at fault, on a missing or malformed file)."""
         try:
             text = Path(path).read_text()
         except FileNotFoundError:
             raise InputError("model file not found", file=str(path)) from None
+        except (OSError, UnicodeDecodeError) as exc:
+            raise InputError(f"cannot read the model file: {exc}", file=str(path)) from None
         try:
             doc = json.loads(text)
         except json.JSONDecodeError as exc:
-            raise InputError(f"not valid JSON: {exc}", file=str(path)) from None
+            raise InputError(f"not valid JSON: {exc}", file=str(path), row=exc.lineno) from None
         return ErrorModel.from_dict(doc, str(path))
 
     # ---- the perturbed chain ---------------------------------------------------------------
@@ -466,7 +844,7 @@ class ErrorModel:
 
     def tip_transform(self, thermal_state: Mapping[str, float] | None = None) -> np.ndarray:
         """4x4 tool-tip-frame transform of tool length, static spindle screw and (optionally a
-        fixed) thermal state: Trans(0, 0, -EZ0T) T_screw T_thermal."""
+        fixed) spindle-frame thermal state: Trans(0, 0, -EZ0T) T_screw T_thermal."""
         T = homogeneous(p=[0.0, 0.0, -self.get("EZ0T")])
         if self.spindle is not None:
             T = T @ self.spindle.static_tip_transform()
@@ -475,9 +853,11 @@ class ErrorModel:
         return T
 
     def chain(self, machine: Machine, thermal_state: Mapping[str, float] | None = None) -> Chain:
-        """The machine's chain perturbed by this model: screws of A and B replaced by the real
-        axis lines, home pose M with the spindle, tool, static spindle-screw and (when given, a
-        fixed) thermal errors. Works for numpy and CasADi evaluation alike (it is a Chain)."""
+        """The machine's chain perturbed by this model (a ``RealChain`` when the linear axes
+        have errors or a machine-frame thermal state is given): screws of A, B (and of Y, Z for
+        squareness) replaced by the real axis lines, home pose M with the spindle, tool, static
+        spindle-screw and (when given, a fixed) spindle-frame thermal errors. Works for numpy
+        and CasADi evaluation alike."""
         chain = machine.chain
         if chain.screws is not None:
             raise ValueError("apply the error model to the nominal machine (its chain is already perturbed)")
@@ -494,8 +874,25 @@ class ErrorModel:
         screws = list(chain.joint_screws())
         screws[3] = (w_A, -np.cross(w_A, F_A[:3, 3]))
         screws[4] = (w_B, -np.cross(w_B, F_B[:3, 3]))
-        home = S @ chain.home @ self.tip_transform(thermal_state)
-        return chain.with_screws(screws, home)
+        g = self.get
+        if g("EC0Y"):
+            screws[1] = (np.zeros(3), rot_z(g("EC0Y")) @ np.array([0.0, 1.0, 0.0]))
+        if g("EA0Z") or g("EB0Z"):
+            screws[2] = (np.zeros(3), rot_x(g("EA0Z")) @ rot_y(g("EB0Z")) @ np.array([0.0, 0.0, 1.0]))
+        spindle_state = None if not thermal_state else {k: v for k, v in thermal_state.items()
+                                                        if k in SPINDLE_THERMAL}
+        home = S @ chain.home @ self.tip_transform(spindle_state)
+        pos = tuple((a, tuple((k, g(n)) for n, (b, k) in POSITIONING.items() if b == a and g(n)))
+                    for a in LINEAR_AXES)
+        pos = tuple(p for p in pos if p[1])
+        st = tuple((a, tuple(("XYZ".index(d), k, g(n)) for n, (b, d, k) in STRAIGHTNESS.items()
+                             if b == a and g(n))) for a in LINEAR_AXES)
+        st = tuple(s for s in st if s[1])
+        base = tuple(float((thermal_state or {}).get(k, 0.0)) for k in MACHINE_THERMAL)
+        if not pos and not st and not any(base):
+            return chain.with_screws(screws, home)
+        return RealChain(chain.joints, home, tuple((np.asarray(w, float), np.asarray(v, float)) for w, v in screws),
+                         positioning=pos, straightness=st, base=base)
 
     def apply(self, machine: Machine, thermal_state: Mapping[str, float] | None = None) -> Machine:
         """A Machine (same name, limits, pivot) whose chain is ``self.chain(machine)``."""
@@ -503,12 +900,12 @@ class ErrorModel:
                        machine.limits)
 
     # ---- thermal -----------------------------------------------------------------------------
-    def thermal_state(self, t: np.ndarray, spindle_rpm: float | np.ndarray) -> dict[str, np.ndarray]:
-        """Thermal elements (dx, dy, dz mm; exz, eyz rad) at times t (N,) s, nondecreasing, for a
-        spindle speed held piecewise constant: spindle_rpm[k] holds on [t[k], t[k+1]) (a scalar
-        holds throughout). Cold start: every element is 0 at t[0]. Exact discrete solution of
-        tau de/dt = gain rpm / 1000 - e:  e[k+1] = e_ss + (e[k] - e_ss) exp(-(t[k+1]-t[k]) / tau),
-        e_ss = gain rpm[k] / 1000. Elements without a thermal entry are 0."""
+    def thermal_state(self, t: np.ndarray, spindle_rpm: float | np.ndarray, hold: str = "step"
+                      ) -> dict[str, np.ndarray]:
+        """Thermal elements (THERMAL_ELEMENTS: mm or rad) at times t (N,) s, nondecreasing, from
+        a cold start at t[0], for the spindle speed spindle_rpm (scalar or (N,)) held from each
+        time to the next (hold 'step') or linear between them (hold 'linear'); integrated
+        exactly by ``first_order_knots``. Elements without a thermal entry are 0."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
         rpm = np.broadcast_to(np.asarray(spindle_rpm, dtype=float), t.shape)
         if t.ndim != 1 or not np.all(np.isfinite(t)) or not np.all(np.isfinite(rpm)):
@@ -520,23 +917,47 @@ class ErrorModel:
         out = {}
         for name in THERMAL_ELEMENTS:
             d = self.thermal.get(name)
-            if d is None:
-                out[name] = np.zeros_like(t)
-                continue
-            out[name] = first_order_response(t, rpm / 1000.0, float(d["gain"]), float(d["tau"]))
+            out[name] = np.zeros_like(t) if d is None else first_order_response(
+                t, rpm / 1000.0, float(d["gain"]), float(d["tau"]), hold)
         return out
 
-    # ---- prediction -----------------------------------------------------------------------
+    # ---- the real pose -----------------------------------------------------------------------
+    def real_frame(self, machine: Machine, q: Mapping[str, Any], thermal: Mapping[str, Any] | None = None,
+                   spindle_angle: Any = None, frame: Frame | None = None) -> Frame:
+        """THE real tool-tip frame (workpiece frame) for actual joint values q (name -> float or
+        (N,) array; A, B rad, X, Y, Z mm): the geometric chain (``chain``), then the
+        machine-frame thermal translation (mx, my, mz), the spindle-frame thermal transform
+        (``thermal_frame``) and, when spindle_angle (rad) is given, the 1x-rev runout in the tool
+        frame's xy. thermal: element -> value(s) (``thermal_state``). frame: the geometric part
+        ``self.chain(machine).forward(q)`` when the caller already has it (a cache)."""
+        f = self.chain(machine).forward(q) if frame is None else frame
+        if thermal:
+            sp = {k: v for k, v in thermal.items() if k in SPINDLE_THERMAL and np.any(v)}
+            if sp:
+                f = f @ thermal_frame(sp)
+            mv = [thermal.get(k, 0.0) for k in MACHINE_THERMAL]
+            if any(np.any(v) for v in mv):
+                f = Frame(f.R, tuple(f.p[i] + mv[i] for i in range(3)))
+        rc, rs = self.runout
+        if spindle_angle is not None and (rc or rs):
+            c, s = np.cos(spindle_angle), np.sin(spindle_angle)
+            f = f @ Frame(IDENTITY.R, (rc * c - rs * s, rc * s + rs * c, 0.0))
+        return f
+
     def predict(self, machine: Machine, A: np.ndarray, B: np.ndarray, X: np.ndarray, Y: np.ndarray,
                 Z: np.ndarray, t: np.ndarray | None = None, spindle_rpm: float | np.ndarray | None = None
                 ) -> Prediction:
         """Real tool tip and axis for commanded axes (A, B rad; X, Y, Z mm; arrays (N,)):
         geometric errors, static spindle screw and, when t (s) and spindle_rpm are given, the
-        thermal state at those times (``thermal_state``). Compared with the nominal machine."""
+        thermal state at those times (``thermal_state``, speed held from each time to the next).
+        Compared with the nominal machine. (Servo lag, backlash and clock offset describe motion
+        in time and enter through the diagnosis simulator, not here.)"""
         A, B, X, Y, Z = np.broadcast_arrays(*(np.atleast_1d(np.asarray(v, dtype=float))
                                               for v in (A, B, X, Y, Z)))
         ideal_tip, ideal_axis = machine.tool_pose_np(A, B, X, Y, Z)
-        tip, axis = self._real_pose(machine, A, B, X, Y, Z, self._thermal(t, spindle_rpm, len(A)))
+        f = self.real_frame(machine, {"X": X, "Y": Y, "Z": Z, "A": A, "B": B},
+                            self._thermal(t, spindle_rpm, len(A)))
+        tip, axis = frame_tip_axis(f, len(A))
         return _prediction(tip, axis, ideal_tip, ideal_axis)
 
     def _thermal(self, t: np.ndarray | None, spindle_rpm: Any, n: int) -> dict[str, np.ndarray] | None:
@@ -547,16 +968,12 @@ class ErrorModel:
         state = self.thermal_state(np.broadcast_to(np.asarray(t, float), (n,)), spindle_rpm)
         return state if any(np.any(v) for v in state.values()) else None
 
-    def _real_pose(self, machine: Machine, A: np.ndarray, B: np.ndarray, X: np.ndarray, Y: np.ndarray,
-                   Z: np.ndarray, thermal: Mapping[str, np.ndarray] | None
-                   ) -> tuple[np.ndarray, np.ndarray]:
-        f = self.chain(machine).forward({"X": X, "Y": Y, "Z": Z, "A": A, "B": B})
-        if thermal is not None:
-            f = f @ thermal_frame(thermal)
-        n = len(A)
-        tip = np.stack([np.broadcast_to(f.p[i], (n,)) for i in range(3)], axis=-1)
-        axis = np.stack([np.broadcast_to(f.R[i][2], (n,)) for i in range(3)], axis=-1)
-        return tip, axis
+
+def frame_tip_axis(f: Frame, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """(tip (n,3), tool axis (n,3)) of a numpy-valued frame: its origin and its z column."""
+    tip = np.stack([np.broadcast_to(np.asarray(f.p[i], float), (n,)) for i in range(3)], axis=-1)
+    axis = np.stack([np.broadcast_to(np.asarray(f.R[i][2], float), (n,)) for i in range(3)], axis=-1)
+    return tip, axis
 
 
 def _prediction(tip: np.ndarray, axis: np.ndarray, ideal_tip: np.ndarray, ideal_axis: np.ndarray
@@ -565,53 +982,6 @@ def _prediction(tip: np.ndarray, axis: np.ndarray, ideal_tip: np.ndarray, ideal_
     ang = np.arctan2(np.linalg.norm(np.cross(axis, ideal_axis), axis=1), np.sum(axis * ideal_axis, axis=1))
     ang = ang * 1e6
     return Prediction(tip, axis, ideal_tip, ideal_axis, dev, ang)
-
-
-def first_order_response(t: np.ndarray, u: np.ndarray, gain: float, tau: float) -> np.ndarray:
-    """Exact response e(t) of tau de/dt = gain u - e, e(t[0]) = 0, for u piecewise constant
-    (u[k] on [t[k], t[k+1])): e[k+1] = d_k e[k] + (1 - d_k) gain u[k], d_k = exp(-dt_k / tau)."""
-    t = np.asarray(t, float)
-    u = np.asarray(u, float)
-    n = len(t)
-    e = np.zeros_like(t)
-    if n < 2 or gain == 0.0:
-        return e
-    decay = np.exp(-np.diff(t) / tau)
-    b = (1.0 - decay) * gain * u[:-1]
-    logd = np.cumsum(np.log(np.maximum(decay, 1e-300)))
-    # The linear recurrence in closed form, e[k+1] = Q_k (e[s] + sum_{j=s..k} b_j / Q_j) with
-    # Q_k = prod_{i=s..k} d_i, evaluated in chunks over which Q stays above exp(-500) so the
-    # division cannot overflow; this keeps it vectorised for long recordings.
-    start, e_start = 0, 0.0
-    while start < n - 1:
-        base = logd[start - 1] if start > 0 else 0.0
-        end = int(np.searchsorted(base - logd[start:], 500.0, side="right")) + start
-        end = min(max(end, start + 1), n - 1)
-        Q = np.exp(logd[start:end] - base)
-        e[start + 1:end + 1] = Q * (e_start + np.cumsum(b[start:end] / Q))
-        start, e_start = end, e[end]
-    return e
-
-
-def thermal_frame(state: Mapping[str, Any]) -> Frame:
-    """The tool-tip-frame transform of a thermal state (module docstring): translation
-    (dx, dy, dz) and rotation by the vector (eyz, -exz, 0) (exact Rodrigues). Entries may be
-    floats or numpy arrays (N,)."""
-    dx, dy, dz = (state.get(k, 0.0) for k in ("dx", "dy", "dz"))
-    wx = np.asarray(state.get("eyz", 0.0), dtype=float)
-    wy = -np.asarray(state.get("exz", 0.0), dtype=float)
-    ang = np.hypot(wx, wy)
-    safe = np.where(ang > 0, ang, 1.0)
-    kx, ky = np.where(ang > 0, wx / safe, 1.0), np.where(ang > 0, wy / safe, 0.0)
-    s, c = np.sin(ang), np.cos(ang)
-    omc = 1.0 - c
-    # R = I + s K + (1 - c) K^2 for the unit axis k = (kx, ky, 0)
-    R = ((1.0 - omc * ky * ky, omc * kx * ky, s * ky),
-         (omc * kx * ky, 1.0 - omc * kx * kx, -s * kx),
-         (-s * ky, s * kx, c))
-    if all(np.ndim(v) == 0 for v in (dx, dy, dz, wx, wy)):
-        return Frame(tuple(tuple(float(x) for x in row) for row in R), (float(dx), float(dy), float(dz)))
-    return Frame(R, (dx, dy, dz))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -633,11 +1003,15 @@ def compensate(model: ErrorModel, machine: Machine, tip: np.ndarray, axis: np.nd
     desired ones: tip (N,3) mm and unit axis (N,3), workpiece frame; A0, B0 (N,) rad the ideal
     inverse kinematics (start and branch choice). Undamped Gauss-Newton on all points at once
     (each point an independent 6 x 5 least-squares problem, the axis residual weighted by the
-    pivot length so both are in mm); Jacobian by central differences on the vectorised model.
+    pivot length so both are in mm); Jacobian from the chain's screws (space Jacobian, Modern
+    Robotics' JacobianSpace: d tip / d q_i = v_i + w_i x tip, d axis / d q_i = w_i x axis, with
+    the positioning and straightness derivatives of the linear axes).
     Converges quadratically for small errors; the remaining residual is reported on the result.
     At B = +-90 deg A only turns the tool about itself, so A is not determined there (steps use
     the pseudo-inverse and A may move along that direction).
     """
+    from camsmooth.machine.kinematics import space_jacobian
+
     tip = np.atleast_2d(np.asarray(tip, float))
     axis = np.atleast_2d(np.asarray(axis, float))
     axis = axis / np.linalg.norm(axis, axis=1, keepdims=True)
@@ -647,30 +1021,41 @@ def compensate(model: ErrorModel, machine: Machine, tip: np.ndarray, axis: np.nd
     thermal = model._thermal(t, spindle_rpm, n)
     chain = model.chain(machine)
     w = max(machine.pivot, 1.0)
+    order = ("A", "B", "X", "Y", "Z")
 
-    def residual(qq: np.ndarray) -> np.ndarray:
-        f = chain.forward({"A": qq[:, 0], "B": qq[:, 1], "X": qq[:, 2], "Y": qq[:, 3], "Z": qq[:, 4]})
-        if thermal is not None:
-            f = f @ thermal_frame(thermal)
-        p = np.stack([np.broadcast_to(f.p[i], (n,)) for i in range(3)], axis=-1)
-        a = np.stack([np.broadcast_to(f.R[i][2], (n,)) for i in range(3)], axis=-1)
-        return np.concatenate([p - tip, w * (a - axis)], axis=1)
+    def evaluate(qq: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        qd = {k: qq[:, i] for i, k in enumerate(order)}
+        f = model.real_frame(machine, qd, thermal, frame=chain.forward(qd))
+        p, a = frame_tip_axis(f, n)
+        r = np.concatenate([p - tip, w * (a - axis)], axis=1)
+        qj = chain.joint_values(qd) if isinstance(chain, RealChain) else qd
+        Js = space_jacobian(chain, qj)  # (n, 6, 5) in chain joint order X, Y, Z, A, B
+        J = np.empty((n, 6, 5))
+        for i, k in enumerate(order):
+            jw, jv = Js[:, :3, chain.names.index(k)], Js[:, 3:, chain.names.index(k)]
+            dp = jv + np.cross(jw, p)
+            da = np.cross(jw, a)
+            if isinstance(chain, RealChain):
+                coef = dict(chain.positioning).get(k)
+                if coef:
+                    scale = 1.0 + _dpoly(coef, qq[:, i])
+                    dp, da = dp * scale[:, None], da * scale[:, None]
+                for name, terms in chain.straightness:
+                    if name == k:
+                        for d, kk, c in terms:
+                            dp[:, d] += kk * c * qq[:, i] ** (kk - 1)
+            J[:, :3, i], J[:, 3:, i] = dp, w * da
+        return r, J, p
 
-    h = 1e-6
     it = 0
     for it in range(1, max_iter + 1):  # noqa: B007 - iteration count reported
-        r = residual(q)
-        J = np.empty((n, 6, 5))
-        for k in range(5):
-            dq = np.zeros(5)
-            dq[k] = h
-            J[:, :, k] = (residual(q + dq) - residual(q - dq)) / (2 * h)
+        r, J, _ = evaluate(q)
         # pseudo-inverse: at B = +-90 deg the A column vanishes (A turns the tool about itself)
         step = -(np.linalg.pinv(J, rcond=1e-10) @ r[:, :, None])[:, :, 0]
         q = q + step
         if np.max(np.abs(step)) < tol:
             break
-    r = residual(q)
+    r, _, _ = evaluate(q)
     out = Compensation((q[:, 0], q[:, 1], q[:, 2], q[:, 3], q[:, 4]))
     out.tip_residual_um = np.linalg.norm(r[:, :3], axis=1) * 1e3
     out.axis_residual_urad = np.linalg.norm(r[:, 3:], axis=1) / w * 1e6
@@ -679,22 +1064,42 @@ def compensate(model: ErrorModel, machine: Machine, tip: np.ndarray, axis: np.nd
 
 
 # ----------------------------------------------------------------------------------------------
+def _section(doc: Mapping[str, Any], key: str, source: str, prefix: str = "") -> Mapping[str, Any]:
+    """doc[key] as a mapping ({} when absent or null); InputError naming the key otherwise."""
+    v = doc.get(key)
+    if v is None:
+        return {}
+    if not isinstance(v, Mapping):
+        raise InputError(f"{prefix}{key} must be an object, got {type(v).__name__} {v!r:.60}", file=source,
+                         column=f"{prefix}{key}")
+    return v
+
+
+def _number(v: Any, source: str, column: str) -> float:
+    if not _finite_number(v):
+        raise InputError(f"{column} must be a finite number, got {v!r}", file=source, column=column)
+    return float(v)
+
+
 def _value(item: Any, unit: str, where: str, source: str) -> float:
-    """A {"value": v, "unit": u} item converted to the code's ``unit`` (mm, rad, s, 1)."""
+    """A {"value": v, "unit": u} item converted to the code's ``unit`` (mm, rad, s, 1, 1/mm, 1/mm2)."""
     if not isinstance(item, Mapping) or "value" not in item:
-        raise InputError(f"{where}: expected {{\"value\": ..., \"unit\": ...}}", file=source)
+        raise InputError(f"{where}: expected {{\"value\": ..., \"unit\": ...}}, got {item!r:.60}", file=source,
+                         column=where)
     v = item["value"]
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-        raise InputError(f"{where}: value must be a finite number, got {v!r}", file=source)
+    if not _finite_number(v):
+        raise InputError(f"{where}: value must be a finite number, got {v!r}", file=source, column=where)
     u = item.get("unit", unit)
     table = _units_for(unit)
-    if u not in table:
+    if not isinstance(u, str) or u not in table:
         raise InputError(f"{where}: unit {u!r} is not a {unit} unit (use one of {sorted(table)})",
-                         file=source)
+                         file=source, column=where)
     factor = table[u]
     return float(v) if factor == 1.0 else float(v) * factor
 
 
-__all__ = ["GEOMETRIC_NAMES", "GEOMETRIC_PARAMETERS", "THERMAL_ELEMENTS", "Compensation", "ErrorModel",
-           "Prediction", "SpindleScrew", "compensate", "first_order_response", "spindle_forward",
-           "thermal_frame", "homogeneous", "rot_x", "rot_y", "rot_z"]
+__all__ = ["GEOMETRIC_NAMES", "GEOMETRIC_PARAMETERS", "LINEAR_GEOMETRIC", "MACHINE_THERMAL", "POSITIONING",
+           "ROTARY_GEOMETRIC", "SPINDLE_THERMAL", "SQUARENESS", "STRAIGHTNESS", "THERMAL_ELEMENTS", "Compensation",
+           "ErrorModel", "Prediction", "RealChain", "SpindleScrew", "compensate", "first_order_between",
+           "first_order_knots", "first_order_response", "frame_tip_axis", "homogeneous", "interval_slopes",
+           "linear_recurrence", "rot_x", "rot_y", "rot_z", "spindle_forward", "thermal_frame"]

@@ -1,7 +1,8 @@
 """Measurement simulators: realistic probing, spindle-analyser and ballbar files from a given
 error model, with seeded Gaussian noise, for examples and tests (file formats in
 camsmooth.machine.calibration). Each simulator evaluates the machine through ErrorModel.apply /
-SpindleScrew / ErrorModel.thermal_state, i.e. the same chain the calibration fits.
+SpindleScrew / ErrorModel.thermal_state / ErrorModel.real_frame (the one function for the real
+pose), i.e. the same chain the calibration fits.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ import numpy as np
 from camsmooth.errors import InputError
 from camsmooth.machine.calibration import BallbarData, ProbeData, SpindleData, probe_offsets
 from camsmooth.machine.kinematics import Machine, load_machine
-from camsmooth.machine.model import ErrorModel, SpindleScrew, thermal_frame
+from camsmooth.machine.model import ErrorModel, SpindleScrew
 
 DEFAULT_NOISE = {"probe": 0.0005, "spindle": 0.0001, "ballbar": 0.001}  # mm, one standard deviation
 
@@ -88,10 +89,10 @@ def simulate_ballbar(model: ErrorModel, machine: Machine | None = None, *, times
     """Ballbar cone test (METHODS section 5): at every set time the spindle ball runs a full
     circle counter-clockwise and clockwise (``step_deg`` apart) at each bar angle, radius
     L0 cos(angle), L0 sin(angle) above the table ball. The real spindle-ball centre is the
-    commanded one plus the static tool-tip error at A = B = 0 (geometric + spindle screw), plus
-    the thermal displacement at the set's time: the model's thermal state applied at the ball's
-    height h = L0 (sin angle - sin angle_min) above the reference (lowest) ball, which is taken
-    as the tool tip. Simulation assumptions: the thermal state is constant during a set, and,
+    commanded one plus the displacement, at A = B = 0, of the point h = L0 (sin angle -
+    sin angle_min) above the tool tip (the reference, lowest, ball) through
+    ``ErrorModel.real_frame`` (geometric errors, spindle screw and the thermal state at the set's
+    time, both frames). Simulation assumptions: the thermal state is constant during a set, and,
     as in the paper, the two cones sample the spindle at two heights. The table ball of each
     cone is off its nominal place by N(0, setup_error^2) per coordinate (absorbed by the fit).
     Readings dL = |S - C| - L0 + N(0, noise^2) (mm)."""
@@ -107,23 +108,23 @@ def simulate_ballbar(model: ErrorModel, machine: Machine | None = None, *, times
     rng = np.random.default_rng(seed)
     angles = np.radians(np.sort(np.asarray(angles_deg, float)))
     setup = rng.normal(0.0, setup_error, (len(angles), 3))
-    zero = np.zeros(1)
-    static = (model.predict(machine, zero, zero, zero, zero, zero).tip
-              - machine.tool_pose_np(zero, zero, zero, zero, zero)[0])[0]
+    zero = {a: 0.0 for a in ("A", "B", "X", "Y", "Z")}
+    nominal = machine.chain.forward(zero)
     state = model.thermal_state(times, rpm)
     phi1 = np.arange(n_circle) * np.radians(step_deg)
     cols: dict[str, list[np.ndarray]] = {k: [] for k in ("t", "rpm", "angle", "dir", "phi", "dL")}
     for k, tk in enumerate(times):
         for c, ang in enumerate(angles):
             h = bar_length * (np.sin(ang) - np.sin(angles[0]))
-            f = thermal_frame({e: float(v[k]) for e, v in state.items()})
-            d = np.asarray(f.apply((0.0, 0.0, h))) - np.array([0.0, 0.0, h])
+            # the ball h above the tool tip, through the model's one real pose at A = B = 0
+            f = model.real_frame(machine, zero, {e: float(v[k]) for e, v in state.items()})
+            d = np.asarray(f.apply((0.0, 0.0, h))) - np.asarray(nominal.apply((0.0, 0.0, h)))
             for direction in (1, -1):
                 phi = phi1 if direction == 1 else np.mod(-phi1, 2 * np.pi)
                 radius = bar_length * np.cos(ang)
                 P = np.column_stack([radius * np.cos(phi), radius * np.sin(phi),
                                      np.full_like(phi, bar_length * np.sin(ang))])
-                S = P + static + d
+                S = P + d
                 dL = np.linalg.norm(S - setup[c], axis=1) - bar_length + rng.normal(0.0, noise, len(phi))
                 cols["t"].append(np.full_like(phi, tk))
                 cols["rpm"].append(np.full_like(phi, rpm[k]))

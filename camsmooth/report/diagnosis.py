@@ -7,7 +7,8 @@ Figures (PNG, matplotlib object API with the Agg canvas, no global pyplot state)
 - ``effect_<name>.png``: per named effect, the residual against the state that explains it
   (commanded velocity for a lag or an offset, last direction for backlash, rotary angle for the
   rotary and spindle terms, spindle angle for runout, elapsed time for drift), before (the final
-  model without this effect) and after (the final model);
+  model without this effect) and after (the final model), as ``diagnose`` computed them (the
+  report reads the findings and re-runs nothing);
 - ``report.html``: verdict, sentences, tables of RMS, parameters, rejected candidates, noise
   floors, located intervals, and the figures.
 
@@ -25,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from camsmooth.diagnosis.recordings import AXES, ROTARY_AXES, channel_unit
+from camsmooth.diagnosis.recordings import channel_unit
 from camsmooth.io.atomic import atomic_dir
 
 MAX_LINE_POINTS = 20000
@@ -85,38 +86,11 @@ def plot_residual_time(diag: Any, path: Path) -> None:
     _save(fig, path)
 
 
-def _state_pairs(diag: Any, name: str, names: Sequence[str]) -> list[tuple[str, str, np.ndarray]]:
-    """(channel, state label, state values at the fit samples) to plot for one effect."""
-    from camsmooth.diagnosis.engine import _cands
-
-    P = diag.problem
-    cand = _cands([name])[0]
-    pairs = []
-    if name in ("servo_lag", "time_offset", "backlash"):
-        for a in AXES:
-            c = f"{a}_act"
-            if c in P.channels and f"v_{a}" in P.states:
-                f = np.degrees(1.0) if a in ROTARY_AXES else 1.0
-                if name == "backlash":
-                    pairs.append((c, f"last direction of {a}", P.states[f"dir_{a}"]))
-                else:
-                    pairs.append((c, f"commanded velocity {a} ({'deg/s' if a in ROTARY_AXES else 'mm/s'})",
-                                  P.states[f"v_{a}"] * f))
-    if not pairs:
-        label, values, _ = cand.state(P, names)
-        before = diag.effect_residuals[name][0]
-        after = diag.effect_residuals[name][1]
-        change = np.sqrt(np.mean(before ** 2, axis=0)) - np.sqrt(np.mean(after ** 2, axis=0))
-        order = np.argsort(change)[::-1][:3]
-        pairs = [(P.channels[j], label, values) for j in order]
-    return pairs[:5]
-
-
 def plot_effect(diag: Any, name: str, names: Sequence[str], path: Path) -> None:
     """Residual against the explaining state, before (final model without this effect) and after."""
     P = diag.problem
     before, after = diag.effect_residuals[name]
-    pairs = _state_pairs(diag, name, names)
+    pairs = diag.effect_states[name]
     fig, axes = _figure(len(pairs), 2, width=10.0, height_per_row=2.6)
     rng = np.random.default_rng(0)
     n = len(P.fit_idx)
@@ -133,26 +107,6 @@ def plot_effect(diag: Any, name: str, names: Sequence[str], path: Path) -> None:
             if i == 0:
                 ax.set_title(f"{name}: {title}")
     _save(fig, path)
-
-
-def _effect_residuals(diag: Any) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Per named effect, the residual at the fit samples of the final model without it and with it."""
-    from camsmooth.diagnosis.engine import _cands
-
-    P = diag.problem
-    final = diag.selection["final"]
-    after = P.data_fit - P.sim_fit.run(final.physics)
-    out = {}
-    for name in final.active:
-        cand = _cands([name])[0]
-        names = final.pnames[name]
-        ph = final.physics.copy()
-        if name == "thermal_drift":
-            ph.thermal = dict(P.base.thermal)
-        else:
-            cand.write(ph, names, cand.read(P.base, names))
-        out[name] = (P.data_fit - P.sim_fit.run(ph), after)
-    return out
 
 
 def _table(rows: Sequence[Sequence[Any]], header: Sequence[str]) -> str:
@@ -215,7 +169,6 @@ def write_report(diag: Any, directory: str | Path, *, replace: bool = False) -> 
     """Write the figures and report.html into ``directory``: each file replaced atomically, other
     files left alone; ``replace=True`` replaces the whole folder (``camsmooth.io.atomic.atomic_dir``)."""
     directory = Path(directory)
-    diag.effect_residuals = _effect_residuals(diag)
     final = diag.selection["final"]
     with atomic_dir(directory, replace=replace) as tmp:
         figures = []

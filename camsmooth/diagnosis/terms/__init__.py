@@ -1,0 +1,72 @@
+"""The library of physics terms of the diagnosis, one module per term (``base.Term`` is the
+interface). ``LIBRARY`` is in METHODS.md section 6's order of the usual suspects (the order in
+which two terms that explain a residual equally are named), followed by the linear-axis errors."""
+
+from __future__ import annotations
+
+from camsmooth.diagnosis.terms.backlash import Backlash
+from camsmooth.diagnosis.terms.base import Param, Term
+from camsmooth.diagnosis.terms.linear import LinearPositioning, LinearSquareness, LinearStraightness
+from camsmooth.diagnosis.terms.rotary_location import RotaryLocation
+from camsmooth.diagnosis.terms.rotary_squareness import RotarySquareness
+from camsmooth.diagnosis.terms.servo_lag import ServoLag
+from camsmooth.diagnosis.terms.spindle_runout import SpindleRunout
+from camsmooth.diagnosis.terms.spindle_tilt import SpindleTilt
+from camsmooth.diagnosis.terms.thermal import ThermalDrift, ThermalMachine
+from camsmooth.diagnosis.terms.time_offset import TimeOffset
+from camsmooth.diagnosis.terms.tool_length import ToolLength
+
+LIBRARY: tuple[Term, ...] = (ServoLag(), TimeOffset(), Backlash(), RotaryLocation(), RotarySquareness(),
+                             SpindleTilt(), SpindleRunout(), ToolLength(), ThermalDrift(), ThermalMachine(),
+                             LinearPositioning(), LinearStraightness(), LinearSquareness())
+CANDIDATES: tuple[str, ...] = tuple(t.name for t in LIBRARY)
+
+
+def term(name: str) -> Term:
+    """The library term of this name."""
+    for t in LIBRARY:
+        if t.name == name:
+            return t
+    raise KeyError(name)
+
+
+#: what separates two terms that explain a residual equally well
+SEPARATING = {
+    frozenset({"servo_lag", "time_offset"}):
+        "a move whose speed changes (an acceleration, a start or a reversal), recorded with a sampling "
+        "period well below 1/Kv, separates them: a lag rounds the velocity corners with time constant 1/Kv, "
+        "a clock offset only shifts them; and one clock offset gives every axis the same delay",
+    frozenset({"servo_lag", "backlash"}):
+        "moves of the same axis at two clearly different speeds, with a dwell after each reversal, separate "
+        "them: lag grows with speed and vanishes at rest, backlash does not",
+    frozenset({"time_offset", "backlash"}):
+        "a dwell after each reversal separates them: an offset error vanishes at rest, backlash does not",
+    frozenset({"rotary_location", "spindle_tilt"}):
+        "measuring the tool axis as well as the tip, or sweeping the other rotary axis, separates them",
+    frozenset({"rotary_location", "tool_length"}):
+        "sweeping each rotary axis over a wider range separates them",
+    frozenset({"rotary_squareness", "spindle_tilt"}):
+        "sweeping each rotary axis separately over its range separates them",
+    frozenset({"thermal_drift", "servo_lag"}):
+        "a longer recording with the spindle stopped for a cool-down separates them",
+    frozenset({"thermal_drift", "thermal_machine"}):
+        "repeating the measurement at several A and B poses while the machine warms separates them: growth in "
+        "the spindle frame turns with the head, growth of the axes and column does not",
+    frozenset({"linear_positioning", "backlash"}):
+        "approaching the same targets from both directions separates them (ISO 230-2 bidirectional run)",
+    frozenset({"linear_positioning", "linear_squareness"}):
+        "measuring the tip along the axis of motion and across it separates them",
+    frozenset({"linear_straightness", "linear_squareness"}):
+        "a longer stroke of the moving axis separates them: squareness grows linearly, straightness does not",
+    frozenset({"thermal_machine", "linear_positioning"}):
+        "returning to the same positions at several times while the machine warms separates them",
+}
+
+
+def separating_measurement(a: str, b: str) -> str:
+    return SEPARATING.get(frozenset({a, b}),
+                          "a program that moves the machine through states where the two predictions differ "
+                          "(other speeds, rotary positions or spindle speeds) separates them")
+
+
+__all__ = ["CANDIDATES", "LIBRARY", "SEPARATING", "Param", "Term", "separating_measurement", "term"]

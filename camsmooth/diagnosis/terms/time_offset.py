@@ -1,0 +1,62 @@
+"""time_offset: the recording clock runs offset_s behind the program's, sim(t) = model(t - d).
+A clock offset far below the sample period is not a finding: it must reach
+``Options.min_offset_periods`` of the sample period (and clear the generic effect rules)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from camsmooth.diagnosis.recordings import AXES
+from camsmooth.diagnosis.terms.base import Param, Term, fmt
+
+
+class TimeOffset(Term):
+    name = "time_offset"
+    needs = "moving axes"
+
+    def applicable(self, P):
+        return None if any(P.knots.moves(a) for a in AXES) or P.knots.S is not None else "nothing moves"
+
+    def params(self, P):
+        span = float(P.t[-1] - P.t[0])
+        b = min(5.0, 0.25 * span)
+        return [Param("offset_s", -b, b, 1e-3, "s", "clock")]
+
+    def write(self, model, names, x):
+        model.offset_s = float(x[0])
+
+    def read(self, model, names):
+        return np.array([model.offset_s])
+
+    def initial(self, P, model, names, resid):
+        num = den = 0.0
+        for a in AXES:
+            c = f"{a}_act"
+            if c in P.channels and P.knots.moves(a):
+                j = P.channels.index(c)
+                ok = P.valid_fit[:, j]
+                v = P.states[f"v_{a}"][ok] * P.w_fit[ok, j]
+                num += float(np.sum(resid[ok, j] * P.w_fit[ok, j] * v))
+                den += float(np.sum(v * v))
+        x0 = model.offset_s + (-num / den if den > 0 else 0.0)
+        p = self.params(P)[0]
+        return np.array([float(np.clip(x0, p.lo, p.hi))])
+
+    def report(self, names, x, sd):
+        return {"offset_s": float(x[0])}, {"offset_s": float(sd[0])}, {"offset_s": "s"}
+
+    def sentence(self, params, unc, none):
+        return (f"The recording runs {fmt(params['offset_s'] * 1000)} ± {fmt(unc['offset_s'] * 1000)} ms "
+                f"{'behind' if params['offset_s'] >= 0 else 'ahead of'} the program's clock")
+
+    def unresolvable(self, P, names, x, sd):
+        d = abs(float(x[0] - P.base.offset_s))
+        limit = P.options.min_offset_periods * P.dt
+        if d < limit:
+            return (f"the fitted clock offset {d * 1e6:.3g} us is below {P.options.min_offset_periods:g} of the "
+                    f"sample period ({P.dt * 1e3:.3g} ms): not resolvable on this recording")
+        return None
+
+    def state(self, P, names):
+        a = max((a for a in AXES if f"v_{a}" in P.states), key=lambda a: np.std(P.states[f"v_{a}"]))
+        return f"commanded velocity {a}", P.states[f"v_{a}"], "mm/s"
