@@ -56,8 +56,9 @@ def plane_path(z: float = 0.0) -> CCPath:
 
 @pytest.fixture(scope="module")
 def data(tmp_path_factory) -> Path:
-    from camsmooth.diagnosis.engine import make_program, physics_from_settings, simulate_recording
+    from benchmarks.synthetic import make_program
     from camsmooth.diagnosis.recordings import write_program_csv, write_recording_csv
+    from camsmooth.diagnosis.simulator import physics_from_settings, simulate_recording
     from camsmooth.machine import calibration, simulate
     from camsmooth.machine.kinematics import load_machine
     from camsmooth.machine.model import ErrorModel
@@ -586,8 +587,8 @@ def test_input_files_of_the_wrong_kind(capsys, ws, argv, needles):
 
 
 @pytest.mark.parametrize("doc,needles", [
-    ('{"format": "camsmooth-error-model", "version": 1, "geometric": [1, 2]}', ('"geometric"', "array")),
-    ('{"format": "camsmooth-error-model", "version": 1, "thermal": "hot"}', ('"thermal"', "string")),
+    ('{"format": "camsmooth-error-model", "version": 1, "geometric": [1, 2]}', ("geometric", "array")),
+    ('{"format": "camsmooth-error-model", "version": 1, "thermal": "hot"}', ("thermal", "string")),
     ("[1, 2, 3]", ("JSON object",)),
     ('{"format": "camsmooth-error-model", "version": 1, "geometric": {"EY0A": "x"}}', ("EY0A",)),
 ])

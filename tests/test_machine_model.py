@@ -186,7 +186,7 @@ def test_type_errors_name_the_file_and_the_key(tmp_path, doc, key):
     with pytest.raises(InputError) as e:
         ErrorModel.from_json(path)
     assert e.value.file == str(path)
-    assert e.value.column == key
+    assert e.value.key == key
 
 
 def test_first_order_jumps_and_restarts_against_a_plain_loop():

@@ -19,7 +19,7 @@ import argparse
 from typing import Any
 
 from camsmooth.cli.options import number
-from camsmooth.errors import CamsmoothError, InputError
+from camsmooth.errors import InputError
 
 
 def register(subparsers: Any) -> None:
@@ -54,23 +54,14 @@ def register(subparsers: Any) -> None:
 
 
 def load_physics(path: str | None, option: str = "--model") -> Any:
-    """The diagnosis model (camsmooth.diagnosis.engine.load_model) of a JSON file; every malformed
-    file is an InputError naming it."""
-    from camsmooth.cli.main import ERROR_MODEL_SECTIONS, check_json_sections
+    """The diagnosis's machine model (camsmooth.diagnosis.engine.load_model: the base model when
+    ``path`` is None); a malformed file is an InputError naming the option, the file and the key."""
     from camsmooth.diagnosis.engine import load_model
 
-    if path is not None:
-        check_json_sections(path, option, ERROR_MODEL_SECTIONS + ("servo", "spindle_runout"))
     try:
         return load_model(path)
-    except (CamsmoothError, OSError):
-        raise
-    except UnicodeDecodeError:
-        raise InputError(f"{option}: not a text (UTF-8) JSON file", file=str(path)) from None
-    except (AttributeError, TypeError, KeyError, ValueError) as exc:
-        # the model readers trust the JSON's types in places (a list where an object belongs)
-        raise InputError(f"{option}: not a valid model file (a value of the wrong type: {exc})",
-                         file=str(path)) from exc
+    except InputError as exc:
+        raise exc.about(option) from None
 
 
 def _options(args: argparse.Namespace) -> Any:

@@ -66,51 +66,17 @@ def _add_cutter_args(p: argparse.ArgumentParser, required: bool = True) -> None:
                    help="tool holder length (mm, > 0; default 40)")
 
 
-def _json_kind(value: Any) -> str:
-    return {list: "an array", str: "a string", bool: "true/false", type(None): "null"}.get(
-        type(value), "a number" if isinstance(value, (int, float)) else type(value).__name__)
-
-
-def check_json_sections(path: str, option: str, sections: Sequence[str]) -> None:
-    """InputError naming the file and key when one of ``sections`` of a JSON object file is not
-    an object; files that cannot be read or parsed are left to their reader's messages."""
-    import json
-
-    if Path(path).is_dir():
-        raise InputError(f"{option}: is a folder, not a JSON file", file=path)
-    try:
-        doc = json.loads(Path(path).read_text(encoding="utf-8-sig"))
-    except (OSError, UnicodeDecodeError, ValueError):
-        return
-    if not isinstance(doc, dict):
-        raise InputError(f"the file must hold a JSON object {{...}}, not {_json_kind(doc)} ({option})", file=path)
-    for key in sections:
-        value = doc.get(key)
-        if value is not None and not isinstance(value, dict):
-            raise InputError(f"\"{key}\" must be an object {{...}}, not {_json_kind(value)} ({option})", file=path)
-
-
-#: Sections of an ErrorModel JSON that hold objects (camsmooth.machine.model, to_dict).
-ERROR_MODEL_SECTIONS = ("geometric", "spindle", "thermal", "meta")
-
-
 def load_error_model(path: str | None, option: str = "--model") -> Any:
-    """ErrorModel from a JSON file, or None; every malformed file is an InputError naming it."""
+    """ErrorModel from a JSON file (camsmooth.machine.model), or None; a malformed file is an
+    InputError naming the option, the file and the key."""
     if path is None:
         return None
     from camsmooth.machine.model import ErrorModel
 
-    check_json_sections(path, option, ERROR_MODEL_SECTIONS)
     try:
         return ErrorModel.from_json(path)
-    except (CamsmoothError, OSError):
-        raise
-    except UnicodeDecodeError:
-        raise InputError(f"{option}: not a text (UTF-8) JSON file", file=str(path)) from None
-    except (AttributeError, TypeError, KeyError, ValueError) as exc:
-        # ErrorModel.from_dict trusts the JSON's types below the top level in places
-        raise InputError(f"{option}: not a valid camsmooth error model (a value of the wrong type: {exc})",
-                         file=str(path)) from exc
+    except InputError as exc:
+        raise exc.about(option) from None
 
 
 def _check_outputs_options(args: argparse.Namespace) -> None:

@@ -724,73 +724,73 @@ class ErrorModel:
         A document holding only ``servo`` / ``spindle_runout`` (no ``format``) is accepted too.
         Every type error raises InputError naming the file and the key."""
         if not isinstance(doc, Mapping):
-            raise InputError(f"a model file holds a JSON object, got {type(doc).__name__}", file=source)
+            raise InputError(f"a model file holds a JSON object {{...}}, got {_json_kind(doc)}", file=source)
         bare = "format" not in doc and not ({"geometric", "thermal", "spindle"} & set(doc))
         if not bare:
             if doc.get("format") != FORMAT:
                 raise InputError(f"not a camsmooth error model (expected \"format\": \"{FORMAT}\")", file=source,
-                                 column="format")
+                                 key="format")
             if doc.get("version") != FORMAT_VERSION:
                 raise InputError(f"unsupported model version {doc.get('version')!r} "
-                                 f"(supported: {FORMAT_VERSION})", file=source, column="version")
+                                 f"(supported: {FORMAT_VERSION})", file=source, key="version")
         geo = {}
         for k, item in _section(doc, "geometric", source).items():
             if k not in GEOMETRIC_PARAMETERS:
-                raise InputError(f"unknown geometric error parameter {k!r}", file=source, column=f"geometric.{k}")
+                raise InputError(f"unknown geometric error parameter {k!r}", file=source, key=f"geometric.{k}")
             geo[k] = _value(item, GEOMETRIC_PARAMETERS[k][0], f"geometric.{k}", source)
         spindle = None
         sp = doc.get("spindle")
         if sp is not None:
             if not isinstance(sp, Mapping):
-                raise InputError("spindle must be an object or null", file=source, column="spindle")
+                raise InputError("spindle must be an object or null", file=source, key="spindle")
             unknown = sorted(set(sp) - set(SpindleScrew.UNITS))
             if unknown:
                 raise InputError(f"unknown spindle screw parameter(s) {unknown}", file=source,
-                                 column=f"spindle.{unknown[0]}")
+                                 key=f"spindle.{unknown[0]}")
             try:
                 spindle = SpindleScrew(**{k: _value(v, SpindleScrew.UNITS[k], f"spindle.{k}", source)
                                           for k, v in sp.items()})
             except InputError as exc:
                 if exc.file:
                     raise
-                raise InputError(str(exc), file=source, column="spindle") from None
+                raise InputError(str(exc), file=source, key="spindle") from None
         thermal = {}
         for k, item in _section(doc, "thermal", source).items():
             where = f"thermal.{k}"
             if k not in THERMAL_ELEMENTS:
-                raise InputError(f"unknown thermal element {k!r}", file=source, column=where)
+                raise InputError(f"unknown thermal element {k!r}", file=source, key=where)
             if not isinstance(item, Mapping) or set(item) != {"gain", "tau"}:
-                raise InputError(f"{where} must hold 'gain' and 'tau'", file=source, column=where)
+                raise InputError(f"{where} must hold 'gain' and 'tau'", file=source, key=where)
             gain = item["gain"]
             if not isinstance(gain, Mapping):
                 raise InputError(f"{where}.gain: expected {{\"value\": ..., \"unit\": ...}}", file=source,
-                                 column=f"{where}.gain")
+                                 key=f"{where}.gain")
             unit = gain.get("unit", "")
             base = unit.split("/")[0] if isinstance(unit, str) and unit.endswith("/1000rpm") else None
             if base is None:
                 raise InputError(f"{where}.gain: unit must be '<unit>/1000rpm', got {unit!r}", file=source,
-                                 column=f"{where}.gain")
+                                 key=f"{where}.gain")
             g = _value({"value": gain.get("value"), "unit": base}, THERMAL_ELEMENTS[k], f"{where}.gain", source)
             tau = _value(item["tau"], "s", f"{where}.tau", source)
             if tau <= 0:
-                raise InputError(f"{where}: tau > 0 s required, got {tau}", file=source, column=f"{where}.tau")
+                raise InputError(f"{where}: tau > 0 s required, got {tau}", file=source, key=f"{where}.tau")
             thermal[k] = {"gain": g, "tau": tau}
         meta = doc.get("meta") or {}
         if not isinstance(meta, Mapping):
-            raise InputError("meta must be an object", file=source, column="meta")
+            raise InputError("meta must be an object", file=source, key="meta")
         servo = _section(doc, "servo", source)
         tau_s: dict[str, float] = {}
         for a, kv in _section(servo, "Kv", source, "servo.").items():
             kv = _number(kv, source, f"servo.Kv.{a}")
             if a not in SERVO_AXES or kv <= 0:
                 raise InputError(f"servo Kv needs an axis of {SERVO_AXES} and a value > 0 1/s", file=source,
-                                 column=f"servo.Kv.{a}")
+                                 key=f"servo.Kv.{a}")
             tau_s[a] = 1.0 / kv
         backlash: dict[str, float] = {}
         for a, b in _section(servo, "backlash", source, "servo.").items():
             if a not in SERVO_AXES:
                 raise InputError(f"backlash axis {a!r} is not one of {SERVO_AXES}", file=source,
-                                 column=f"servo.backlash.{a}")
+                                 key=f"servo.backlash.{a}")
             b = _number(b, source, f"servo.backlash.{a}")
             backlash[a] = math.radians(b) if a in ("A", "B") else b
         offset = _number(servo.get("time_offset_s", 0.0), source, "servo.time_offset_s")
@@ -819,8 +819,10 @@ class ErrorModel:
             text = Path(path).read_text()
         except FileNotFoundError:
             raise InputError("model file not found", file=str(path)) from None
-        except (OSError, UnicodeDecodeError) as exc:
-            raise InputError(f"cannot read the model file: {exc}", file=str(path)) from None
+        except UnicodeDecodeError:
+            raise InputError("not a text (UTF-8) file: a JSON error model is expected", file=str(path)) from None
+        except OSError as exc:
+            raise InputError(f"cannot read the model file: {exc.strerror or exc}", file=str(path)) from None
         try:
             doc = json.loads(text)
         except json.JSONDecodeError as exc:
@@ -1070,14 +1072,23 @@ def _section(doc: Mapping[str, Any], key: str, source: str, prefix: str = "") ->
     if v is None:
         return {}
     if not isinstance(v, Mapping):
-        raise InputError(f"{prefix}{key} must be an object, got {type(v).__name__} {v!r:.60}", file=source,
-                         column=f"{prefix}{key}")
+        raise InputError(f"{prefix}{key} must be an object {{...}}, got {_json_kind(v)} {v!r:.60}", file=source,
+                         key=f"{prefix}{key}")
     return v
+
+
+def _json_kind(v: Any) -> str:
+    """How JSON names the type of a parsed value."""
+    if isinstance(v, bool):
+        return "true/false"
+    if isinstance(v, (int, float)):
+        return "a number"
+    return {list: "an array", str: "a string", type(None): "null"}.get(type(v), "an object")
 
 
 def _number(v: Any, source: str, column: str) -> float:
     if not _finite_number(v):
-        raise InputError(f"{column} must be a finite number, got {v!r}", file=source, column=column)
+        raise InputError(f"{column} must be a finite number, got {v!r}", file=source, key=column)
     return float(v)
 
 
@@ -1085,15 +1096,15 @@ def _value(item: Any, unit: str, where: str, source: str) -> float:
     """A {"value": v, "unit": u} item converted to the code's ``unit`` (mm, rad, s, 1, 1/mm, 1/mm2)."""
     if not isinstance(item, Mapping) or "value" not in item:
         raise InputError(f"{where}: expected {{\"value\": ..., \"unit\": ...}}, got {item!r:.60}", file=source,
-                         column=where)
+                         key=where)
     v = item["value"]
     if not _finite_number(v):
-        raise InputError(f"{where}: value must be a finite number, got {v!r}", file=source, column=where)
+        raise InputError(f"{where}: value must be a finite number, got {v!r}", file=source, key=where)
     u = item.get("unit", unit)
     table = _units_for(unit)
     if not isinstance(u, str) or u not in table:
         raise InputError(f"{where}: unit {u!r} is not a {unit} unit (use one of {sorted(table)})",
-                         file=source, column=where)
+                         file=source, key=where)
     factor = table[u]
     return float(v) if factor == 1.0 else float(v) * factor
 
