@@ -1,0 +1,569 @@
+"""Compiled (numba) kernels of camsmooth.geometry.clearance: a bounding-volume hierarchy over the
+mesh triangles and the exact clearance of the tool's convex bodies, pose by pose.
+
+Single-threaded scalar code (the pipeline parallelises with processes).  ``cache=True``: the
+first call in a fresh environment compiles (seconds), later imports load the machine code from
+``__pycache__``.  Scratch memory is O(vertices + edges), whatever the number of poses.
+
+Body model (camsmooth.geometry.cutter): a solid capped cylinder C (axis from ``base`` to
+``base + height * axis``, radius ``radius``; a segment when ``radius = 0``, a disc when
+``height = 0``) offset by ``off`` (the Minkowski sum with a ball of radius ``off``).  Its signed
+distance ``sd_C(x) - off`` is convex and 1-Lipschitz in x; ``sd_C`` is the formula of
+``camsmooth.geometry.cutter._cylinder_sd`` with the same branches and subgradient choices
+(scalar code here, the vectorised numpy version there; tests compare the two).
+
+Bounding volumes.  Every node of the hierarchy holds its triangles in a "disc slab": centre c,
+unit normal m, half-thickness t along m and lateral radius q (all vertices x satisfy
+|m.(x - c)| <= t and |(x - c) - (m.(x - c)) m| <= q).  As sd is convex, for any subgradient g at
+c: sd(x) >= sd(c) + g.(x - c) >= sd(c) - |g.m| t - |g - (g.m) m| q on the node, a lower bound
+that is second-order tight where the surface is tangent to the tool (unlike a ball's
+sd(c) - radius).  Triangles use the exact minimum of the same linear function over their three
+vertices, then the tangent planes at the vertices.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+INVPHI = (math.sqrt(5.0) - 1.0) / 2.0
+PRUNE_TOL = 1e-10     # mm: an element whose lower bound is within this of the best value is skipped
+GAP_TOL = 1e-12       # mm: an edge minimum is accepted once certified within this of the true minimum
+PARALLEL_EPS = 1e-12  # as camsmooth.geometry.cutter._PARALLEL_EPS (support-point tie rule)
+BARY_TOL = 1e-12      # barycentric tolerance of the facet test
+STACK = 256           # BVH traversal stack; the tree depth is <= log2(F) + 2
+
+# What attains a pose's minimum (to report the contact normal and polish the witness).
+K_POINT = 0   # vertex or deep (2-D) minimum: normal = -gradient of the body's sd at the witness
+K_FACET = 1   # facet: normal = the facet normal, on the side of the tool
+K_EDGE = 2    # edge: the witness is refined to full precision along the edge first
+
+# Columns of the per-triangle float table (leaf order).
+T_N, T_C, T_LONG, T_VALID = 0, 3, 6, 7
+# Columns of the per-node float table: centre, normal, half-thickness, lateral radius.
+B_C, B_M, B_T, B_Q = 0, 3, 6, 7
+
+
+# ---------------------------------------------------------------------------------------------
+# bounding-volume hierarchy
+
+@njit(cache=True)
+def _slab(vertices, faces, perm, s, c, out):
+    """Disc slab of the triangles perm[s:s + c] into out[0:8] (see the module docstring); the
+    normal is the least-variance direction of their vertices, so the slab is thin on a sheet."""
+    n = 3 * c
+    mean = np.zeros(3)
+    for i in range(s, s + c):
+        for j in range(3):
+            for k in range(3):
+                mean[k] += vertices[faces[perm[i], j], k]
+    mean /= n
+    cov = np.zeros((3, 3))
+    for i in range(s, s + c):
+        for j in range(3):
+            v = faces[perm[i], j]
+            for a in range(3):
+                for b in range(3):
+                    cov[a, b] += (vertices[v, a] - mean[a]) * (vertices[v, b] - mean[b])
+    _, vec = np.linalg.eigh(cov)
+    m = vec[:, 0].copy()
+    m /= math.sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2])
+    u = vec[:, 1].copy()
+    u -= (u[0] * m[0] + u[1] * m[1] + u[2] * m[2]) * m
+    u /= math.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
+    w = np.array([m[1] * u[2] - m[2] * u[1], m[2] * u[0] - m[0] * u[2], m[0] * u[1] - m[1] * u[0]])
+    lo = np.full(3, np.inf)
+    hi = np.full(3, -np.inf)
+    for i in range(s, s + c):
+        for j in range(3):
+            v = faces[perm[i], j]
+            x = np.array([vertices[v, 0] - mean[0], vertices[v, 1] - mean[1], vertices[v, 2] - mean[2]])
+            p = np.array([x[0] * m[0] + x[1] * m[1] + x[2] * m[2], x[0] * u[0] + x[1] * u[1] + x[2] * u[2],
+                          x[0] * w[0] + x[1] * w[1] + x[2] * w[2]])
+            for k in range(3):
+                lo[k] = min(lo[k], p[k])
+                hi[k] = max(hi[k], p[k])
+    mid = 0.5 * (lo + hi)
+    cen = mean + mid[0] * m + mid[1] * u + mid[2] * w
+    t, q2 = 0.0, 0.0
+    for i in range(s, s + c):
+        for j in range(3):
+            v = faces[perm[i], j]
+            x = np.array([vertices[v, 0] - cen[0], vertices[v, 1] - cen[1], vertices[v, 2] - cen[2]])
+            h = x[0] * m[0] + x[1] * m[1] + x[2] * m[2]
+            t = max(t, abs(h))
+            lx, ly, lz = x[0] - h * m[0], x[1] - h * m[1], x[2] - h * m[2]
+            q2 = max(q2, lx * lx + ly * ly + lz * lz)
+    # grown by a few ulps of the coordinates so that rounding cannot make the volume too small
+    scale = max(abs(cen[0]), abs(cen[1]), abs(cen[2]), math.sqrt(q2), t)
+    out[B_C:B_C + 3] = cen
+    out[B_M:B_M + 3] = m
+    out[B_T] = t * (1.0 + 1e-12) + 1e-14 * scale
+    out[B_Q] = math.sqrt(q2) * (1.0 + 1e-12) + 1e-14 * scale
+
+
+@njit(cache=True)
+def build_bvh(vertices, faces, leaf_size):
+    """Top-down median split of the triangles on the longest axis of their centroids' box.
+
+    Returns ``perm`` (F,) triangle order (each node owns the contiguous range
+    ``perm[start:start + count]``), ``left`` (M,) first child (the second is ``left + 1``; -1 for
+    leaves), ``start``, ``count`` (M,) and ``slab`` (M, 8), the nodes' disc slabs.
+    """
+    F = faces.shape[0]
+    cent = np.empty((F, 3))
+    for f in range(F):
+        for k in range(3):
+            cent[f, k] = (vertices[faces[f, 0], k] + vertices[faces[f, 1], k] + vertices[faces[f, 2], k]) / 3.0
+    perm = np.arange(F)
+    cap = 2 * F + 1
+    left = np.full(cap, -1, np.int64)
+    start = np.zeros(cap, np.int64)
+    count = np.zeros(cap, np.int64)
+    todo = np.empty(cap, np.int64)
+    start[0], count[0] = 0, F
+    todo[0] = 0
+    n_todo, n_nodes = 1, 1
+    while n_todo > 0:
+        n_todo -= 1
+        node = todo[n_todo]
+        s, c = start[node], count[node]
+        if c <= leaf_size:
+            continue
+        lo = np.full(3, np.inf)
+        hi = np.full(3, -np.inf)
+        for i in range(s, s + c):
+            for k in range(3):
+                x = cent[perm[i], k]
+                lo[k] = min(lo[k], x)
+                hi[k] = max(hi[k], x)
+        ax = int(np.argmax(hi - lo))
+        keys = np.empty(c)
+        for i in range(c):
+            keys[i] = cent[perm[s + i], ax]
+        order = np.argsort(keys, kind="mergesort")
+        seg = perm[s:s + c].copy()
+        for i in range(c):
+            perm[s + i] = seg[order[i]]
+        half = c // 2
+        left[node] = n_nodes
+        start[n_nodes], count[n_nodes] = s, half
+        start[n_nodes + 1], count[n_nodes + 1] = s + half, c - half
+        todo[n_todo], todo[n_todo + 1] = n_nodes, n_nodes + 1
+        n_todo += 2
+        n_nodes += 2
+    slab = np.empty((n_nodes, 8))
+    for node in range(n_nodes):
+        _slab(vertices, faces, perm, start[node], count[node], slab[node])
+    return perm, left[:n_nodes].copy(), start[:n_nodes].copy(), count[:n_nodes].copy(), slab
+
+
+# ---------------------------------------------------------------------------------------------
+# the capped cylinder: signed distance, subgradient, support point
+
+@njit(cache=True, inline="always")
+def _sd(px, py, pz, bx, by, bz, ax, ay, az, height, radius):
+    qx, qy, qz = px - bx, py - by, pz - bz
+    a = qx * ax + qy * ay + qz * az
+    wx, wy, wz = qx - a * ax, qy - a * ay, qz - a * az
+    rho = math.sqrt(wx * wx + wy * wy + wz * wz)
+    half = 0.5 * height
+    dz = abs(a - half) - half
+    dr = rho - radius
+    if dr > 0.0 or dz > 0.0:
+        drp, dzp = max(dr, 0.0), max(dz, 0.0)
+        return math.sqrt(drp * drp + dzp * dzp)
+    return max(dr, dz)
+
+
+@njit(cache=True, inline="always")
+def _sd_grad(px, py, pz, bx, by, bz, ax, ay, az, height, radius):
+    """Signed distance of the capped cylinder and a subgradient (the gradient where it exists);
+    the same branches as camsmooth.geometry.cutter._cylinder_sd."""
+    qx, qy, qz = px - bx, py - by, pz - bz
+    a = qx * ax + qy * ay + qz * az
+    wx, wy, wz = qx - a * ax, qy - a * ay, qz - a * az
+    rho = math.sqrt(wx * wx + wy * wy + wz * wz)
+    half = 0.5 * height
+    dz = abs(a - half) - half
+    dr = rho - radius
+    inv_rho = 1.0 / rho if rho > 0.0 else 0.0
+    ex, ey, ez = wx * inv_rho, wy * inv_rho, wz * inv_rho
+    sg = 1.0 if a >= half else -1.0
+    sx, sy, sz = sg * ax, sg * ay, sg * az
+    if dr > 0.0 or dz > 0.0:
+        drp, dzp = max(dr, 0.0), max(dz, 0.0)
+        out = math.sqrt(drp * drp + dzp * dzp)
+        i = 1.0 / out
+        return out, (drp * ex + dzp * sx) * i, (drp * ey + dzp * sy) * i, (drp * ez + dzp * sz) * i
+    if dr >= dz:
+        return dr, ex, ey, ez
+    return dz, sx, sy, sz
+
+
+@njit(cache=True, inline="always")
+def _support(bx, by, bz, ax, ay, az, height, radius, dx, dy, dz):
+    """Point of the capped cylinder extreme in direction d (ties as _cylinder_support: the lower
+    end, the axis point for d parallel to the axis)."""
+    dt = dx * ax + dy * ay + dz * az
+    wx, wy, wz = dx - dt * ax, dy - dt * ay, dz - dt * az
+    wn = math.sqrt(wx * wx + wy * wy + wz * wz)
+    if wn > PARALLEL_EPS * max(1.0, abs(dt)):
+        s = radius / wn
+        rx, ry, rz = wx * s, wy * s, wz * s
+    else:
+        rx, ry, rz = 0.0, 0.0, 0.0
+    up = height if dt > 0.0 else 0.0
+    return bx + up * ax + rx, by + up * ay + ry, bz + up * az + rz
+
+
+@njit(cache=True, inline="always")
+def _slab_bound(slab, k, bx, by, bz, ax, ay, az, h, rad):
+    """Lower bound of sd_C over node k's disc slab (module docstring)."""
+    cx, cy, cz = slab[k, B_C], slab[k, B_C + 1], slab[k, B_C + 2]
+    mx, my, mz = slab[k, B_M], slab[k, B_M + 1], slab[k, B_M + 2]
+    s, g0, g1, g2 = _sd_grad(cx, cy, cz, bx, by, bz, ax, ay, az, h, rad)
+    gm = g0 * mx + g1 * my + g2 * mz
+    tx, ty, tz = g0 - gm * mx, g1 - gm * my, g2 - gm * mz
+    return s - abs(gm) * slab[k, B_T] - math.sqrt(tx * tx + ty * ty + tz * tz) * slab[k, B_Q]
+
+
+@njit(cache=True)
+def golden_iters(length):
+    """Iterations that shrink a bracket of ``length`` mm below ~1e-10 mm (at least 40)."""
+    if not length > 1e-10:
+        return 40
+    return int(min(90, max(40, math.ceil(math.log(length / 1e-10) / -math.log(INVPHI)))))
+
+
+# ---------------------------------------------------------------------------------------------
+# 1-D and 2-D minimisation.  Pose state ``st``: [0] best value U, [1:4] witness, [4] kind,
+# [5] body, [6:9] facet normal, [9] edge id (K_EDGE).
+
+@njit(cache=True)
+def _edge_min(px, py, pz, dx, dy, dz, fa, ga, fb, gb, bx, by, bz, ax, ay, az, h, rad, off,
+              st, polish):
+    """Minimum of the convex f(t) = sd_C(p + t d) - off on [0, 1], given f and a subgradient
+    (along d) at both ends.
+
+    Steps: Illinois (regula falsi) on the slope, with a bisection whenever the bracket fails to
+    halve over two steps.  Certificate: f is at least the upper envelope of the tangent lines at
+    the bracket ends, so their crossing value ``low`` bounds the minimum from below.  Unless
+    ``polish``, the search stops once ``low`` >= st[0] - PRUNE_TOL (the edge cannot improve the
+    pose) or best - low <= GAP_TOL; with ``polish`` it runs until the bracket is at rounding
+    level, to place the witness exactly.  Returns (t, f(t)) of the best point evaluated
+    (t = -1 if no interior point beat both ends).
+    """
+    bt, bv = -1.0, min(fa, fb)
+    if ga >= 0.0 or gb <= 0.0:
+        return bt, bv  # the minimum is at an end
+    length = math.sqrt(dx * dx + dy * dy + dz * dz)
+    lo, hi = 0.0, 1.0
+    flo, glo, fhi, ghi = fa, ga, fb, gb
+    wlo, whi = glo, ghi          # Illinois working slopes
+    side = 0
+    width_ref = 1.0
+    for it in range(300):
+        if (hi - lo) * length <= (1e-17 if polish else 1e-13) * max(1.0, length):
+            break
+        if not polish:
+            tx = (fhi - flo + glo * lo - ghi * hi) / (glo - ghi)
+            low = flo + glo * (tx - lo)
+            if low >= st[0] - PRUNE_TOL or bv - low <= GAP_TOL:
+                break
+        if it % 2 == 0:
+            if it > 0 and (hi - lo) > 0.5 * width_ref:
+                t = 0.5 * (lo + hi)
+            else:
+                t = (lo * whi - hi * wlo) / (whi - wlo)
+            width_ref = hi - lo
+        else:
+            t = (lo * whi - hi * wlo) / (whi - wlo)
+        if not (lo < t < hi):
+            t = 0.5 * (lo + hi)
+            if not (lo < t < hi):
+                break
+        s, g0, g1, g2 = _sd_grad(px + t * dx, py + t * dy, pz + t * dz, bx, by, bz, ax, ay, az, h, rad)
+        f = s - off
+        g = g0 * dx + g1 * dy + g2 * dz
+        if f < bv:
+            bt, bv = t, f
+        if g > 0.0:
+            hi, fhi, ghi, whi = t, f, g, g
+            if side == 1:
+                wlo *= 0.5
+            side = 1
+        elif g < 0.0:
+            lo, flo, glo, wlo = t, f, g, g
+            if side == -1:
+                whi *= 0.5
+            side = -1
+        else:
+            break  # a zero subgradient: t is a minimum
+    return bt, bv
+
+
+@njit(cache=True)
+def _golden(p0x, p0y, p0z, dx, dy, dz, bx, by, bz, ax, ay, az, h, rad, iters):
+    """Golden section of the convex sd_C(p0 + t d) on [0, 1]; (t, value)."""
+    a, b = 0.0, 1.0
+    c = b - INVPHI * (b - a)
+    e = a + INVPHI * (b - a)
+    fc = _sd(p0x + c * dx, p0y + c * dy, p0z + c * dz, bx, by, bz, ax, ay, az, h, rad)
+    fe = _sd(p0x + e * dx, p0y + e * dy, p0z + e * dz, bx, by, bz, ax, ay, az, h, rad)
+    for _ in range(iters):
+        if fc <= fe:
+            b = e
+            e, fe = c, fc
+            c = b - INVPHI * (b - a)
+            fc = _sd(p0x + c * dx, p0y + c * dy, p0z + c * dz, bx, by, bz, ax, ay, az, h, rad)
+        else:
+            a = c
+            c, fc = e, fe
+            e = a + INVPHI * (b - a)
+            fe = _sd(p0x + e * dx, p0y + e * dy, p0z + e * dz, bx, by, bz, ax, ay, az, h, rad)
+    if fc <= fe:
+        return c, fc
+    return e, fe
+
+
+@njit(cache=True)
+def _deep_min(V, v0, v1, v2, long_edge, bx, by, bz, ax, ay, az, h, rad):
+    """Minimum of sd_C over a triangle reaching into C, by nested golden sections: the minimum
+    over each slice parallel to edge v1 v2 is convex in the slice position (partial
+    minimisation of a convex function over a convex set), so nesting is exact.  Returns
+    (value, witness x, y, z)."""
+    iters = golden_iters(long_edge)
+    ox, oy, oz = V[v0, 0], V[v0, 1], V[v0, 2]
+    d1x, d1y, d1z = V[v1, 0] - ox, V[v1, 1] - oy, V[v1, 2] - oz
+    ex, ey, ez = V[v2, 0] - V[v1, 0], V[v2, 1] - V[v1, 1], V[v2, 2] - V[v1, 2]
+    best_s, best_t, best_v = 0.0, 0.0, np.inf
+    a, b = 0.0, 1.0
+    c = b - INVPHI * (b - a)
+    e = a + INVPHI * (b - a)
+    t, fc = _golden(ox + c * d1x, oy + c * d1y, oz + c * d1z, c * ex, c * ey, c * ez, bx, by, bz, ax, ay, az,
+                    h, rad, iters)
+    if fc < best_v:
+        best_s, best_t, best_v = c, t, fc
+    t, fe = _golden(ox + e * d1x, oy + e * d1y, oz + e * d1z, e * ex, e * ey, e * ez, bx, by, bz, ax, ay, az,
+                    h, rad, iters)
+    if fe < best_v:
+        best_s, best_t, best_v = e, t, fe
+    for _ in range(iters):
+        go_left = fc <= fe
+        if go_left:
+            b = e
+            e, fe = c, fc
+            c = b - INVPHI * (b - a)
+            s = c
+        else:
+            a = c
+            c, fc = e, fe
+            e = a + INVPHI * (b - a)
+            s = e
+        t, v = _golden(ox + s * d1x, oy + s * d1y, oz + s * d1z, s * ex, s * ey, s * ez, bx, by, bz, ax, ay, az,
+                       h, rad, iters)
+        if go_left:
+            fc = v
+        else:
+            fe = v
+        if v < best_v:
+            best_s, best_t, best_v = s, t, v
+    return (best_v, ox + best_s * (d1x + best_t * ex), oy + best_s * (d1y + best_t * ey),
+            oz + best_s * (d1z + best_t * ez))
+
+
+# ---------------------------------------------------------------------------------------------
+# the clearance kernel
+
+@njit(cache=True)
+def clearance_kernel(tips, axes, bodies, margin, V, E, TI, TF, left, start, count, slab):
+    """Exact clearance of N poses against the mesh (camsmooth.geometry.clearance.clearance).
+
+    tips, axes : (N, 3) tool tips and unit axes.  bodies : (B, 4) per convex body: base offset
+    along the axis from the tip, height, radius, offset.  V (nv, 3), E (ne, 2) edges, TI (F, 6)
+    vertex and edge ids and TF (F, 8) normal, centroid, longest edge, validity of the triangles
+    in leaf order; left, start, count, slab: the hierarchy (build_bvh).
+
+    Returns delta (N,) (margin where nothing is below it), witness (N, 3) and normal (N, 3)
+    (NaN where nothing is below the margin).
+    """
+    N = tips.shape[0]
+    delta = np.full(N, margin)
+    witness = np.full((N, 3), np.nan)
+    normal = np.full((N, 3), np.nan)
+    nv, ne = V.shape[0], E.shape[0]
+    vkey = np.full(nv, -1, np.int64)    # (pose, body) key of the cached vertex values
+    vval = np.empty(nv)
+    vgrad = np.empty((nv, 3))
+    ekey = np.full(ne, -1, np.int64)    # (pose, body) key of the edges already examined
+    st = np.empty(10)
+    stack_n = np.empty(STACK, np.int64)
+    stack_lb = np.empty(STACK)
+    NB = bodies.shape[0]
+    for p in range(N):
+        st[0] = margin
+        st[1] = st[2] = st[3] = np.nan
+        st[4], st[5] = K_POINT, -1.0
+        ax, ay, az = axes[p, 0], axes[p, 1], axes[p, 2]
+        for body in range(NB):
+            key = p * NB + body
+            o = bodies[body, 0]
+            bx, by, bz = tips[p, 0] + o * ax, tips[p, 1] + o * ay, tips[p, 2] + o * az
+            h, rad, off = bodies[body, 1], bodies[body, 2], bodies[body, 3]
+            stack_n[0], stack_lb[0] = 0, -np.inf
+            sp = 1
+            while sp > 0:
+                sp -= 1
+                node = stack_n[sp]
+                if stack_lb[sp] >= st[0] - PRUNE_TOL:
+                    continue
+                c = left[node]
+                if c >= 0:
+                    # children's disc-slab bounds; the nearer child is searched first
+                    l0 = _slab_bound(slab, c, bx, by, bz, ax, ay, az, h, rad) - off
+                    l1 = _slab_bound(slab, c + 1, bx, by, bz, ax, ay, az, h, rad) - off
+                    if l0 > l1:
+                        far, lf, near, ln = c, l0, c + 1, l1
+                    else:
+                        far, lf, near, ln = c + 1, l1, c, l0
+                    if lf < st[0] - PRUNE_TOL:
+                        stack_n[sp], stack_lb[sp] = far, lf
+                        sp += 1
+                    if ln < st[0] - PRUNE_TOL:
+                        stack_n[sp], stack_lb[sp] = near, ln
+                        sp += 1
+                    continue
+                for f in range(start[node], start[node] + count[node]):
+                    i0, i1, i2 = TI[f, 0], TI[f, 1], TI[f, 2]
+                    # 1. linear bound at the centroid: min over the vertices of sd(c) + g.(v - c)
+                    cx, cy, cz = TF[f, T_C], TF[f, T_C + 1], TF[f, T_C + 2]
+                    s, g0, g1, g2 = _sd_grad(cx, cy, cz, bx, by, bz, ax, ay, az, h, rad)
+                    lin = np.inf
+                    for i in (i0, i1, i2):
+                        lin = min(lin, g0 * (V[i, 0] - cx) + g1 * (V[i, 1] - cy) + g2 * (V[i, 2] - cz))
+                    if s - off + lin >= st[0] - PRUNE_TOL:
+                        continue
+                    # 2. vertex values (once per pose and body; each is a candidate)
+                    for i in (i0, i1, i2):
+                        if vkey[i] != key:
+                            s, g0, g1, g2 = _sd_grad(V[i, 0], V[i, 1], V[i, 2], bx, by, bz, ax, ay, az, h, rad)
+                            vkey[i] = key
+                            vval[i] = s - off
+                            vgrad[i, 0], vgrad[i, 1], vgrad[i, 2] = g0, g1, g2
+                            if s - off < st[0]:
+                                st[0], st[1], st[2], st[3] = s - off, V[i, 0], V[i, 1], V[i, 2]
+                                st[4], st[5] = K_POINT, body
+                    # 3. the tangent planes at the vertices (each smallest at a vertex); best of three
+                    lower = -np.inf
+                    for i in (i0, i1, i2):
+                        m = np.inf
+                        for j in (i0, i1, i2):
+                            m = min(m, vval[i] + vgrad[i, 0] * (V[j, 0] - V[i, 0])
+                                    + vgrad[i, 1] * (V[j, 1] - V[i, 1]) + vgrad[i, 2] * (V[j, 2] - V[i, 2]))
+                        lower = max(lower, m)
+                    if lower >= st[0] - PRUNE_TOL:
+                        continue
+                    # 4. facet test: if C lies on one side of the plane, the plane's closest point
+                    #    to C is the foot of C's support point toward the plane; inside the
+                    #    triangle it is the triangle's minimum.
+                    cuts = False
+                    if TF[f, T_VALID] > 0.0:
+                        nx, ny, nz = TF[f, T_N], TF[f, T_N + 1], TF[f, T_N + 2]
+                        sx, sy, sz = _support(bx, by, bz, ax, ay, az, h, rad, -nx, -ny, -nz)
+                        hh = nx * (sx - V[i0, 0]) + ny * (sy - V[i0, 1]) + nz * (sz - V[i0, 2])
+                        side = 1.0
+                        if hh < 0.0:
+                            sx, sy, sz = _support(bx, by, bz, ax, ay, az, h, rad, nx, ny, nz)
+                            hh = nx * (sx - V[i0, 0]) + ny * (sy - V[i0, 1]) + nz * (sz - V[i0, 2])
+                            side = -1.0
+                            cuts = hh > 0.0
+                        if not cuts:
+                            fx, fy, fz = sx - hh * nx, sy - hh * ny, sz - hh * nz
+                            e0x, e0y, e0z = V[i1, 0] - V[i0, 0], V[i1, 1] - V[i0, 1], V[i1, 2] - V[i0, 2]
+                            e1x, e1y, e1z = V[i2, 0] - V[i0, 0], V[i2, 1] - V[i0, 1], V[i2, 2] - V[i0, 2]
+                            e2x, e2y, e2z = fx - V[i0, 0], fy - V[i0, 1], fz - V[i0, 2]
+                            d00 = e0x * e0x + e0y * e0y + e0z * e0z
+                            d01 = e0x * e1x + e0y * e1y + e0z * e1z
+                            d11 = e1x * e1x + e1y * e1y + e1z * e1z
+                            d20 = e2x * e0x + e2y * e0y + e2z * e0z
+                            d21 = e2x * e1x + e2y * e1y + e2z * e1z
+                            den = d00 * d11 - d01 * d01
+                            if den <= 0.0:
+                                den = 1.0
+                            bv = (d11 * d20 - d01 * d21) / den
+                            bw = (d00 * d21 - d01 * d20) / den
+                            if bv >= -BARY_TOL and bw >= -BARY_TOL and 1.0 - bv - bw >= -BARY_TOL:
+                                val = side * hh - off
+                                if val < st[0]:
+                                    st[0], st[1], st[2], st[3] = val, fx, fy, fz
+                                    st[4], st[5] = K_FACET, body
+                                    st[6], st[7], st[8] = side * nx, side * ny, side * nz
+                                continue
+                    # 5. edges (each once per pose and body): exact 1-D convex minimisation
+                    for k in range(3):
+                        e = TI[f, 3 + k]
+                        if ekey[e] == key:
+                            continue
+                        ekey[e] = key
+                        va, vb = E[e, 0], E[e, 1]
+                        px, py, pz = V[va, 0], V[va, 1], V[va, 2]
+                        dx, dy, dz = V[vb, 0] - px, V[vb, 1] - py, V[vb, 2] - pz
+                        ga = vgrad[va, 0] * dx + vgrad[va, 1] * dy + vgrad[va, 2] * dz
+                        gb = vgrad[vb, 0] * dx + vgrad[vb, 1] * dy + vgrad[vb, 2] * dz
+                        t, val = _edge_min(px, py, pz, dx, dy, dz, vval[va], ga, vval[vb], gb,
+                                           bx, by, bz, ax, ay, az, h, rad, off, st, False)
+                        if t >= 0.0 and val < st[0]:
+                            st[0], st[1], st[2], st[3] = val, px + t * dx, py + t * dy, pz + t * dz
+                            st[4], st[5], st[9] = K_EDGE, body, e
+                    # 6. deep: the plane cuts C and the triangle may reach into it (sd < -off)
+                    if cuts and lower < min(st[0] - PRUNE_TOL, -off):
+                        val, x, y, z = _deep_min(V, i0, i1, i2, TF[f, T_LONG], bx, by, bz, ax, ay, az, h, rad)
+                        if val - off < st[0]:
+                            st[0], st[1], st[2], st[3] = val - off, x, y, z
+                            st[4], st[5] = K_POINT, body
+        if st[5] < 0.0:
+            continue
+        # the witness and the normal of the minimum found
+        body = int(st[5])
+        o = bodies[body, 0]
+        bx, by, bz = tips[p, 0] + o * ax, tips[p, 1] + o * ay, tips[p, 2] + o * az
+        h, rad, off = bodies[body, 1], bodies[body, 2], bodies[body, 3]
+        if st[4] == K_EDGE:
+            # place the edge minimum to full precision (the search stopped at a value gap)
+            e = int(st[9])
+            va, vb = E[e, 0], E[e, 1]
+            px, py, pz = V[va, 0], V[va, 1], V[va, 2]
+            dx, dy, dz = V[vb, 0] - px, V[vb, 1] - py, V[vb, 2] - pz
+            fa, g0, g1, g2 = _sd_grad(px, py, pz, bx, by, bz, ax, ay, az, h, rad)
+            ga = g0 * dx + g1 * dy + g2 * dz
+            fb, g0, g1, g2 = _sd_grad(px + dx, py + dy, pz + dz, bx, by, bz, ax, ay, az, h, rad)
+            gb = g0 * dx + g1 * dy + g2 * dz
+            t, val = _edge_min(px, py, pz, dx, dy, dz, fa - off, ga, fb - off, gb,
+                               bx, by, bz, ax, ay, az, h, rad, off, st, True)
+            if t >= 0.0 and val <= st[0]:
+                st[0], st[1], st[2], st[3] = val, px + t * dx, py + t * dy, pz + t * dz
+        delta[p] = st[0]
+        witness[p, 0], witness[p, 1], witness[p, 2] = st[1], st[2], st[3]
+        if st[4] == K_FACET:
+            normal[p, 0], normal[p, 1], normal[p, 2] = st[6], st[7], st[8]
+            continue
+        s, g0, g1, g2 = _sd_grad(st[1], st[2], st[3], bx, by, bz, ax, ay, az, h, rad)
+        gn = math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
+        if gn == 0.0:
+            # On the core axis, deeper from the wall than from the ends: every direction across
+            # the axis separates equally; take the least-aligned coordinate axis, made orthogonal.
+            k = 0
+            if abs(ay) < abs(ax) and abs(ay) <= abs(az):
+                k = 1
+            elif abs(az) < abs(ax) and abs(az) < abs(ay):
+                k = 2
+            ak = ax if k == 0 else (ay if k == 1 else az)
+            g0 = (1.0 if k == 0 else 0.0) - ak * ax
+            g1 = (1.0 if k == 1 else 0.0) - ak * ay
+            g2 = (1.0 if k == 2 else 0.0) - ak * az
+            gn = math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
+        normal[p, 0], normal[p, 1], normal[p, 2] = -g0 / gn, -g1 / gn, -g2 / gn
+    return delta, witness, normal
