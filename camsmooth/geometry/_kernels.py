@@ -12,12 +12,12 @@ distance ``sd_C(x) - off`` is convex and 1-Lipschitz in x; ``sd_C`` is the formu
 ``camsmooth.geometry.cutter._cylinder_sd`` with the same branches and subgradient choices
 (scalar code here, the vectorised numpy version there; tests compare the two).
 
-Bounding volumes.  Every node of the hierarchy holds its triangles in a "disc slab": centre c,
-unit normal m, half-thickness t along m and lateral radius q (all vertices x satisfy
-|m.(x - c)| <= t and |(x - c) - (m.(x - c)) m| <= q).  As sd is convex, for any subgradient g at
-c: sd(x) >= sd(c) + g.(x - c) >= sd(c) - |g.m| t - |g - (g.m) m| q on the node, a lower bound
-that is second-order tight where the surface is tangent to the tool (unlike a ball's
-sd(c) - radius).  Triangles use the exact minimum of the same linear function over their three
+Bounding volumes.  Every node of the hierarchy holds its triangles in an oriented box: centre
+c, orthonormal axes a_k (the first the least-variance direction of its vertices: the normal of a
+sheet), half-extents e_k.  As sd is convex, for any subgradient g at c,
+sd(x) >= sd(c) + g.(x - c) >= sd(c) - sum_k |g.a_k| e_k on the box: a lower bound that is
+second-order tight where the surface is tangent to the tool (a ball's sd(c) - radius is only
+first-order).  Triangles use the exact minimum of the same linear function over their three
 vertices, then the tangent planes at the vertices.
 """
 
@@ -42,75 +42,166 @@ K_EDGE = 2    # edge: the witness is refined to full precision along the edge fi
 
 # Columns of the per-triangle float table (leaf order).
 T_N, T_C, T_LONG, T_VALID = 0, 3, 6, 7
-# Columns of the per-node float table: centre, normal, half-thickness, lateral radius.
-B_C, B_M, B_T, B_Q = 0, 3, 6, 7
+# Columns of the per-node table: the oriented box (centre, three orthonormal axes, the
+# half-extents along them), then first child (-1: leaf), first triangle, triangle count.
+B_C, B_A, B_E = 0, 3, 12
+N_LEFT, N_START, N_COUNT = 15, 16, 17
+HASH = 1024           # slots of the per-pose vertex and edge caches (a power of two)
+PROBES = 32           # linear-probing limit of those caches
 
 
 # ---------------------------------------------------------------------------------------------
 # bounding-volume hierarchy
 
 @njit(cache=True)
-def _slab(vertices, faces, perm, s, c, out):
-    """Disc slab of the triangles perm[s:s + c] into out[0:8] (see the module docstring); the
-    normal is the least-variance direction of their vertices, so the slab is thin on a sheet."""
-    n = 3 * c
-    mean = np.zeros(3)
+def _box(vertices, faces, perm, s, c, out):
+    """Oriented box of the triangles perm[s:s + c] into out[0:15] (module docstring).  First
+    axis: the dominant direction of their normals (power iteration on the area-weighted scatter
+    of the normals; the normal of a sheet, whatever the faces' orientation); second: the
+    principal direction of the vertices across it.  Any orthonormal axes give a valid box;
+    these make it thin on a sheet."""
+    S = np.zeros((3, 3))
+    mx = my = mz = 0.0
     for i in range(s, s + c):
+        f = perm[i]
+        p0, p1, p2 = faces[f, 0], faces[f, 1], faces[f, 2]
+        ox, oy, oz = vertices[p0, 0], vertices[p0, 1], vertices[p0, 2]
+        ux, uy, uz = vertices[p1, 0] - ox, vertices[p1, 1] - oy, vertices[p1, 2] - oz
+        vx, vy, vz = vertices[p2, 0] - ox, vertices[p2, 1] - oy, vertices[p2, 2] - oz
+        n0, n1, n2 = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+        ln = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+        if ln > 0.0:
+            S[0, 0] += n0 * n0 / ln
+            S[0, 1] += n0 * n1 / ln
+            S[0, 2] += n0 * n2 / ln
+            S[1, 1] += n1 * n1 / ln
+            S[1, 2] += n1 * n2 / ln
+            S[2, 2] += n2 * n2 / ln
         for j in range(3):
-            for k in range(3):
-                mean[k] += vertices[faces[perm[i], j], k]
-    mean /= n
-    cov = np.zeros((3, 3))
+            v = faces[f, j]
+            mx += vertices[v, 0]
+            my += vertices[v, 1]
+            mz += vertices[v, 2]
+    mx, my, mz = mx / (3.0 * c), my / (3.0 * c), mz / (3.0 * c)
+    S[1, 0], S[2, 0], S[2, 1] = S[0, 1], S[0, 2], S[1, 2]
+    k = 0
+    if S[1, 1] > S[k, k]:
+        k = 1
+    if S[2, 2] > S[k, k]:
+        k = 2
+    m = np.empty(3)
+    m[0], m[1], m[2] = S[0, k], S[1, k], S[2, k]
+    for _ in range(12):
+        x0 = S[0, 0] * m[0] + S[0, 1] * m[1] + S[0, 2] * m[2]
+        x1 = S[1, 0] * m[0] + S[1, 1] * m[1] + S[1, 2] * m[2]
+        x2 = S[2, 0] * m[0] + S[2, 1] * m[1] + S[2, 2] * m[2]
+        ln = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+        if not ln > 0.0:
+            break
+        m[0], m[1], m[2] = x0 / ln, x1 / ln, x2 / ln
+    ln = math.sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2])
+    if ln > 0.0:
+        m /= ln
+    else:
+        m[0], m[1], m[2] = 0.0, 0.0, 1.0
+    # e1, e2 span the plane across m; the vertices' principal direction in it (closed form)
+    if abs(m[0]) < 0.9:
+        e1 = np.array([0.0, -m[2], m[1]])
+    else:
+        e1 = np.array([-m[2], 0.0, m[0]])
+    e1 /= math.sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2])
+    e2 = np.array([m[1] * e1[2] - m[2] * e1[1], m[2] * e1[0] - m[0] * e1[2], m[0] * e1[1] - m[1] * e1[0]])
+    caa = cab = cbb = 0.0
     for i in range(s, s + c):
         for j in range(3):
             v = faces[perm[i], j]
-            for a in range(3):
-                for b in range(3):
-                    cov[a, b] += (vertices[v, a] - mean[a]) * (vertices[v, b] - mean[b])
-    _, vec = np.linalg.eigh(cov)
-    m = vec[:, 0].copy()
-    m /= math.sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2])
-    u = vec[:, 1].copy()
-    u -= (u[0] * m[0] + u[1] * m[1] + u[2] * m[2]) * m
-    u /= math.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
-    w = np.array([m[1] * u[2] - m[2] * u[1], m[2] * u[0] - m[0] * u[2], m[0] * u[1] - m[1] * u[0]])
+            dx, dy, dz = vertices[v, 0] - mx, vertices[v, 1] - my, vertices[v, 2] - mz
+            pa = dx * e1[0] + dy * e1[1] + dz * e1[2]
+            pb = dx * e2[0] + dy * e2[1] + dz * e2[2]
+            caa += pa * pa
+            cab += pa * pb
+            cbb += pb * pb
+    th = 0.5 * math.atan2(2.0 * cab, caa - cbb)
+    a = np.empty((3, 3))
+    for j in range(3):
+        a[0, j] = m[j]
+        a[1, j] = math.cos(th) * e1[j] + math.sin(th) * e2[j]
+    # re-orthonormalise (Gram-Schmidt) and complete with the cross product
+    d = a[1, 0] * a[0, 0] + a[1, 1] * a[0, 1] + a[1, 2] * a[0, 2]
+    for j in range(3):
+        a[1, j] -= d * a[0, j]
+    ln = math.sqrt(a[1, 0] ** 2 + a[1, 1] ** 2 + a[1, 2] ** 2)
+    for j in range(3):
+        a[1, j] /= ln
+    a[2, 0] = a[0, 1] * a[1, 2] - a[0, 2] * a[1, 1]
+    a[2, 1] = a[0, 2] * a[1, 0] - a[0, 0] * a[1, 2]
+    a[2, 2] = a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
     lo = np.full(3, np.inf)
     hi = np.full(3, -np.inf)
     for i in range(s, s + c):
         for j in range(3):
             v = faces[perm[i], j]
-            x = np.array([vertices[v, 0] - mean[0], vertices[v, 1] - mean[1], vertices[v, 2] - mean[2]])
-            p = np.array([x[0] * m[0] + x[1] * m[1] + x[2] * m[2], x[0] * u[0] + x[1] * u[1] + x[2] * u[2],
-                          x[0] * w[0] + x[1] * w[1] + x[2] * w[2]])
+            dx, dy, dz = vertices[v, 0] - mx, vertices[v, 1] - my, vertices[v, 2] - mz
             for k in range(3):
-                lo[k] = min(lo[k], p[k])
-                hi[k] = max(hi[k], p[k])
-    mid = 0.5 * (lo + hi)
-    cen = mean + mid[0] * m + mid[1] * u + mid[2] * w
-    t, q2 = 0.0, 0.0
+                x = dx * a[k, 0] + dy * a[k, 1] + dz * a[k, 2]
+                lo[k] = min(lo[k], x)
+                hi[k] = max(hi[k], x)
+    cx, cy, cz = mx, my, mz
+    for k in range(3):
+        mid = 0.5 * (lo[k] + hi[k])
+        cx += mid * a[k, 0]
+        cy += mid * a[k, 1]
+        cz += mid * a[k, 2]
+    ext = np.zeros(3)
     for i in range(s, s + c):
         for j in range(3):
             v = faces[perm[i], j]
-            x = np.array([vertices[v, 0] - cen[0], vertices[v, 1] - cen[1], vertices[v, 2] - cen[2]])
-            h = x[0] * m[0] + x[1] * m[1] + x[2] * m[2]
-            t = max(t, abs(h))
-            lx, ly, lz = x[0] - h * m[0], x[1] - h * m[1], x[2] - h * m[2]
-            q2 = max(q2, lx * lx + ly * ly + lz * lz)
-    # grown by a few ulps of the coordinates so that rounding cannot make the volume too small
-    scale = max(abs(cen[0]), abs(cen[1]), abs(cen[2]), math.sqrt(q2), t)
-    out[B_C:B_C + 3] = cen
-    out[B_M:B_M + 3] = m
-    out[B_T] = t * (1.0 + 1e-12) + 1e-14 * scale
-    out[B_Q] = math.sqrt(q2) * (1.0 + 1e-12) + 1e-14 * scale
+            dx, dy, dz = vertices[v, 0] - cx, vertices[v, 1] - cy, vertices[v, 2] - cz
+            for k in range(3):
+                ext[k] = max(ext[k], abs(dx * a[k, 0] + dy * a[k, 1] + dz * a[k, 2]))
+    # grown by a few ulps of the coordinates so that rounding cannot make the box too small
+    scale = max(abs(cx), abs(cy), abs(cz), ext[0], ext[1], ext[2])
+    out[B_C], out[B_C + 1], out[B_C + 2] = cx, cy, cz
+    for k in range(3):
+        for j in range(3):
+            out[B_A + 3 * k + j] = a[k, j]
+        out[B_E + k] = ext[k] * (1.0 + 1e-12) + 1e-14 * scale
+
+
+@njit(cache=True)
+def _select(perm, key, lo, hi, k):
+    """Reorder perm[lo:hi + 1] so that key[perm[k]] is its k-th smallest, smaller or equal keys
+    before k and larger or equal after (quickselect, median-of-three pivots)."""
+    while hi > lo:
+        mid = (lo + hi) // 2
+        a, b, c = key[perm[lo]], key[perm[mid]], key[perm[hi]]
+        pivot = max(min(a, b), min(max(a, b), c))
+        i, j = lo, hi
+        while i <= j:
+            while key[perm[i]] < pivot:
+                i += 1
+            while key[perm[j]] > pivot:
+                j -= 1
+            if i <= j:
+                perm[i], perm[j] = perm[j], perm[i]
+                i += 1
+                j -= 1
+        if k <= j:
+            hi = j
+        elif k >= i:
+            lo = i
+        else:
+            return
 
 
 @njit(cache=True)
 def build_bvh(vertices, faces, leaf_size):
-    """Top-down median split of the triangles on the longest axis of their centroids' box.
+    """Top-down median split (quickselect) of the triangles on the longest axis of their
+    centroids' box.
 
     Returns ``perm`` (F,) triangle order (each node owns the contiguous range
     ``perm[start:start + count]``), ``left`` (M,) first child (the second is ``left + 1``; -1 for
-    leaves), ``start``, ``count`` (M,) and ``slab`` (M, 8), the nodes' disc slabs.
+    leaves), ``start``, ``count`` (M,) and ``box`` (M, 15), the nodes' oriented boxes.
     """
     F = faces.shape[0]
     cent = np.empty((F, 3))
@@ -140,24 +231,18 @@ def build_bvh(vertices, faces, leaf_size):
                 lo[k] = min(lo[k], x)
                 hi[k] = max(hi[k], x)
         ax = int(np.argmax(hi - lo))
-        keys = np.empty(c)
-        for i in range(c):
-            keys[i] = cent[perm[s + i], ax]
-        order = np.argsort(keys, kind="mergesort")
-        seg = perm[s:s + c].copy()
-        for i in range(c):
-            perm[s + i] = seg[order[i]]
         half = c // 2
+        _select(perm, cent[:, ax], s, s + c - 1, s + half)
         left[node] = n_nodes
         start[n_nodes], count[n_nodes] = s, half
         start[n_nodes + 1], count[n_nodes + 1] = s + half, c - half
         todo[n_todo], todo[n_todo + 1] = n_nodes, n_nodes + 1
         n_todo += 2
         n_nodes += 2
-    slab = np.empty((n_nodes, 8))
+    box = np.empty((n_nodes, 15))
     for node in range(n_nodes):
-        _slab(vertices, faces, perm, start[node], count[node], slab[node])
-    return perm, left[:n_nodes].copy(), start[:n_nodes].copy(), count[:n_nodes].copy(), slab
+        _box(vertices, faces, perm, start[node], count[node], box[node])
+    return perm, left[:n_nodes].copy(), start[:n_nodes].copy(), count[:n_nodes].copy(), box
 
 
 # ---------------------------------------------------------------------------------------------
@@ -220,14 +305,12 @@ def _support(bx, by, bz, ax, ay, az, height, radius, dx, dy, dz):
 
 
 @njit(cache=True, inline="always")
-def _slab_bound(slab, k, bx, by, bz, ax, ay, az, h, rad):
-    """Lower bound of sd_C over node k's disc slab (module docstring)."""
-    cx, cy, cz = slab[k, B_C], slab[k, B_C + 1], slab[k, B_C + 2]
-    mx, my, mz = slab[k, B_M], slab[k, B_M + 1], slab[k, B_M + 2]
-    s, g0, g1, g2 = _sd_grad(cx, cy, cz, bx, by, bz, ax, ay, az, h, rad)
-    gm = g0 * mx + g1 * my + g2 * mz
-    tx, ty, tz = g0 - gm * mx, g1 - gm * my, g2 - gm * mz
-    return s - abs(gm) * slab[k, B_T] - math.sqrt(tx * tx + ty * ty + tz * tz) * slab[k, B_Q]
+def _box_bound(NT, k, bx, by, bz, ax, ay, az, h, rad):
+    """Lower bound of sd_C over node k's oriented box (module docstring)."""
+    s, g0, g1, g2 = _sd_grad(NT[k, B_C], NT[k, B_C + 1], NT[k, B_C + 2], bx, by, bz, ax, ay, az, h, rad)
+    for j in range(3):
+        s -= abs(g0 * NT[k, B_A + 3 * j] + g1 * NT[k, B_A + 3 * j + 1] + g2 * NT[k, B_A + 3 * j + 2]) * NT[k, B_E + j]
+    return s
 
 
 @njit(cache=True)
@@ -239,20 +322,19 @@ def golden_iters(length):
 
 
 # ---------------------------------------------------------------------------------------------
-# 1-D and 2-D minimisation.  Pose state ``st``: [0] best value U, [1:4] witness, [4] kind,
-# [5] body, [6:9] facet normal, [9] edge id (K_EDGE).
+# 1-D and 2-D minimisation
 
 @njit(cache=True)
 def _edge_min(px, py, pz, dx, dy, dz, fa, ga, fb, gb, bx, by, bz, ax, ay, az, h, rad, off,
-              st, polish):
+              U, polish):
     """Minimum of the convex f(t) = sd_C(p + t d) - off on [0, 1], given f and a subgradient
     (along d) at both ends.
 
     Steps: Illinois (regula falsi) on the slope, with a bisection whenever the bracket fails to
     halve over two steps.  Certificate: f is at least the upper envelope of the tangent lines at
     the bracket ends, so their crossing value ``low`` bounds the minimum from below.  Unless
-    ``polish``, the search stops once ``low`` >= st[0] - PRUNE_TOL (the edge cannot improve the
-    pose) or best - low <= GAP_TOL; with ``polish`` it runs until the bracket is at rounding
+    ``polish``, the search stops once ``low`` >= U - PRUNE_TOL (the edge cannot improve the
+    pose's best value U) or best - low <= GAP_TOL; with ``polish`` it runs until the bracket is at rounding
     level, to place the witness exactly.  Returns (t, f(t)) of the best point evaluated
     (t = -1 if no interior point beat both ends).
     """
@@ -271,7 +353,7 @@ def _edge_min(px, py, pz, dx, dy, dz, fa, ga, fb, gb, bx, by, bz, ax, ay, az, h,
         if not polish:
             tx = (fhi - flo + glo * lo - ghi * hi) / (glo - ghi)
             low = flo + glo * (tx - lo)
-            if low >= st[0] - PRUNE_TOL or bv - low <= GAP_TOL:
+            if low >= U - PRUNE_TOL or bv - low <= GAP_TOL:
                 break
         if it % 2 == 0:
             if it > 0 and (hi - lo) > 0.5 * width_ref:
@@ -379,27 +461,33 @@ def _deep_min(V, v0, v1, v2, long_edge, bx, by, bz, ax, ay, az, h, rad):
 # the clearance kernel
 
 @njit(cache=True)
-def clearance_kernel(tips, axes, bodies, margin, V, E, TI, TF, left, start, count, slab):
+def clearance_kernel(tips, axes, bodies, margin, V, TI, TF, NT):
     """Exact clearance of N poses against the mesh (camsmooth.geometry.clearance.clearance).
 
     tips, axes : (N, 3) tool tips and unit axes.  bodies : (B, 4) per convex body: base offset
-    along the axis from the tip, height, radius, offset.  V (nv, 3), E (ne, 2) edges, TI (F, 6)
-    vertex and edge ids and TF (F, 8) normal, centroid, longest edge, validity of the triangles
-    in leaf order; left, start, count, slab: the hierarchy (build_bvh).
+    along the axis from the tip, height, radius, offset.  V (nv, 3) vertices; TI (F, 3) vertex
+    ids and TF (F, 8) normal, centroid, longest edge, validity of the triangles in leaf order;
+    NT (M, 18) the hierarchy's nodes: oriented box (15), first child (-1 for a leaf), first
+    triangle, triangle count.
 
     Returns delta (N,) (margin where nothing is below it), witness (N, 3) and normal (N, 3)
     (NaN where nothing is below the margin).
     """
     N = tips.shape[0]
+    nv = V.shape[0]
     delta = np.full(N, margin)
     witness = np.full((N, 3), np.nan)
     normal = np.full((N, 3), np.nan)
-    nv, ne = V.shape[0], E.shape[0]
-    vkey = np.full(nv, -1, np.int64)    # (pose, body) key of the cached vertex values
-    vval = np.empty(nv)
-    vgrad = np.empty((nv, 3))
-    ekey = np.full(ne, -1, np.int64)    # (pose, body) key of the edges already examined
-    st = np.empty(10)
+    # Per (pose, body) caches in small hash tables (stay in L1/L2 cache; entries of another
+    # (pose, body) count as empty): vertex id, key, sd - off, subgradient; examined edges.
+    # When a table is crowded the work is simply not cached (rows HASH.. are spare slots).
+    vt = np.empty((HASH + 3, 6))
+    vt[:, 1] = -1.0
+    et = np.full((HASH, 2), -1, np.int64)
+    slots = np.empty(3, np.int64)
+    # pose state: [0] best value, [1:4] witness, [4] kind, [5] body, [6:9] facet normal,
+    # [9:11] edge vertex ids (K_EDGE)
+    st = np.empty(11)
     stack_n = np.empty(STACK, np.int64)
     stack_lb = np.empty(STACK)
     NB = bodies.shape[0]
@@ -410,6 +498,7 @@ def clearance_kernel(tips, axes, bodies, margin, V, E, TI, TF, left, start, coun
         ax, ay, az = axes[p, 0], axes[p, 1], axes[p, 2]
         for body in range(NB):
             key = p * NB + body
+            fkey = float(key)
             o = bodies[body, 0]
             bx, by, bz = tips[p, 0] + o * ax, tips[p, 1] + o * ay, tips[p, 2] + o * az
             h, rad, off = bodies[body, 1], bodies[body, 2], bodies[body, 3]
@@ -420,11 +509,11 @@ def clearance_kernel(tips, axes, bodies, margin, V, E, TI, TF, left, start, coun
                 node = stack_n[sp]
                 if stack_lb[sp] >= st[0] - PRUNE_TOL:
                     continue
-                c = left[node]
+                c = int(NT[node, N_LEFT])
                 if c >= 0:
-                    # children's disc-slab bounds; the nearer child is searched first
-                    l0 = _slab_bound(slab, c, bx, by, bz, ax, ay, az, h, rad) - off
-                    l1 = _slab_bound(slab, c + 1, bx, by, bz, ax, ay, az, h, rad) - off
+                    # children's box bounds; the nearer child is searched first
+                    l0 = _box_bound(NT, c, bx, by, bz, ax, ay, az, h, rad) - off
+                    l1 = _box_bound(NT, c + 1, bx, by, bz, ax, ay, az, h, rad) - off
                     if l0 > l1:
                         far, lf, near, ln = c, l0, c + 1, l1
                     else:
@@ -436,36 +525,55 @@ def clearance_kernel(tips, axes, bodies, margin, V, E, TI, TF, left, start, coun
                         stack_n[sp], stack_lb[sp] = near, ln
                         sp += 1
                     continue
-                for f in range(start[node], start[node] + count[node]):
-                    i0, i1, i2 = TI[f, 0], TI[f, 1], TI[f, 2]
+                f0 = int(NT[node, N_START])
+                for f in range(f0, f0 + int(NT[node, N_COUNT])):
                     # 1. linear bound at the centroid: min over the vertices of sd(c) + g.(v - c)
                     cx, cy, cz = TF[f, T_C], TF[f, T_C + 1], TF[f, T_C + 2]
                     s, g0, g1, g2 = _sd_grad(cx, cy, cz, bx, by, bz, ax, ay, az, h, rad)
                     lin = np.inf
-                    for i in (i0, i1, i2):
+                    for q in range(3):
+                        i = TI[f, q]
                         lin = min(lin, g0 * (V[i, 0] - cx) + g1 * (V[i, 1] - cy) + g2 * (V[i, 2] - cz))
                     if s - off + lin >= st[0] - PRUNE_TOL:
                         continue
                     # 2. vertex values (once per pose and body; each is a candidate)
-                    for i in (i0, i1, i2):
-                        if vkey[i] != key:
-                            s, g0, g1, g2 = _sd_grad(V[i, 0], V[i, 1], V[i, 2], bx, by, bz, ax, ay, az, h, rad)
-                            vkey[i] = key
-                            vval[i] = s - off
-                            vgrad[i, 0], vgrad[i, 1], vgrad[i, 2] = g0, g1, g2
-                            if s - off < st[0]:
-                                st[0], st[1], st[2], st[3] = s - off, V[i, 0], V[i, 1], V[i, 2]
-                                st[4], st[5] = K_POINT, body
+                    for q in range(3):
+                        i = TI[f, q]
+                        j = (i * 2654435761) & (HASH - 1)
+                        slot = -1
+                        for _ in range(PROBES):
+                            if vt[j, 1] != fkey:
+                                slot = j
+                                break
+                            if vt[j, 0] == i:
+                                slot = -2 - j  # cached
+                                break
+                            j = (j + 1) & (HASH - 1)
+                        if slot <= -2:
+                            slots[q] = -2 - slot
+                            continue
+                        if slot < 0:
+                            slot = HASH + q
+                        s, g0, g1, g2 = _sd_grad(V[i, 0], V[i, 1], V[i, 2], bx, by, bz, ax, ay, az, h, rad)
+                        vt[slot, 0], vt[slot, 1], vt[slot, 2] = i, fkey, s - off
+                        vt[slot, 3], vt[slot, 4], vt[slot, 5] = g0, g1, g2
+                        slots[q] = slot
+                        if s - off < st[0]:
+                            st[0], st[1], st[2], st[3] = s - off, V[i, 0], V[i, 1], V[i, 2]
+                            st[4], st[5] = K_POINT, body
                     # 3. the tangent planes at the vertices (each smallest at a vertex); best of three
                     lower = -np.inf
-                    for i in (i0, i1, i2):
+                    for q in range(3):
+                        i, sq = TI[f, q], slots[q]
                         m = np.inf
-                        for j in (i0, i1, i2):
-                            m = min(m, vval[i] + vgrad[i, 0] * (V[j, 0] - V[i, 0])
-                                    + vgrad[i, 1] * (V[j, 1] - V[i, 1]) + vgrad[i, 2] * (V[j, 2] - V[i, 2]))
+                        for r in range(3):
+                            j = TI[f, r]
+                            m = min(m, vt[sq, 2] + vt[sq, 3] * (V[j, 0] - V[i, 0]) + vt[sq, 4] * (V[j, 1] - V[i, 1])
+                                    + vt[sq, 5] * (V[j, 2] - V[i, 2]))
                         lower = max(lower, m)
                     if lower >= st[0] - PRUNE_TOL:
                         continue
+                    i0, i1, i2 = TI[f, 0], TI[f, 1], TI[f, 2]
                     # 4. facet test: if C lies on one side of the plane, the plane's closest point
                     #    to C is the foot of C's support point toward the plane; inside the
                     #    triangle it is the triangle's minimum.
@@ -502,22 +610,36 @@ def clearance_kernel(tips, axes, bodies, margin, V, E, TI, TF, left, start, coun
                                     st[4], st[5] = K_FACET, body
                                     st[6], st[7], st[8] = side * nx, side * ny, side * nz
                                 continue
-                    # 5. edges (each once per pose and body): exact 1-D convex minimisation
-                    for k in range(3):
-                        e = TI[f, 3 + k]
-                        if ekey[e] == key:
+                    # 5. edges (each once per pose and body): exact 1-D convex minimisation, from
+                    #    the lower vertex id to the higher (the same for both faces of an edge)
+                    for q in range(3):
+                        qa, qb = q, (q + 1) % 3
+                        if TI[f, qa] > TI[f, qb]:
+                            qa, qb = qb, qa
+                        va, vb = TI[f, qa], TI[f, qb]
+                        ek = va * nv + vb
+                        j = (ek * 2654435761) & (HASH - 1)
+                        seen = False
+                        for _ in range(PROBES):
+                            if et[j, 0] != key:
+                                et[j, 0], et[j, 1] = key, ek
+                                break
+                            if et[j, 1] == ek:
+                                seen = True
+                                break
+                            j = (j + 1) & (HASH - 1)
+                        if seen:
                             continue
-                        ekey[e] = key
-                        va, vb = E[e, 0], E[e, 1]
+                        sa, sb = slots[qa], slots[qb]
                         px, py, pz = V[va, 0], V[va, 1], V[va, 2]
                         dx, dy, dz = V[vb, 0] - px, V[vb, 1] - py, V[vb, 2] - pz
-                        ga = vgrad[va, 0] * dx + vgrad[va, 1] * dy + vgrad[va, 2] * dz
-                        gb = vgrad[vb, 0] * dx + vgrad[vb, 1] * dy + vgrad[vb, 2] * dz
-                        t, val = _edge_min(px, py, pz, dx, dy, dz, vval[va], ga, vval[vb], gb,
-                                           bx, by, bz, ax, ay, az, h, rad, off, st, False)
+                        ga = vt[sa, 3] * dx + vt[sa, 4] * dy + vt[sa, 5] * dz
+                        gb = vt[sb, 3] * dx + vt[sb, 4] * dy + vt[sb, 5] * dz
+                        t, val = _edge_min(px, py, pz, dx, dy, dz, vt[sa, 2], ga, vt[sb, 2], gb,
+                                           bx, by, bz, ax, ay, az, h, rad, off, st[0], False)
                         if t >= 0.0 and val < st[0]:
                             st[0], st[1], st[2], st[3] = val, px + t * dx, py + t * dy, pz + t * dz
-                            st[4], st[5], st[9] = K_EDGE, body, e
+                            st[4], st[5], st[9], st[10] = K_EDGE, body, va, vb
                     # 6. deep: the plane cuts C and the triangle may reach into it (sd < -off)
                     if cuts and lower < min(st[0] - PRUNE_TOL, -off):
                         val, x, y, z = _deep_min(V, i0, i1, i2, TF[f, T_LONG], bx, by, bz, ax, ay, az, h, rad)
@@ -533,16 +655,15 @@ def clearance_kernel(tips, axes, bodies, margin, V, E, TI, TF, left, start, coun
         h, rad, off = bodies[body, 1], bodies[body, 2], bodies[body, 3]
         if st[4] == K_EDGE:
             # place the edge minimum to full precision (the search stopped at a value gap)
-            e = int(st[9])
-            va, vb = E[e, 0], E[e, 1]
+            va, vb = int(st[9]), int(st[10])
             px, py, pz = V[va, 0], V[va, 1], V[va, 2]
             dx, dy, dz = V[vb, 0] - px, V[vb, 1] - py, V[vb, 2] - pz
             fa, g0, g1, g2 = _sd_grad(px, py, pz, bx, by, bz, ax, ay, az, h, rad)
             ga = g0 * dx + g1 * dy + g2 * dz
-            fb, g0, g1, g2 = _sd_grad(px + dx, py + dy, pz + dz, bx, by, bz, ax, ay, az, h, rad)
+            fb, g0, g1, g2 = _sd_grad(V[vb, 0], V[vb, 1], V[vb, 2], bx, by, bz, ax, ay, az, h, rad)
             gb = g0 * dx + g1 * dy + g2 * dz
             t, val = _edge_min(px, py, pz, dx, dy, dz, fa - off, ga, fb - off, gb,
-                               bx, by, bz, ax, ay, az, h, rad, off, st, True)
+                               bx, by, bz, ax, ay, az, h, rad, off, st[0], True)
             if t >= 0.0 and val <= st[0]:
                 st[0], st[1], st[2], st[3] = val, px + t * dx, py + t * dy, pz + t * dz
         delta[p] = st[0]

@@ -197,14 +197,11 @@ class MeshIndex:
         # most _LEAF triangles; per-triangle data stored in leaf order (``bvh_faces`` maps back).
         perm, left, start, count, slab = _kernels.build_bvh(V, F.astype(np.int64), _LEAF)
         self.bvh_faces = perm
-        self.bvh_left, self.bvh_start, self.bvh_count, self.bvh_slab = left, start, count, slab
+        self.bvh_nodes = np.ascontiguousarray(np.column_stack([slab, left, start, count]), dtype=float)
         Fp = F[perm]
-        tri = V[Fp]
-        self._bvh_ti = np.ascontiguousarray(np.concatenate([Fp, self.face_edges[perm]], axis=1), dtype=np.int64)
-        self._bvh_tf = np.ascontiguousarray(np.concatenate(
-            [self.face_normals[perm], tri.mean(axis=1), self.face_long[perm][:, None],
-             self.face_valid[perm][:, None].astype(float)], axis=1))
-        self._edges64 = self.edges.astype(np.int64)
+        self._bvh_ti = np.ascontiguousarray(Fp, dtype=np.int64)
+        self._bvh_tf = np.ascontiguousarray(np.column_stack(
+            [self.face_normals[perm], V[Fp].mean(axis=1), self.face_long[perm], self.face_valid[perm]]), dtype=float)
         lo, hi = V.min(axis=0), V.max(axis=0)
         self.box = np.stack([lo, hi])
         self._proj_cache: dict[bytes, tuple[cKDTree, np.ndarray]] = {}
@@ -442,6 +439,19 @@ def _pose_clearance(index: MeshIndex, cutter: ToroidalCutter, tips: np.ndarray, 
                         float(cutter.holder_radius), 0.0, U, W)
 
 
+def _morton_order(points: np.ndarray, bits: int = 10) -> np.ndarray:
+    """Permutation sorting (N, 3) points along a Z-order curve over their bounding box."""
+    if len(points) < 2:
+        return np.arange(len(points))
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    q = ((points - lo) / np.where(hi > lo, hi - lo, 1.0) * ((1 << bits) - 1)).astype(np.int64)
+    code = np.zeros(len(points), np.int64)
+    for b in range(bits):
+        for k in range(3):
+            code |= ((q[:, k] >> b) & 1) << (3 * b + k)
+    return np.argsort(code, kind="stable")
+
+
 def clearance(index: MeshIndex | trimesh.Trimesh, cutter: ToroidalCutter, tips: np.ndarray,
               axes: np.ndarray, *, margin: float = 1.0) -> Clearance:
     """Minimum signed distance between the tool solid and the mesh for N tool poses.
@@ -483,10 +493,13 @@ def clearance(index: MeshIndex | trimesh.Trimesh, cutter: ToroidalCutter, tips: 
     bodies = [(cutter.r, cutter.core_height, cutter.R, cutter.r)]
     if cutter.has_holder:
         bodies.append((float(cutter.shank_length), float(cutter.holder_length), float(cutter.holder_radius), 0.0))
-    delta, witness, normal = _kernels.clearance_kernel(
-        np.ascontiguousarray(tips), np.ascontiguousarray(axes), np.array(bodies, dtype=float), margin,
-        idx.vertices, idx._edges64, idx._bvh_ti, idx._bvh_tf, idx.bvh_left, idx.bvh_start, idx.bvh_count,
-        idx.bvh_slab)
+    # Poses in Morton (Z-curve) order of their tips: neighbouring poses touch the same part of
+    # the mesh and the hierarchy, which keeps the kernel's memory accesses in cache.
+    order = _morton_order(tips)
+    delta, witness, normal = np.empty(len(tips)), np.empty((len(tips), 3)), np.empty((len(tips), 3))
+    delta[order], witness[order], normal[order] = _kernels.clearance_kernel(
+        np.ascontiguousarray(tips[order]), np.ascontiguousarray(axes[order]), np.array(bodies, dtype=float),
+        margin, idx.vertices, idx._bvh_ti, idx._bvh_tf, idx.bvh_nodes)
     capped = np.isnan(witness[:, 0])
     return Clearance(delta=delta, witness=witness, normal=normal, capped=capped, margin=margin)
 
