@@ -332,11 +332,12 @@ def _edge_min(px, py, pz, dx, dy, dz, fa, ga, fb, gb, bx, by, bz, ax, ay, az, h,
 
     Steps: Illinois (regula falsi) on the slope, with a bisection whenever the bracket fails to
     halve over two steps.  Certificate: f is at least the upper envelope of the tangent lines at
-    the bracket ends, so their crossing value ``low`` bounds the minimum from below.  Unless
-    ``polish``, the search stops once ``low`` >= U - PRUNE_TOL (the edge cannot improve the
-    pose's best value U) or best - low <= GAP_TOL; with ``polish`` it runs until the bracket is at rounding
-    level, to place the witness exactly.  Returns (t, f(t)) of the best point evaluated
-    (t = -1 if no interior point beat both ends).
+    the bracket ends, so their crossing value ``low`` bounds the minimum from below.  Search
+    mode (``polish`` False): stops once ``low`` >= U - PRUNE_TOL (the edge cannot improve the
+    pose's best value U) or best - low <= GAP_TOL, and returns (t, f(t)) of the best point
+    evaluated (t = -1 if no interior point beat both ends).  Polish mode: runs until the slope
+    changes sign within rounding and returns that point: near a smooth minimum f is flat to
+    rounding over ~1e-8 mm, so the best value does not place the witness, the slope does.
     """
     bt, bv = -1.0, min(fa, fb)
     if ga >= 0.0 or gb <= 0.0:
@@ -348,9 +349,9 @@ def _edge_min(px, py, pz, dx, dy, dz, fa, ga, fb, gb, bx, by, bz, ax, ay, az, h,
     side = 0
     width_ref = 1.0
     for it in range(300):
-        if (hi - lo) * length <= (1e-17 if polish else 1e-13) * max(1.0, length):
-            break
         if not polish:
+            if (hi - lo) * length <= 1e-13:
+                break
             tx = (fhi - flo + glo * lo - ghi * hi) / (glo - ghi)
             low = flo + glo * (tx - lo)
             if low >= U - PRUNE_TOL or bv - low <= GAP_TOL:
@@ -366,7 +367,7 @@ def _edge_min(px, py, pz, dx, dy, dz, fa, ga, fb, gb, bx, by, bz, ax, ay, az, h,
         if not (lo < t < hi):
             t = 0.5 * (lo + hi)
             if not (lo < t < hi):
-                break
+                break  # lo and hi are neighbouring floats
         s, g0, g1, g2 = _sd_grad(px + t * dx, py + t * dy, pz + t * dz, bx, by, bz, ax, ay, az, h, rad)
         f = s - off
         g = g0 * dx + g1 * dy + g2 * dz
@@ -383,7 +384,9 @@ def _edge_min(px, py, pz, dx, dy, dz, fa, ga, fb, gb, bx, by, bz, ax, ay, az, h,
                 whi *= 0.5
             side = -1
         else:
-            break  # a zero subgradient: t is a minimum
+            return (t, f) if polish else (bt, bv)  # a zero subgradient: t is a minimum
+    if polish:
+        return (lo, flo) if flo <= fhi else (hi, fhi)
     return bt, bv
 
 
@@ -664,8 +667,8 @@ def clearance_kernel(tips, axes, bodies, margin, V, TI, TF, NT):
             gb = g0 * dx + g1 * dy + g2 * dz
             t, val = _edge_min(px, py, pz, dx, dy, dz, fa - off, ga, fb - off, gb,
                                bx, by, bz, ax, ay, az, h, rad, off, st[0], True)
-            if t >= 0.0 and val <= st[0]:
-                st[0], st[1], st[2], st[3] = val, px + t * dx, py + t * dy, pz + t * dz
+            # (val may exceed the best value found by rounding, ~1e-16 mm)
+            st[0], st[1], st[2], st[3] = val, px + t * dx, py + t * dy, pz + t * dz
         delta[p] = st[0]
         witness[p, 0], witness[p, 1], witness[p, 2] = st[1], st[2], st[3]
         if st[4] == K_FACET:
