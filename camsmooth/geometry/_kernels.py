@@ -40,8 +40,9 @@ K_POINT = 0   # vertex or deep (2-D) minimum: normal = -gradient of the body's s
 K_FACET = 1   # facet: normal = the facet normal, on the side of the tool
 K_EDGE = 2    # edge: the witness is refined to full precision along the edge first
 
-# Columns of the per-triangle float table (leaf order).
-T_N, T_C, T_LONG, T_VALID = 0, 3, 6, 7
+# Columns of the per-triangle float table (leaf order): normal, centroid, longest edge,
+# validity, the three vertices (stored in place: the hot loop reads them contiguously).
+T_N, T_C, T_LONG, T_VALID, T_P = 0, 3, 6, 7, 8
 # Columns of the per-node table: the oriented box (centre, three orthonormal axes, the
 # half-extents along them), then first child (-1: leaf), first triangle, triangle count.
 B_C, B_A, B_E = 0, 3, 12
@@ -469,7 +470,8 @@ def clearance_kernel(tips, axes, bodies, margin, V, TI, TF, NT):
 
     tips, axes : (N, 3) tool tips and unit axes.  bodies : (B, 4) per convex body: base offset
     along the axis from the tip, height, radius, offset.  V (nv, 3) vertices; TI (F, 3) vertex
-    ids and TF (F, 8) normal, centroid, longest edge, validity of the triangles in leaf order;
+    ids and TF (F, 17) normal, centroid, longest edge, validity and vertices of the triangles in
+    leaf order;
     NT (M, 18) the hierarchy's nodes: oriented box (15), first child (-1 for a leaf), first
     triangle, triangle count.
 
@@ -488,16 +490,19 @@ def clearance_kernel(tips, axes, bodies, margin, V, TI, TF, NT):
     vt[:, 1] = -1.0
     et = np.full((HASH, 2), -1, np.int64)
     slots = np.empty(3, np.int64)
-    # pose state: [0] best value, [1:4] witness, [4] kind, [5] body, [6:9] facet normal,
-    # [9:11] edge vertex ids (K_EDGE)
-    st = np.empty(11)
     stack_n = np.empty(STACK, np.int64)
     stack_lb = np.empty(STACK)
     NB = bodies.shape[0]
+    # Per body, the leaf that held the previous pose's minimum: searched first, it gives the
+    # bound U a good value at once (consecutive poses are close: the caller sorts them).
+    seed = np.full(NB, -1, np.int64)
     for p in range(N):
-        st[0] = margin
-        st[1] = st[2] = st[3] = np.nan
-        st[4], st[5] = K_POINT, -1.0
+        # best value U, its witness, kind, body, facet normal, edge (local scalars: registers)
+        U = margin
+        wx = wy = wz = np.nan
+        kind, best_body = K_POINT, -1
+        fnx = fny = fnz = 0.0
+        eva = evb = 0
         ax, ay, az = axes[p, 0], axes[p, 1], axes[p, 2]
         for body in range(NB):
             key = p * NB + body
@@ -507,10 +512,14 @@ def clearance_kernel(tips, axes, bodies, margin, V, TI, TF, NT):
             h, rad, off = bodies[body, 1], bodies[body, 2], bodies[body, 3]
             stack_n[0], stack_lb[0] = 0, -np.inf
             sp = 1
+            if seed[body] >= 0:
+                stack_n[1], stack_lb[1] = seed[body], -np.inf
+                sp = 2
+            best_leaf = -1
             while sp > 0:
                 sp -= 1
                 node = stack_n[sp]
-                if stack_lb[sp] >= st[0] - PRUNE_TOL:
+                if stack_lb[sp] >= U - PRUNE_TOL:
                     continue
                 c = int(NT[node, N_LEFT])
                 if c >= 0:
@@ -521,23 +530,23 @@ def clearance_kernel(tips, axes, bodies, margin, V, TI, TF, NT):
                         far, lf, near, ln = c, l0, c + 1, l1
                     else:
                         far, lf, near, ln = c + 1, l1, c, l0
-                    if lf < st[0] - PRUNE_TOL:
+                    if lf < U - PRUNE_TOL:
                         stack_n[sp], stack_lb[sp] = far, lf
                         sp += 1
-                    if ln < st[0] - PRUNE_TOL:
+                    if ln < U - PRUNE_TOL:
                         stack_n[sp], stack_lb[sp] = near, ln
                         sp += 1
                     continue
+                U_before = U
                 f0 = int(NT[node, N_START])
                 for f in range(f0, f0 + int(NT[node, N_COUNT])):
                     # 1. linear bound at the centroid: min over the vertices of sd(c) + g.(v - c)
                     cx, cy, cz = TF[f, T_C], TF[f, T_C + 1], TF[f, T_C + 2]
                     s, g0, g1, g2 = _sd_grad(cx, cy, cz, bx, by, bz, ax, ay, az, h, rad)
                     lin = np.inf
-                    for q in range(3):
-                        i = TI[f, q]
-                        lin = min(lin, g0 * (V[i, 0] - cx) + g1 * (V[i, 1] - cy) + g2 * (V[i, 2] - cz))
-                    if s - off + lin >= st[0] - PRUNE_TOL:
+                    for q in range(T_P, T_P + 9, 3):
+                        lin = min(lin, g0 * (TF[f, q] - cx) + g1 * (TF[f, q + 1] - cy) + g2 * (TF[f, q + 2] - cz))
+                    if s - off + lin >= U - PRUNE_TOL:
                         continue
                     # 2. vertex values (once per pose and body; each is a candidate)
                     for q in range(3):
@@ -557,26 +566,27 @@ def clearance_kernel(tips, axes, bodies, margin, V, TI, TF, NT):
                             continue
                         if slot < 0:
                             slot = HASH + q
-                        s, g0, g1, g2 = _sd_grad(V[i, 0], V[i, 1], V[i, 2], bx, by, bz, ax, ay, az, h, rad)
+                        x, y, z = TF[f, T_P + 3 * q], TF[f, T_P + 3 * q + 1], TF[f, T_P + 3 * q + 2]
+                        s, g0, g1, g2 = _sd_grad(x, y, z, bx, by, bz, ax, ay, az, h, rad)
                         vt[slot, 0], vt[slot, 1], vt[slot, 2] = i, fkey, s - off
                         vt[slot, 3], vt[slot, 4], vt[slot, 5] = g0, g1, g2
                         slots[q] = slot
-                        if s - off < st[0]:
-                            st[0], st[1], st[2], st[3] = s - off, V[i, 0], V[i, 1], V[i, 2]
-                            st[4], st[5] = K_POINT, body
+                        if s - off < U:
+                            U, wx, wy, wz = s - off, x, y, z
+                            kind, best_body = K_POINT, body
                     # 3. the tangent planes at the vertices (each smallest at a vertex); best of three
                     lower = -np.inf
                     for q in range(3):
-                        i, sq = TI[f, q], slots[q]
+                        sq, i = slots[q], T_P + 3 * q
                         m = np.inf
-                        for r in range(3):
-                            j = TI[f, r]
-                            m = min(m, vt[sq, 2] + vt[sq, 3] * (V[j, 0] - V[i, 0]) + vt[sq, 4] * (V[j, 1] - V[i, 1])
-                                    + vt[sq, 5] * (V[j, 2] - V[i, 2]))
+                        for j in range(T_P, T_P + 9, 3):
+                            m = min(m, vt[sq, 2] + vt[sq, 3] * (TF[f, j] - TF[f, i])
+                                    + vt[sq, 4] * (TF[f, j + 1] - TF[f, i + 1])
+                                    + vt[sq, 5] * (TF[f, j + 2] - TF[f, i + 2]))
                         lower = max(lower, m)
-                    if lower >= st[0] - PRUNE_TOL:
+                    if lower >= U - PRUNE_TOL:
                         continue
-                    i0, i1, i2 = TI[f, 0], TI[f, 1], TI[f, 2]
+                    p0x, p0y, p0z = TF[f, T_P], TF[f, T_P + 1], TF[f, T_P + 2]
                     # 4. facet test: if C lies on one side of the plane, the plane's closest point
                     #    to C is the foot of C's support point toward the plane; inside the
                     #    triangle it is the triangle's minimum.
@@ -584,18 +594,18 @@ def clearance_kernel(tips, axes, bodies, margin, V, TI, TF, NT):
                     if TF[f, T_VALID] > 0.0:
                         nx, ny, nz = TF[f, T_N], TF[f, T_N + 1], TF[f, T_N + 2]
                         sx, sy, sz = _support(bx, by, bz, ax, ay, az, h, rad, -nx, -ny, -nz)
-                        hh = nx * (sx - V[i0, 0]) + ny * (sy - V[i0, 1]) + nz * (sz - V[i0, 2])
+                        hh = nx * (sx - p0x) + ny * (sy - p0y) + nz * (sz - p0z)
                         side = 1.0
                         if hh < 0.0:
                             sx, sy, sz = _support(bx, by, bz, ax, ay, az, h, rad, nx, ny, nz)
-                            hh = nx * (sx - V[i0, 0]) + ny * (sy - V[i0, 1]) + nz * (sz - V[i0, 2])
+                            hh = nx * (sx - p0x) + ny * (sy - p0y) + nz * (sz - p0z)
                             side = -1.0
                             cuts = hh > 0.0
                         if not cuts:
                             fx, fy, fz = sx - hh * nx, sy - hh * ny, sz - hh * nz
-                            e0x, e0y, e0z = V[i1, 0] - V[i0, 0], V[i1, 1] - V[i0, 1], V[i1, 2] - V[i0, 2]
-                            e1x, e1y, e1z = V[i2, 0] - V[i0, 0], V[i2, 1] - V[i0, 1], V[i2, 2] - V[i0, 2]
-                            e2x, e2y, e2z = fx - V[i0, 0], fy - V[i0, 1], fz - V[i0, 2]
+                            e0x, e0y, e0z = TF[f, T_P + 3] - p0x, TF[f, T_P + 4] - p0y, TF[f, T_P + 5] - p0z
+                            e1x, e1y, e1z = TF[f, T_P + 6] - p0x, TF[f, T_P + 7] - p0y, TF[f, T_P + 8] - p0z
+                            e2x, e2y, e2z = fx - p0x, fy - p0y, fz - p0z
                             d00 = e0x * e0x + e0y * e0y + e0z * e0z
                             d01 = e0x * e1x + e0y * e1y + e0z * e1z
                             d11 = e1x * e1x + e1y * e1y + e1z * e1z
@@ -608,10 +618,10 @@ def clearance_kernel(tips, axes, bodies, margin, V, TI, TF, NT):
                             bw = (d00 * d21 - d01 * d20) / den
                             if bv >= -BARY_TOL and bw >= -BARY_TOL and 1.0 - bv - bw >= -BARY_TOL:
                                 val = side * hh - off
-                                if val < st[0]:
-                                    st[0], st[1], st[2], st[3] = val, fx, fy, fz
-                                    st[4], st[5] = K_FACET, body
-                                    st[6], st[7], st[8] = side * nx, side * ny, side * nz
+                                if val < U:
+                                    U, wx, wy, wz = val, fx, fy, fz
+                                    kind, best_body = K_FACET, body
+                                    fnx, fny, fnz = side * nx, side * ny, side * nz
                                 continue
                     # 5. edges (each once per pose and body): exact 1-D convex minimisation, from
                     #    the lower vertex id to the higher (the same for both faces of an edge)
@@ -634,31 +644,37 @@ def clearance_kernel(tips, axes, bodies, margin, V, TI, TF, NT):
                         if seen:
                             continue
                         sa, sb = slots[qa], slots[qb]
-                        px, py, pz = V[va, 0], V[va, 1], V[va, 2]
-                        dx, dy, dz = V[vb, 0] - px, V[vb, 1] - py, V[vb, 2] - pz
+                        px, py, pz = TF[f, T_P + 3 * qa], TF[f, T_P + 3 * qa + 1], TF[f, T_P + 3 * qa + 2]
+                        dx, dy, dz = (TF[f, T_P + 3 * qb] - px, TF[f, T_P + 3 * qb + 1] - py,
+                                      TF[f, T_P + 3 * qb + 2] - pz)
                         ga = vt[sa, 3] * dx + vt[sa, 4] * dy + vt[sa, 5] * dz
                         gb = vt[sb, 3] * dx + vt[sb, 4] * dy + vt[sb, 5] * dz
                         t, val = _edge_min(px, py, pz, dx, dy, dz, vt[sa, 2], ga, vt[sb, 2], gb,
-                                           bx, by, bz, ax, ay, az, h, rad, off, st[0], False)
-                        if t >= 0.0 and val < st[0]:
-                            st[0], st[1], st[2], st[3] = val, px + t * dx, py + t * dy, pz + t * dz
-                            st[4], st[5], st[9], st[10] = K_EDGE, body, va, vb
+                                           bx, by, bz, ax, ay, az, h, rad, off, U, False)
+                        if t >= 0.0 and val < U:
+                            U, wx, wy, wz = val, px + t * dx, py + t * dy, pz + t * dz
+                            kind, best_body, eva, evb = K_EDGE, body, va, vb
                     # 6. deep: the plane cuts C and the triangle may reach into it (sd < -off)
-                    if cuts and lower < min(st[0] - PRUNE_TOL, -off):
-                        val, x, y, z = _deep_min(V, i0, i1, i2, TF[f, T_LONG], bx, by, bz, ax, ay, az, h, rad)
-                        if val - off < st[0]:
-                            st[0], st[1], st[2], st[3] = val - off, x, y, z
-                            st[4], st[5] = K_POINT, body
-        if st[5] < 0.0:
+                    if cuts and lower < min(U - PRUNE_TOL, -off):
+                        val, x, y, z = _deep_min(V, TI[f, 0], TI[f, 1], TI[f, 2], TF[f, T_LONG],
+                                                 bx, by, bz, ax, ay, az, h, rad)
+                        if val - off < U:
+                            U, wx, wy, wz = val - off, x, y, z
+                            kind, best_body = K_POINT, body
+                if U < U_before:
+                    best_leaf = node
+            if best_leaf >= 0:
+                seed[body] = best_leaf
+        if best_body < 0:
             continue
         # the witness and the normal of the minimum found
-        body = int(st[5])
+        body = best_body
         o = bodies[body, 0]
         bx, by, bz = tips[p, 0] + o * ax, tips[p, 1] + o * ay, tips[p, 2] + o * az
         h, rad, off = bodies[body, 1], bodies[body, 2], bodies[body, 3]
-        if st[4] == K_EDGE:
+        if kind == K_EDGE:
             # place the edge minimum to full precision (the search stopped at a value gap)
-            va, vb = int(st[9]), int(st[10])
+            va, vb = eva, evb
             px, py, pz = V[va, 0], V[va, 1], V[va, 2]
             dx, dy, dz = V[vb, 0] - px, V[vb, 1] - py, V[vb, 2] - pz
             fa, g0, g1, g2 = _sd_grad(px, py, pz, bx, by, bz, ax, ay, az, h, rad)
@@ -666,15 +682,15 @@ def clearance_kernel(tips, axes, bodies, margin, V, TI, TF, NT):
             fb, g0, g1, g2 = _sd_grad(V[vb, 0], V[vb, 1], V[vb, 2], bx, by, bz, ax, ay, az, h, rad)
             gb = g0 * dx + g1 * dy + g2 * dz
             t, val = _edge_min(px, py, pz, dx, dy, dz, fa - off, ga, fb - off, gb,
-                               bx, by, bz, ax, ay, az, h, rad, off, st[0], True)
+                               bx, by, bz, ax, ay, az, h, rad, off, U, True)
             # (val may exceed the best value found by rounding, ~1e-16 mm)
-            st[0], st[1], st[2], st[3] = val, px + t * dx, py + t * dy, pz + t * dz
-        delta[p] = st[0]
-        witness[p, 0], witness[p, 1], witness[p, 2] = st[1], st[2], st[3]
-        if st[4] == K_FACET:
-            normal[p, 0], normal[p, 1], normal[p, 2] = st[6], st[7], st[8]
+            U, wx, wy, wz = val, px + t * dx, py + t * dy, pz + t * dz
+        delta[p] = U
+        witness[p, 0], witness[p, 1], witness[p, 2] = wx, wy, wz
+        if kind == K_FACET:
+            normal[p, 0], normal[p, 1], normal[p, 2] = fnx, fny, fnz
             continue
-        s, g0, g1, g2 = _sd_grad(st[1], st[2], st[3], bx, by, bz, ax, ay, az, h, rad)
+        s, g0, g1, g2 = _sd_grad(wx, wy, wz, bx, by, bz, ax, ay, az, h, rad)
         gn = math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
         if gn == 0.0:
             # On the core axis, deeper from the wall than from the ends: every direction across

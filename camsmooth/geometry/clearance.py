@@ -201,7 +201,8 @@ class MeshIndex:
         Fp = F[perm]
         self._bvh_ti = np.ascontiguousarray(Fp, dtype=np.int64)
         self._bvh_tf = np.ascontiguousarray(np.column_stack(
-            [self.face_normals[perm], V[Fp].mean(axis=1), self.face_long[perm], self.face_valid[perm]]), dtype=float)
+            [self.face_normals[perm], V[Fp].mean(axis=1), self.face_long[perm], self.face_valid[perm],
+             V[Fp].reshape(-1, 9)]), dtype=float)
         lo, hi = V.min(axis=0), V.max(axis=0)
         self.box = np.stack([lo, hi])
         self._proj_cache: dict[bytes, tuple[cKDTree, np.ndarray]] = {}
