@@ -28,7 +28,6 @@ import math
 import numpy as np
 from numba import njit
 
-INVPHI = (math.sqrt(5.0) - 1.0) / 2.0
 PRUNE_TOL = 1e-10     # mm: an element whose lower bound is within this of the best value is skipped
 GAP_TOL = 1e-12       # mm: an edge minimum is accepted once certified within this of the true minimum
 PARALLEL_EPS = 1e-12  # as camsmooth.geometry.cutter._PARALLEL_EPS (support-point tie rule)
@@ -314,16 +313,8 @@ def _box_bound(NT, k, bx, by, bz, ax, ay, az, h, rad):
     return s
 
 
-@njit(cache=True)
-def golden_iters(length):
-    """Iterations that shrink a bracket of ``length`` mm below ~1e-10 mm (at least 40)."""
-    if not length > 1e-10:
-        return 40
-    return int(min(90, max(40, math.ceil(math.log(length / 1e-10) / -math.log(INVPHI)))))
-
-
 # ---------------------------------------------------------------------------------------------
-# 1-D and 2-D minimisation
+# minimisation along an edge and over a plane
 
 @njit(cache=True)
 def _edge_min(px, py, pz, dx, dy, dz, fa, ga, fb, gb, bx, by, bz, ax, ay, az, h, rad, off,
@@ -391,74 +382,74 @@ def _edge_min(px, py, pz, dx, dy, dz, fa, ga, fb, gb, bx, by, bz, ax, ay, az, h,
     return bt, bv
 
 
-@njit(cache=True)
-def _golden(p0x, p0y, p0z, dx, dy, dz, bx, by, bz, ax, ay, az, h, rad, iters):
-    """Golden section of the convex sd_C(p0 + t d) on [0, 1]; (t, value)."""
-    a, b = 0.0, 1.0
-    c = b - INVPHI * (b - a)
-    e = a + INVPHI * (b - a)
-    fc = _sd(p0x + c * dx, p0y + c * dy, p0z + c * dz, bx, by, bz, ax, ay, az, h, rad)
-    fe = _sd(p0x + e * dx, p0y + e * dy, p0z + e * dz, bx, by, bz, ax, ay, az, h, rad)
-    for _ in range(iters):
-        if fc <= fe:
-            b = e
-            e, fe = c, fc
-            c = b - INVPHI * (b - a)
-            fc = _sd(p0x + c * dx, p0y + c * dy, p0z + c * dz, bx, by, bz, ax, ay, az, h, rad)
-        else:
-            a = c
-            c, fc = e, fe
-            e = a + INVPHI * (b - a)
-            fe = _sd(p0x + e * dx, p0y + e * dy, p0z + e * dz, bx, by, bz, ax, ay, az, h, rad)
-    if fc <= fe:
-        return c, fc
-    return e, fe
+@njit(cache=True, inline="always")
+def _inside(TF, f, x, y, z):
+    """Barycentric test: is the point (in the plane of triangle f) inside it (BARY_TOL)?"""
+    p0x, p0y, p0z = TF[f, T_P], TF[f, T_P + 1], TF[f, T_P + 2]
+    e0x, e0y, e0z = TF[f, T_P + 3] - p0x, TF[f, T_P + 4] - p0y, TF[f, T_P + 5] - p0z
+    e1x, e1y, e1z = TF[f, T_P + 6] - p0x, TF[f, T_P + 7] - p0y, TF[f, T_P + 8] - p0z
+    e2x, e2y, e2z = x - p0x, y - p0y, z - p0z
+    d00 = e0x * e0x + e0y * e0y + e0z * e0z
+    d01 = e0x * e1x + e0y * e1y + e0z * e1z
+    d11 = e1x * e1x + e1y * e1y + e1z * e1z
+    d20 = e2x * e0x + e2y * e0y + e2z * e0z
+    d21 = e2x * e1x + e2y * e1y + e2z * e1z
+    den = d00 * d11 - d01 * d01
+    if den <= 0.0:
+        den = 1.0
+    bv = (d11 * d20 - d01 * d21) / den
+    bw = (d00 * d21 - d01 * d20) / den
+    return bv >= -BARY_TOL and bw >= -BARY_TOL and 1.0 - bv - bw >= -BARY_TOL
 
 
-@njit(cache=True)
-def _deep_min(V, v0, v1, v2, long_edge, bx, by, bz, ax, ay, az, h, rad):
-    """Minimum of sd_C over a triangle reaching into C, by nested golden sections: the minimum
-    over each slice parallel to edge v1 v2 is convex in the slice position (partial
-    minimisation of a convex function over a convex set), so nesting is exact.  Returns
-    (value, witness x, y, z)."""
-    iters = golden_iters(long_edge)
-    ox, oy, oz = V[v0, 0], V[v0, 1], V[v0, 2]
-    d1x, d1y, d1z = V[v1, 0] - ox, V[v1, 1] - oy, V[v1, 2] - oz
-    ex, ey, ez = V[v2, 0] - V[v1, 0], V[v2, 1] - V[v1, 1], V[v2, 2] - V[v1, 2]
-    best_s, best_t, best_v = 0.0, 0.0, np.inf
-    a, b = 0.0, 1.0
-    c = b - INVPHI * (b - a)
-    e = a + INVPHI * (b - a)
-    t, fc = _golden(ox + c * d1x, oy + c * d1y, oz + c * d1z, c * ex, c * ey, c * ez, bx, by, bz, ax, ay, az,
-                    h, rad, iters)
-    if fc < best_v:
-        best_s, best_t, best_v = c, t, fc
-    t, fe = _golden(ox + e * d1x, oy + e * d1y, oz + e * d1z, e * ex, e * ey, e * ez, bx, by, bz, ax, ay, az,
-                    h, rad, iters)
-    if fe < best_v:
-        best_s, best_t, best_v = e, t, fe
-    for _ in range(iters):
-        go_left = fc <= fe
-        if go_left:
-            b = e
-            e, fe = c, fc
-            c = b - INVPHI * (b - a)
-            s = c
+@njit(cache=True, inline="always")
+def _plane_min(nx, ny, nz, px, py, pz, bx, by, bz, ax, ay, az, h, rad):
+    """Deepest point of the plane n.(x - p) = 0 (n unit) in the capped cylinder C, which the
+    plane cuts: (sd_C there, x, y, z), a minimiser of sd_C over the plane.
+
+    Inside C, sd_C = max(rho - rad, -a, a - h) (rho: distance to the axis line, a: axial
+    coordinate), and everywhere sd_C >= that maximum, so its minimiser over the plane (<= 0
+    when the plane cuts C) minimises sd_C too.  With e1 the unit projection of the axis on the
+    plane, c = axis.e1, k = axis.n, delta = n.(base - p) and q = base - delta n, a point
+    q + s e1 + t e2 of the plane (e2 across the axis) has rho^2 = (k s + c delta)^2 + t^2 and
+    a = c s - k delta, so the minimum is on t = 0 and is the minimum of the maximum of four lines
+    in s, at one of their crossings (closed form).
+    """
+    k = ax * nx + ay * ny + az * nz
+    e0, e1, e2 = ax - k * nx, ay - k * ny, az - k * nz
+    c = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+    if c > 1e-12:
+        e0, e1, e2 = e0 / c, e1 / c, e2 / c
+        c = ax * e0 + ay * e1 + az * e2
+    else:  # the plane is across the axis: any direction in it (rho is symmetric)
+        if abs(nx) < 0.9:
+            e0, e1, e2 = 0.0, -nz, ny
         else:
-            a = c
-            c, fc = e, fe
-            e = a + INVPHI * (b - a)
-            s = e
-        t, v = _golden(ox + s * d1x, oy + s * d1y, oz + s * d1z, s * ex, s * ey, s * ez, bx, by, bz, ax, ay, az,
-                       h, rad, iters)
-        if go_left:
-            fc = v
-        else:
-            fe = v
-        if v < best_v:
-            best_s, best_t, best_v = s, t, v
-    return (best_v, ox + best_s * (d1x + best_t * ex), oy + best_s * (d1y + best_t * ey),
-            oz + best_s * (d1z + best_t * ez))
+            e0, e1, e2 = -nz, 0.0, nx
+        ln = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+        e0, e1, e2 = e0 / ln, e1 / ln, e2 / ln
+        c = 0.0
+    delta = nx * (bx - px) + ny * (by - py) + nz * (bz - pz)
+    # the four lines (slope, intercept): +-(k s + c delta) - rad, -(c s - k delta), c s - k delta - h
+    sl0, sl1, sl2, sl3 = k, -k, -c, c
+    ic0, ic1, ic2, ic3 = c * delta - rad, -c * delta - rad, k * delta, -k * delta - h
+    best_s, best_f = 0.0, np.inf
+    for i in range(4):
+        si = sl0 if i == 0 else (sl1 if i == 1 else (sl2 if i == 2 else sl3))
+        ci = ic0 if i == 0 else (ic1 if i == 1 else (ic2 if i == 2 else ic3))
+        for j in range(i + 1, 4):
+            sj = sl0 if j == 0 else (sl1 if j == 1 else (sl2 if j == 2 else sl3))
+            cj = ic0 if j == 0 else (ic1 if j == 1 else (ic2 if j == 2 else ic3))
+            if si == sj:
+                continue
+            s = (cj - ci) / (si - sj)
+            f = max(sl0 * s + ic0, sl1 * s + ic1, sl2 * s + ic2, sl3 * s + ic3)
+            if f < best_f:
+                best_s, best_f = s, f
+    x = bx - delta * nx + best_s * e0
+    y = by - delta * ny + best_s * e1
+    z = bz - delta * nz + best_s * e2
+    return _sd(x, y, z, bx, by, bz, ax, ay, az, h, rad), x, y, z
 
 
 # ---------------------------------------------------------------------------------------------
@@ -591,6 +582,7 @@ def clearance_kernel(tips, axes, bodies, margin, V, TI, TF, NT):
                     #    to C is the foot of C's support point toward the plane; inside the
                     #    triangle it is the triangle's minimum.
                     cuts = False
+                    nx = ny = nz = 0.0
                     if TF[f, T_VALID] > 0.0:
                         nx, ny, nz = TF[f, T_N], TF[f, T_N + 1], TF[f, T_N + 2]
                         sx, sy, sz = _support(bx, by, bz, ax, ay, az, h, rad, -nx, -ny, -nz)
@@ -603,20 +595,7 @@ def clearance_kernel(tips, axes, bodies, margin, V, TI, TF, NT):
                             cuts = hh > 0.0
                         if not cuts:
                             fx, fy, fz = sx - hh * nx, sy - hh * ny, sz - hh * nz
-                            e0x, e0y, e0z = TF[f, T_P + 3] - p0x, TF[f, T_P + 4] - p0y, TF[f, T_P + 5] - p0z
-                            e1x, e1y, e1z = TF[f, T_P + 6] - p0x, TF[f, T_P + 7] - p0y, TF[f, T_P + 8] - p0z
-                            e2x, e2y, e2z = fx - p0x, fy - p0y, fz - p0z
-                            d00 = e0x * e0x + e0y * e0y + e0z * e0z
-                            d01 = e0x * e1x + e0y * e1y + e0z * e1z
-                            d11 = e1x * e1x + e1y * e1y + e1z * e1z
-                            d20 = e2x * e0x + e2y * e0y + e2z * e0z
-                            d21 = e2x * e1x + e2y * e1y + e2z * e1z
-                            den = d00 * d11 - d01 * d01
-                            if den <= 0.0:
-                                den = 1.0
-                            bv = (d11 * d20 - d01 * d21) / den
-                            bw = (d00 * d21 - d01 * d20) / den
-                            if bv >= -BARY_TOL and bw >= -BARY_TOL and 1.0 - bv - bw >= -BARY_TOL:
+                            if _inside(TF, f, fx, fy, fz):
                                 val = side * hh - off
                                 if val < U:
                                     U, wx, wy, wz = val, fx, fy, fz
@@ -654,11 +633,13 @@ def clearance_kernel(tips, axes, bodies, margin, V, TI, TF, NT):
                         if t >= 0.0 and val < U:
                             U, wx, wy, wz = val, px + t * dx, py + t * dy, pz + t * dz
                             kind, best_body, eva, evb = K_EDGE, body, va, vb
-                    # 6. deep: the plane cuts C and the triangle may reach into it (sd < -off)
+                    # 6. deep: the plane cuts C and the triangle may reach into it (sd < -off).
+                    #    sd is convex on the plane: if its minimiser over the plane lies in the
+                    #    triangle it is the triangle's minimum; if not, a minimiser lies on the
+                    #    boundary, which the edges covered.
                     if cuts and lower < min(U - PRUNE_TOL, -off):
-                        val, x, y, z = _deep_min(V, TI[f, 0], TI[f, 1], TI[f, 2], TF[f, T_LONG],
-                                                 bx, by, bz, ax, ay, az, h, rad)
-                        if val - off < U:
+                        val, x, y, z = _plane_min(nx, ny, nz, p0x, p0y, p0z, bx, by, bz, ax, ay, az, h, rad)
+                        if _inside(TF, f, x, y, z) and val - off < U:
                             U, wx, wy, wz = val - off, x, y, z
                             kind, best_body = K_POINT, body
                 if U < U_before:

@@ -46,7 +46,7 @@ _PRUNE_TOL = 1e-9          # mm: an element that can improve the answer by less 
 _BARY_TOL = 1e-12
 _FIRST_CAP = 0.05         # mm: cap of the cheap first clearance pass
 _CHUNK = 512              # poses / points per chunk (bounds memory)
-_LEAF = 4                 # triangles per leaf of the bounding-volume hierarchy
+_LEAF = 8                 # triangles per leaf of the bounding-volume hierarchy
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
