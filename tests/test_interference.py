@@ -223,6 +223,40 @@ def test_penetration_depth_into_a_plane():
             assert abs(res.normal[0] @ n) < 1e-12 and np.linalg.norm(res.normal[0]) == pytest.approx(1.0)
 
 
+def test_deep_penetration_into_two_large_triangles_against_brute_force():
+    """A tilted 100 mm square plane of two triangles; tilted tools with holders buried 1.5-8 mm
+    along its normal (deeper than r: the deepest point lies inside a triangle, far from its
+    edges, in the core cylinder or in the holder) against the brute force."""
+    def height(x, y):
+        return 0.03 * x - 0.02 * y
+
+    V = np.array([[x, y, height(x, y)] for x, y in [(-50, -50), (50, -50), (50, 50), (-50, 50)]], dtype=float)
+    F = np.array([[0, 1, 2], [0, 2, 3]])
+    mesh = trimesh.Trimesh(V, F, process=False)
+    index = MeshIndex(mesh)
+    n = np.array([-0.03, 0.02, 1.0]) / np.linalg.norm([-0.03, 0.02, 1.0])
+    rng = np.random.default_rng(23)
+    deep = 0
+    for trial in range(8):
+        cutter = [ToroidalCutter(R=3.0, r=1.0, shank_length=8.0, holder_radius=6.0, holder_length=6.0),
+                  ToroidalCutter(R=0.0, r=1.0, shank_length=3.0, holder_radius=3.0, holder_length=4.0)][trial % 2]
+        axis = rng.normal(size=3)
+        axis[2] = abs(axis[2]) + 1.0
+        axis /= np.linalg.norm(axis)
+        x, y = rng.uniform(-10, 10, 2)
+        tip = np.array([x, y, height(x, y)]) - rng.uniform(1.5, 8.0) * n
+        res = clearance(index, cutter, tip[None], axis)
+        brute = _brute_clearance(cutter, tip, axis, V, F)
+        deep += brute < -cutter.r
+        assert res.delta[0] == pytest.approx(brute, abs=1e-6)
+        assert signed_distance(cutter, tip, axis, res.witness[0]) == pytest.approx(res.delta[0], abs=1e-12)
+        assert _on_mesh(res.witness, mesh)[0] < 1e-9
+        num = _numeric_normal(cutter, tip, axis, res.witness[0])
+        if abs(np.linalg.norm(num) - 1.0) < 1e-6:
+            np.testing.assert_allclose(res.normal[0], num, atol=1e-5)
+    assert deep >= 3
+
+
 def test_shank_and_holder_gouges_against_a_wall():
     # wall: the plane x = 0 (y, z in [-20, 40]), normal +x
     ys = np.linspace(-20, 20, 41)
