@@ -16,8 +16,14 @@ Compile time: two fresh interpreters share an empty NUMBA_CACHE_DIR; the first c
 kernels (cold cache), the second loads them (warm).
 
 Run:  python3 benchmarks/bench_interference.py [--repeat 5]
-Figures are single-threaded; the kernels are sequential (timings on a shared machine are noisy:
-the best of --repeat runs is printed, with its CPU time).
+Figures are single-threaded (the kernels are sequential); on a shared machine they are noisy,
+so the best of --repeat runs is printed with its CPU time.
+
+Before the numba kernels (commit ef4cdd0 of branch ``clearance``, which ran both): the former
+vectorised numpy clearance measured 4,715 poses/s (CPU) on case 1 touching, 3,037 lifted, and
+3,033 on case 2, against 78,549 / 77,295 / 83,527 for the kernels in the same run (16.7x,
+25.4x, 27.5x); the largest |delta| difference between the two was 7.6e-15 mm (case 1) and
+4.9e-15 mm (case 2), with the same capped poses.
 """
 
 from __future__ import annotations
@@ -35,7 +41,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from camsmooth.geometry.clearance import MeshIndex, _clearance_numpy, axial_drop, clearance
+from camsmooth.geometry.clearance import MeshIndex, axial_drop, clearance
 from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl
 from camsmooth.geometry.paths import read_cc_csv
 from camsmooth.geometry.surfaces import load_mesh
@@ -132,13 +138,6 @@ def clearance_case(name: str, index: MeshIndex, cutter: ToroidalCutter, tips: np
     print(f"  {name}: {n} poses in {wall:.3f} s = {n / wall:,.0f} poses/s (CPU {cpu:.3f} s = {n / cpu:,.0f} "
           f"poses/s; gouging {int(np.sum(res.delta < -1e-9))}, min delta {res.delta.min():.4f} mm, "
           f"capped {int(res.capped.sum())})")
-    old = _clearance_numpy(index, cutter, tips, axes, margin=1.0)
-    wall_o, cpu_o = best_of(lambda: _clearance_numpy(index, cutter, tips, axes, margin=1.0), max(1, repeat // 2))
-    both = ~old.capped
-    print(f"    former numpy implementation: {n / wall_o:,.0f} poses/s (CPU {n / cpu_o:,.0f}); speed-up "
-          f"{wall_o / wall:.1f}x wall, {cpu_o / cpu:.1f}x CPU; max |delta difference| "
-          f"{np.max(np.abs(res.delta - old.delta)):.2e} mm; same capped: {bool(np.all(res.capped == old.capped))}; "
-          f"max |witness difference| {np.max(np.abs(res.witness[both] - old.witness[both]), initial=0.0):.2e} mm")
 
 
 def main() -> None:

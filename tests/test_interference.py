@@ -397,6 +397,9 @@ def test_ball_nose_on_a_sphere_mesh_against_closest_points():
     np.testing.assert_allclose(res.delta, dist - r, atol=1e-9)
     np.testing.assert_allclose(res.witness, cp, atol=1e-9)
     np.testing.assert_allclose(res.normal, (c - cp) / dist[:, None], atol=1e-9)
+    # witness + delta * normal is the point of the tool's surface nearest the witness
+    np.testing.assert_allclose(signed_distance(cutter, c - r * T, T, res.witness + res.delta[:, None] * res.normal),
+                               0.0, atol=1e-9)
     # kinds of contact: barycentric coordinates of the closest point on its triangle
     bary = trimesh.triangles.points_to_barycentric(mesh.triangles[tri], cp)
     zeros = np.sum(bary < 1e-9, axis=1)

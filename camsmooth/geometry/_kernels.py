@@ -3,22 +3,24 @@ mesh triangles and the exact clearance of the tool's convex bodies, pose by pose
 
 Single-threaded scalar code (the pipeline parallelises with processes).  ``cache=True``: the
 first call in a fresh environment compiles (seconds), later imports load the machine code from
-``__pycache__``.  Scratch memory is O(vertices + edges), whatever the number of poses.
+``__pycache__``.  Scratch memory per call is a few fixed-size tables, whatever the number of
+poses or the size of the mesh.
 
 Body model (camsmooth.geometry.cutter): a solid capped cylinder C (axis from ``base`` to
 ``base + height * axis``, radius ``radius``; a segment when ``radius = 0``, a disc when
 ``height = 0``) offset by ``off`` (the Minkowski sum with a ball of radius ``off``).  Its signed
 distance ``sd_C(x) - off`` is convex and 1-Lipschitz in x; ``sd_C`` is the formula of
 ``camsmooth.geometry.cutter._cylinder_sd`` with the same branches and subgradient choices
-(scalar code here, the vectorised numpy version there; tests compare the two).
+(scalar code here for the hot loops; the vectorised numpy version there is what the tests'
+brute force uses).
 
 Bounding volumes.  Every node of the hierarchy holds its triangles in an oriented box: centre
-c, orthonormal axes a_k (the first the least-variance direction of its vertices: the normal of a
+c, orthonormal axes a_k (the first along the node's dominant normal direction: the normal of a
 sheet), half-extents e_k.  As sd is convex, for any subgradient g at c,
 sd(x) >= sd(c) + g.(x - c) >= sd(c) - sum_k |g.a_k| e_k on the box: a lower bound that is
 second-order tight where the surface is tangent to the tool (a ball's sd(c) - radius is only
 first-order).  Triangles use the exact minimum of the same linear function over their three
-vertices, then the tangent planes at the vertices.
+vertices (tangent plane at the centroid), then the tangent planes at the vertices.
 """
 
 from __future__ import annotations
@@ -35,13 +37,13 @@ BARY_TOL = 1e-12      # barycentric tolerance of the facet test
 STACK = 256           # BVH traversal stack; the tree depth is <= log2(F) + 2
 
 # What attains a pose's minimum (to report the contact normal and polish the witness).
-K_POINT = 0   # vertex or deep (2-D) minimum: normal = -gradient of the body's sd at the witness
+K_POINT = 0   # vertex or deep minimum: normal = -gradient of the body's sd at the witness
 K_FACET = 1   # facet: normal = the facet normal, on the side of the tool
 K_EDGE = 2    # edge: the witness is refined to full precision along the edge first
 
-# Columns of the per-triangle float table (leaf order): normal, centroid, longest edge,
-# validity, the three vertices (stored in place: the hot loop reads them contiguously).
-T_N, T_C, T_LONG, T_VALID, T_P = 0, 3, 6, 7, 8
+# Columns of the per-triangle float table (leaf order): unit normal, centroid, validity (1 or 0),
+# the three vertices (stored in place: the hot loop reads them contiguously).
+T_N, T_C, T_VALID, T_P = 0, 3, 6, 7
 # Columns of the per-node table: the oriented box (centre, three orthonormal axes, the
 # half-extents along them), then first child (-1: leaf), first triangle, triangle count.
 B_C, B_A, B_E = 0, 3, 12
@@ -461,8 +463,7 @@ def clearance_kernel(tips, axes, bodies, margin, V, TI, TF, NT):
 
     tips, axes : (N, 3) tool tips and unit axes.  bodies : (B, 4) per convex body: base offset
     along the axis from the tip, height, radius, offset.  V (nv, 3) vertices; TI (F, 3) vertex
-    ids and TF (F, 17) normal, centroid, longest edge, validity and vertices of the triangles in
-    leaf order;
+    ids and TF (F, 16) normal, centroid, validity and vertices of the triangles in leaf order;
     NT (M, 18) the hierarchy's nodes: oriented box (15), first child (-1 for a leaf), first
     triangle, triangle count.
 
