@@ -543,7 +543,7 @@ def clearance_kernel(tips, axes, bodies, margin, V, TI, TF, NT):
                     # 2. vertex values (once per pose and body; each is a candidate)
                     for q in range(3):
                         i = TI[f, q]
-                        j = (i * 2654435761) & (HASH - 1)
+                        j = ((i & 0x7FFFFFFF) * 2654435761 + (i >> 31)) & (HASH - 1)
                         slot = -1
                         for _ in range(PROBES):
                             if vt[j, 1] != fkey:
@@ -611,7 +611,7 @@ def clearance_kernel(tips, axes, bodies, margin, V, TI, TF, NT):
                             qa, qb = qb, qa
                         va, vb = TI[f, qa], TI[f, qb]
                         ek = va * nv + vb
-                        j = (ek * 2654435761) & (HASH - 1)
+                        j = ((ek & 0x7FFFFFFF) * 2654435761 + (ek >> 31)) & (HASH - 1)  # no int64 overflow
                         seen = False
                         for _ in range(PROBES):
                             if et[j, 0] != key:
