@@ -69,6 +69,12 @@ def _tri_min_sampled(f, a, b, c, n=40, levels=34, m=8):
         if vals[q] <= best:
             bu, bv, best = U[q], W[q], vals[q]
         w /= 2.0
+    # the pattern search can stall on long thin triangles: finish with SLSQP from its best point
+    res = minimize(lambda x: float(f(a + x[0] * (b - a) + x[1] * (c - a))), [bu, bv], method="SLSQP",
+                   bounds=[(0, 1), (0, 1)], constraints=[dict(type="ineq", fun=lambda x: 1 - x[0] - x[1])],
+                   options=dict(ftol=1e-15, maxiter=500))
+    if res.success and min(res.x) >= -1e-12 and res.x.sum() <= 1 + 1e-12:
+        best = min(best, float(res.fun))
     return best
 
 
@@ -113,6 +119,14 @@ def _brute_clearance(cutter, tip, axis, V, F):
     return best
 
 
+def _numeric_normal(cutter, tip, axis, x, h=1e-6):
+    """Minus the central-difference gradient of the (numpy) signed distance at x."""
+    e = np.eye(3) * h
+    g = np.array([signed_distance(cutter, tip, axis, x + e[k]) - signed_distance(cutter, tip, axis, x - e[k])
+                  for k in range(3)]) / (2 * h)
+    return -g
+
+
 def test_clearance_matches_brute_force_on_random_meshes():
     rng = np.random.default_rng(7)
     kinds = set()
@@ -144,7 +158,14 @@ def test_clearance_matches_brute_force_on_random_meshes():
         # the witness is a mesh point with that signed distance
         assert _on_mesh(res.witness, mesh)[0] < 1e-9
         assert signed_distance(cutter, tip, axis, res.witness[0]) == pytest.approx(res.delta[0], abs=1e-12)
-    assert kinds == {"capped", "deep", "shallow", "clear"}
+        # the normal is minus the gradient of the tool's signed distance at the witness (where
+        # that gradient exists, i.e. the finite difference has unit length)
+        num = _numeric_normal(cutter, tip, axis, res.witness[0])
+        assert np.linalg.norm(res.normal[0]) == pytest.approx(1.0, abs=1e-12)
+        if abs(np.linalg.norm(num) - 1.0) < 1e-6:
+            np.testing.assert_allclose(res.normal[0], num, atol=1e-5)
+            kinds.add("normal checked")
+    assert kinds == {"capped", "deep", "shallow", "clear", "normal checked"}
 
 
 @pytest.mark.parametrize("R, r", [(3.0, 2.0), (0.0, 1.5)])
@@ -166,6 +187,13 @@ def test_clearance_zero_when_touching_a_plane(R, r):
     np.testing.assert_allclose(res.witness[:, 2], 0.0, atol=1e-12)
     # with lead the contact is a single point: the CC point
     np.testing.assert_allclose(res.witness[2:], cc[2:], atol=1e-6)
+    # a facet contact: the normal is the plane's, on the tool's side
+    np.testing.assert_allclose(res.normal, np.tile(n, (7, 1)), atol=1e-12)
+    # the same tools mirrored below the sheet: the normal points down, toward them
+    flip = np.array([1.0, 1.0, -1.0])
+    below = clearance(index, cutter, cl * flip, T * flip)
+    np.testing.assert_allclose(below.delta, 0.0, atol=1e-9)
+    np.testing.assert_allclose(below.normal, np.tile(-n, (7, 1)), atol=1e-12)
 
 
 def test_penetration_depth_into_a_plane():
@@ -179,11 +207,54 @@ def test_penetration_depth_into_a_plane():
     for d in (0.01, 0.5, 1.9):
         res = clearance(index, cutter, cl - d * n, T)
         np.testing.assert_allclose(res.delta, -d, atol=1e-9)
+        # the separating direction is the plane's normal; moving the tool by -delta along it
+        # makes it touch
+        np.testing.assert_allclose(res.normal, np.tile(n, (4, 1)), atol=1e-12)
+        back = clearance(index, cutter, cl - d * n - res.delta[:, None] * res.normal, T)
+        np.testing.assert_allclose(back.delta, 0.0, atol=1e-9)
     # vertical tool pushed by d: on the plane the deepest point is the axis, at depth
     # min(d, R + r) from the tool's boundary (bottom face or shank wall)
     for d in (0.5, 1.0, 2.0, 3.5, 5.0, 9.0):
         res = clearance(index, cutter, np.array([[1.0, -2.0, -d]]), n)
         assert res.delta[0] == pytest.approx(-min(d, 5.0), abs=1e-9)
+        if d < 5.0:  # the bottom face is nearest: lift the tool
+            np.testing.assert_allclose(res.normal[0], n, atol=1e-12)
+        else:  # buried deeper than its radius: any direction across the axis separates
+            assert abs(res.normal[0] @ n) < 1e-12 and np.linalg.norm(res.normal[0]) == pytest.approx(1.0)
+
+
+def test_deep_penetration_into_two_large_triangles_against_brute_force():
+    """A tilted 100 mm square plane of two triangles; tilted tools with holders buried 1.5-8 mm
+    along its normal (deeper than r: the deepest point lies inside a triangle, far from its
+    edges, in the core cylinder or in the holder) against the brute force."""
+    def height(x, y):
+        return 0.03 * x - 0.02 * y
+
+    V = np.array([[x, y, height(x, y)] for x, y in [(-50, -50), (50, -50), (50, 50), (-50, 50)]], dtype=float)
+    F = np.array([[0, 1, 2], [0, 2, 3]])
+    mesh = trimesh.Trimesh(V, F, process=False)
+    index = MeshIndex(mesh)
+    n = np.array([-0.03, 0.02, 1.0]) / np.linalg.norm([-0.03, 0.02, 1.0])
+    rng = np.random.default_rng(23)
+    deep = 0
+    for trial in range(8):
+        cutter = [ToroidalCutter(R=3.0, r=1.0, shank_length=8.0, holder_radius=6.0, holder_length=6.0),
+                  ToroidalCutter(R=0.0, r=1.0, shank_length=3.0, holder_radius=3.0, holder_length=4.0)][trial % 2]
+        axis = rng.normal(size=3)
+        axis[2] = abs(axis[2]) + 1.0
+        axis /= np.linalg.norm(axis)
+        x, y = rng.uniform(-10, 10, 2)
+        tip = np.array([x, y, height(x, y)]) - rng.uniform(1.5, 8.0) * n
+        res = clearance(index, cutter, tip[None], axis)
+        brute = _brute_clearance(cutter, tip, axis, V, F)
+        deep += brute < -cutter.r
+        assert res.delta[0] == pytest.approx(brute, abs=1e-6)
+        assert signed_distance(cutter, tip, axis, res.witness[0]) == pytest.approx(res.delta[0], abs=1e-12)
+        assert _on_mesh(res.witness, mesh)[0] < 1e-9
+        num = _numeric_normal(cutter, tip, axis, res.witness[0])
+        if abs(np.linalg.norm(num) - 1.0) < 1e-6:
+            np.testing.assert_allclose(res.normal[0], num, atol=1e-5)
+    assert deep >= 3
 
 
 def test_shank_and_holder_gouges_against_a_wall():
@@ -202,6 +273,7 @@ def test_shank_and_holder_gouges_against_a_wall():
     res = clearance(wall, cutter, np.array([[6.0, 0.0, 0.0]]), np.array([0.0, 0.0, 1.0]))
     assert res.delta[0] == pytest.approx(6.0 - 8.0, abs=1e-9)
     assert 12.0 - 1e-9 <= res.witness[0, 2] <= 22.0 + 1e-9
+    np.testing.assert_allclose(res.normal[0], [1.0, 0.0, 0.0], atol=1e-12)  # move the tool away: +x
     no_holder = ToroidalCutter(R=2.0, r=1.0, shank_length=12.0)
     res = clearance(wall, no_holder, np.array([[6.0, 0.0, 0.0]]), np.array([0.0, 0.0, 1.0]))
     assert res.capped[0] and res.delta[0] == 1.0
@@ -228,9 +300,138 @@ def test_margin_caps_and_passes():
     np.testing.assert_allclose(res.delta, [0.02, 0.3, 0.99, 1.0, 1.0, -0.4], atol=1e-12)
     np.testing.assert_array_equal(res.capped, [False, False, False, True, True, False])
     assert np.all(np.isnan(res.witness[res.capped])) and np.all(np.isfinite(res.witness[~res.capped]))
+    assert np.all(np.isnan(res.normal[res.capped])) and np.all(np.isfinite(res.normal[~res.capped]))
+    empty = clearance(index, cutter, np.zeros((0, 3)), up)
+    assert empty.delta.shape == (0,) and empty.witness.shape == (0, 3) and empty.normal.shape == (0, 3)
     res0 = clearance(index, cutter, tips, up, margin=0.0)
     np.testing.assert_allclose(res0.delta, [0, 0, 0, 0, 0, -0.4], atol=1e-12)
     assert res0.capped.tolist() == [True] * 5 + [False]
+
+
+def _prism(radius: float, length: float, sections: int) -> trimesh.Trimesh:
+    """Closed regular prism around the z axis (|z| <= length / 2): vertices at angles 2 pi k /
+    sections on both rims, each side a long thin quad split into two triangles, fan caps."""
+    phi = 2 * np.pi * np.arange(sections) / sections
+    ring = np.column_stack([radius * np.cos(phi), radius * np.sin(phi)])
+    V = np.vstack([np.column_stack([ring, np.full(sections, -length / 2)]),
+                   np.column_stack([ring, np.full(sections, length / 2)]), [[0, 0, -length / 2], [0, 0, length / 2]]])
+    k = np.arange(sections)
+    k1 = (k + 1) % sections
+    F = np.concatenate([np.stack([k, k1, k1 + sections], 1), np.stack([k, k1 + sections, k + sections], 1),
+                        np.stack([np.full(sections, 2 * sections), k1, k], 1),
+                        np.stack([np.full(sections, 2 * sections + 1), k + sections, k1 + sections], 1)])
+    return trimesh.Trimesh(V, F, process=False)
+
+
+def test_contact_normals_on_a_prism_closed_form():
+    """Facet, edge and vertex contacts on a 16-sided prism of long thin triangles (120 x 7.8 mm),
+    touching, clear and penetrating; every expected value is a closed form."""
+    Rc, L, S = 20.0, 120.0, 16
+    index = MeshIndex(_prism(Rc, L, S))
+    apothem = Rc * math.cos(math.pi / S)
+    ez = np.array([0.0, 0.0, 1.0])
+    torus = ToroidalCutter(R=2.0, r=1.0, holder_radius=6.0, holder_length=10.0)
+    ball = ToroidalCutter(R=0.0, r=1.5, holder_radius=5.0, holder_length=10.0)
+    for g in (-0.5, 0.0, 0.4):
+        # facet: CC on side k (off its middle and on the diagonal edge), feed along z, lead
+        # 5-30 deg: the torus touches at CC, the normal is the side's
+        for k, dphi, z0, lead in [(0, 0.0, 0.0, 0.3), (3, 0.05, 17.0, 0.1), (9, -0.1, -40.0, 0.5),
+                                  (12, 0.02, 3.0, 0.09)]:
+            psi = (k + 0.5) * 2 * math.pi / S
+            n = np.array([math.cos(psi), math.sin(psi), 0.0])
+            cc = apothem * n + Rc * math.tan(dphi) * np.array([-n[1], n[0], 0.0]) + z0 * ez
+            T = math.sin(lead) * ez + math.cos(lead) * n
+            tip = cc_to_cl(torus, cc, n, T) + g * n
+            res = clearance(index, torus, tip[None], T, margin=1.0)
+            assert res.delta[0] == pytest.approx(g, abs=1e-9)
+            np.testing.assert_allclose(res.witness[0], cc, atol=1e-9)
+            np.testing.assert_allclose(res.normal[0], n, atol=1e-12)
+        # edge: ball nose with its axis through a ridge, and a flat bottom parallel to a ridge
+        # (every ridge point under the bottom face ties)
+        for k, z0 in [(2, 0.0), (7, 31.3), (15, -52.0)]:
+            u = np.array([math.cos(2 * math.pi * k / S), math.sin(2 * math.pi * k / S), 0.0])
+            ridge = Rc * u + z0 * ez
+            res = clearance(index, ball, (ridge + (g + ball.r) * u - ball.r * u)[None], u, margin=1.0)
+            assert res.delta[0] == pytest.approx(g, abs=1e-9)
+            np.testing.assert_allclose(res.witness[0], ridge, atol=1e-9)
+            np.testing.assert_allclose(res.normal[0], u, atol=1e-9)
+            res = clearance(index, torus, (ridge + g * u)[None], u, margin=1.0)
+            assert res.delta[0] == pytest.approx(g, abs=1e-9)
+            w = res.witness[0]
+            assert abs(w[2] - z0) <= torus.R + 1e-9
+            np.testing.assert_allclose(w - w[2] * ez, Rc * u, atol=1e-9)
+            np.testing.assert_allclose(res.normal[0], u, atol=1e-9)
+        # vertex: ball nose over a rim vertex, its axis inside the vertex's normal cone
+        for k, top in [(4, 1.0), (11, -1.0)]:
+            vert = Rc * np.array([math.cos(2 * math.pi * k / S), math.sin(2 * math.pi * k / S), 0.0]) + top * L / 2 * ez
+            u = (vert - top * L / 2 * ez) / Rc + 0.7 * top * ez
+            u /= np.linalg.norm(u)
+            res = clearance(index, ball, (vert + (g + ball.r) * u - ball.r * u)[None], u, margin=1.0)
+            assert res.delta[0] == pytest.approx(g, abs=1e-9)
+            np.testing.assert_allclose(res.witness[0], vert, atol=1e-9)
+            np.testing.assert_allclose(res.normal[0], u, atol=1e-9)
+
+
+def test_ball_nose_on_a_sphere_mesh_against_closest_points():
+    """Ball nose near an icosphere mesh: with the axis within 20 deg of the radial direction and
+    the ball centre c outside the mesh, the nearest point of the capsule to every mesh point is
+    c, so delta = dist(c, mesh) - r, the witness is the mesh's closest point to c and the normal
+    points from it to c (trimesh.proximity.closest_point: independent).  Facet, edge and vertex
+    contacts all occur."""
+    Rs, r = 10.0, 1.5
+    mesh = trimesh.creation.icosphere(subdivisions=2, radius=Rs)
+    cutter = ToroidalCutter(R=0.0, r=r, holder_radius=4.0, holder_length=10.0)
+    rng = np.random.default_rng(21)
+    N = 300
+    d = rng.normal(size=(N, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    c = (Rs + r + rng.uniform(-0.9 * r, 0.5, N))[:, None] * d
+    t = rng.normal(size=(N, 3))
+    t -= np.sum(t * d, axis=1, keepdims=True) * d
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    ang = np.radians(rng.uniform(0.0, 20.0, N))
+    T = np.cos(ang)[:, None] * d + np.sin(ang)[:, None] * t
+    res = clearance(MeshIndex(mesh), cutter, c - r * T, T, margin=2.0)
+    cp, dist, tri = trimesh.proximity.closest_point(mesh, c)
+    assert not res.capped.any()
+    np.testing.assert_allclose(res.delta, dist - r, atol=1e-9)
+    np.testing.assert_allclose(res.witness, cp, atol=1e-9)
+    np.testing.assert_allclose(res.normal, (c - cp) / dist[:, None], atol=1e-9)
+    # witness + delta * normal is the point of the tool's surface nearest the witness
+    np.testing.assert_allclose(signed_distance(cutter, c - r * T, T, res.witness + res.delta[:, None] * res.normal),
+                               0.0, atol=1e-9)
+    # kinds of contact: barycentric coordinates of the closest point on its triangle
+    bary = trimesh.triangles.points_to_barycentric(mesh.triangles[tri], cp)
+    zeros = np.sum(bary < 1e-9, axis=1)
+    assert {0, 1, 2} <= set(zeros.tolist())  # interior, edge, vertex
+
+
+def test_coarse_sliver_strip_against_brute_force():
+    """A bumpy strip of long thin triangles (40 x 4 mm), toroidal, ball-nose and held cutters in
+    random poses from clear to deeper than r, against the brute force."""
+    rng = np.random.default_rng(22)
+    xs = np.array([-40.0, 0.0, 40.0])
+    V = np.vstack([np.column_stack([xs, np.full(3, -2.0), rng.uniform(-1, 1, 3)]),
+                   np.column_stack([xs + 20.0, np.full(3, 2.0), rng.uniform(-1, 1, 3)])])
+    F = np.array([[0, 1, 3], [1, 4, 3], [1, 2, 4], [2, 5, 4]])
+    mesh = trimesh.Trimesh(V, F, process=False)
+    index = MeshIndex(mesh)
+    kinds = set()
+    for trial in range(12):
+        cutter = [ToroidalCutter(R=3.0, r=1.0), ToroidalCutter(R=0.0, r=2.0),
+                  ToroidalCutter(R=1.5, r=0.5, shank_length=4.0, holder_radius=4.0, holder_length=5.0)][trial % 3]
+        axis = rng.normal(size=3)
+        axis[2] = abs(axis[2]) + 0.5
+        axis /= np.linalg.norm(axis)
+        tip = np.array([rng.uniform(-20, 30), rng.uniform(-1.5, 1.5), rng.uniform(-2.5, 1.5)])
+        res = clearance(index, cutter, tip[None], axis, margin=3.0)
+        brute = _brute_clearance(cutter, tip, axis, V, F)
+        assert brute < 3.0
+        kinds.add("deep" if brute < -cutter.r else "shallow" if brute < 0 else "clear")
+        assert res.delta[0] == pytest.approx(brute, abs=1e-6)
+        assert signed_distance(cutter, tip, axis, res.witness[0]) == pytest.approx(res.delta[0], abs=1e-12)
+        assert _on_mesh(res.witness, mesh)[0] < 1e-9
+    assert kinds == {"deep", "shallow", "clear"}
 
 
 def test_subdivision_gives_the_same_exact_answer():
