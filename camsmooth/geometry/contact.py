@@ -3,11 +3,10 @@
 A CAM system's CL pose (tool tip and axis, workpiece frame, mm) places the tool tangent to the
 part at one point. The exact clearance (camsmooth.geometry.clearance) finds the mesh point
 nearest the tool solid, its *witness*; when the pose touches (|clearance| <= tolerance) that is
-the cutter-contact point, and the surface normal there is the tool's outward normal at the
-contact, -grad sd_tool(witness) (sd_tool: the signed distance of the cutter body,
-camsmooth.geometry.cutter; at a tangent contact the part's and the tool's normals coincide, and on
-a mesh edge or vertex the tool's normal is the one the CC -> CL formula of METHODS section 1
-needs). With these, ``cc_to_cl(cutter, cc, n, T)`` gives the pose back (tested).
+the cutter-contact point, and the surface normal there is the clearance's ``normal``, the
+tool's outward normal at the contact, -grad sd_tool(witness) (at a tangent contact the part's and
+the tool's normals coincide, and on a mesh edge or vertex the tool's normal is the one the
+CC -> CL formula of METHODS section 1 needs). With these, ``cc_to_cl(cutter, cc, n, T)`` gives the pose back (tested).
 
 Where the flat bottom touches (n parallel to T) every point of the contact disc is a contact;
 the CC -> CL formula then puts the tip on the contact (CL = CC), so the tip is taken as the CC
@@ -22,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from camsmooth.geometry.clearance import MeshIndex, clearance
-from camsmooth.geometry.cutter import ToroidalCutter, _cylinder_sd
+from camsmooth.geometry.cutter import ToroidalCutter
 
 __all__ = ["Contacts", "contacts"]
 
@@ -51,9 +50,7 @@ def contacts(index: MeshIndex, cutter: ToroidalCutter, tips: np.ndarray, axes: n
     axes = axes / np.linalg.norm(axes, axis=1, keepdims=True)
     c = clearance(index, cutter, tips, axes)
     w = np.where(np.isfinite(c.witness), c.witness, tips)
-    base = tips + cutter.r * axes
-    _, g = _cylinder_sd(base, axes, cutter.core_height, cutter.R, w, grad=True)
-    n = -g / np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-300)
+    n = np.where(np.isfinite(c.normal), c.normal, axes)
     flat = 1.0 - np.sum(n * axes, axis=1) < PARALLEL
     if flat.any():  # the flat bottom: CL = CC where the tip lies on the mesh
         d_tip = _tip_gap(index, tips[flat], axes[flat])
