@@ -194,7 +194,7 @@ def bench_row10k(repeats: int = 3) -> bool:
     with tempfile.TemporaryDirectory() as tmp:
         d = Path(tmp)
         row, stl = _gentle_row(d)
-        common = [str(row), "--surface", str(stl), "--cutter-radius", "4", "--corner-radius", "1", "--lead", "2:12",
+        common = ["smooth", str(row), "--surface", str(stl), "--cutter-radius", "4", "--corner-radius", "1", "--lead", "2:12",
                   "--tilt", "-5:5", "--quiet", "-o", str(d / "out.csv")]
         t_none = [_cli([*common, "--method", "none"]) for _ in range(repeats)]
         t_nlp = [_cli([*common, "--method", "nlp"]) for _ in range(repeats)]
@@ -206,22 +206,25 @@ def bench_row10k(repeats: int = 3) -> bool:
         program = prepare(path, MeshIndex(surf.mesh), CUTTER, None, tuple(np.radians([2, 12])),
                           tuple(np.radians([-5, 5])))
         o = program.orientation
-        naive = []
+        naive, naive_solve = [], []
         for _ in range(repeats):
             t0 = time.perf_counter()
             ref = reference_nlp.solve(m, program.t, program.frames, o.lead_window, o.tilt_window,
                                       {"spline": (res.methods["spline"].A, res.methods["spline"].B)})
             naive.append(time.perf_counter() - t0)
+            naive_solve.append(ref.solve_s)
         out = read_result(d / "out.csv")
     none, nlp, nv = float(np.median(t_none)), float(np.median(t_nlp)), float(np.median(naive))
+    solve_only = float(np.median(naive_solve))
     extra = nlp - none
     print(f"camsmooth smooth --method none: {none:.2f} s; --method nlp: {nlp:.2f} s (median of {repeats}); "
           f"extra {extra:.2f} s")
-    print(f"naive SX formulation: build {ref.build_s:.2f} s + solve {ref.solve_s:.2f} s = {nv:.2f} s "
+    print(f"naive SX formulation (tol 1e-8): build {ref.build_s:.2f} s + solve {solve_only:.2f} s = {nv:.2f} s "
           f"(median of {repeats}), Gamma {ref.gamma:.4g}; camsmooth nlp Gamma {out['gamma']:.4g}, "
           f"min delta {out['min_delta']:.2e} mm, lifted {out['lifted']}")
-    ok = extra <= 0.5 * nv
-    print(f"extra / naive = {extra / nv:.2f} (target <= 0.5): {'PASS' if ok else 'FAIL'}")
+    ok = extra <= 0.5 * solve_only
+    print(f"extra / naive (build + solve) = {extra / nv:.2f}; extra / naive solve alone = {extra / solve_only:.2f} "
+          f"(target <= 0.5, taken against the solve alone): {'PASS' if ok else 'FAIL'}")
     return ok
 
 

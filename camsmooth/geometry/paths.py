@@ -148,13 +148,19 @@ def check_normals_against_mesh(path: CCPath, mesh: trimesh.Trimesh, mesh_file: s
     """InputError naming the first CC point whose normal points into the material.
 
     A normal points into the material when n . m < 0, m the mesh face normal at the closest point
-    (``surface_normals_at``; the mesh's face normals must point out of the material). The row
+    (``surface_normals_at``; the mesh's face normals must point out of the material); points whose
+    normal agrees with the nearest vertex's normal (n . m_v >= 0.2) are cleared without it. The row
     named is the 1-based index of the point in the path (the data row of its CSV file). When most
     normals disagree, the likelier cause is a mesh wound the other way round (its face normals
     pointing into the material), and the message says so, naming ``mesh_file`` when given.
     """
-    m = surface_normals_at(mesh, path.points)
-    dots = _dot(path.normals, m)
+    # screen with the nearest vertex's normal (a KD-tree query); only points it cannot clear
+    # get the exact face normal at the closest point
+    _, near = mesh.kdtree.query(path.points)
+    dots = _dot(path.normals, np.asarray(mesh.vertex_normals)[near])
+    unsure = np.flatnonzero(dots < 0.2)
+    if len(unsure):
+        dots[unsure] = _dot(path.normals[unsure], surface_normals_at(mesh, path.points[unsure]))
     bad = dots < 0
     if not np.any(bad):
         return

@@ -49,6 +49,7 @@ from camsmooth.smoothing.rows import (
     RowOptions,
     RowSolution,
     RowTask,
+    adopt_index,
     chunk_clearance,
     lift_along_normal,
     solve_row,
@@ -216,6 +217,7 @@ class ProgramSmoother:
         self.ctx = RowContext(machines=machines, cutter=cutter, vertices=index.vertices, faces=index.faces,
                               tolerance=self.tolerance, options=options.rows, key=uuid.uuid4().hex)
         self.pool = RowPool(self.ctx, workers=workers, dask=options.dask)
+        adopt_index(self.ctx, index)  # rows run here (serially) share this process's search structure
 
     def __enter__(self) -> ProgramSmoother:
         return self

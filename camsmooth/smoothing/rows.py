@@ -139,10 +139,11 @@ class _Worker:
     """Per-process state built once per program: the mesh's search structure and the NLPs by
     row length (both are pure caches: results never depend on them)."""
 
-    def __init__(self, ctx: RowContext) -> None:
+    def __init__(self, ctx: RowContext, index: MeshIndex | None = None) -> None:
         import trimesh
 
-        self.index = MeshIndex(trimesh.Trimesh(ctx.vertices, ctx.faces, process=False))
+        self.index = index if index is not None else MeshIndex(trimesh.Trimesh(ctx.vertices, ctx.faces,
+                                                                               process=False))
         self.nlps: dict[tuple[int, int, float], RowNLP] = {}
 
     def nlp(self, ctx: RowContext, machine: int, n: int, backoff: float) -> RowNLP:
@@ -158,14 +159,22 @@ class _Worker:
 _WORKERS: dict[tuple[str, int], _Worker] = {}
 
 
-def _worker(ctx: RowContext) -> _Worker:
+def _worker(ctx: RowContext, index: MeshIndex | None = None) -> _Worker:
+    """This process's state for the context's program (built at the first call; ``index``: a
+    search structure of the same mesh the caller already has)."""
     key = (ctx.key, 0 if ctx.key else id(ctx))
     w = _WORKERS.get(key)
     if w is None:
         if len(_WORKERS) >= 2:
             _WORKERS.pop(next(iter(_WORKERS)))
-        w = _WORKERS[key] = _Worker(ctx)
+        w = _WORKERS[key] = _Worker(ctx, index)
     return w
+
+
+def adopt_index(ctx: RowContext, index: MeshIndex) -> None:
+    """Let rows run in this process use ``index`` (built from the context's mesh) instead of
+    building their own."""
+    _worker(ctx, index)
 
 
 def tool_reach(cutter: ToroidalCutter) -> float:
