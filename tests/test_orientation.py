@@ -119,3 +119,33 @@ def test_mesh_quadric_agrees_with_trimesh_sphere():
     fr = local_frames(np.array([[0.0, 0.0, 1.0]]), np.array([[1.0, 0.0, 0.0]]))  # inside: normal up
     K = surface_curvature_tensors(v, p, fr, k=64)[0]
     np.testing.assert_allclose(np.linalg.eigvalsh(K), [1 / 25.0, 1 / 25.0], rtol=0.05)
+
+
+def test_min_gouge_free_lead_closed_form_against_bisection():
+    """The closed form against a bisection on the Loewner condition itself (the smallest
+    eigenvalue of K_cutter - K_surface), on random symmetric surface tensors and tilts."""
+    from camsmooth.smoothing.orientation import cutter_curvature_tensors
+
+    def min_eig(K):
+        a, b, c = K[..., 0, 0], K[..., 0, 1], K[..., 1, 1]
+        return 0.5 * (a + c) - np.sqrt(0.25 * (a - c) ** 2 + b ** 2)
+
+    rng = np.random.default_rng(0)
+    A = rng.normal(size=(4000, 2, 2)) * 0.1
+    K = 0.5 * (A + A.transpose(0, 2, 1))
+    tilt = rng.uniform(-1, 1, 4000)
+    lead_max, margin = np.radians(60), 1e-4
+    for R, r in ((4.0, 1.0), (0.0, 2.0), (3.0, 0.5)):
+        def ok(lead, R=R, r=r):
+            return min_eig(cutter_curvature_tensors(R, r, lead, tilt) - K) >= margin
+
+        lo, hi = np.zeros(len(K)), np.full(len(K), lead_max)
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            good = ok(mid)
+            lo, hi = np.where(good, lo, mid), np.where(good, mid, hi)
+        ref = np.where(ok(np.full(len(K), lead_max)), np.where(ok(np.zeros(len(K))), 0.0, hi), np.nan)
+        got = min_gouge_free_lead(R, r, K, tilt, lead_max, margin=margin)
+        assert np.array_equal(np.isnan(got), np.isnan(ref))
+        np.testing.assert_allclose(got[~np.isnan(ref)], ref[~np.isnan(ref)], atol=1e-12)
+        assert np.isnan(ref).any() or R == 0.0  # some points gouge at every lead: the NaN path is exercised

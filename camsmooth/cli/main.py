@@ -103,7 +103,7 @@ def run_smooth(args: argparse.Namespace) -> int:
         out_csv = tx.file(args.output)
         gcode = tx.file(args.gcode) if args.gcode else None
         report = tx.folder(args.report, replace=args.force, keep=inputs) if args.report else None
-        options = SmoothOptions(workers=args.workers, dask=args.dask)
+        options = SmoothOptions(workers=args.workers, dask=args.dask)  # workers None: all cores when worth it
         result = smooth(read_cc_csv(args.path), load_surface(args.surface), load_machine(args.machine), cutter,
                         feed=args.feed, lead_range=tuple(np.radians(lead)), tilt_range=tuple(np.radians(tilt)),
                         method=args.method,
@@ -189,7 +189,7 @@ def run_path(args: argparse.Namespace) -> int:
 
 def run_demo(args: argparse.Namespace) -> int:
     from camsmooth.geometry.cutter import ToroidalCutter
-    from camsmooth.smoothing.pipeline import smooth
+    from camsmooth.smoothing.pipeline import SmoothOptions, smooth
 
     samples = Path(args.samples) if args.samples else SAMPLES_DIR
     name = args.sample
@@ -212,7 +212,7 @@ def run_demo(args: argparse.Namespace) -> int:
 
         result = smooth(read_cc_csv(path), load_surface(mesh), None, cutter, feed=2000.0,
                         lead_range=tuple(np.radians([2.0, 20.0])), tilt_range=tuple(np.radians([-15.0, 15.0])),
-                        method="nlp", progress=not args.quiet)
+                        method="nlp", options=SmoothOptions(workers=None), progress=not args.quiet)
         _write_outputs(result, tmp_csv, tmp_nc, tmp_rep, 2000.0)
     if not args.quiet:
         _print_summary(result)

@@ -17,9 +17,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from camsmooth.errors import InfeasibleError, InputError
+from camsmooth.geometry.curvature import surface_curvature_tensors
 from camsmooth.geometry.frames import axis_from_lead_tilt, lead_tilt_from_axis, local_frames
 
 __all__ = ["axis_from_lead_tilt", "lead_tilt_from_axis", "local_frames", "initial_orientation",
@@ -27,50 +27,7 @@ __all__ = ["axis_from_lead_tilt", "lead_tilt_from_axis", "local_frames", "initia
 
 
 # ----------------------------------------------------------------------------------------------
-# curvature: surface (from the mesh) and cutter, in the local tangent basis (X_L, Y_L)
-def surface_curvature_tensors(vertices: np.ndarray, points: np.ndarray, frames: np.ndarray,
-                              k: int = 32, tree: cKDTree | None = None) -> np.ndarray:
-    """Curvature tensors (N, 2, 2) of the surface at CC points, in the basis (X_L, Y_L), from a
-    least-squares quadric h = c + d a + e b + (L a^2 + 2 M a b + N b^2) / 2 fitted to mesh
-    vertices around each point ((a, b, h): coordinates in the local frame); [[L, M], [M, N]] is
-    the second fundamental form.
-
-    Sign: positive where the surface bends toward the normal n (concave as seen from the tool),
-    the convention of camsmooth.geometry.surfaces. Exact for quadric patches. Anisotropic or one-sided
-    neighbourhoods (fine spacing along one parameter, surface boundaries) make the nearest
-    vertices collinear; the neighbourhood grows per point until the fit is well conditioned.
-    """
-    tree = tree if tree is not None else cKDTree(vertices)
-    points = np.asarray(points, float)
-    K = np.full((len(points), 2, 2), np.nan)
-    todo = np.arange(len(points))
-    while todo.size:
-        kk = min(k, len(vertices))
-        Kt, cond_ok = _quadric_fit(vertices, tree, points[todo], frames[todo], kk)
-        done = cond_ok | (kk >= len(vertices)) | (kk >= 4096)
-        K[todo[done]] = Kt[done]
-        todo = todo[~done]
-        k *= 2
-    return K
-
-
-def _quadric_fit(vertices: np.ndarray, tree: cKDTree, points: np.ndarray, frames: np.ndarray, k: int
-                 ) -> tuple[np.ndarray, np.ndarray]:
-    _, nb = tree.query(points, k=k)
-    loc = np.einsum("nkj,nji->nki", vertices[nb] - points[:, None, :], frames)
-    a, b, h = loc[..., 0], loc[..., 1], loc[..., 2]
-    scale = np.sqrt(np.mean(a**2 + b**2, axis=1, keepdims=True)) + 1e-12
-    a_s, b_s = a / scale, b / scale
-    phi = np.stack([np.ones_like(a_s), a_s, b_s, 0.5 * a_s**2, a_s * b_s, 0.5 * b_s**2], axis=-1)
-    ata = np.einsum("nki,nkj->nij", phi, phi) / k
-    ev = np.linalg.eigvalsh(ata)
-    cond_ok = ev[:, 0] > 1e-4 * ev[:, -1]
-    coef = np.linalg.solve(ata + 1e-12 * np.eye(6), np.einsum("nki,nk->ni", phi, h)[..., None] / k)[..., 0]
-    s2 = scale[:, 0] ** 2
-    L, M, N = coef[:, 3] / s2, coef[:, 4] / s2, coef[:, 5] / s2
-    return np.stack([np.stack([L, M], -1), np.stack([M, N], -1)], axis=-2), cond_ok
-
-
+# curvature of the cutter, in the local tangent basis (X_L, Y_L)
 def cutter_curvature_tensors(R: float, r: float, lead: np.ndarray, tilt: np.ndarray) -> np.ndarray:
     """Curvature tensors (..., 2, 2) of a toroidal cutter at its contact, in the basis (X_L, Y_L).
 
@@ -96,30 +53,41 @@ def _min_eig_2x2(K: np.ndarray) -> np.ndarray:
 
 
 def min_gouge_free_lead(R: float, r: float, K_surface: np.ndarray, tilt: np.ndarray,
-                        lead_max: float, margin: float = 1e-4, iterations: int = 40) -> np.ndarray:
+                        lead_max: float, margin: float = 1e-4) -> np.ndarray:
     """Smallest lead (rad) in [0, lead_max] with K_cutter(lead, tilt) - K_surface >= margin * I
     (no local gouge, METHODS section 1), for each point and tilt (arrays broadcast with
-    K_surface[..., 0, 0]). NaN where even lead_max gouges. The cutter tensor grows with lead in
-    the Loewner order, so the condition is monotone and bisection is exact.
+    K_surface[..., 0, 0]). NaN where even lead_max gouges.
+
+    Closed form: K_cutter = k_m m m^T + k p p^T with the meridian direction m, p perpendicular to
+    it, k_m = 1/r and k = sin(lead) / (R + r sin(lead)) (``cutter_curvature_tensors``), so
+    D(k) = C + k p p^T with C = k_m m m^T - K_surface - margin I fixed. For a 2 x 2 matrix
+    det(C + k p p^T) = det(C) + k m^T C m (the matrix determinant lemma; adj(C) acts as C on the
+    perpendicular direction m), and D(k) is positive semidefinite iff m^T C m >= 0 and
+    det(D(k)) >= 0 (the direction m keeps a non-negative Rayleigh quotient whatever k). So the
+    smallest k is max(0, -det(C) / m^T C m) when m^T C m > 0, and none otherwise; the lead
+    follows from sin(lead) = k R / (1 - k r) (k grows with the lead).
     """
     tilt = np.asarray(tilt, float)
     shape = np.broadcast_shapes(K_surface.shape[:-2], tilt.shape)
     K = np.broadcast_to(K_surface, shape + (2, 2))
-
-    def ok(lead: np.ndarray) -> np.ndarray:
-        return _min_eig_2x2(cutter_curvature_tensors(R, r, lead, tilt) - K) >= margin
-
-    lo = np.zeros(shape)
-    hi = np.full(shape, float(lead_max))
-    feasible_hi = ok(hi)
-    feasible_lo = ok(lo)
-    for _ in range(iterations):
-        mid = 0.5 * (lo + hi)
-        good = ok(mid)
-        hi = np.where(good, mid, hi)
-        lo = np.where(good, lo, mid)
-    out = np.where(feasible_lo, 0.0, hi)
-    return np.where(feasible_hi, out, np.nan)
+    c, s_ = np.cos(tilt), np.sin(tilt)
+    km = 1.0 / r
+    # C = km m m^T - K - margin I, m = (c, s)
+    c11 = km * c * c - K[..., 0, 0] - margin
+    c12 = km * c * s_ - K[..., 0, 1]
+    c22 = km * s_ * s_ - K[..., 1, 1] - margin
+    det = c11 * c22 - c12 * c12
+    mcm = c11 * c * c + 2 * c12 * c * s_ + c22 * s_ * s_
+    with np.errstate(divide="ignore", invalid="ignore"):
+        k_need = np.where(mcm > 0, np.maximum(0.0, -det / mcm), np.inf)
+    if R > 0:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            sin_lead = np.where(k_need * r < 1.0, k_need * R / (1.0 - k_need * r), np.inf)
+        lead = np.arcsin(np.clip(sin_lead, 0.0, 1.0))
+        lead = np.where(sin_lead > 1.0, np.inf, lead)
+    else:  # ball nose: the cross curvature is 1/r at every lead
+        lead = np.where(k_need <= km, 0.0, np.inf)
+    return np.where(lead <= lead_max, lead, np.nan)
 
 
 @dataclass

@@ -68,12 +68,14 @@ CHUNK = 20000  # poses per task of a whole-program clearance pass
 class SmoothOptions:
     """Tuning of the pipeline: spline_step (the spline method samples every spline_step-th CC
     point), the row solver's options, workers (processes; None: all cores for programs of
-    PARALLEL_MIN_POINTS points or more, else 1) and dask (None, "local" or a scheduler address:
-    rows on a Dask cluster)."""
+    PARALLEL_MIN_POINTS points or more, else 1; the command line's default) and dask (None,
+    "local" or a scheduler address: rows on a Dask cluster). More than one worker starts
+    processes the forkserver way: a script calling ``smooth`` then needs the usual
+    ``if __name__ == "__main__":`` guard, which is why the API's default is one."""
 
     spline_step: int = 10
     rows: RowOptions = field(default_factory=RowOptions)
-    workers: int | None = None
+    workers: int | None = 1
     dask: str | None = None
 
 
