@@ -321,6 +321,36 @@ def test_no_axis_limit_left_means_no_axis_constraint():
     assert plan.cycle_time == pytest.approx((L + 2 * L / (n - 1)) / (F / 60), rel=1e-6)
 
 
+def test_plan_method_on_a_pipeline_result():
+    """A real program (the wavy surface of test_pipeline, method 'none'): every row within every
+    limit and its feed, rows restart at t = 0, and the program's cycle is the sum of its rows."""
+    from camsmooth.geometry.cutter import ToroidalCutter
+    from camsmooth.geometry.paths import zigzag_path
+    from camsmooth.geometry.surfaces import Sinusoid, Surface, tessellate_to_tolerance
+    from camsmooth.smoothing.feed import plan_method
+    from camsmooth.smoothing.pipeline import smooth
+
+    surf = Sinusoid(amplitude=2.0, kx=2 * np.pi / 60.0, ky=2 * np.pi / 90.0, u_range=(0.0, 40.0),
+                    v_range=(0.0, 12.0))
+    path = zigzag_path(surf, stepover=4.0, spacing=0.6, feed=2000.0)
+    m = _machine(X={"amax": 400.0}, Y={"amax": 400.0}, Z={"amax": 400.0})
+    res = smooth(path, Surface(tessellate_to_tolerance(surf, chord_tol=2e-4), surf, "wavy"), m,
+                 ToroidalCutter(R=4.0, r=1.0), method="none")
+    r = res.methods["none"]
+    feed = res.inputs["feed"]
+    plan = plan_method(m, r, feed)
+    assert list(plan.row_ids) == list(dict.fromkeys(r.rows.tolist()))
+    q = np.column_stack([r.xyz, r.A, r.B])
+    for row in plan.row_ids:
+        k = r.rows == row
+        assert plan.t_plan[k][0] == 0.0
+        _check_limits(m, q[k], r.cl[k], feed[k], plan.t_plan[k])
+    assert plan.cycle_time == pytest.approx(plan.row_cycle_time.sum())
+    # the planned time is at least the time at the programmed feed along the tool tip
+    tip_time = sum(np.linalg.norm(np.diff(r.cl[r.rows == row], axis=0), axis=1).sum() for row in plan.row_ids)
+    assert plan.cycle_time > tip_time / (2000.0 / 60.0)
+
+
 # ----------------------------------------------------------------------------------------------
 # plot
 def test_feed_plot_draws_every_method_and_the_programmed_feed():

@@ -187,29 +187,47 @@ def finite_difference_rates(q: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, n
     return v, a, j
 
 
-def plan_row(machine: Machine, q: np.ndarray, tip: np.ndarray, feed: np.ndarray) -> RowPlan:
-    """Time-optimal time law of one row (module docstring): a pure function of the machine's axis
-    limits and the row's arrays.
+@dataclass(frozen=True, kw_only=True)
+class RowPath:
+    """One row's geometric path as the solver sees it (``row_path``): the distinct points
+    (``keep``; ``owner`` maps every input point to its distinct point), the scaled path parameter
+    s at the distinct points (``s_mm / scale``), the spline (toppra.SplineInterpolator) and its
+    derivatives dq = q'(s), ddq = q''(s) (M, 5), the tip's |p'(s)| (M,), the feed bound per point
+    (mm/s) and the s'^2 bounds from the tip feed (x_feed) and the five axes' limits."""
 
-    q: (N, 5) joints X Y Z (mm, the pivot) A B (rad); tip: (N, 3) tool tips (CL points, mm,
-    workpiece frame); feed: (N,) programmed tip feed (mm/min) of the block ending at each point
-    (feed[0] is not used). InputError for wrong shapes, non-finite values or a feed <= 0;
-    InfeasibleError if toppra fails on the row.
-    """
+    n: int
+    keep: np.ndarray
+    owner: np.ndarray
+    s: np.ndarray
+    scale: float
+    spline: toppra.SplineInterpolator
+    q: np.ndarray
+    dq: np.ndarray
+    ddq: np.ndarray
+    dp: np.ndarray
+    feed_bound: np.ndarray
+    x_feed: np.ndarray
+    vmax: np.ndarray
+    amax: np.ndarray
+    jmax: np.ndarray
+
+
+def row_path(machine: Machine, q: np.ndarray, tip: np.ndarray, feed: np.ndarray) -> RowPath | None:
+    """The row's geometric path and constraint data (module docstring); None when the row has
+    fewer than two distinct points. Arguments as in ``plan_row``."""
     q = np.asarray(q, float)
     tip = np.asarray(tip, float)
     feed = np.asarray(feed, float)
     _check_row(q, tip, feed)
-    n = len(q)
+    if len(q) < 2:
+        return None
     vmax, amax, jmax = axis_limits(machine)
     rot = np.linalg.norm(np.diff(q[:, 3:], axis=0), axis=1)
     ds_all = np.hypot(np.linalg.norm(np.diff(tip, axis=0), axis=1), ROTARY_LENGTH * rot)
     keep = np.r_[True, ds_all > REPEAT_DS]
-    # index of the kept point each original point maps to (a repeat takes its predecessor's)
-    owner = np.cumsum(keep) - 1
     m = int(keep.sum())
     if m < 2:
-        return _still(n)
+        return None
     qk, pk = q[keep], tip[keep]
     # feed of each kept segment: the block that ends at its end point
     fseg = feed[keep][1:] / 60.0
@@ -224,21 +242,26 @@ def plan_row(machine: Machine, q: np.ndarray, tip: np.ndarray, feed: np.ndarray)
     finite = sd_chord[np.isfinite(sd_chord)]
     scale = float(np.median(finite)) if finite.size else 1.0
     s = s_mm / scale
-
-    path = toppra.SplineInterpolator(s, qk)
-    dq, ddq = path(s, 1), path(s, 2)
+    spline = toppra.SplineInterpolator(s, qk)
     dp = np.linalg.norm(CubicSpline(s, pk).derivative()(s), axis=1)
     # s'^2 bound from the tip feed; where the tip stands still (|p'| ~ 0) the feed does not bind
     x_feed = np.full(m, _UNLIMITED)
     moving = dp * np.sqrt(_UNLIMITED) > fpt
     x_feed[moving] = (fpt[moving] / dp[moving]) ** 2
-    vl = np.minimum(vmax, _UNLIMITED)
-    al = np.minimum(amax, _UNLIMITED)
+    return RowPath(n=len(q), keep=keep, owner=np.cumsum(keep) - 1, s=s, scale=scale, spline=spline, q=qk,
+                   dq=spline(s, 1), ddq=spline(s, 2), dp=dp, feed_bound=fpt, x_feed=x_feed,
+                   vmax=np.minimum(vmax, _UNLIMITED), amax=np.minimum(amax, _UNLIMITED), jmax=jmax)
+
+
+def toppra_speed(rp: RowPath) -> np.ndarray:
+    """s' (scaled parameter per s) at the gridpoints from TOPP-RA (module docstring), rest to rest.
+    InfeasibleError if toppra finds no parameterisation."""
+    vl, al = rp.vmax, rp.amax
     constraints = [tc.JointVelocityConstraint(np.column_stack([-vl, vl])),
                    tc.JointAccelerationConstraint(np.column_stack([-al, al]),
                                                   discretization_scheme=tc.DiscretizationType.Interpolation),
-                   _PathSpeedBound(x_feed, 5)]
-    algo = toppra.algorithm.TOPPRA(constraints, path, gridpoints=s, solver_wrapper="seidel",
+                   _PathSpeedBound(rp.x_feed, 5)]
+    algo = toppra.algorithm.TOPPRA(constraints, rp.spline, gridpoints=rp.s, solver_wrapper="seidel",
                                    parametrizer="ParametrizeConstAccel")
     level = _log.level
     _log.setLevel(logging.ERROR)  # toppra logs recoverable retries as warnings
@@ -249,6 +272,13 @@ def plan_row(machine: Machine, q: np.ndarray, tip: np.ndarray, feed: np.ndarray)
     if sd is None or not np.all(np.isfinite(sd)):
         raise InfeasibleError("feed planning: toppra found no time law for this row (the path is not controllable "
                               "under the axis limits)")
+    return np.asarray(sd, float)
+
+
+def plan_from_speed(rp: RowPath, sd: np.ndarray) -> RowPlan:
+    """The RowPlan of path speeds s' at the gridpoints (constant s'' per segment): times, tip
+    feed, binding constraints and the jerk report."""
+    s, dq, ddq, dp, fpt, vl, al = rp.s, rp.dq, rp.ddq, rp.dp, rp.feed_bound, rp.vmax, rp.amax
     x = sd ** 2
     dsc = np.diff(s)
     u = np.diff(x) / (2.0 * dsc)  # s'' per segment, consistent with t below
@@ -256,12 +286,11 @@ def plan_row(machine: Machine, q: np.ndarray, tip: np.ndarray, feed: np.ndarray)
     t = np.r_[0.0, np.cumsum(dt)]
 
     # which constraint binds: ratio of value to limit at each end of each segment
-    sd_pt = sd[:, None]
     r_feed = np.where(fpt > 0, dp * sd / fpt, 0.0)
-    r_vel = np.abs(dq) * sd_pt / vl
+    r_vel = np.abs(dq) * sd[:, None] / vl
     acc0 = np.abs(dq[:-1] * u[:, None] + ddq[:-1] * x[:-1, None]) / al
     acc1 = np.abs(dq[1:] * u[:, None] + ddq[1:] * x[1:, None]) / al
-    r_acc_pt = np.zeros((m, 5))
+    r_acc_pt = np.zeros_like(r_vel)
     r_acc_pt[:-1] = acc0
     r_acc_pt[1:] = np.maximum(r_acc_pt[1:], acc1)
     ratios_pt = np.column_stack([r_feed, r_vel, r_acc_pt])
@@ -271,12 +300,28 @@ def plan_row(machine: Machine, q: np.ndarray, tip: np.ndarray, feed: np.ndarray)
     limit_time = np.bincount(np.argmax(ratios_seg, axis=1), weights=dt, minlength=len(CONSTRAINTS))
 
     jerk_peak, jerk_over = np.zeros(5), np.zeros(5, np.int64)
-    if m >= 4:
-        _, _, jerk = finite_difference_rates(qk, t)
+    if len(s) >= 4:
+        _, _, jerk = finite_difference_rates(rp.q, t)
         jerk_peak = np.abs(jerk).max(axis=0)
-        jerk_over = np.sum(np.abs(jerk) > jmax, axis=0)
-    return RowPlan(t_plan=t[owner], feed_plan=60.0 * dp[owner] * sd[owner], limit=limit_k[owner],
-                   limit_time=limit_time, cycle_time=float(t[-1]), jerk_peak=jerk_peak, jerk_over=jerk_over)
+        jerk_over = np.sum(np.abs(jerk) > rp.jmax, axis=0)
+    o = rp.owner
+    return RowPlan(t_plan=t[o], feed_plan=60.0 * dp[o] * sd[o], limit=limit_k[o], limit_time=limit_time,
+                   cycle_time=float(t[-1]), jerk_peak=jerk_peak, jerk_over=jerk_over)
+
+
+def plan_row(machine: Machine, q: np.ndarray, tip: np.ndarray, feed: np.ndarray) -> RowPlan:
+    """Time-optimal time law of one row (module docstring): a pure function of the machine's axis
+    limits and the row's arrays.
+
+    q: (N, 5) joints X Y Z (mm, the pivot) A B (rad); tip: (N, 3) tool tips (CL points, mm,
+    workpiece frame); feed: (N,) programmed tip feed (mm/min) of the block ending at each point
+    (feed[0] is not used). InputError for wrong shapes, non-finite values or a feed <= 0;
+    InfeasibleError if toppra fails on the row.
+    """
+    rp = row_path(machine, q, tip, feed)
+    if rp is None:
+        return _still(len(q))
+    return plan_from_speed(rp, toppra_speed(rp))
 
 
 def combine(row_ids: Sequence[int], plans: Sequence[RowPlan]) -> FeedPlan:
