@@ -27,8 +27,17 @@ segment's constant s'' is checked at both of its ends) for the five axes, and th
 velocity bound on the path parameter (``_PathSpeedBound``: s'^2 <= (F / |p'(s)|)^2 at each
 gridpoint, the same form toppra gives a joint velocity limit), seidel LP solver. Between
 gridpoints s'' is constant, so s'^2 is linear in s and t_(i+1) - t_i = 2 ds / (s'_i + s'_(i+1)).
-s is scaled so that s'^2 is about 1 at the velocity bound: toppra's solvers work with |x| below
-about 1e4 and failed (uncontrollable) on unscaled mm rows at 100k points.
+s is scaled so that s'^2 is about 1 at the velocity bound: toppra's tolerances (TINY = 1e-8,
+SMALL = 1e-5, MAXX = 1e4) assume x = s'^2 of order 1, and an unscaled (mm) 100k-point row failed
+as "uncontrollable" in our runs. toppra's forward pass keeps each s'^2 0.01% below the reachable
+one, so a binding limit is met at 0.99995 of its value.
+
+Why toppra (benchmarks/bench_feed.py, "solvers"): a hand-written forward-backward pass over the
+same gridpoints and discretisation (numba) gave the same cycle times to 1e-8 and the same error
+against the closed-form trapezoid, 40-60x faster in the solver (about 1 against 36-54 us per
+point); but with toppra planning all three methods of a shipped sample costs 0.6-6% of smoothing
+it and scales linearly, so the maintained package stays and the hand-written pass lives in the
+benchmark only.
 
 Jerk. TOPP-RA is a second-order method: s'' switches instantly, so the axis jerk is unbounded in
 the continuous model. ``jmax`` is not enforced; each plan reports the finite-difference jerk of
@@ -52,6 +61,7 @@ import toppra.constraint as tc
 from scipy.interpolate import CubicSpline
 
 from camsmooth.errors import InfeasibleError, InputError
+from camsmooth.geometry.paths import _row_runs
 from camsmooth.machine.kinematics import Machine
 
 #: joint order of ``q`` (X Y Z mm: the pivot; A B rad)
@@ -342,12 +352,9 @@ def combine(row_ids: Sequence[int], plans: Sequence[RowPlan]) -> FeedPlan:
 
 
 def row_slices(rows: np.ndarray) -> list[slice]:
-    """Slices of the contiguous runs of equal row ids."""
-    rows = np.asarray(rows)
-    if len(rows) == 0:
-        return []
-    starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
-    ends = np.r_[starts[1:], len(rows)]
+    """Slices of the contiguous runs of equal row ids (``geometry.paths._row_runs``)."""
+    starts, _ = _row_runs(rows)
+    ends = np.r_[starts[1:], len(np.asarray(rows).reshape(-1))]
     return [slice(int(a), int(b)) for a, b in zip(starts, ends, strict=True)]
 
 
