@@ -92,6 +92,8 @@ def bench_samples(names: list[str]) -> None:
             if axes_only:
                 lt[CONSTRAINTS.index("feed")] = -1.0
             k = int(np.argmax(lt))
+            if lt[k] <= 0:
+                return "none"
             return f"{CONSTRAINTS[k]} {100 * p.limit_time[k] / p.cycle_time:.0f}%"
 
         limits = " | ".join(share(plans[m]) for m in METHODS)
