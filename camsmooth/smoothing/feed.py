@@ -34,8 +34,8 @@ one, so a binding limit is met at 0.99995 of its value.
 
 Why toppra (benchmarks/bench_feed.py, "solvers"): a hand-written forward-backward pass over the
 same gridpoints and discretisation (numba) gave the same cycle times to 1e-8 and the same error
-against the closed-form trapezoid, 40-60x faster in the solver (about 1 against 36-54 us per
-point); but with toppra planning all three methods of a shipped sample costs 0.6-6% of smoothing
+against the closed-form trapezoid, 25-60x faster in the solver (about 1 against 23-54 us per
+point); but with toppra planning all three methods of a shipped sample costs 0.6-10% of smoothing
 it and scales linearly, so the maintained package stays and the hand-written pass lives in the
 benchmark only.
 
