@@ -197,13 +197,15 @@ class Chain:
 # machine file and the AB head
 @dataclass(frozen=True)
 class AxisLimits:
-    """Travel (min, max), velocity vmax and acceleration amax of one axis. Rotary axes: rad,
-    rad/s, rad/s^2; linear axes: mm (vmax/amax unused, may be inf)."""
+    """Travel (min, max), velocity vmax, acceleration amax and jerk jmax of one axis. Rotary axes:
+    rad, rad/s, rad/s^2, rad/s^3; linear axes: mm, mm/s, mm/s^2, mm/s^3. inf = no limit (travel
+    of a linear axis whose machine file has no table; jmax when none is given)."""
 
     min: float
     max: float
     vmax: float = float("inf")
     amax: float = float("inf")
+    jmax: float = float("inf")
 
 
 #: controller dialects of the G-code writer (camsmooth.io.gcode)
@@ -373,9 +375,22 @@ def ab_head_chain(pivot: float) -> Chain:
     return Chain(joints, home)
 
 
+#: dynamics of the linear axes when a machine file does not give them (mm/s, mm/s^2, mm/s^3): a
+#: mid-size five-axis machining centre, not a datasheet. 500 mm/s = 30 m/min, the low end of the
+#: 30-60 m/min rapid traverse such machines list; 3000 mm/s^2 (about 0.3 g), below the 5-10 m/s^2
+#: axis accelerations listed for rapids, as a contouring value; 50 m/s^3, the order of a CNC's
+#: path jerk setting (e.g. Siemens MD32431 MAX_AX_JERK is set in m/s^3). Give your machine's values.
+LINEAR_DEFAULTS = {"vmax": 500.0, "amax": 3000.0, "jmax": 50000.0}
+#: jerk of the rotary axes when not given (deg/s^3): reaches the default amax of 300 deg/s^2 in
+#: 0.06 s, the same ramp as the linear default (3000 / 50000 s)
+ROTARY_JMAX_DEFAULT = 5000.0
+
 DEFAULT_MACHINE_TOML = """\
 # camsmooth default machine: AB swivel head (METHODS.md section 1).
-# Angles in degrees, velocities deg/s, accelerations deg/s^2, lengths mm.
+# Angles in degrees, velocities deg/s, accelerations deg/s^2, jerks deg/s^3; lengths mm, mm/s,
+# mm/s^2, mm/s^3. Linear axes: vmax, amax, jmax optional (defaults as below); rotary axes: jmax
+# optional. The feed planner (camsmooth.smoothing.feed) keeps every axis within vmax and amax and
+# reports jmax (it does not enforce it).
 [machine]
 name = "generic AB head"
 kind = "AB-head"
@@ -386,24 +401,36 @@ min = -100.0
 max = 100.0
 vmax = 60.0
 amax = 300.0
+jmax = 5000.0
 
 [axis.B]
 min = -100.0
 max = 100.0
 vmax = 60.0
 amax = 300.0
+jmax = 5000.0
 
+# X Y Z carry the head's pivot (pivot = tool tip + pivot length * tool axis)
 [axis.X]
 min = -1000.0
 max = 1000.0
+vmax = 500.0
+amax = 3000.0
+jmax = 50000.0
 
 [axis.Y]
 min = -1000.0
 max = 1000.0
+vmax = 500.0
+amax = 3000.0
+jmax = 50000.0
 
 [axis.Z]
 min = -1000.0
 max = 1000.0
+vmax = 500.0
+amax = 3000.0
+jmax = 50000.0
 
 # G-code post (camsmooth.io.gcode): dialect = "generic" | "linuxcnc" | "fanuc" | "heidenhain" |
 # "siemens"; mode = "machine" (joint positions, inverse-time feed G93) | "tcp" (tool tip and A B
@@ -460,7 +487,9 @@ def machine_from_dict(data: Mapping[str, Any], source: str = "<machine>") -> Mac
 
     InputError naming ``source`` and the key for: a missing or wrongly typed table or key (a value
     where a table belongs, a string or boolean where a number belongs), non-finite numbers, an
-    unsupported kind, pivot < 0, min >= max, vmax or amax <= 0, unknown axis tables.
+    unsupported kind, pivot < 0, min >= max, vmax, amax or jmax <= 0, unknown axis tables or keys.
+    X, Y, Z: vmax, amax, jmax default to LINEAR_DEFAULTS and a missing table to unlimited travel
+    with those dynamics; A, B: jmax defaults to ROTARY_JMAX_DEFAULT.
     """
     from camsmooth.errors import InputError
 
@@ -483,23 +512,48 @@ def machine_from_dict(data: Mapping[str, Any], source: str = "<machine>") -> Mac
     limits: dict[str, AxisLimits] = {}
     for ax in ("A", "B"):
         t = _table(axes, ax, f"axis.{ax}", source)
+        _known_keys(t, ax, source)
         vals = {k: _number(t, k, f"axis.{ax}", source) for k in ("min", "max", "vmax", "amax")}
+        vals["jmax"] = _number(t, "jmax", f"axis.{ax}", source) if "jmax" in t else ROTARY_JMAX_DEFAULT
         if vals["min"] >= vals["max"]:
             raise InputError(f"[axis.{ax}] min {vals['min']:g} must be below max {vals['max']:g}", file=source)
-        for k in ("vmax", "amax"):
-            if vals[k] <= 0:
-                raise InputError(f"[axis.{ax}] {k} must be > 0, got {vals[k]:g}", file=source)
-        limits[ax] = AxisLimits(*(np.radians(vals[k]) for k in ("min", "max", "vmax", "amax")))
+        _positive(vals, ax, source)
+        limits[ax] = AxisLimits(*(float(np.radians(vals[k])) for k in ("min", "max", "vmax", "amax", "jmax")))
     for ax in ("X", "Y", "Z"):
         t = _table(axes, ax, f"axis.{ax}", source, required=False)
         if t is None:
+            limits[ax] = AxisLimits(-np.inf, np.inf, **LINEAR_DEFAULTS)
             continue
+        _known_keys(t, ax, source)
         lo, hi = _number(t, "min", f"axis.{ax}", source), _number(t, "max", f"axis.{ax}", source)
         if lo >= hi:
             raise InputError(f"[axis.{ax}] min {lo:g} must be below max {hi:g}", file=source)
-        limits[ax] = AxisLimits(lo, hi)
+        vals = {k: _number(t, k, f"axis.{ax}", source) if k in t else d for k, d in LINEAR_DEFAULTS.items()}
+        _positive(vals, ax, source)
+        limits[ax] = AxisLimits(lo, hi, **vals)
     return Machine(name, kind, pivot, ab_head_chain(pivot), limits,
                    post_from_dict(data.get("post", {}), source))
+
+
+_AXIS_KEYS = ("min", "max", "vmax", "amax", "jmax")
+
+
+def _known_keys(table: Mapping[str, Any], ax: str, source: str) -> None:
+    """InputError for a key an [axis.*] table does not know (a misspelt limit would be ignored)."""
+    from camsmooth.errors import InputError
+
+    unknown = sorted(set(table) - set(_AXIS_KEYS))
+    if unknown:
+        raise InputError(f"unknown key(s) {', '.join(unknown)} in [axis.{ax}] (known: {', '.join(_AXIS_KEYS)})",
+                         file=source)
+
+
+def _positive(vals: Mapping[str, float], ax: str, source: str) -> None:
+    from camsmooth.errors import InputError
+
+    for k in ("vmax", "amax", "jmax"):
+        if k in vals and vals[k] <= 0:
+            raise InputError(f"[axis.{ax}] {k} must be > 0, got {vals[k]:g}", file=source)
 
 
 def post_from_dict(table: Any, source: str = "<machine>") -> PostConfig:
