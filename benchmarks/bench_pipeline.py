@@ -194,8 +194,8 @@ def bench_row10k(repeats: int = 3) -> bool:
     with tempfile.TemporaryDirectory() as tmp:
         d = Path(tmp)
         row, stl = _gentle_row(d)
-        common = ["smooth", str(row), "--surface", str(stl), "--cutter-radius", "4", "--corner-radius", "1", "--lead", "2:12",
-                  "--tilt", "-5:5", "--quiet", "-o", str(d / "out.csv")]
+        common = ["smooth", str(row), "--surface", str(stl), "--cutter-radius", "4", "--corner-radius", "1",
+                  "--lead", "2:12", "--tilt", "-5:5", "--quiet", "-o", str(d / "out.csv")]
         t_none = [_cli([*common, "--method", "none"]) for _ in range(repeats)]
         t_nlp = [_cli([*common, "--method", "nlp"]) for _ in range(repeats)]
         # the naive formulation on the same row, from the same warm start (the spline method's)
