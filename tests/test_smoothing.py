@@ -168,3 +168,28 @@ def test_screening_falls_back_to_every_row(binding_row, monkeypatch):
     assert st.success and st.rows == st.total_rows and st.rounds == 2
     assert _all_rows_feasible(nlp, t, fr, lw, tw, A, B)
     assert gamma(m.tool_axis_np(A, B), t) == pytest.approx(g_full, rel=1e-9)
+
+
+def test_program_rates_equal_the_row_by_row_definitions():
+    """The whole-program differences against fd_operators and rates row by row, on rows of uneven
+    lengths and steps (3 points being the shortest row)."""
+    rng = np.random.default_rng(0)
+    lens = [5, 3, 17, 40]
+    rows = np.concatenate([np.full(k, 10 + i) for i, k in enumerate(lens)])
+    t = np.concatenate([np.cumsum(rng.uniform(0.01, 0.03, k)) for k in lens])
+    q = rng.normal(size=(len(t), 3))
+    pr = smoothing.program_rates(q, t, rows)
+    start = 0
+    total = 0.0
+    for k in lens:
+        sl = slice(start, start + k)
+        start += k
+        v, a = smoothing.rates(q[sl], t[sl])
+        np.testing.assert_allclose(pr.vel[sl], v, rtol=1e-12)
+        np.testing.assert_allclose(pr.acc[sl], a, rtol=1e-12)
+        D1, D2 = fd_operators(t[sl])
+        np.testing.assert_allclose(pr.seg_vel[(pr.seg >= sl.start) & (pr.seg < sl.stop - 1)], D1 @ q[sl], rtol=1e-12)
+        np.testing.assert_allclose(pr.sec[(pr.mid > sl.start) & (pr.mid < sl.stop - 1)], D2 @ q[sl], rtol=1e-12)
+        total += gamma(q[sl], t[sl])
+    assert len(pr.seg_vel) == len(t) - len(lens) and len(pr.sec) == len(t) - 2 * len(lens)
+    np.testing.assert_allclose(np.sum(pr.sec ** 2), total, rtol=1e-12)

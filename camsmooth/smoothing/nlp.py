@@ -76,6 +76,52 @@ def rates(q: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return vel, acc
 
 
+@dataclass(frozen=True)
+class ProgramRates:
+    """Finite differences of a quantity over a whole program of rows at once (the definitions of
+    this module, row by row, without a Python loop over rows): seg_vel (M,) the segment velocities
+    of the segments inside rows and seg (M,) the index of each segment's first point; sec (K,) the
+    second differences at interior points and mid (K,) their point indices; vel, acc (N, ...) per
+    point as ``rates`` gives them."""
+
+    seg_vel: np.ndarray
+    seg: np.ndarray
+    sec: np.ndarray
+    mid: np.ndarray
+    vel: np.ndarray
+    acc: np.ndarray
+
+
+def program_rates(q: np.ndarray, t: np.ndarray, rows: np.ndarray) -> ProgramRates:
+    """Velocities and second differences of q(t) (N or (N, k)) over a program whose rows are runs
+    of equal ``rows`` (each at least 3 points), vectorised over the whole program; per point,
+    velocity as np.gradient (second order inside a row, one-sided at its ends) and acceleration
+    as the three-point second difference (a row's end points repeat their neighbour)."""
+    q = np.asarray(q, float)
+    t = np.asarray(t, float)
+    rows = np.asarray(rows)
+    same = rows[1:] == rows[:-1]
+    h = np.diff(t)
+    shape = (-1,) + (1,) * (q.ndim - 1)
+    seg = np.flatnonzero(same)
+    seg_vel = (q[seg + 1] - q[seg]) / h[seg].reshape(shape)
+    mid = np.flatnonzero(same[:-1] & same[1:]) + 1  # i with i-1, i, i+1 in one row
+    hl, hr = h[mid - 1].reshape(shape), h[mid].reshape(shape)
+    vl, vr = (q[mid] - q[mid - 1]) / hl, (q[mid + 1] - q[mid]) / hr
+    sec = 2 * (vr - vl) / (hl + hr)
+    vel = np.empty_like(q)
+    vel[mid] = (hl * vr + hr * vl) / (hl + hr)  # np.gradient's second-order interior formula
+    start = np.flatnonzero(np.r_[True, ~same])
+    end = np.flatnonzero(np.r_[~same, True])
+    vel[start] = (q[start + 1] - q[start]) / h[start].reshape(shape)
+    vel[end] = (q[end] - q[end - 1]) / h[end - 1].reshape(shape)
+    acc = np.empty_like(q)
+    acc[mid] = sec
+    acc[start] = acc[start + 1]
+    acc[end] = acc[end - 1]
+    return ProgramRates(seg_vel, seg, sec, mid, vel, acc)
+
+
 def compound_acceleration(T: np.ndarray, t: np.ndarray) -> np.ndarray:
     """|d^2 T / dt^2| per point (1/s^2) for unit axes T (N, 3) (end points repeat their
     neighbour)."""

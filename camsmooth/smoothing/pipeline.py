@@ -34,7 +34,7 @@ from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl
 from camsmooth.geometry.paths import CCPath, check_contact_with_mesh, check_normals_against_mesh, estimate_feed_dirs
 from camsmooth.geometry.surfaces import Surface, chord_deviation
 from camsmooth.machine.kinematics import Machine, load_machine
-from camsmooth.smoothing.nlp import fd_operators, gamma, rates, spline_row
+from camsmooth.smoothing.nlp import program_rates, spline_row
 from camsmooth.smoothing.orientation import (
     Orientation,
     initial_orientation,
@@ -343,15 +343,10 @@ class ProgramSmoother:
             tip = self.real.tool_pose_np(A, B, *xyz.T)[0] if modelled else cl
             delta = self.clearance(tip, T)
         lead, tilt = lead_tilt_from_axis(T, p.frames)
-        n = len(A)
-        A_vel, B_vel, A_acc, B_acc, comp = (np.empty(n) for _ in range(5))
-        g = 0.0
-        for s in p.slices:
-            A_vel[s], A_acc[s] = rates(A[s], p.t[s])
-            B_vel[s], B_acc[s] = rates(B[s], p.t[s])
-            _, acc = rates(T[s], p.t[s])
-            comp[s] = np.linalg.norm(acc, axis=1)
-            g += gamma(T[s], p.t[s])
+        ra, rb, rt = (program_rates(q, p.t, p.path.rows) for q in (A, B, T))
+        g = float(np.sum(rt.sec ** 2))
+        A_vel, A_acc, B_vel, B_acc = ra.vel, ra.acc, rb.vel, rb.acc
+        comp = np.linalg.norm(rt.acc, axis=1)
         res = MethodResult(method=method, rows=p.path.rows, idx=p.idx, t=p.t, cc=cc, normals=nrm, cl=cl, axis=T,
                            lead=lead, tilt=tilt, A=A, B=B, A_vel=A_vel, B_vel=B_vel, A_acc=A_acc, B_acc=B_acc,
                            xyz=xyz, delta=delta, lift=lift,
@@ -383,13 +378,9 @@ class ProgramSmoother:
         for name, q in (("A", r.A), ("B", r.B)):
             L = lim[name]
             viol[f"{name} travel"] = int(np.sum((q > L.max + 1e-9) | (q < L.min - 1e-9)))
-            nv = na = 0
-            for s in p.slices:
-                D1, D2 = fd_operators(p.t[s])
-                nv += int(np.sum(np.abs(D1 @ q[s]) > L.vmax * (1 + 1e-9)))
-                na += int(np.sum(np.abs(D2 @ q[s]) > L.amax * (1 + 1e-9)))
-            viol[f"{name} velocity"] = nv
-            viol[f"{name} acceleration"] = na
+            rq = program_rates(q, p.t, p.path.rows)
+            viol[f"{name} velocity"] = int(np.sum(np.abs(rq.seg_vel) > L.vmax * (1 + 1e-9)))
+            viol[f"{name} acceleration"] = int(np.sum(np.abs(rq.sec) > L.amax * (1 + 1e-9)))
         tol = 1e-6
         viol["lead window"] = int(np.sum((r.lead < r.lead_window[:, 0] - tol) | (r.lead > r.lead_window[:, 1] + tol)))
         viol["tilt window"] = int(np.sum((r.tilt < r.tilt_window[:, 0] - tol) | (r.tilt > r.tilt_window[:, 1] + tol)))
