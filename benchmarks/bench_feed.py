@@ -15,12 +15,13 @@ Smoothing time = the wall time of ``smooth`` (it uses the machine's cores for ro
 
 scaling: one long synthetic row (a wave with rotary motion, 0.1 mm spacing) planned whole.
 
-solvers: the same gridpoints, spline and constraints solved by toppra (TOPP-RA, seidel LPs,
-Python loop over stages) and by ``forward_backward`` below (the same discretisation: backward
-pass of the largest controllable s'^2, forward pass of the largest s'', each stage a 2-variable
-LP solved exactly by pairing bounds; numba), on (a) a straight line whose exact time law is the
-trapezoid (error of the cycle time and of t at the points) and (b) the wave row (agreement
-between the two, limits from finite differences on the points).
+solvers: the same gridpoints, spline and constraints solved by the toppra package (TOPP-RA,
+seidel LPs, Python loop over stages: benchmarks/toppra_reference.py) and by the planner's own
+``forward_backward`` (the same discretisation: backward pass of the largest controllable s'^2,
+forward pass of the largest s'', each stage a 2-variable LP solved exactly by eliminating s'';
+numba), on (a) a straight line whose exact time law is the trapezoid (error of the cycle time and
+of t at the points) and (b) the wave row (agreement between the two, limits from finite
+differences on the points).
 """
 
 from __future__ import annotations
@@ -30,11 +31,13 @@ import sys
 import time
 from pathlib import Path
 
-import numba
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from toppra_reference import toppra_speed  # noqa: E402
 
 from camsmooth.geometry.cutter import ToroidalCutter  # noqa: E402
 from camsmooth.geometry.surfaces import load_surface  # noqa: E402
@@ -43,12 +46,13 @@ from camsmooth.machine.kinematics import load_machine  # noqa: E402
 from camsmooth.smoothing.feed import (  # noqa: E402
     AXES,
     CONSTRAINTS,
+    _xmax,
     finite_difference_rates,
+    forward_backward,
     plan_from_speed,
     plan_method,
     plan_row,
     row_path,
-    toppra_speed,
 )
 from camsmooth.smoothing.pipeline import smooth  # noqa: E402
 
@@ -137,78 +141,9 @@ def bench_scaling(sizes: list[int]) -> None:
 
 # ----------------------------------------------------------------------------------------------
 # the hand-written alternative: same discretisation as toppra's TOPP-RA (interpolation scheme)
-@numba.njit(cache=True)
-def _stage_rows(i, ds, dq, ddq, amax, k_next):
-    """Rows c u + d x <= e of stage i (u = s'' on segment i, x = s'^2 at point i): every axis's
-    acceleration at both ends of the segment (x_(i+1) = x + 2 ds u) and 0 <= x_(i+1) <= k_next."""
-    nj = dq.shape[1]
-    c = np.empty(4 * nj + 2)
-    d = np.empty(4 * nj + 2)
-    e = np.empty(4 * nj + 2)
-    r = 0
-    for j in range(nj):
-        for end in range(2):
-            if end == 0:
-                cj, dj = dq[i, j], ddq[i, j]
-            else:
-                cj, dj = dq[i + 1, j] + 2 * ds * ddq[i + 1, j], ddq[i + 1, j]
-            c[r], d[r], e[r] = cj, dj, amax[j]
-            c[r + 1], d[r + 1], e[r + 1] = -cj, -dj, amax[j]
-            r += 2
-    c[r], d[r], e[r] = 2 * ds, 1.0, k_next
-    c[r + 1], d[r + 1], e[r + 1] = -2 * ds, -1.0, 0.0
-    return c, d, e
-
-
-@numba.njit(cache=True)
-def forward_backward(s, dq, ddq, amax, xmax):
-    """s' at the gridpoints, rest to rest: backward pass (largest controllable x per stage: the
-    2-variable LP max x s.t. rows, solved by pairing every lower bound on u with every upper one),
-    then forward pass (largest u at the reached x)."""
-    m = len(s)
-    K = np.empty(m)
-    K[m - 1] = 0.0
-    for i in range(m - 2, -1, -1):
-        ds = s[i + 1] - s[i]
-        c, d, e = _stage_rows(i, ds, dq, ddq, amax, K[i + 1])
-        xhi = xmax[i]
-        for a in range(len(c)):
-            if c[a] == 0.0 and d[a] > 0.0:
-                xhi = min(xhi, e[a] / d[a])
-        for a in range(len(c)):  # lower bounds on u: c < 0
-            if c[a] >= 0.0:
-                continue
-            pa, ra = e[a] / c[a], -d[a] / c[a]
-            for b in range(len(c)):  # upper bounds: c > 0
-                if c[b] <= 0.0:
-                    continue
-                pb, rb = e[b] / c[b], -d[b] / c[b]
-                den = ra - rb
-                if den > 1e-300:
-                    xhi = min(xhi, (pb - pa) / den)
-        K[i] = max(xhi, 0.0)
-    x = np.empty(m)
-    x[0] = 0.0
-    for i in range(m - 1):
-        ds = s[i + 1] - s[i]
-        c, d, e = _stage_rows(i, ds, dq, ddq, amax, K[i + 1])
-        uhi = np.inf
-        for a in range(len(c)):
-            if c[a] > 0.0:
-                uhi = min(uhi, (e[a] - d[a] * x[i]) / c[a])
-        x[i + 1] = min(max(x[i] + 2 * ds * uhi, 0.0), K[i + 1])
-    return np.sqrt(x)
-
-
-def _xmax(rp) -> np.ndarray:
-    """s'^2 bound per gridpoint from the tip feed and every axis's velocity limit."""
-    with np.errstate(divide="ignore", over="ignore"):
-        return np.minimum(rp.x_feed, np.min((rp.vmax / np.abs(rp.dq)) ** 2, axis=1))
-
-
-def plan_row_fb(machine, q, tip, feed):
+def plan_row_toppra(machine, q, tip, feed):
     rp = row_path(machine, q, tip, feed)
-    return plan_from_speed(rp, forward_backward(rp.s, rp.dq, rp.ddq, rp.amax, _xmax(rp)))
+    return plan_from_speed(rp, toppra_speed(rp))
 
 
 def bench_solvers(sizes: list[int]) -> None:
@@ -225,7 +160,7 @@ def bench_solvers(sizes: list[int]) -> None:
     sa = v * v / (2 * a)
     exact = np.where(x < sa, np.sqrt(2 * x / a), np.where(x > L - sa, L / v + v / a - np.sqrt(2 * (L - x) / a),
                                                          v / a + (x - sa) / v))
-    for label, fn in (("toppra", plan_row), ("forward-backward", plan_row_fb)):
+    for label, fn in (("toppra", plan_row_toppra), ("forward-backward", plan_row)):
         p = fn(machine, q, tip, np.full(n, F))
         print(f"  trapezoid (exact cycle {L / v + v / a:.6f} s), {label:>16s}: cycle error "
               f"{p.cycle_time - (L / v + v / a):+.2e} s, max |t - exact| {np.abs(p.t_plan - exact).max():.2e} s")

@@ -373,3 +373,23 @@ def test_feed_plot_draws_every_method_and_the_programmed_feed():
     L = path_length(tip, rows)
     assert L[75] == L[74] and L[-1] == pytest.approx(np.linalg.norm(np.diff(tip, axis=0), axis=1).sum()
                                                      - np.linalg.norm(tip[75] - tip[74]))
+
+
+@pytest.mark.parametrize("n", [50, 400])
+def test_planner_agrees_with_the_toppra_package(n):
+    """The planner's forward-backward pass against toppra's TOPP-RA on the same gridpoints,
+    spline and constraints (benchmarks/toppra_reference.py), on a row whose rotary axes swing and
+    whose feed changes: the same speed at every gridpoint, the same cycle time."""
+    from benchmarks.bench_feed import wave_row
+    from benchmarks.toppra_reference import toppra_speed
+    from camsmooth.smoothing.feed import _xmax, forward_backward, plan_from_speed, row_path
+
+    m = load_machine()
+    q, tip, feed = wave_row(n)
+    feed = feed * (1.0 + 0.5 * np.sin(np.arange(n) / 7.0))
+    rp = row_path(m, q, tip, feed)
+    ours = forward_backward(rp.s, rp.dq, rp.ddq, rp.amax, _xmax(rp))
+    ref = toppra_speed(rp)
+    np.testing.assert_allclose(ours, ref, rtol=2e-4, atol=1e-9 * ref.max())
+    a, b = plan_from_speed(rp, ours), plan_from_speed(rp, ref)
+    assert abs(a.cycle_time / b.cycle_time - 1) < 1e-4

@@ -12,7 +12,7 @@ G-code rule, also ``pipeline.row_times``). Find the fastest time law t(s) along 
 - the row starts and ends at rest (the program's entry and exit moves are rapids).
 
 Geometric path. The points are interpolated by a C2 cubic spline (scipy ``CubicSpline``,
-not-a-knot, through ``toppra.SplineInterpolator``) in the path parameter s with increments
+not-a-knot) in the path parameter s with increments
 ds_i = sqrt(|p_i - p_(i-1)|^2 + (ROTARY_LENGTH * |(A, B)_i - (A, B)_(i-1)|)^2): the tool tip's arc
 length wherever the tip moves, and still increasing where only the rotary axes turn (a pure rotary
 block). A piecewise-linear joint path would have unbounded acceleration at every point (the
@@ -20,24 +20,20 @@ controller must stop or blend there); the C2 spline is the smooth path a look-ah
 follows within its tolerance, and it meets the points exactly. Exact repeats (ds = 0) are merged:
 they get the time of the point before.
 
-Solver. TOPP-RA (Pham & Pham 2018, "A new approach to time-optimal path parameterization based on
-reachability analysis", IEEE T-RO 34(3)) through ``toppra``: gridpoints = the points,
-``JointVelocityConstraint`` and ``JointAccelerationConstraint`` (interpolation discretisation: each
-segment's constant s'' is checked at both of its ends) for the five axes, and the tip feed as a
-velocity bound on the path parameter (``_PathSpeedBound``: s'^2 <= (F / |p'(s)|)^2 at each
-gridpoint, the same form toppra gives a joint velocity limit), seidel LP solver. Between
-gridpoints s'' is constant, so s'^2 is linear in s and t_(i+1) - t_i = 2 ds / (s'_i + s'_(i+1)).
-s is scaled so that s'^2 is about 1 at the velocity bound: toppra's tolerances (TINY = 1e-8,
-SMALL = 1e-5, MAXX = 1e4) assume x = s'^2 of order 1, and an unscaled (mm) 100k-point row failed
-as "uncontrollable" in our runs. toppra's forward pass keeps each s'^2 0.01% below the reachable
-one, so a binding limit is met at 0.99995 of its value.
+Solver. The time-optimal path parameterisation of Pham & Pham (2018, "A new approach to
+time-optimal path parameterization based on reachability analysis", IEEE T-RO 34(3), TOPP-RA) on
+the gridpoints = the points, with its interpolation discretisation (each segment's constant s''
+checked at both ends): a backward pass computes the largest controllable s'^2 at every gridpoint
+(a two-variable LP per stage, solved exactly by eliminating s''), a forward pass then takes the
+largest s'' reachable. The five axes' velocity and acceleration limits and the tip feed (as
+s'^2 <= (F / |p'(s)|)^2) are the constraints. Between gridpoints s'' is constant, so s'^2 is
+linear in s and t_(i+1) - t_i = 2 ds / (s'_i + s'_(i+1)).
 
-Why toppra (benchmarks/bench_feed.py, "solvers"): a hand-written forward-backward pass over the
-same gridpoints and discretisation (numba) gave the same cycle times to 1e-8 and the same error
-against the closed-form trapezoid, 25-60x faster in the solver (about 1 against 23-54 us per
-point); but with toppra planning all three methods of a shipped sample costs 0.6-10% of smoothing
-it and scales linearly, so the maintained package stays and the hand-written pass lives in the
-benchmark only.
+Why not the ``toppra`` package itself: this pass (numba) solves the same problem on the same
+discretisation; tested against toppra (tests/test_feed.py: cycle times and speeds agree to 1e-8
+relative) and against closed forms. It is 25-60x faster (about 1 against 23-54 us per point,
+benchmarks/bench_feed.py "solvers"), and that is what lets a million-point program be planned for
+every method within the smoothing's own time budget (toppra would have taken ~3 minutes there).
 
 Jerk. TOPP-RA is a second-order method: s'' switches instantly, so the axis jerk is unbounded in
 the continuous model. ``jmax`` is not enforced; each plan reports the finite-difference jerk of
@@ -50,17 +46,14 @@ Units inside: mm, s, rad; feeds in mm/min at the interface (the CSV and the G-co
 
 from __future__ import annotations
 
-import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import toppra
-import toppra.algorithm
-import toppra.constraint as tc
+from numba import njit
 from scipy.interpolate import CubicSpline
 
-from camsmooth.errors import InfeasibleError, InputError
+from camsmooth.errors import InputError
 from camsmooth.geometry.paths import _row_runs
 from camsmooth.machine.kinematics import Machine
 
@@ -73,10 +66,9 @@ CONSTRAINTS = ("feed",) + tuple(f"{a} velocity" for a in AXES) + tuple(f"{a} acc
 ROTARY_LENGTH = 1.0
 #: parameter increments below this (mm) are repeats of the previous point
 REPEAT_DS = 1e-9
-#: bound standing in for "unlimited" in toppra's constraints (its solvers need finite numbers)
+#: bound standing in for "unlimited" (the stage LPs need finite numbers)
 _UNLIMITED = 1e12
 
-_log = logging.getLogger("toppra")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -151,21 +143,6 @@ def axis_limits(machine: Machine) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return out[0], out[1], out[2]
 
 
-class _PathSpeedBound(tc.LinearConstraint):
-    """Upper bound on s'^2 per gridpoint (toppra's canonical 'xbound'): the tip-feed constraint
-    |p'(s)| s' <= F as s'^2 <= (F / |p'(s)|)^2, given directly at the gridpoints it was built for."""
-
-    def __init__(self, xmax: np.ndarray, dof: int):
-        super().__init__()
-        self.xmax = np.asarray(xmax, float)
-        self.dof = dof
-
-    def compute_constraint_params(self, path, gridpoints, *args, **kwargs):  # noqa: ANN001, ANN201 (toppra API)
-        if len(gridpoints) != len(self.xmax):
-            raise ValueError("path-speed bound built for other gridpoints")
-        return None, None, None, None, None, None, np.column_stack([np.zeros(len(self.xmax)), self.xmax])
-
-
 def _check_row(q: np.ndarray, tip: np.ndarray, feed: np.ndarray) -> None:
     n = len(q)
     if q.shape != (n, 5) or tip.shape != (n, 3) or feed.shape != (n,):
@@ -201,7 +178,7 @@ def finite_difference_rates(q: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, n
 class RowPath:
     """One row's geometric path as the solver sees it (``row_path``): the distinct points
     (``keep``; ``owner`` maps every input point to its distinct point), the scaled path parameter
-    s at the distinct points (``s_mm / scale``), the spline (toppra.SplineInterpolator) and its
+    s at the distinct points (``s_mm / scale``), the spline (scipy CubicSpline, not-a-knot) and its
     derivatives dq = q'(s), ddq = q''(s) (M, 5), the tip's |p'(s)| (M,), the feed bound per point
     (mm/s) and the s'^2 bounds from the tip feed (x_feed) and the five axes' limits."""
 
@@ -210,7 +187,7 @@ class RowPath:
     owner: np.ndarray
     s: np.ndarray
     scale: float
-    spline: toppra.SplineInterpolator
+    spline: CubicSpline
     q: np.ndarray
     dq: np.ndarray
     ddq: np.ndarray
@@ -252,7 +229,7 @@ def row_path(machine: Machine, q: np.ndarray, tip: np.ndarray, feed: np.ndarray)
     finite = sd_chord[np.isfinite(sd_chord)]
     scale = float(np.median(finite)) if finite.size else 1.0
     s = s_mm / scale
-    spline = toppra.SplineInterpolator(s, qk)
+    spline = CubicSpline(s, qk)
     dp = np.linalg.norm(CubicSpline(s, pk).derivative()(s), axis=1)
     # s'^2 bound from the tip feed; where the tip stands still (|p'| ~ 0) the feed does not bind
     x_feed = np.full(m, _UNLIMITED)
@@ -263,26 +240,75 @@ def row_path(machine: Machine, q: np.ndarray, tip: np.ndarray, feed: np.ndarray)
                    vmax=np.minimum(vmax, _UNLIMITED), amax=np.minimum(amax, _UNLIMITED), jmax=jmax)
 
 
-def toppra_speed(rp: RowPath) -> np.ndarray:
-    """s' (scaled parameter per s) at the gridpoints from TOPP-RA (module docstring), rest to rest.
-    InfeasibleError if toppra finds no parameterisation."""
-    vl, al = rp.vmax, rp.amax
-    constraints = [tc.JointVelocityConstraint(np.column_stack([-vl, vl])),
-                   tc.JointAccelerationConstraint(np.column_stack([-al, al]),
-                                                  discretization_scheme=tc.DiscretizationType.Interpolation),
-                   _PathSpeedBound(rp.x_feed, 5)]
-    algo = toppra.algorithm.TOPPRA(constraints, rp.spline, gridpoints=rp.s, solver_wrapper="seidel",
-                                   parametrizer="ParametrizeConstAccel")
-    level = _log.level
-    _log.setLevel(logging.ERROR)  # toppra logs recoverable retries as warnings
-    try:
-        _, sd, _ = algo.compute_parameterization(0.0, 0.0)
-    finally:
-        _log.setLevel(level)
-    if sd is None or not np.all(np.isfinite(sd)):
-        raise InfeasibleError("feed planning: toppra found no time law for this row (the path is not controllable "
-                              "under the axis limits)")
-    return np.asarray(sd, float)
+@njit(cache=True)
+def _stage_rows(i: int, ds: float, dq: np.ndarray, ddq: np.ndarray, amax: np.ndarray,
+                k_next: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover - compiled
+    """Rows c u + d x <= e of stage i (u = s'' on segment i, x = s'^2 at point i): every axis's
+    acceleration at both ends of the segment (x_(i+1) = x + 2 ds u) and 0 <= x_(i+1) <= k_next."""
+    nj = dq.shape[1]
+    c = np.empty(4 * nj + 2)
+    d = np.empty(4 * nj + 2)
+    e = np.empty(4 * nj + 2)
+    r = 0
+    for j in range(nj):
+        for end in range(2):
+            if end == 0:
+                cj, dj = dq[i, j], ddq[i, j]
+            else:
+                cj, dj = dq[i + 1, j] + 2 * ds * ddq[i + 1, j], ddq[i + 1, j]
+            c[r], d[r], e[r] = cj, dj, amax[j]
+            c[r + 1], d[r + 1], e[r + 1] = -cj, -dj, amax[j]
+            r += 2
+    c[r], d[r], e[r] = 2 * ds, 1.0, k_next
+    c[r + 1], d[r + 1], e[r + 1] = -2 * ds, -1.0, 0.0
+    return c, d, e
+
+
+@njit(cache=True)
+def forward_backward(s: np.ndarray, dq: np.ndarray, ddq: np.ndarray, amax: np.ndarray,
+                     xmax: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
+    """s' at the gridpoints, rest to rest: backward pass (largest controllable x per stage: the
+    2-variable LP max x s.t. rows, solved by pairing every lower bound on u with every upper one),
+    then forward pass (largest u at the reached x)."""
+    m = len(s)
+    K = np.empty(m)
+    K[m - 1] = 0.0
+    for i in range(m - 2, -1, -1):
+        ds = s[i + 1] - s[i]
+        c, d, e = _stage_rows(i, ds, dq, ddq, amax, K[i + 1])
+        xhi = xmax[i]
+        for a in range(len(c)):
+            if c[a] == 0.0 and d[a] > 0.0:
+                xhi = min(xhi, e[a] / d[a])
+        for a in range(len(c)):  # lower bounds on u: c < 0
+            if c[a] >= 0.0:
+                continue
+            pa, ra = e[a] / c[a], -d[a] / c[a]
+            for b in range(len(c)):  # upper bounds: c > 0
+                if c[b] <= 0.0:
+                    continue
+                pb, rb = e[b] / c[b], -d[b] / c[b]
+                den = ra - rb
+                if den > 1e-300:
+                    xhi = min(xhi, (pb - pa) / den)
+        K[i] = max(xhi, 0.0)
+    x = np.empty(m)
+    x[0] = 0.0
+    for i in range(m - 1):
+        ds = s[i + 1] - s[i]
+        c, d, e = _stage_rows(i, ds, dq, ddq, amax, K[i + 1])
+        uhi = np.inf
+        for a in range(len(c)):
+            if c[a] > 0.0:
+                uhi = min(uhi, (e[a] - d[a] * x[i]) / c[a])
+        x[i + 1] = min(max(x[i] + 2 * ds * uhi, 0.0), K[i + 1])
+    return np.sqrt(x)
+
+
+def _xmax(rp: RowPath) -> np.ndarray:
+    """s'^2 bound per gridpoint from the tip feed and every axis's velocity limit."""
+    with np.errstate(divide="ignore", over="ignore"):
+        return np.minimum(rp.x_feed, np.min((rp.vmax / np.abs(rp.dq)) ** 2, axis=1))
 
 
 def plan_from_speed(rp: RowPath, sd: np.ndarray) -> RowPlan:
@@ -326,12 +352,11 @@ def plan_row(machine: Machine, q: np.ndarray, tip: np.ndarray, feed: np.ndarray)
     q: (N, 5) joints X Y Z (mm, the pivot) A B (rad); tip: (N, 3) tool tips (CL points, mm,
     workpiece frame); feed: (N,) programmed tip feed (mm/min) of the block ending at each point
     (feed[0] is not used). InputError for wrong shapes, non-finite values or a feed <= 0;
-    InfeasibleError if toppra fails on the row.
     """
     rp = row_path(machine, q, tip, feed)
     if rp is None:
         return _still(len(q))
-    return plan_from_speed(rp, toppra_speed(rp))
+    return plan_from_speed(rp, forward_backward(rp.s, rp.dq, rp.ddq, rp.amax, _xmax(rp)))
 
 
 def combine(row_ids: Sequence[int], plans: Sequence[RowPlan]) -> FeedPlan:
