@@ -127,7 +127,7 @@ def test_report_lists_metrics_and_notices(full_report):
         assert cells[6] == format(mt["min_delta"], ".4g")
         assert cells[7:9] == [str(mt["violations"]["B_acc"]), "0"]
         assert cells[9:11] == [str(len(mt["unclean_rows"])), str(len(mt["unreachable"]))]
-        assert cells[11] == format(mt["runtime_s"], ".3g")
+        assert cells[14] == format(mt["runtime_s"], ".3g")
     assert "(primary)" in _summary_row(text, "nlp")[0]
     notice = re.search(r"<div class='notice'>(.*?)</div>", text, re.S).group(1)
     assert "rows that could not be made clean: 1" in notice

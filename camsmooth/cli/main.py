@@ -115,16 +115,21 @@ def run_smooth(args: argparse.Namespace) -> int:
     if not args.quiet:
         _print_summary(result)
     m = result.result.metrics
-    return EXIT_STRICT if (m["unclean_rows"] or m["unreachable"]) and args.strict else EXIT_OK
+    # --strict: a lift beyond the tolerance, a gouge or an unreachable point is a failure
+    bad = m["lifted_beyond_tolerance"] or m["violations"]["interference"] or m["unreachable"]
+    return EXIT_STRICT if bad and args.strict else EXIT_OK
 
 
 def _write_outputs(result: Any, out_csv: Path, gcode: Path | None, report: Path | None, feed: float | None) -> None:
-    """Write the result CSV, G-code and report to (temporary) paths."""
+    """Write the result CSV, G-code (the planned feed per block) and report to (temporary) paths."""
     from camsmooth.io.output import write_gcode, write_result_csv
+    from camsmooth.smoothing.feed import block_feeds
 
     write_result_csv(out_csv, result)
     if gcode:
-        f = float(feed) if feed else float(np.median(result.inputs["feed"]))
+        r = result.result
+        programmed = np.asarray(result.inputs["feed"], float)
+        f = block_feeds(r.plan, r.cl, r.rows, programmed) if r.plan is not None else programmed
         write_gcode(gcode, result, result.machine, result.cutter, f)
     if report:
         from camsmooth.report.smoothing import write_report
@@ -133,18 +138,33 @@ def _write_outputs(result: Any, out_csv: Path, gcode: Path | None, report: Path 
 
 
 def _print_summary(result) -> None:
-    head = ("method", "Gamma", "peak|A''|", "peak|B''|", "min delta", "violations", "time s")
-    print("{:8s} {:>12s} {:>10s} {:>10s} {:>10s} {:>10s} {:>8s}".format(*head))
+    head = ("method", "Gamma", "peak|A''|", "peak|B''|", "min delta", "violations", "cycle s", "limited by", "time s")
+    print("{:8s} {:>12s} {:>10s} {:>10s} {:>10s} {:>10s} {:>9s} {:>16s} {:>8s}".format(*head))
     for name, r in result.methods.items():
         m = r.metrics
         nviol = sum(m["violations"].values())
         print(f"{name:8s} {m['gamma']:12.4g} {m['peak_A_acc']:10.4g} {m['peak_B_acc']:10.4g} "
-              f"{m['min_delta']:10.4g} {nviol:10d} {m['runtime_s']:8.2f}")
+              f"{m['min_delta']:10.4g} {nviol:10d} {m.get('cycle_time_s', float('nan')):9.2f} "
+              f"{m.get('limiting', '-'):>16s} {m['runtime_s']:8.2f}")
     m = result.result.metrics
+    for w in result.warnings:
+        print(f"camsmooth: warning: {w}", file=sys.stderr)
+    if m.get("blocked"):
+        worst = max(m["blocked"], key=lambda b: b["lift_mm"])
+        print(f"camsmooth: warning: {len(m['blocked'])} points lifted along the normal because no orientation of "
+              f"their lead/tilt window clears the mesh; largest lift {worst['lift_mm']:.4g} mm at {worst['point']} "
+              f"(best clearance the map found there {worst['best_clearance_mm']:.4g} mm)", file=sys.stderr)
+    if m.get("unreachable_clear"):
+        worst = max(m["unreachable_clear"], key=lambda b: b["lift_mm"])
+        print(f"camsmooth: warning: {len(m['unreachable_clear'])} points lifted along the normal because the "
+              f"machine's limits kept the axis out of their clear region; largest lift {worst['lift_mm']:.4g} mm at "
+              f"{worst['point']}", file=sys.stderr)
     if m["unclean_rows"]:
-        print(f"WARNING: rows not clean without lifting along the normal: {m['unclean_rows']}", file=sys.stderr)
+        print(f"camsmooth: warning: rows not clean without lifting along the normal: {m['unclean_rows']}",
+              file=sys.stderr)
     if m["unreachable"]:
-        print(f"WARNING: {len(m['unreachable'])} unreachable points, first {m['unreachable'][:5]}", file=sys.stderr)
+        print(f"camsmooth: warning: {len(m['unreachable'])} unreachable points, first {m['unreachable'][:5]}",
+              file=sys.stderr)
 
 
 def _check_path_size(n_rows: float, n_points: float) -> None:
@@ -262,7 +282,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="also write a report (PNG plots, render, report.html) into the folder DIR; its own files "
                         "are replaced, other files there are left alone")
     p.add_argument("--force", action="store_true", help="with --report: replace the folder DIR whole")
-    p.add_argument("--strict", action="store_true", help="exit 1 when a row needed the lift fallback")
+    p.add_argument("--strict", action="store_true", help="exit 1 when a point had to be lifted along the normal by "
+                   "more than the tolerance, gouges beyond it, or is unreachable")
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=run_smooth)
 

@@ -41,9 +41,20 @@ from camsmooth.smoothing.result import MethodResult, SmoothResult
 PLOT_FILES: tuple[str, ...] = ("axes_angles.png", "axes_velocity.png", "axes_acceleration.png",
                                "compound_acceleration.png", "lead_tilt.png", "clearance.png")
 SCENE_FILE = "scene_3d.png"
+FEED_PLOT = "planned_feed.png"  # camsmooth.report.feed, when the methods carry a planned time law
 HTML_FILE = "report.html"
-#: Clearance tolerance drawn on the clearance plot (mm); matches camsmooth.io.output.
+#: Clearance drawn as the gouge line when the result names no tolerance (mm, negative).
 CLEARANCE_TOL_MM = -1e-3
+
+
+def _gouge_line(result_or_metrics: Any) -> float:
+    """-tolerance (mm) of the smoothing that made the result, CLEARANCE_TOL_MM if unknown."""
+    tol = None
+    if isinstance(result_or_metrics, dict):
+        tol = result_or_metrics.get("tolerance_mm")
+    else:
+        tol = getattr(result_or_metrics, "inputs", {}).get("tolerance")
+    return -float(tol) if tol else CLEARANCE_TOL_MM
 
 _METHOD_ORDER = ("none", "spline", "nlp")
 _METHOD_COLOURS = {"none": "#7f7f7f", "spline": "#1f77b4", "nlp": "#d62728"}
@@ -306,19 +317,18 @@ def _plot_lead_tilt(series: list[_Series], colours: dict[str, str]) -> Any:
     return fig
 
 
-def _plot_clearance(series: list[_Series], colours: dict[str, str]) -> Any:
+def _plot_clearance(series: list[_Series], colours: dict[str, str], line: float = CLEARANCE_TOL_MM) -> Any:
     fig, axes = _figure(1, len(series), "Clearance \u03b4 tool to surface (mm); gouge below "
-                        f"{CLEARANCE_TOL_MM:g} mm" + _decimation_note(series), height_per_row=3.2)
+                        f"{line:g} mm" + _decimation_note(series), height_per_row=3.2)
     for c, s in enumerate(series):
         ax = axes[0, c]
         d = np.asarray(s.m.delta, dtype=float)
         x, yy = s.line(d)
         ax.plot(x, yy, color=colours[s.m.method], linewidth=0.9, label="\u03b4")
         ax.axhline(0.0, color="k", linewidth=0.8)
-        ax.axhline(CLEARANCE_TOL_MM, color="#d62728", linestyle="--", linewidth=0.9,
-                   label=f"tolerance {CLEARANCE_TOL_MM:g} mm")
+        ax.axhline(line, color="#d62728", linestyle="--", linewidth=0.9, label=f"tolerance {line:g} mm")
         with np.errstate(invalid="ignore"):
-            bad = d < CLEARANCE_TOL_MM
+            bad = d < line
         if bad.any():
             ax.plot(s.t[bad], d[bad], ".", color="#d62728", markersize=3, label=f"gouge ({int(bad.sum())})")
         _mark_rows(ax, s)
@@ -507,6 +517,13 @@ def method_summary(m: MethodResult) -> dict[str, Any]:
         "unclean_rows": [int(r) for r in (mt.get("unclean_rows") or [])],
         "unreachable": [tuple(int(v) for v in p) for p in (mt.get("unreachable") or [])],
         "runtime_s": float(mt["runtime_s"]) if mt.get("runtime_s") is not None else float("nan"),
+        "cycle_time_s": float(mt["cycle_time_s"]) if mt.get("cycle_time_s") is not None else float("nan"),
+        "gouge_line": _gouge_line(mt),
+        "limiting": str(mt.get("limiting", "")),
+        "mapped_points": mt.get("mapped_points"),
+        "lifted_beyond_tolerance": int(mt.get("lifted_beyond_tolerance", 0)),
+        "blocked": list(mt.get("blocked") or []),
+        "unreachable_clear": list(mt.get("unreachable_clear") or []),
         "points": len(m),
         "rows": int(len(_row_starts(m.rows))),
         "model": {k: mt[k] for k in ("tip_error_um_max", "tip_error_um_max_uncompensated", "axis_error_urad_max")
@@ -525,7 +542,9 @@ def _summary_table(order: list[str], summaries: dict[str, dict[str, Any]], prima
         vnames += [v for v in summaries[name]["violations"] if v not in vnames]
     head = (["method", "points", "rows", "\u0393 (gamma)", "peak |A''| (deg/s\u00b2)",
              "peak |B''| (deg/s\u00b2)", "min \u03b4 (mm)"]
-            + [f"violations: {v}" for v in vnames] + ["unclean rows", "unreachable points", "run time (s)"])
+            + [f"violations: {v}" for v in vnames]
+            + ["unclean rows", "unreachable points", "cycle time (s)", "feed limited by", "map points",
+               "run time (s)"])
     with_model = any(summaries[n].get("model") for n in order)
     if with_model:  # ideal against predicted-real (error model given)
         head += ["real tip error, as commanded (\u00b5m)", "real tip error, uncompensated (\u00b5m)",
@@ -533,7 +552,7 @@ def _summary_table(order: list[str], summaries: dict[str, dict[str, Any]], prima
     out = ["<table class='summary'>", "<tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr>"]
     for name in order:
         s = summaries[name]
-        bad_delta = np.isfinite(s["min_delta"]) and s["min_delta"] < CLEARANCE_TOL_MM
+        bad_delta = np.isfinite(s["min_delta"]) and s["min_delta"] < s["gouge_line"]
         cells = [
             (html.escape(name) + (" <b>(primary)</b>" if name == primary else ""), False),
             (str(s["points"]), False), (str(s["rows"]), False),
@@ -544,7 +563,10 @@ def _summary_table(order: list[str], summaries: dict[str, dict[str, Any]], prima
             count = s["violations"].get(v)
             cells.append(("\u2014" if count is None else str(count), bool(count)))
         cells += [(str(len(s["unclean_rows"])), bool(s["unclean_rows"])),
-                  (str(len(s["unreachable"])), bool(s["unreachable"])), (_fmt(s["runtime_s"], ".3g"), False)]
+                  (str(len(s["unreachable"])), bool(s["unreachable"])), (_fmt(s["cycle_time_s"], ".5g"), False),
+                  (html.escape(s["limiting"] or "\u2014"), False),
+                  ("\u2014" if s["mapped_points"] is None else str(s["mapped_points"]), False),
+                  (_fmt(s["runtime_s"], ".3g"), False)]
         if with_model:
             md = s.get("model") or {}
             cells += [(_fmt(md.get(k, float("nan")), ".3g"), False)
@@ -555,14 +577,24 @@ def _summary_table(order: list[str], summaries: dict[str, dict[str, Any]], prima
     return "\n".join(out)
 
 
-def _notice(order: list[str], summaries: dict[str, dict[str, Any]], primary: str) -> str:
-    items = []
+def _notice(order: list[str], summaries: dict[str, dict[str, Any]], primary: str,
+            warnings: Sequence[str] = ()) -> str:
+    items = [f"<li>{html.escape(w)}</li>" for w in warnings]
     for name in sorted(order, key=lambda n: n != primary):
         s = summaries[name]
         tag = html.escape(name) + (" (primary)" if name == primary else "")
         if s["unclean_rows"]:
             items.append(f"<li><b>{tag}</b>: rows that could not be made clean: "
                          f"{html.escape(_short_list(s['unclean_rows']))}</li>")
+        for key, why in (("blocked", "no orientation of its lead/tilt window clears the mesh"),
+                         ("unreachable_clear", "the machine's limits kept the axis out of its clear region")):
+            for b in s[key][:20]:
+                items.append(f"<li><b>{tag}</b>: {html.escape(b['point'])} lifted along the normal by "
+                             f"{b['lift_mm']:.4g} mm: {why}"
+                             + (f" (best clearance found {b['best_clearance_mm']:.4g} mm)" if "best_clearance_mm" in b
+                                else "") + "</li>")
+            if len(s[key]) > 20:
+                items.append(f"<li><b>{tag}</b>: \u2026 and {len(s[key]) - 20} more such points</li>")
         if s["unreachable"]:
             pts = [f"(row {r}, point {i})" for r, i in s["unreachable"]]
             items.append(f"<li><b>{tag}</b>: unreachable points (no axis solution within the travel): "
@@ -625,7 +657,11 @@ _CAPTIONS = {
                       "tightening; x: outside the window."),
     "clearance.png": ("6. Clearance",
                       "Minimum signed clearance \u03b4 tool to surface (mm); solid: 0; dashed: "
-                      f"{CLEARANCE_TOL_MM:g} mm tolerance; dots: gouges."),
+                      "tolerance (the --tolerance of the run); dots: gouges."),
+    FEED_PLOT: ("8. Planned feed",
+                "The tool-tip feed (mm/min) of the time-optimal time law under every axis's velocity and "
+                "acceleration limits, against the path length (mm), per method; the programmed feed drawn; "
+                "cycle time and the constraint that binds longest in each title."),
 }
 
 
@@ -681,9 +717,17 @@ def write_report(result: SmoothResult, out_dir: str | os.PathLike, *, title: str
                 "axes_acceleration.png": lambda: _plot_axes(series, colours, result.machine, "acceleration"),
                 "compound_acceleration.png": lambda: _plot_compound(series, colours),
                 "lead_tilt.png": lambda: _plot_lead_tilt(series, colours),
-                "clearance.png": lambda: _plot_clearance(series, colours),
+                "clearance.png": lambda: _plot_clearance(series, colours, _gouge_line(result)),
             }
-            for name in PLOT_FILES:
+            plans = {n: result.methods[n].plan for n in order if result.methods[n].plan is not None}
+            if plans:
+                from camsmooth.report.feed import plot_planned_feed
+
+                figures[FEED_PLOT] = lambda: plot_planned_feed(
+                    {n: result.methods[n].cl for n in plans}, result.result.rows, plans,
+                    np.asarray(result.inputs.get("feed", np.full(len(result.result), np.nan)), float),
+                    primary=result.primary, max_plot_points=max_plot_points)
+            for name in figures:
                 _save_png(figures[name](), tmp / name)
             if proc is not None:
                 reason = _finish_render(proc, tmp / SCENE_FILE, _RENDER_TIMEOUT_S)
@@ -712,16 +756,16 @@ def _html(result: SmoothResult, order: list[str], folder: Path, title: str | Non
         "<!DOCTYPE html>", "<html lang='en'><head><meta charset='utf-8'>",
         f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
         f"<h1>{html.escape(title)}</h1>",
-        _notice(order, summaries, primary),
+        _notice(order, summaries, primary, result.warnings),
         "<h2>Summary</h2>",
         _summary_table(order, summaries, primary),
         "<p style='font-size:0.85em;color:#555'>Peak accelerations and minimum clearance over the whole "
         f"program; violations are counts per constraint; red cells need attention (gouge below "
-        f"{CLEARANCE_TOL_MM:g} mm, any violation, unclean row or unreachable point).</p>",
+        f"{_gouge_line(result):g} mm, any violation, unclean row or unreachable point).</p>",
         "<h2>Setup</h2>", _setup_html(result),
     ]
     note = _decimation_note(series)
-    for name in PLOT_FILES:
+    for name in PLOT_FILES + ((FEED_PLOT,) if (folder / FEED_PLOT).exists() else ()):
         head, cap = _CAPTIONS[name]
         cap += " Time is cumulative over the program (rows concatenated; faint vertical lines at row starts)."
         if note:

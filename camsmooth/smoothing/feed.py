@@ -376,6 +376,21 @@ def combine(row_ids: Sequence[int], plans: Sequence[RowPlan]) -> FeedPlan:
                     jerk_over=over.sum(axis=0))
 
 
+def block_feeds(plan: FeedPlan, tip: np.ndarray, rows: np.ndarray, programmed: np.ndarray) -> np.ndarray:
+    """Per point, the feed (mm/min) of the block that ends there under the planned time law: the
+    tip's chord over the block's planned time, so that a controller given these feeds (F in
+    G94/TCP mode, or 1/time in G93) runs the plan. A row's first point, and blocks the plan gives no
+    time (merged repeats), keep the programmed feed. Never above the programmed feed."""
+    tip = np.asarray(tip, float)
+    out = np.asarray(programmed, float).copy()
+    same = np.r_[False, np.asarray(rows)[1:] == np.asarray(rows)[:-1]]
+    dt = np.r_[0.0, np.diff(plan.t_plan)]
+    chord = np.r_[0.0, np.linalg.norm(np.diff(tip, axis=0), axis=1)]
+    k = same & (dt > 0) & (chord > 0)
+    out[k] = np.minimum(60.0 * chord[k] / dt[k], out[k])
+    return out
+
+
 def row_slices(rows: np.ndarray) -> list[slice]:
     """Slices of the contiguous runs of equal row ids (``geometry.paths._row_runs``)."""
     starts, _ = _row_runs(rows)

@@ -52,6 +52,7 @@ from camsmooth.smoothing.rows import (
     adopt_index,
     chunk_clearance,
     lift_along_normal,
+    plan_chunk,
     solve_row,
 )
 
@@ -194,6 +195,8 @@ def smooth(path: CCPath, surface: Surface, machine: Machine | None = None, cutte
             results["nlp"] = sm.nlp(results["spline"], risk, "nlp", progress)
             if model is not None:
                 results["nlp-ideal"] = sm.nlp(results["spline"], risk, "nlp-ideal", progress)
+        for r in results.values():
+            sm.plan(r)
     for r in results.values():
         r.metrics["chord_deviation_mm"] = chord
     return SmoothResult(methods=results, primary=method, machine=nominal, cutter=cutter, surface_mesh=surface.mesh,
@@ -321,6 +324,29 @@ class ProgramSmoother:
         m["unreachable_clear"] = [{"point": name(i), "row": int(p.path.rows[i]), "idx": int(p.idx[i]),
                                    "lift_mm": float(lift[i])} for i in np.flatnonzero(unreach)]
         return res
+
+    def plan(self, r: MethodResult) -> None:
+        """The time-optimal time law of a method's program under every axis's limits and the
+        programmed feed (camsmooth.smoothing.feed), rows in chunks on the workers; sets ``r.plan``
+        and the metrics cycle_time_s, limiting and row_cycle_time_s (in place: the result is being
+        built)."""
+        from camsmooth.smoothing.feed import combine
+
+        p = self.program
+        q = np.column_stack([r.xyz, r.A, r.B])
+        tip = self.real.tool_pose_np(r.A, r.B, *r.xyz.T)[0] if self.model is not None else r.cl
+        cuts = [0]  # whole rows, about CHUNK points a task
+        for s in p.slices:
+            if s.stop - cuts[-1] >= CHUNK:
+                cuts.append(s.stop)
+        if cuts[-1] != len(p):
+            cuts.append(len(p))
+        parts = [(p.path.rows[a:b], q[a:b], tip[a:b], p.feed[a:b]) for a, b in zip(cuts[:-1], cuts[1:], strict=True)]
+        plans = [x for part in self.pool.map(plan_chunk, parts) for x in part]
+        r.plan = combine([int(p.path.rows[s.start]) for s in p.slices], plans)
+        r.metrics["cycle_time_s"] = r.plan.cycle_time
+        r.metrics["limiting"] = r.plan.limiting
+        r.metrics["row_cycle_time_s"] = r.plan.row_cycle_time.tolist()
 
     def _point_names(self, i: int) -> str:
         return self.program.name(i)

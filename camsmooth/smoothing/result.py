@@ -29,7 +29,10 @@ class MethodResult:
     lead_window, tilt_window: (N, 2) admissible [min, max] per point (rad) after curvature
     (gouge) tightening. compound_acc: |d^2 T / dt^2| per point (1/s^2).
     metrics: summary (camsmooth.smoothing.pipeline): gamma (1/s^4), peak_A_acc, peak_B_acc (deg/s^2),
-    min_delta, violations (dict name -> count), runtime_s, unclean_rows, unreachable.
+    min_delta, violations (dict name -> count), runtime_s, unclean_rows, unreachable, cycle_time_s
+    (the planned time law's) and limiting (the constraint that binds longest).
+    plan: the planned time law under every axis's limits and the programmed feed
+    (camsmooth.smoothing.feed.FeedPlan: t_plan s from each row's start, feed_plan mm/min per point).
     """
 
     method: str
@@ -56,6 +59,7 @@ class MethodResult:
     compound_acc: np.ndarray
     metrics: dict[str, Any] = field(default_factory=dict)
     feed_dirs: np.ndarray | None = None  # (N, 3) unit feed directions X_L used for lead/tilt
+    plan: Any = None  # camsmooth.smoothing.feed.FeedPlan: the time-optimal time law of this program
 
     def __len__(self) -> int:
         return len(self.t)

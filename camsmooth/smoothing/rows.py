@@ -456,3 +456,17 @@ def chunk_clearance(ctx: RowContext, poses: tuple[np.ndarray, np.ndarray]) -> np
     context's mesh: the pipeline's whole-program passes, run like rows."""
     tips, axes = poses
     return clearance(_worker(ctx).index, ctx.cutter, tips, axes).delta
+
+
+def plan_chunk(ctx: RowContext, rows: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]) -> list:
+    """Time-optimal time laws (camsmooth.smoothing.feed.plan_row) of consecutive rows of one
+    program: (row ids (N,), joints (N, 5) X Y Z mm A B rad, tips (N, 3) mm, feed (N,) mm/min);
+    one RowPlan per row, on the context's first machine's limits."""
+    from camsmooth.smoothing.feed import plan_row
+
+    ids, q, tip, feed = rows
+    out = []
+    starts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1]])
+    for a, b in zip(starts, np.r_[starts[1:], len(ids)], strict=True):
+        out.append(plan_row(ctx.machines[0], q[a:b], tip[a:b], feed[a:b]))
+    return out
