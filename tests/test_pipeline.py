@@ -134,6 +134,22 @@ def test_infeasible_limits_name_the_binding_constraint(wavy):
                tilt_range=(np.radians(-1.0), np.radians(1.0)), method="nlp")
 
 
+def test_travel_too_tight_is_named_as_travel(wavy):
+    """A B travel that the windows cannot stay within names the B travel and the angle needed, not
+    a velocity limit with a tiny need (the misleading message of issue 9)."""
+    import tomllib
+
+    surf, path = wavy
+    data = tomllib.loads(DEFAULT_MACHINE_TOML)
+    data["axis"]["B"]["min"], data["axis"]["B"]["max"] = -2.0, 2.0  # deg: the rows need more
+    machine = machine_from_dict(data)
+    one = CCPath(path.points[path.rows == 0], path.normals[path.rows == 0], path.rows[path.rows == 0],
+                 path.feed_dirs[path.rows == 0], path.feed[path.rows == 0], "one row")
+    with pytest.raises(InfeasibleError, match=r"row 0: .*binding constraint: B travel -2\.\.\.2 deg.*need B = "):
+        smooth(one, surf, machine, CUTTER, lead_range=(np.radians(2.0), np.radians(4.0)),
+               tilt_range=(np.radians(-1.0), np.radians(1.0)), method="nlp")
+
+
 def test_error_model_keeps_real_windows_and_compensation_zeroes_tip_error(wavy):
     from camsmooth.machine.model import ErrorModel
 

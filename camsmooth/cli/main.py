@@ -41,9 +41,17 @@ MAX_PATH_POINTS = 10_000_000
 _POSITIVE_MM = number(gt=0, unit="mm")
 
 
-def _cutter(args: argparse.Namespace):
+def _cutter(args: argparse.Namespace, declared: Any = None):
+    """The cutter of the command line; where it gives no radii, the program's own (``declared``,
+    a ToroidalCutter from the CL program's TLDATA)."""
     from camsmooth.geometry.cutter import ToroidalCutter
 
+    if args.cutter_radius is None or args.corner_radius is None:
+        if declared is None:
+            raise InputError("give --cutter-radius and --corner-radius (mm): the input declares no cutter")
+        if args.cutter_radius is not None or args.corner_radius is not None:
+            raise InputError("give both --cutter-radius and --corner-radius, or neither (the program's TLDATA)")
+        args = argparse.Namespace(**{**vars(args), "cutter_radius": declared.R, "corner_radius": declared.r})
     kw = {}
     if args.shank_length is not None:
         kw["shank_length"] = args.shank_length
@@ -55,7 +63,8 @@ def _cutter(args: argparse.Namespace):
 
 def _add_cutter_args(p: argparse.ArgumentParser, required: bool = True) -> None:
     p.add_argument("--cutter-radius", type=number(ge=0, unit="mm"), required=required, metavar="R",
-                   help="ring radius R (mm, >= 0; 0 is a ball nose); the cutter diameter is 2(R + r)")
+                   help="ring radius R (mm, >= 0; 0 is a ball nose); the cutter diameter is 2(R + r)"
+                   + ("" if required else "; default: the program's TLDATA (CL input)"))
     p.add_argument("--corner-radius", type=_POSITIVE_MM, required=required, metavar="r",
                    help="corner radius r (mm, > 0)")
     p.add_argument("--shank-length", type=_POSITIVE_MM, default=None, metavar="L",
@@ -84,9 +93,25 @@ def _check_outputs_options(args: argparse.Namespace) -> None:
         raise InputError("--force replaces the --report folder whole; it needs --report DIR")
 
 
+def load_input(args: argparse.Namespace, surface: Any, machine: Any) -> tuple[Any, Any]:
+    """The program to smooth (any format of camsmooth.io.program.load_program, detected from the
+    content or --format) and the cutter: a CC path as it is, a CL program made a CamProgram on the
+    surface (camsmooth.smoothing.cam), with the program's cutter unless the command line names one."""
+    from camsmooth.geometry.clearance import MeshIndex
+    from camsmooth.geometry.paths import CCPath
+    from camsmooth.io.program import load_program
+    from camsmooth.smoothing.cam import cam_program, cutter_of
+
+    program = load_program(args.path, args.format, machine=machine)
+    if isinstance(program, CCPath):
+        return program, _cutter(args)
+    declared = cutter_of(program) if args.cutter_radius is None and args.corner_radius is None else None
+    cutter = _cutter(args, declared)
+    return cam_program(program, MeshIndex(surface.mesh), cutter, args.tolerance, feed=args.feed), cutter
+
+
 def run_smooth(args: argparse.Namespace) -> int:
     from camsmooth.geometry.surfaces import load_surface
-    from camsmooth.io.ccpath import read_cc_csv
     from camsmooth.machine.kinematics import load_machine
     from camsmooth.smoothing.pipeline import SmoothOptions, smooth
 
@@ -95,7 +120,6 @@ def run_smooth(args: argparse.Namespace) -> int:
     for opt, value, (lo, hi) in (("--prefer-lead", args.prefer_lead, lead), ("--prefer-tilt", args.prefer_tilt, tilt)):
         if value is not None and not lo <= value <= hi:
             raise InputError(f"{opt} {value:g} deg lies outside the window {lo:g}:{hi:g} deg")
-    cutter = _cutter(args)
     model = load_error_model(args.model)
     inputs = [p for p in (args.path, args.surface, args.machine, args.model) if p]
     with output_transaction() as tx:
@@ -104,7 +128,9 @@ def run_smooth(args: argparse.Namespace) -> int:
         gcode = tx.file(args.gcode) if args.gcode else None
         report = tx.folder(args.report, replace=args.force, keep=inputs) if args.report else None
         options = SmoothOptions(workers=args.workers, dask=args.dask)  # workers None: all cores when worth it
-        result = smooth(read_cc_csv(args.path), load_surface(args.surface), load_machine(args.machine), cutter,
+        surface, machine = load_surface(args.surface), load_machine(args.machine)
+        program, cutter = load_input(args, surface, machine)
+        result = smooth(program, surface, machine, cutter,
                         feed=args.feed, lead_range=tuple(np.radians(lead)), tilt_range=tuple(np.radians(tilt)),
                         method=args.method,
                         prefer_lead=None if args.prefer_lead is None else np.radians(args.prefer_lead),
@@ -249,11 +275,15 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true", help="print the traceback of an error")
     sub = parser.add_subparsers(dest="verb", required=True)
 
-    p = sub.add_parser("smooth", help="smooth a CC path: tool axes, A/B angles, interference check")
-    p.add_argument("path", help="CC path CSV (x,y,z,nx,ny,nz[,row,fx,fy,fz,feed])")
+    p = sub.add_parser("smooth", help="smooth a program: tool axes, A/B angles, interference check")
+    p.add_argument("path", help="the program: a CC path CSV (x,y,z,nx,ny,nz[,row,fx,fy,fz,feed]), an APT/CLSF CL "
+                   "file, a CL CSV (x,y,z,i,j,k[,row,feed]) or camsmooth's G-code; the format is detected from the "
+                   "content")
+    p.add_argument("--format", default=None, choices=("apt", "cl-csv", "cc-csv", "gcode"),
+                   help="the program's format, when detection should not decide")
     p.add_argument("--surface", required=True, help="surface mesh (.stl/.obj/.ply) or definition (.toml)")
     p.add_argument("--machine", default=None, help="machine TOML (default: the built-in AB head)")
-    _add_cutter_args(p)
+    _add_cutter_args(p, required=False)
     p.add_argument("--feed", type=number(gt=0, unit="mm/min"), default=None, metavar="F",
                    help="programmed feed F (mm/min, > 0) where the CSV has none")
     p.add_argument("--lead", required=True, type=angle_range(0, 90, strict=True), metavar="MIN:MAX",

@@ -593,9 +593,31 @@ class RowNLP:
                 continue
             keep |= (_dilate(bad, self.sizes, SCREEN_DILATE) | self._near(g, lbg, ubg)) & exists
             x = x_start.copy()  # IPOPT restarts badly from a point that violates the new rows
+        if not success:
+            # IPOPT can fail numerically (e.g. Error_In_Step_Computation on a row whose warm start is
+            # already optimal, Gamma = 0 on a plane): a point that meets every row is a program, so
+            # the better of the last iterate and the warm start is taken when one of them does
+            x, status, success = self._feasible_fallback(x, x_start, p, lbx, ubx, lbg, ubg, exists, t, status)
         dt = time.perf_counter() - t0
         return x[0::2], x[1::2], NLPStatus(success=success, status=status, iterations=iters, time_s=dt, build_s=build,
                                            rounds=rounds, rows=int(keep.sum()), total_rows=int(exists.sum()))
+
+    def _feasible_fallback(self, x: np.ndarray, x0: np.ndarray, p: np.ndarray, lbx: np.ndarray, ubx: np.ndarray,
+                           lbg: np.ndarray, ubg: np.ndarray, exists: np.ndarray, t: np.ndarray,
+                           status: str) -> tuple[np.ndarray, str, bool]:
+        best = None
+        for cand in (x, x0):
+            if not (np.all(np.isfinite(cand)) and np.all(cand >= lbx - 1e-12) and np.all(cand <= ubx + 1e-12)):
+                continue
+            g = np.asarray(self.g_all(cand, p)).ravel()
+            if not np.all(((g >= lbg - 1e-9) & (g <= ubg + 1e-9)) | ~exists):
+                continue
+            gam = gamma(self.machine.tool_axis_np(cand[0::2], cand[1::2]), t)
+            if best is None or gam < best[1]:
+                best = (cand, gam)
+        if best is None:
+            return x, status, False
+        return best[0], f"{status}; a feasible point kept", True
 
     def constraint_report(self, t: np.ndarray, A: np.ndarray, B: np.ndarray) -> list[tuple[str, int, float]]:
         """Constraint groups violated by (A, B) against the TRUE limits (no back-off): a list of
@@ -621,19 +643,36 @@ class RowNLP:
         return out
 
 
+@dataclass(frozen=True)
+class Binding:
+    """What an elastic re-solve found binds on a row: the constraint ('A travel', 'B velocity',
+    ...), the point index, the value the windows need there and the machine's limit, in ``unit``
+    (deg, deg/s or deg/s^2); ``binds`` says whether the need exceeds the limit."""
+
+    constraint: str
+    point: int
+    need: float
+    limit: float
+    unit: str
+
+    @property
+    def binds(self) -> bool:
+        return self.need > self.limit * (1 + 1e-6)
+
+
 def elastic_diagnosis(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_window: np.ndarray,
-                      tilt_window: np.ndarray, A0: np.ndarray, B0: np.ndarray) -> tuple[str, int, float]:
+                      tilt_window: np.ndarray, A0: np.ndarray, B0: np.ndarray) -> Binding:
     """Name the binding constraint of an infeasible row: re-solve with every limit group made
-    elastic (non-negative slacks on velocity and acceleration limits, scaled by the limit) and
-    minimise the sum of slacks; the largest slack names the constraint, the point and how much
-    more it would need. Returns (constraint, point index, required value in deg/s or deg/s^2)."""
+    elastic (non-negative slacks on the travel of A and B, as a fraction of their span, and on the
+    velocity and acceleration limits, as a fraction of the limit) and minimise the sum of slacks;
+    the largest slack names the constraint, the point and what it would need."""
     n = len(t)
     D1, D2 = fd_operators(t)
     lim = machine.limits
     x = ca.SX.sym("x", 2 * n)
     A, B = x[0::2], x[1::2]
     Tx, Ty, Tz = machine.tool_axis(A, B)
-    s = ca.SX.sym("s", 4)  # one slack per group: A vel, B vel, A acc, B acc (fraction of the limit)
+    s = ca.SX.sym("s", 6)  # A vel, B vel, A acc, B acc (fraction of the limit), A, B travel (of the span)
     d1, d2 = _dm_sparse(D1), _dm_sparse(D2)
     X, Y, Z = frames[:, :, 0], frames[:, :, 1], frames[:, :, 2]
     tmin, tmax = tilt_window[:, 0:1], tilt_window[:, 1:2]
@@ -642,28 +681,40 @@ def elastic_diagnosis(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_
     dotc = lambda C: C[:, 0] * Tx + C[:, 1] * Ty + C[:, 2] * Tz  # noqa: E731
     va, vb = ca.mtimes(d1, A) / lim["A"].vmax, ca.mtimes(d1, B) / lim["B"].vmax
     aa, ab = ca.mtimes(d2, A) / lim["A"].amax, ca.mtimes(d2, B) / lim["B"].amax
+    wa, wb = lim["A"].max - lim["A"].min, lim["B"].max - lim["B"].min
+    ta = (A - 0.5 * (lim["A"].max + lim["A"].min)) / wa  # within +-1/2 inside the travel
+    tb = (B - 0.5 * (lim["B"].max + lim["B"].min)) / wb
     g = ca.vertcat(va - s[0], va + s[0], vb - s[1], vb + s[1], aa - s[2], aa + s[2], ab - s[3], ab + s[3],
-                   dotc(Z), dotc(cmin), dotc(cmax))
+                   ta - s[4], ta + s[4], tb - s[5], tb + s[5], dotc(Z), dotc(cmin), dotc(cmax))
     m1, m2 = n - 1, n - 2
     inf = np.inf
-    lbg = np.concatenate([np.full(m1, -inf), np.full(m1, -1), np.full(m1, -inf), np.full(m1, -1),
-                          np.full(m2, -inf), np.full(m2, -1), np.full(m2, -inf), np.full(m2, -1),
+    lo = lambda k, v: np.full(k, v)  # noqa: E731
+    lbg = np.concatenate([lo(m1, -inf), lo(m1, -1), lo(m1, -inf), lo(m1, -1), lo(m2, -inf), lo(m2, -1),
+                          lo(m2, -inf), lo(m2, -1), lo(n, -inf), lo(n, -0.5), lo(n, -inf), lo(n, -0.5),
                           np.cos(lead_window[:, 1]), np.zeros(n), np.zeros(n)])
-    ubg = np.concatenate([np.full(m1, 1), np.full(m1, inf), np.full(m1, 1), np.full(m1, inf),
-                          np.full(m2, 1), np.full(m2, inf), np.full(m2, 1), np.full(m2, inf),
+    ubg = np.concatenate([lo(m1, 1), lo(m1, inf), lo(m1, 1), lo(m1, inf), lo(m2, 1), lo(m2, inf), lo(m2, 1),
+                          lo(m2, inf), lo(n, 0.5), lo(n, inf), lo(n, 0.5), lo(n, inf),
                           np.cos(lead_window[:, 0]), np.full(n, inf), np.full(n, inf)])
-    lbx = np.concatenate([np.tile([lim["A"].min, lim["B"].min], n), np.zeros(4)])
-    ubx = np.concatenate([np.tile([lim["A"].max, lim["B"].max], n), np.full(4, inf)])
+    lbx = np.concatenate([np.full(2 * n, -inf), np.zeros(6)])
+    ubx = np.full(2 * n + 6, inf)
     solver = ca.nlpsol("elastic", "ipopt", {"x": ca.vertcat(x, s), "f": ca.sum1(s), "g": g},
                        {"ipopt.print_level": 0, "print_time": 0, "ipopt.sb": "yes", "ipopt.max_iter": 1000})
-    x0 = np.concatenate([np.ravel(np.column_stack([A0, B0])), np.full(4, 10.0)])
-    sol = solver(x0=np.clip(x0, lbx, ubx), lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+    x0 = np.concatenate([np.ravel(np.column_stack([A0, B0])), np.full(6, 10.0)])
+    sol = solver(x0=x0, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
     xs = np.asarray(sol["x"]).ravel()
     slack = xs[2 * n:]
     k = int(np.argmax(slack))
     Aopt, Bopt = xs[0:2 * n:2], xs[1:2 * n:2]
-    names = ("A velocity", "B velocity", "A acceleration", "B acceleration")
-    q = Aopt if k in (0, 2) else Bopt
+    names = ("A velocity", "B velocity", "A acceleration", "B acceleration", "A travel", "B travel")
+    axis = names[k][0]
+    q = Aopt if axis == "A" else Bopt
+    L = lim[axis]
+    if k >= 4:  # travel: the point furthest outside, and the angle it needs
+        over = np.maximum(q - L.max, L.min - q)
+        i = int(np.argmax(over))
+        return Binding(names[k], i, float(np.degrees(q[i])),
+                       float(np.degrees(L.max if q[i] > L.max else L.min)), "deg")
     vals = np.abs(D1 @ q) if k < 2 else np.abs(D2 @ q)
     i = int(np.argmax(vals)) + (0 if k < 2 else 1)
-    return names[k], i, float(np.degrees(vals.max()))
+    return Binding(names[k], i, float(np.degrees(vals.max())), float(np.degrees(L.vmax if k < 2 else L.amax)),
+                   "deg/s" if k < 2 else "deg/s^2")

@@ -34,6 +34,7 @@ from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl
 from camsmooth.geometry.paths import CCPath, check_contact_with_mesh, check_normals_against_mesh, estimate_feed_dirs
 from camsmooth.geometry.surfaces import Surface, chord_deviation
 from camsmooth.machine.kinematics import Machine, load_machine
+from camsmooth.smoothing.cam import CamProgram
 from camsmooth.smoothing.nlp import program_rates, spline_row
 from camsmooth.smoothing.orientation import (
     Orientation,
@@ -134,7 +135,8 @@ def prepare(path: CCPath, index: MeshIndex, cutter: ToroidalCutter, feed: float 
     return Program(path=path, frames=frames, t=t, feed=feed_arr, idx=idx, slices=slices, orientation=orient)
 
 
-def smooth(path: CCPath, surface: Surface, machine: Machine | None = None, cutter: ToroidalCutter | None = None, *,
+def smooth(path: CCPath | CamProgram, surface: Surface, machine: Machine | None = None,
+           cutter: ToroidalCutter | None = None, *,
            feed: float | None = None,
            lead_range: tuple[float, float] = (np.radians(2.0), np.radians(20.0)),
            tilt_range: tuple[float, float] = (np.radians(-15.0), np.radians(15.0)),
@@ -143,7 +145,9 @@ def smooth(path: CCPath, surface: Surface, machine: Machine | None = None, cutte
            options: SmoothOptions | None = None, progress: bool = False) -> SmoothResult:
     """Smooth a CC path on a surface (the whole pipeline; see the module docstring).
 
-    path: CCPath (mm; normals from the material toward the tool). surface: Surface (its mesh).
+    path: CCPath (mm; normals from the material toward the tool), or a CamProgram (a CAM system's
+    CL program on this surface, camsmooth.smoothing.cam.cam_program: its own axes then appear as
+    the method 'cam'). surface: Surface (its mesh).
     machine: Machine (None: the default AB head). cutter: ToroidalCutter (R ring radius, r corner
     radius, mm). feed: programmed feed (mm/min), used where the path has no feed column.
     lead_range, tilt_range: admissible windows (RADIANS; lead in [0, pi/2), tilt in (-pi/2, pi/2),
@@ -156,9 +160,12 @@ def smooth(path: CCPath, surface: Surface, machine: Machine | None = None, cutte
     """
     if method not in METHODS:
         raise InputError(f"unknown method {method!r} (choose from {', '.join(METHODS)})")
+    cam = None
+    if isinstance(path, CamProgram):
+        cam, path = path, path.path
     if not isinstance(path, CCPath):
-        raise InputError(f"path must be a CCPath (read one with camsmooth.io.ccpath.read_cc_csv), got "
-                         f"{type(path).__name__}")
+        raise InputError(f"path must be a CCPath (read one with camsmooth.io.ccpath.read_cc_csv) or a CamProgram, "
+                         f"got {type(path).__name__}")
     if not isinstance(surface, Surface):
         raise InputError(f"surface must be a Surface (load one with camsmooth.geometry.surfaces.load_surface), "
                          f"got {type(surface).__name__}")
@@ -177,7 +184,7 @@ def smooth(path: CCPath, surface: Surface, machine: Machine | None = None, cutte
     index = MeshIndex(surface.mesh)
     program = prepare(path, index, cutter, feed, lead_range, tilt_range, prefer_lead, prefer_tilt)
     chord = chord_deviation(surface)
-    warnings = []
+    warnings = cam.warnings() if cam is not None else []
     if chord > tolerance:
         warnings.append(f"the mesh's chord deviation (estimated {chord:.4g} mm) exceeds the tolerance "
                         f"({tolerance:g} mm): on concave regions a tool on the true surface reads as gouging the "
@@ -187,6 +194,8 @@ def smooth(path: CCPath, surface: Surface, machine: Machine | None = None, cutte
     results: dict[str, MethodResult] = {}
     with ProgramSmoother(program, index, nominal, real, cutter, tolerance, opts, workers=workers, model=model,
                          compensate=compensate) as sm:
+        if cam is not None:
+            results["cam"] = sm.cam(cam)
         results["none"] = none = sm.none()
         if method in ("spline", "nlp"):
             results["spline"], spline_gouge = sm.spline(none)
@@ -264,6 +273,13 @@ class ProgramSmoother:
                                  delta, mask, self.tolerance)
 
     # ---- the methods --------------------------------------------------------------------------------
+    def cam(self, cam: CamProgram) -> MethodResult:
+        """The CAM system's own program: its axes through inverse kinematics, its tool tips."""
+        t0 = time.perf_counter()
+        A, B, unreachable = self.ik(cam.axes)
+        return self._result("cam", A, B, delta=None, lift=np.zeros(len(A)), unreachable=unreachable,
+                            runtime=time.perf_counter() - t0, cl=cam.tips)
+
     def none(self) -> MethodResult:
         """The initial orientation through inverse kinematics, as it is."""
         t0 = time.perf_counter()
@@ -354,14 +370,15 @@ class ProgramSmoother:
     # ---- results ------------------------------------------------------------------------------------
     def _result(self, method: str, A: np.ndarray, B: np.ndarray, *, delta: np.ndarray | None, lift: np.ndarray,
                 unreachable: np.ndarray, runtime: float, lead_window: np.ndarray | None = None,
-                tilt_window: np.ndarray | None = None) -> MethodResult:
+                tilt_window: np.ndarray | None = None, cl: np.ndarray | None = None) -> MethodResult:
         """The program a method commands (A, B rad; lift mm), as the real machine executes it: the
         tool axis of the error model's chain when there is a model (so 'nlp-ideal' shows what an
-        ideal-machine program does on the real one), clearance at the predicted real tip."""
+        ideal-machine program does on the real one), clearance at the predicted real tip. ``cl``:
+        the tool tips when the program gives them (the CAM's own), else from the CC points."""
         p, o = self.program, self.program.orientation
         T = self.real.tool_axis_np(A, B)
         cc, nrm = p.path.points, p.path.normals
-        cl = self.cl_points(T) + lift[:, None] * nrm
+        cl = (self.cl_points(T) if cl is None else cl) + lift[:, None] * nrm
         xyz_nominal = self.nominal.linear_axes(cl, self.nominal.tool_axis_np(A, B))
         modelled = self.model is not None
         xyz = _linear_axes_for_tip(self.real, A, B, cl) if (self.compensate and modelled) else xyz_nominal

@@ -436,20 +436,24 @@ def lift_along_normal(index: MeshIndex, cut: ToroidalCutter, cl: np.ndarray, T: 
 
 def _raise_infeasible(ctx: RowContext, task: RowTask, nlp: RowNLP, lw: np.ndarray, tw: np.ndarray, A: np.ndarray,
                       B: np.ndarray, status: str, with_map: bool) -> None:
-    """Name the binding limit of a row no program can meet (elastic re-solve)."""
-    viol = nlp.constraint_report(task.t, A, B)
+    """Name the binding limit of a row no program can meet (elastic re-solve); when no limit
+    binds, say that the solver failed."""
     machine = ctx.machines[task.machine]
-    name, i, need = elastic_diagnosis(machine, task.t, task.frames, lw, tw, task.A0, task.B0)
-    unit = "deg/s" if "velocity" in name else "deg/s^2"
-    lim = machine.limits[name[0]]
-    have = np.degrees(lim.vmax if "velocity" in name else lim.amax)
-    i = min(i, len(task.t) - 1)
-    raise InfeasibleError(
-        f"row {task.row}: no program meets the limits (IPOPT: {status}); binding constraint: {name} limit "
-        f"{have:g} {unit} near point {i} (t = {task.t[i]:.3f} s): the lead/tilt windows"
-        f"{' and the clear regions of the accessibility map' if with_map else ''} need at least {need:.4g} {unit} "
-        "there" + (f"; also violated: {viol}" if viol else ""))
-
+    b = elastic_diagnosis(machine, task.t, task.frames, lw, tw, task.A0, task.B0)
+    i = min(b.point, len(task.t) - 1)
+    windows = "lead/tilt windows" + (" and the clear regions of the accessibility map" if with_map else "")
+    if b.constraint.endswith("travel"):
+        detail = (f"{b.constraint} {np.degrees(machine.limits[b.constraint[0]].min):g}..."
+                  f"{np.degrees(machine.limits[b.constraint[0]].max):g} deg: the {windows} need "
+                  f"{b.constraint[0]} = {b.need:.4g} deg near point {i}")
+    else:
+        detail = (f"{b.constraint} limit {b.limit:g} {b.unit} near point {i} (t = {task.t[i]:.3f} s): the {windows} "
+                  f"need at least {b.need:.4g} {b.unit} there")
+    if b.binds:
+        raise InfeasibleError(f"row {task.row}: no program meets the limits; binding constraint: {detail}")
+    raise InfeasibleError(f"row {task.row}: the NLP solver failed ({status}) although no limit binds (the largest "
+                          f"need, {b.need:.4g} {b.unit} of {b.constraint}, is within its limit {b.limit:g}); "
+                          "please report this row as a bug")
 
 def chunk_clearance(ctx: RowContext, poses: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
     """Exact clearance (mm) of a chunk of poses (tips (N, 3) mm, unit axes (N, 3)) against the
