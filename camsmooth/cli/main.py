@@ -233,6 +233,53 @@ def run_path(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def run_analyze(args: argparse.Namespace) -> int:
+    """`camsmooth analyze`: a program as it is (camsmooth.smoothing.analysis)."""
+    import json
+
+    from camsmooth.geometry.clearance import MeshIndex
+    from camsmooth.geometry.paths import CCPath
+    from camsmooth.geometry.surfaces import load_surface
+    from camsmooth.io.program import load_program
+    from camsmooth.machine.kinematics import load_machine
+    from camsmooth.smoothing.analysis import analyze_program
+
+    _check_outputs_options(args)
+    machine = load_machine(args.machine)
+    inputs = [p for p in (args.program, args.surface, args.machine) if p]
+    with output_transaction() as tx:
+        out_json = tx.file(args.json) if args.json else None
+        report = tx.folder(args.report, replace=args.force, keep=inputs) if args.report else None
+        program = load_program(args.program, args.format, machine=machine)
+        index = MeshIndex(load_surface(args.surface).mesh) if args.surface else None
+        cutter = None
+        if args.cutter_radius is not None or args.corner_radius is not None or isinstance(program, CCPath):
+            cutter = _cutter(args)
+        lead = np.radians(np.mean(args.lead)) if args.lead else np.radians(11.0)
+        tilt = np.radians(np.mean(args.tilt)) if args.tilt else 0.0
+        analysis = analyze_program(program, machine, index=index, cutter=cutter, tolerance=args.tolerance,
+                                   feed=args.feed, lead=lead, tilt=tilt)
+        if out_json is not None:
+            out_json.write_text(json.dumps(analysis.to_json(), indent=2) + "\n", encoding="utf-8")
+        if report is not None:
+            from camsmooth.report.analysis import write_analysis_report
+
+            write_analysis_report(analysis, analysis.series, machine, report)
+    if not args.quiet:
+        print(f"{analysis.source} ({analysis.format}): {analysis.points} cutting points, "
+              f"{len(analysis.toolpaths)} tool path(s)")
+        head = ("tool path", "points", "A deg", "B deg", "Gamma", "violations", "cycle s", "limited by", "min delta")
+        print("{:24s} {:>7s} {:>17s} {:>17s} {:>10s} {:>10s} {:>9s} {:>16s} {:>10s}".format(*head))
+        for tp in analysis.toolpaths:
+            md = "-" if tp.clearance is None else f"{tp.clearance['min_mm']:.4g}"
+            print(f"{tp.name[:24]:24s} {tp.points:7d} {tp.A_range_deg[0]:8.2f}..{tp.A_range_deg[1]:<7.2f} "
+                  f"{tp.B_range_deg[0]:8.2f}..{tp.B_range_deg[1]:<7.2f} {tp.gamma:10.4g} "
+                  f"{sum(tp.violations.values()):10d} {tp.cycle_time_s:9.2f} {tp.limiting:>16s} {md:>10s}")
+        for w in analysis.warnings:
+            print(f"camsmooth: warning: {w}", file=sys.stderr)
+    return EXIT_OK
+
+
 def run_demo(args: argparse.Namespace) -> int:
     from camsmooth.geometry.cutter import ToroidalCutter
     from camsmooth.smoothing.pipeline import SmoothOptions, smooth
@@ -334,6 +381,27 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=run_path)
 
+    p = sub.add_parser("analyze", help="analyse a program as it is: axes, limits, Gamma, cycle time, clearance")
+    p.add_argument("program", help="APT/CLSF, CL CSV, CC CSV or camsmooth G-code (format detected from the content)")
+    p.add_argument("--format", default=None, choices=("apt", "cl-csv", "cc-csv", "gcode"),
+                   help="the program's format, when detection should not decide")
+    p.add_argument("--machine", default=None, help="machine TOML (default: the built-in AB head)")
+    p.add_argument("--surface", default=None, help="surface mesh or definition: adds the clearance of every pose")
+    _add_cutter_args(p, required=False)
+    p.add_argument("--tolerance", type=_POSITIVE_MM, default=DEFAULT_TOLERANCE_MM, metavar="MM",
+                   help=f"clearance tolerance (mm, default {DEFAULT_TOLERANCE_MM:g})")
+    p.add_argument("--feed", type=number(gt=0, unit="mm/min"), default=None, metavar="F",
+                   help="feed (mm/min, > 0) where the program sets none")
+    p.add_argument("--lead", type=angle_range(0, 90, strict=True), default=None, metavar="MIN:MAX",
+                   help="CC input only: analysed at the middle of this lead window (deg; default 11)")
+    p.add_argument("--tilt", type=angle_range(-90, 90, lo_open=True), default=None, metavar="MIN:MAX",
+                   help="CC input only: analysed at the middle of this tilt window (deg; default 0)")
+    p.add_argument("--json", default=None, metavar="OUT.json", help="write the analysis as JSON (units mm, deg)")
+    p.add_argument("--report", default=None, metavar="DIR", help="also write a report into the folder DIR")
+    p.add_argument("--force", action="store_true", help="with --report: replace the folder DIR whole")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=run_analyze)
+
     p = sub.add_parser("demo", help="smooth a shipped sample and write the CSV, G-code and report")
     p.add_argument("--out", default="demo_out", help="output folder (default demo_out); the report goes to OUT/report")
     p.add_argument("--sample", default="blade", help="sample name in surfaces/ (blade, saddle, mould, wave)")
@@ -349,7 +417,7 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-RANGE_OPTIONS = ("--lead", "--tilt")
+RANGE_OPTIONS = ("--lead", "--tilt")  # smooth and analyze
 
 
 def _join_ranges(argv: list[str]) -> list[str]:

@@ -1,0 +1,226 @@
+"""A program as it is: what it asks of the machine, per tool path (``camsmooth analyze``).
+
+For each tool path of a program (camsmooth.io.program: APT/CLSF, CL CSV, camsmooth's G-code; a
+CC path is analysed with a constant lead and tilt, as a CAM system would program it): points,
+tool, programmed feed, A and B by inverse kinematics (METHODS section 1: nearest branch, row by
+row; a G-code program's own A and B as commanded) with the branch used, travel / velocity /
+acceleration violations of all five axes at the programmed feed (the finite differences of
+camsmooth.smoothing.nlp, times from the tip's path at the programmed feed), Gamma, peak rates,
+passes near the head's singularity (|B| near 90 deg, where A turns the tool about itself),
+clearance against a mesh when one is given, and the cycle time of the time-optimal time law
+under every axis's limits (camsmooth.smoothing.feed). Units: mm, s, degrees in the result (it is
+written as JSON for the user); radians inside.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from camsmooth.geometry.clearance import MeshIndex, clearance
+from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl
+from camsmooth.geometry.frames import axis_from_lead_tilt, local_frames
+from camsmooth.geometry.paths import CCPath, estimate_feed_dirs
+from camsmooth.io.program import CLProgram, Tool
+from camsmooth.machine.kinematics import Machine
+from camsmooth.smoothing.feed import plan_program
+from camsmooth.smoothing.nlp import program_rates
+
+__all__ = ["SINGULAR_DEG", "ProgramAnalysis", "ToolpathAnalysis", "analyze_program"]
+
+SINGULAR_DEG = 5.0  # |B| within this of 90 deg: near the AB head's singularity
+
+
+@dataclass(frozen=True)
+class ToolpathAnalysis:
+    """One tool path (module docstring). tool: diameter, corner_radius (mm), kind (None when the
+    program declares none); feed: the programmed feeds (mm/min) as [min, max]; A_range_deg,
+    B_range_deg: [min, max]; branch: which inverse-kinematics branch the program runs on;
+    violations: count of samples over each limit; gamma (1/s^4); peaks: largest |velocity| and
+    |acceleration| per axis (deg/s, deg/s^2, mm/s, mm/s^2); singular: points and passes within
+    SINGULAR_DEG of |B| = 90 deg; clearance: min, gouges (below -tolerance), air points (above it)
+    or None without a mesh; cycle_time_s and limiting: the planned time law's."""
+
+    name: str
+    tool: dict[str, Any] | None
+    points: int
+    feed: list[float]
+    A_range_deg: list[float]
+    B_range_deg: list[float]
+    branch: str
+    violations: dict[str, int]
+    gamma: float
+    peaks: dict[str, float]
+    singular: dict[str, int]
+    clearance: dict[str, float] | None
+    cycle_time_s: float
+    limiting: str
+
+
+@dataclass(frozen=True)
+class ProgramAnalysis:
+    """The whole program: its file and format, points (cutting points analysed), warnings, one
+    ToolpathAnalysis per tool path, and per point (``series``): 't' program time at the programmed
+    feed (s, rows concatenated) and 'A|B angle|velocity|acceleration' (deg, deg/s, deg/s^2).
+    ``to_json`` gives the pinned JSON: units, points, warnings, toolpaths with name, tool, points,
+    feed, A_range_deg, B_range_deg, violations, gamma, and the other fields."""
+
+    source: str | None
+    format: str
+    points: int
+    toolpaths: list[ToolpathAnalysis]
+    warnings: list[str] = field(default_factory=list)
+    series: dict[str, np.ndarray] = field(default_factory=dict)  # per point, for plots (not in the JSON)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"units": "mm", "angles": "deg", "source": self.source, "format": self.format, "points": self.points,
+                "warnings": list(self.warnings), "toolpaths": [asdict(t) for t in self.toolpaths]}
+
+
+def _tool_json(tool: Tool | None) -> dict[str, Any] | None:
+    if tool is None:
+        return None
+    return {"diameter": tool.diameter, "corner_radius": tool.corner_radius, "kind": tool.kind, "name": tool.name}
+
+
+def _times(tip: np.ndarray, feed: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """Time (s) from each row's start at the programmed feed (mm/min): |dp| / F per block."""
+    seg = np.r_[0.0, np.linalg.norm(np.diff(tip, axis=0), axis=1) / (feed[1:] / 60.0)]
+    seg[np.r_[True, rows[1:] != rows[:-1]]] = 0.0
+    out = np.cumsum(seg)
+    starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
+    return out - np.repeat(out[starts], np.diff(np.r_[starts, len(rows)]))
+
+
+def _ik(machine: Machine, axes: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    A, B = np.empty(len(axes)), np.empty(len(axes))
+    starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
+    prev = None
+    for a, b in zip(starts, np.r_[starts[1:], len(rows)], strict=True):
+        r = machine.solve_row(axes[a:b], previous=prev)
+        A[a:b], B[a:b] = r.A, r.B
+        prev = (r.A[-1], r.B[-1])
+    return A, B
+
+
+def _toolpath(name: str, tool: Tool | None, machine: Machine, tip: np.ndarray, axes: np.ndarray, feed: np.ndarray,
+              rows: np.ndarray, angles: np.ndarray | None, index: MeshIndex | None, cutter: ToroidalCutter | None,
+              tolerance: float) -> tuple[ToolpathAnalysis, dict[str, np.ndarray]]:
+    A, B = (angles[:, 0], angles[:, 1]) if angles is not None else _ik(machine, axes, rows)
+    T = machine.tool_axis_np(A, B)
+    xyz = machine.linear_axes(tip, T)
+    t = _times(tip, feed, rows)
+    viol: dict[str, int] = {}
+    peaks: dict[str, float] = {}
+    for k, name_ in enumerate("XYZAB"):
+        q = (xyz[:, k] if k < 3 else (A, B)[k - 3])
+        lim = machine.limits.get(name_)
+        rq = program_rates(q, t, rows)
+        scale = 1.0 if k < 3 else np.degrees(1.0)
+        v, a = np.abs(rq.seg_vel), np.abs(rq.sec)
+        peaks[f"{name_} velocity"] = float(scale * v.max(initial=0.0))
+        peaks[f"{name_} acceleration"] = float(scale * a.max(initial=0.0))
+        if lim is None:
+            continue
+        viol[f"{name_} travel"] = int(np.sum((q < lim.min - 1e-9) | (q > lim.max + 1e-9)))
+        viol[f"{name_} velocity"] = int(np.sum(v > lim.vmax * (1 + 1e-9)))
+        viol[f"{name_} acceleration"] = int(np.sum(a > lim.amax * (1 + 1e-9)))
+    gamma = float(np.sum(program_rates(T, t, rows).sec ** 2))
+    starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
+    ends = np.r_[starts[1:], len(t)] - 1
+    offset = np.repeat(np.r_[0.0, np.cumsum(t[ends])[:-1]], np.diff(np.r_[starts, len(t)]))
+    series = {"t": t + offset}
+    for name_, q in (("A", A), ("B", B)):
+        rq = program_rates(q, t, rows)
+        series[f"{name_} angle"], series[f"{name_} velocity"] = np.degrees(q), np.degrees(rq.vel)
+        series[f"{name_} acceleration"] = np.degrees(rq.acc)
+    near = np.abs(np.cos(B)) < np.sin(np.radians(SINGULAR_DEG))
+    passes = int(np.sum(np.diff(np.r_[0, near.astype(int)]) == 1))
+    clear = None
+    if index is not None and cutter is not None:
+        d = clearance(index, cutter, tip, T).delta
+        clear = {"min_mm": float(d.min()), "gouges": int(np.sum(d < -tolerance)), "air": int(np.sum(d > tolerance)),
+                 "tolerance_mm": float(tolerance)}
+    plan = plan_program(machine, rows, np.column_stack([xyz, A, B]), tip, feed)
+    branch = ("B in [-90, 90] deg (the first branch of METHODS section 1)" if np.all(np.abs(B) <= np.pi / 2 + 1e-12)
+              else f"B beyond +-90 deg at {int(np.sum(np.abs(B) > np.pi / 2))} points (the second branch)")
+    deg = np.degrees
+    return ToolpathAnalysis(name=name, tool=_tool_json(tool), points=len(tip),
+                            feed=[float(feed[1:].min(initial=feed[0])), float(feed[1:].max(initial=feed[0]))],
+                            A_range_deg=[float(deg(A.min())), float(deg(A.max()))],
+                            B_range_deg=[float(deg(B.min())), float(deg(B.max()))], branch=branch, violations=viol,
+                            gamma=gamma, peaks=peaks, singular={"points": int(near.sum()), "passes": passes},
+                            clearance=clear, cycle_time_s=plan.cycle_time, limiting=plan.limiting), series
+
+
+def analyze_program(program: CLProgram | CCPath, machine: Machine, *, index: MeshIndex | None = None,
+                    cutter: ToroidalCutter | None = None, tolerance: float = 0.005, feed: float | None = None,
+                    lead: float = np.radians(11.0), tilt: float = 0.0) -> ProgramAnalysis:
+    """The program as it is (module docstring). machine: the AB head; index, cutter: the mesh and
+    the tool for the clearance (optional); tolerance (mm); feed (mm/min) where the program gives
+    none; lead, tilt (rad, local frame of METHODS section 1): the constant orientation a CC path
+    is analysed with."""
+    warnings: list[str] = []
+    if isinstance(program, CCPath):
+        if cutter is None:
+            from camsmooth.errors import InputError
+
+            raise InputError("a CC path needs a cutter to be analysed: give --cutter-radius and --corner-radius",
+                             file=program.source)
+        fd = program.feed_dirs if program.feed_dirs is not None else estimate_feed_dirs(program.points,
+                                                                                        program.normals, program.rows)
+        fr = local_frames(program.normals, fd)
+        axes = axis_from_lead_tilt(np.full(len(fr), lead), np.full(len(fr), tilt), fr)
+        tip = cc_to_cl(cutter, program.points, program.normals, axes)
+        f = program.feed if program.feed is not None else np.full(len(tip), float(feed or np.nan))
+        _check_feed(f, program.source, None)
+        warnings.append(f"a CC path has no tool axes: analysed at a constant lead {np.degrees(lead):g} deg and tilt "
+                        f"{np.degrees(tilt):g} deg, as a CAM system would program it")
+        tp, series = _toolpath("CC path", None, machine, tip, axes, f, program.rows, None, index, cutter, tolerance)
+        return ProgramAnalysis(program.source, "cc-csv", len(tip), [tp], warnings, series)
+    prog = program.cutting()
+    axes = prog.require_axis()
+    f = np.where(np.isfinite(prog.feed), prog.feed, np.nan if feed is None else float(feed))
+    f = _fill_starts(f, prog.rows)
+    _check_feed(f, program.source, prog.line)
+    out, parts = [], []
+    for k, tp in enumerate(prog.toolpaths):
+        s = slice(tp.start, tp.stop)
+        if tp.stop - tp.start < 2:
+            continue
+        tool = tp.tool
+        tcut = cutter
+        if tcut is None and tool is not None and tool.diameter is not None and tool.corner_radius is not None \
+                and tool.ring_radius is not None and tool.ring_radius >= 0 and tool.corner_radius > 0:
+            tcut = ToroidalCutter(R=tool.ring_radius, r=tool.corner_radius)
+        a, series = _toolpath(tp.name or f"tool path {k + 1}", tool, machine, prog.tip[s], axes[s], f[s],
+                              prog.rows[s], None if prog.angles is None else prog.angles[s], index, tcut, tolerance)
+        out.append(a)
+        if parts:
+            series["t"] = series["t"] + parts[-1]["t"][-1]
+        parts.append(series)
+    merged = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]} if parts else {}
+    return ProgramAnalysis(program.source, program.format, len(prog), out, list(program.warnings) + warnings, merged)
+
+
+def _fill_starts(f: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """Feeds with each row's first value (the rapid that reaches it) set to the row's next one: a
+    row's first feed is never used (camsmooth.smoothing.feed.plan_row), only its being finite."""
+    f = f.copy()
+    starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
+    nxt = np.minimum(starts + 1, len(f) - 1)
+    f[starts] = np.where(np.isfinite(f[starts]), f[starts], f[nxt])
+    return f
+
+
+def _check_feed(f: np.ndarray, source: str | None, lines: np.ndarray | None) -> None:
+    from camsmooth.errors import InputError
+
+    bad = ~(np.isfinite(f) & (f > 0))
+    bad[0] = False  # a first point's feed is never used (nor a row's, reached by a rapid: see _fill_starts)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise InputError("no feed for this move (no FEDRAT or feed column before it): give --feed", file=source,
+                         line=None if lines is None else int(lines[k]), row=None if lines is not None else k + 1)

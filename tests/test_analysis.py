@@ -1,0 +1,66 @@
+"""`camsmooth analyze` (camsmooth.smoothing.analysis): the pinned JSON, violations counted on a
+hand-made program whose expected counts are worked out here, and the clearance of a CAM file."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from camsmooth.cli.main import main
+from camsmooth.io.program import load_program
+from camsmooth.machine.kinematics import load_machine
+from camsmooth.smoothing.analysis import analyze_program
+
+
+def _cl_csv(path, B_deg, feed=600.0):
+    """A straight row along +x, 1 mm apart, tool tip on z = 0, axis from A = 0 and the given B."""
+    B = np.radians(np.asarray(B_deg, float))
+    T = np.column_stack([np.sin(B), np.zeros_like(B), np.cos(B)])
+    x = np.arange(len(B), dtype=float)
+    rows = ["x,y,z,i,j,k,feed"] + [f"{xi},0,0,{t[0]:.17g},{t[1]:.17g},{t[2]:.17g},{feed}" for xi, t in zip(x, T, strict=True)]
+    path.write_text("\n".join(rows) + "\n")
+
+
+def test_violation_counts_of_a_hand_made_program(tmp_path):
+    """B jumps 7 deg in one 0.1 s block (600 mm/min over 1 mm): one segment at 70 deg/s (> 60) and
+    two second differences of +-700 deg/s^2 (> 300): B velocity 1, B acceleration 2, nothing else
+    (the pivot's X moves 150 mm x 0.122 rad in 0.1 s: 183 mm/s, under the 500 mm/s default)."""
+    B = [0.0] * 6 + [7.0] * 6
+    _cl_csv(tmp_path / "p.csv", B)
+    a = analyze_program(load_program(tmp_path / "p.csv"), load_machine())
+    (tp,) = a.toolpaths
+    viol = {k: v for k, v in tp.violations.items() if v}
+    assert viol == {"B velocity": 1, "B acceleration": 2}
+    np.testing.assert_allclose(tp.peaks["B velocity"], 70.0, rtol=1e-9)
+    np.testing.assert_allclose(tp.peaks["B acceleration"], 700.0, rtol=1e-9)
+    np.testing.assert_allclose(tp.B_range_deg, [0.0, 7.0], atol=1e-9)
+    assert tp.singular == {"points": 0, "passes": 0}
+
+
+def test_singular_passes_are_counted(tmp_path):
+    B = [80.0, 84.0, 86.0, 88.0, 86.0, 84.0, 80.0, 84.0, 86.0, 84.0]
+    _cl_csv(tmp_path / "s.csv", B, feed=60.0)
+    (tp,) = analyze_program(load_program(tmp_path / "s.csv"), load_machine()).toolpaths
+    assert tp.singular == {"points": 4, "passes": 2}  # |B| > 85: 86, 88, 86 and later 86
+
+
+def test_cli_json_is_pinned_and_names_the_air_moves(tmp_path, capsys):
+    from tests.test_cam import _clsf, _plane, _rows
+
+    _, tips, axes = _rows()
+    (tmp_path / "f.cls").write_text(_clsf(tips, axes))
+    _plane().export(tmp_path / "plane.stl")
+    rc = main(["analyze", str(tmp_path / "f.cls"), "--surface", str(tmp_path / "plane.stl"), "--tolerance", "0.001",
+               "--json", str(tmp_path / "a.json"), "--report", str(tmp_path / "rep"), "--quiet"])
+    assert rc == 0
+    doc = json.loads((tmp_path / "a.json").read_text())
+    assert doc["units"] == "mm" and doc["points"] == 404 and isinstance(doc["warnings"], list)
+    (tp,) = doc["toolpaths"]
+    for key in ("name", "tool", "points", "feed", "A_range_deg", "B_range_deg", "violations", "gamma"):
+        assert key in tp, key
+    assert tp["name"] == "FINISH_PLANE" and tp["tool"]["diameter"] == 10.0 and tp["tool"]["corner_radius"] == 1.0
+    assert tp["tool"]["kind"] == "mill" and tp["feed"] == [1500.0, 1500.0]
+    # the poses touch the plane (the CAM's own program) except the two approach points in the air
+    assert tp["clearance"]["air"] == 2 and tp["clearance"]["gouges"] == 0 and tp["cycle_time_s"] > 0
+    assert (tmp_path / "rep" / "report.html").exists()
