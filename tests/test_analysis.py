@@ -18,7 +18,8 @@ def _cl_csv(path, B_deg, feed=600.0):
     B = np.radians(np.asarray(B_deg, float))
     T = np.column_stack([np.sin(B), np.zeros_like(B), np.cos(B)])
     x = np.arange(len(B), dtype=float)
-    rows = ["x,y,z,i,j,k,feed"] + [f"{xi},0,0,{t[0]:.17g},{t[1]:.17g},{t[2]:.17g},{feed}" for xi, t in zip(x, T, strict=True)]
+    rows = ["x,y,z,i,j,k,feed"] + [f"{xi},0,0,{t[0]:.17g},{t[1]:.17g},{t[2]:.17g},{feed}"
+                                   for xi, t in zip(x, T, strict=True)]
     path.write_text("\n".join(rows) + "\n")
 
 
