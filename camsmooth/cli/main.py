@@ -107,7 +107,8 @@ def load_input(args: argparse.Namespace, surface: Any, machine: Any) -> tuple[An
         return program, _cutter(args)
     declared = cutter_of(program) if args.cutter_radius is None and args.corner_radius is None else None
     cutter = _cutter(args, declared)
-    return cam_program(program, MeshIndex(surface.mesh), cutter, args.tolerance, feed=args.feed), cutter
+    return cam_program(program, MeshIndex(surface.mesh), cutter, args.tolerance, feed=args.feed,
+                       mesh=surface.mesh), cutter
 
 
 def run_smooth(args: argparse.Namespace) -> int:

@@ -19,11 +19,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import trimesh
 
 from camsmooth.geometry.clearance import MeshIndex, clearance
 from camsmooth.geometry.cutter import ToroidalCutter
 
-__all__ = ["Contacts", "contacts"]
+__all__ = ["Contacts", "contacts", "interpolated_normals"]
 
 PARALLEL = 1e-9  # 1 - n.T below this: the flat bottom touches
 
@@ -63,8 +64,21 @@ def contacts(index: MeshIndex, cutter: ToroidalCutter, tips: np.ndarray, axes: n
 
 def _tip_gap(index: MeshIndex, tips: np.ndarray, axes: np.ndarray) -> np.ndarray:
     """Distance (mm) from each tip to the closest point of the mesh (trimesh.proximity)."""
-    import trimesh
-
     mesh = trimesh.Trimesh(index.vertices, index.faces, process=False)
     _, d, _ = trimesh.proximity.closest_point(mesh, tips)
     return d
+
+
+def interpolated_normals(mesh: trimesh.Trimesh, points: np.ndarray) -> np.ndarray:
+    """Unit normals (N, 3) at points on the mesh, interpolated over the closest face from its
+    vertex normals (barycentric weights; Phong-style): continuous across edges, where the facet
+    normals jump by the dihedral angle. The vertex normals are the mesh's own (a PLY may carry the
+    exact ones) or trimesh's area-weighted average of the faces around each vertex."""
+    _, _, face = trimesh.proximity.closest_point(mesh, points)
+    tri = mesh.triangles[face]
+    w = trimesh.triangles.points_to_barycentric(tri, points)
+    w = np.clip(w, 0.0, None)
+    w /= np.maximum(w.sum(axis=1, keepdims=True), 1e-300)
+    vn = np.asarray(mesh.vertex_normals)[mesh.faces[face]]
+    n = np.einsum("nk,nkj->nj", w, vn)
+    return n / np.linalg.norm(n, axis=1, keepdims=True)

@@ -56,9 +56,9 @@ def _gouge_line(result_or_metrics: Any) -> float:
         tol = getattr(result_or_metrics, "inputs", {}).get("tolerance")
     return -float(tol) if tol else CLEARANCE_TOL_MM
 
-_METHOD_ORDER = ("none", "spline", "nlp")
-_METHOD_COLOURS = {"none": "#7f7f7f", "spline": "#1f77b4", "nlp": "#d62728"}
-_EXTRA_COLOURS = ("#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#17becf")
+_METHOD_ORDER = ("cam", "none", "spline", "nlp")
+_METHOD_COLOURS = {"cam": "#2ca02c", "none": "#7f7f7f", "spline": "#1f77b4", "nlp": "#d62728"}
+_EXTRA_COLOURS = ("#9467bd", "#8c564b", "#e377c2", "#17becf", "#bcbd22")
 _LIMIT_COLOUR = "#ff7f0e"
 _DPI = 100
 _RENDER_TIMEOUT_S = 120.0
