@@ -129,7 +129,7 @@ def test_infeasible_limits_name_the_binding_constraint(wavy):
     machine = machine_from_dict(data)
     one = CCPath(path.points[path.rows == 0], path.normals[path.rows == 0], path.rows[path.rows == 0],
                  path.feed_dirs[path.rows == 0], path.feed[path.rows == 0], "one row")
-    with pytest.raises(InfeasibleError, match=r"row 0: .*binding constraint: [AB] acceleration"):
+    with pytest.raises(InfeasibleError, match=r"one row: row id 0: .*binding constraint: [AB] acceleration"):
         smooth(one, surf, machine, CUTTER, lead_range=(np.radians(2.0), np.radians(4.0)),
                tilt_range=(np.radians(-1.0), np.radians(1.0)), method="nlp")
 
@@ -145,7 +145,8 @@ def test_travel_too_tight_is_named_as_travel(wavy):
     machine = machine_from_dict(data)
     one = CCPath(path.points[path.rows == 0], path.normals[path.rows == 0], path.rows[path.rows == 0],
                  path.feed_dirs[path.rows == 0], path.feed[path.rows == 0], "one row")
-    with pytest.raises(InfeasibleError, match=r"row 0: .*binding constraint: B travel -2\.\.\.2 deg.*need B = "):
+    with pytest.raises(InfeasibleError,
+                       match=r"one row: row id 0: .*binding constraint: B travel -2\.\.\.2 deg.*need B = "):
         smooth(one, surf, machine, CUTTER, lead_range=(np.radians(2.0), np.radians(4.0)),
                tilt_range=(np.radians(-1.0), np.radians(1.0)), method="nlp")
 

@@ -229,7 +229,8 @@ class ProgramSmoother:
         self.model, self.compensate = model, compensate
         machines = (real,) if real is nominal else (real, nominal)
         self.ctx = RowContext(machines=machines, cutter=cutter, vertices=index.vertices, faces=index.faces,
-                              tolerance=self.tolerance, options=options.rows, key=uuid.uuid4().hex)
+                              tolerance=self.tolerance, options=options.rows, key=uuid.uuid4().hex,
+                              source=program.path.source)
         self.pool = RowPool(self.ctx, workers=workers, dask=options.dask)
         adopt_index(self.ctx, index)  # rows run here (serially) share this process's search structure
 

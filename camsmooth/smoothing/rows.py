@@ -86,7 +86,8 @@ class RowContext:
     """What every row of one program shares: the machines the NLP may smooth on (a task names
     one: the nominal machine, or the error model's real machine), the cutter, the mesh (vertices
     (V, 3) mm and faces (F, 3)), the tolerance (mm: a clearance below -tolerance is a gouge) and the
-    options. ``key`` names the program so a worker builds its search structure once."""
+    options. ``key`` names the program so a worker builds its search structure once; ``source``
+    the program's file, for messages."""
 
     machines: tuple[Machine, ...]
     cutter: ToroidalCutter
@@ -95,6 +96,7 @@ class RowContext:
     tolerance: float
     options: RowOptions = field(default_factory=RowOptions)
     key: str = ""
+    source: str | None = None
 
 
 @dataclass(frozen=True)
@@ -439,6 +441,7 @@ def _raise_infeasible(ctx: RowContext, task: RowTask, nlp: RowNLP, lw: np.ndarra
     """Name the binding limit of a row no program can meet (elastic re-solve); when no limit
     binds, say that the solver failed."""
     machine = ctx.machines[task.machine]
+    where = f"{ctx.source}: " if ctx.source else ""
     b = elastic_diagnosis(machine, task.t, task.frames, lw, tw, task.A0, task.B0)
     i = min(b.point, len(task.t) - 1)
     windows = "lead/tilt windows" + (" and the clear regions of the accessibility map" if with_map else "")
@@ -450,8 +453,9 @@ def _raise_infeasible(ctx: RowContext, task: RowTask, nlp: RowNLP, lw: np.ndarra
         detail = (f"{b.constraint} limit {b.limit:g} {b.unit} near point {i} (t = {task.t[i]:.3f} s): the {windows} "
                   f"need at least {b.need:.4g} {b.unit} there")
     if b.binds:
-        raise InfeasibleError(f"row {task.row}: no program meets the limits; binding constraint: {detail}")
-    raise InfeasibleError(f"row {task.row}: the NLP solver failed ({status}) although no limit binds (the largest "
+        raise InfeasibleError(f"{where}row id {task.row}: no program meets the limits; binding constraint: {detail}")
+    raise InfeasibleError(f"{where}row id {task.row}: the NLP solver failed ({status}) although no limit binds (the "
+                          "largest "
                           f"need, {b.need:.4g} {b.unit} of {b.constraint}, is within its limit {b.limit:g}); "
                           "please report this row as a bug")
 
