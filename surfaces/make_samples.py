@@ -378,11 +378,9 @@ def independent_chord_error(surface: ParametricSurface, mesh: trimesh.Trimesh, u
     return float(best.max())
 
 
-def make_stl(name: str, surface: ParametricSurface, step: float) -> dict:
-    """Definition, path and an STL on a uniform parameter grid of about ``step`` mm (binary STL,
-    float32 vertices), checked: definition round trip, chord error measured independently on the
-    STL as written, file size."""
-    toml, stl, csv = HERE / f"{name}.toml", HERE / f"{name}.stl", HERE / f"{name}_path.csv"
+def definition_and_path(surface: ParametricSurface, toml: Path, csv: Path) -> CCPath:
+    """Write the definition (checked: it reads back bit for bit) and the zig-zag path (ROWS rows
+    of POINTS points along u at FEED), and return the path as read back."""
     save_definition(surface, toml)
     back = load_definition(toml)
     U, V = surface.grid(37, 41)
@@ -390,7 +388,15 @@ def make_stl(name: str, surface: ParametricSurface, step: float) -> dict:
     length, width = zigzag_extents(surface, "u")
     path = zigzag_path(surface, stepover=width / (ROWS - 1), spacing=length / (POINTS - 1), along="u", feed=FEED)
     write_cc_csv(csv, path)
-    path = read_cc_csv(csv)
+    return read_cc_csv(csv)
+
+
+def make_stl(name: str, surface: ParametricSurface, step: float) -> dict:
+    """Definition, path and an STL on a uniform parameter grid of about ``step`` mm (binary STL,
+    float32 vertices), checked: definition round trip, chord error measured independently on the
+    STL as written, file size."""
+    toml, stl, csv = HERE / f"{name}.toml", HERE / f"{name}.stl", HERE / f"{name}_path.csv"
+    path = definition_and_path(surface, toml, csv)
     (u0, u1), (v0, v1) = surface.u_range, surface.v_range
     us = np.linspace(u0, u1, round((u1 - u0) / step) + 1)
     vs = np.linspace(v0, v1, round((v1 - v0) / step) + 1)
@@ -425,16 +431,7 @@ def make(name: str, surface: ParametricSurface) -> dict:
     if name in STL_SAMPLES:
         return make_stl(name, surface, STL_SAMPLES[name])
     toml, ply, csv = HERE / f"{name}.toml", HERE / f"{name}.ply", HERE / f"{name}_path.csv"
-    save_definition(surface, toml)
-    back = load_definition(toml)
-    U, V = surface.grid(37, 41)
-    assert back.parameters() == surface.parameters() and np.array_equal(back.point(U, V), surface.point(U, V))
-
-    length, width = zigzag_extents(surface, "u")
-    path = zigzag_path(surface, stepover=width / (ROWS - 1), spacing=length / (POINTS - 1), along="u",
-                       feed=FEED)
-    write_cc_csv(csv, path)
-    path = read_cc_csv(csv)
+    path = definition_and_path(surface, toml, csv)
     assert np.all(path.normals[:, 2] > 0)
 
     # the rows lie at v = y (every sample has y(u, v) = v): put mesh lines through them
