@@ -122,13 +122,6 @@ def program_rates(q: np.ndarray, t: np.ndarray, rows: np.ndarray) -> ProgramRate
     return ProgramRates(seg_vel, seg, sec, mid, vel, acc)
 
 
-def compound_acceleration(T: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """|d^2 T / dt^2| per point (1/s^2) for unit axes T (N, 3) (end points repeat their
-    neighbour)."""
-    _, acc = rates(T, t)
-    return np.linalg.norm(acc, axis=1)
-
-
 def gamma(T: np.ndarray, t: np.ndarray) -> float:
     """Gamma = sum over interior points of |T''|^2 (1/s^4), METHODS section 1 step D."""
     if len(T) < 3:

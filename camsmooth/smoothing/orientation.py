@@ -47,11 +47,6 @@ def cutter_curvature_tensors(R: float, r: float, lead: np.ndarray, tilt: np.ndar
             + k_cross[..., None, None] * p[..., :, None] * p[..., None, :])
 
 
-def _min_eig_2x2(K: np.ndarray) -> np.ndarray:
-    a, b, c = K[..., 0, 0], K[..., 0, 1], K[..., 1, 1]
-    return 0.5 * (a + c) - np.sqrt(0.25 * (a - c) ** 2 + b**2)
-
-
 def min_gouge_free_lead(R: float, r: float, K_surface: np.ndarray, tilt: np.ndarray,
                         lead_max: float, margin: float = 1e-4) -> np.ndarray:
     """Smallest lead (rad) in [0, lead_max] with K_cutter(lead, tilt) - K_surface >= margin * I

@@ -1,7 +1,7 @@
 """Independent rows on all cores, or on a Dask cluster, with the results of a serial run.
 
-``map_rows(fn, ctx, tasks)`` returns ``[fn(ctx, task) for task in tasks]``, in order. ``fn`` must
-be a pure function of its arguments (camsmooth.smoothing.rows.solve_row is), so where it runs
+``RowPool(ctx).map(fn, tasks)`` returns ``[fn(ctx, task) for task in tasks]``, in order. ``fn``
+must be a pure function of its arguments (camsmooth.smoothing.rows.solve_row is), so where it runs
 cannot change what it returns; the shared context is sent to each worker once, not with every
 task. Backends:
 
@@ -23,7 +23,7 @@ from typing import Any, TypeVar
 
 from camsmooth.errors import InputError
 
-__all__ = ["RowPool", "default_workers", "map_rows"]
+__all__ = ["RowPool", "default_workers"]
 
 C = TypeVar("C")
 T = TypeVar("T")
@@ -130,11 +130,3 @@ class RowPool:
             for _ in _progress(as_completed(futures), len(futures), progress):
                 pass
         return self._client.gather(futures)
-
-
-def map_rows(fn: Callable[[C, T], R], ctx: C, tasks: Sequence[T], *, workers: int = 1, dask: str | None = None,
-             progress: str | None = None) -> list[R]:
-    """``[fn(ctx, t) for t in tasks]`` on the chosen backend (module docstring), with a pool that
-    lives for this call only; ``progress``: a progress-bar label, or None for none."""
-    with RowPool(ctx, workers=workers, dask=dask) as pool:
-        return pool.map(fn, tasks, progress)
