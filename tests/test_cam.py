@@ -120,3 +120,49 @@ def test_cli_smooths_an_apt_file_with_its_own_cutter(files, tmp_path, capsys):
     text = capsys.readouterr()
     assert rc == 0 and text.out.splitlines()[1].startswith("cam ")  # the program as it came, listed first
     assert "does not touch the mesh" in text.err
+
+
+def _run(argv, capsys):
+    rc = main(argv)
+    return rc, capsys.readouterr().err
+
+
+def test_cl_program_far_from_the_mesh_is_one_message_and_writes_nothing(files, tmp_path, capsys):
+    d, ccs, tips, axes = files
+    far = [t + np.array([0.0, 0.0, 50.0]) for t in tips]
+    (tmp_path / "far.cls").write_text(_clsf(far, axes))
+    rc, err = _run(["smooth", str(tmp_path / "far.cls"), "--surface", str(d / "plane.stl"), "--lead", "2:20",
+                    "--tilt", "-10:10", "-o", str(tmp_path / "o.csv"), "--gcode", str(tmp_path / "o.nc")], capsys)
+    assert rc == 2 and "far.cls" in err and "touch the mesh" in err and len(err.strip().splitlines()) == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["far.cls"]
+
+
+def test_cl_program_without_tldata_needs_a_cutter(files, tmp_path, capsys):
+    d, ccs, tips, axes = files
+    text = "\n".join(ln for ln in _clsf(tips, axes).splitlines() if not ln.startswith("TLDATA"))
+    (tmp_path / "notool.cls").write_text(text + "\n")
+    rc, err = _run(["smooth", str(tmp_path / "notool.cls"), "--surface", str(d / "plane.stl"), "--lead", "2:20",
+                    "--tilt", "-10:10", "-o", str(tmp_path / "o.csv")], capsys)
+    assert rc == 2 and "notool.cls" in err and "line 1" in err and "TLDATA" in err
+    assert not (tmp_path / "o.csv").exists()
+    rc, _ = _run(["smooth", str(tmp_path / "notool.cls"), "--surface", str(d / "plane.stl"), "--lead", "2:20",
+                  "--tilt", "-10:10", "--cutter-radius", "4", "--corner-radius", "1", "-o", str(tmp_path / "o.csv"),
+                  "--quiet"], capsys)
+    assert rc == 0 and (tmp_path / "o.csv").exists()
+
+
+@pytest.mark.parametrize("bad,needle", [
+    ("GOTO/1.0,2.0", "GOTO"),
+    ("GOTO/0.0,0.0,0.0,0.0,0.0,2.0", "unit"),
+    ("UNITS/FURLONGS", "UNITS"),
+])
+def test_bad_apt_records_name_the_line(files, tmp_path, capsys, bad, needle):
+    d, ccs, tips, axes = files
+    lines = _clsf(tips, axes).splitlines()
+    lines.insert(6, bad)
+    (tmp_path / "bad.cls").write_text("\n".join(lines) + "\n")
+    for verb in (["smooth", "--lead", "2:20", "--tilt", "-10:10", "-o", str(tmp_path / "o.csv")],
+                 ["analyze", "--json", str(tmp_path / "a.json")]):
+        rc, err = _run([verb[0], str(tmp_path / "bad.cls"), "--surface", str(d / "plane.stl"), *verb[1:]], capsys)
+        assert rc == 2 and "bad.cls" in err and "line 7" in err and needle.lower() in err.lower(), err
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.cls"]
