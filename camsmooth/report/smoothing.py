@@ -302,6 +302,11 @@ def _plot_lead_tilt(series: list[_Series], colours: dict[str, str]) -> Any:
             y = np.degrees(np.asarray(getattr(s.m, name), dtype=float))
             x, yy = s.line(y)
             ax.plot(x, yy, color=colours[s.m.method], linewidth=0.9, label=name)
+            clear = getattr(s.m, "lead_clear", None)
+            if name == "lead" and clear is not None and np.isfinite(clear[:, 0]).any():
+                xf, yf = s.line(np.degrees(clear[:, 0]))
+                ax.plot(xf, yf, color=_LIMIT_COLOUR, linewidth=0.8, linestyle="--",
+                        label="clear floor (accessibility map)")
             with np.errstate(invalid="ignore"):
                 out = (y < w[:, 0] - 1e-9) | (y > w[:, 1] + 1e-9)
             if out.any():
@@ -654,7 +659,8 @@ _CAPTIONS = {
                                   "|d\u00b2T/dt\u00b2| of the unit tool axis per method (log scale)."),
     "lead_tilt.png": ("5. Lead and tilt",
                       "Lead and tilt (deg) per method; shaded: admissible window per point after gouge "
-                      "tightening; x: outside the window."),
+                      "tightening; dashed: the lead floor below which the tool's heel gouges the mesh, from "
+                      "the accessibility map at the points where one was needed; x: outside the window."),
     "clearance.png": ("6. Clearance",
                       "Minimum signed clearance \u03b4 tool to surface (mm); solid: 0; dashed: "
                       "tolerance (the --tolerance of the run); dots: gouges."),

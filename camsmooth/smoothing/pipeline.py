@@ -324,6 +324,7 @@ class ProgramSmoother:
         res = self._result(label, A, B, delta=delta, lift=lift, unreachable=np.zeros(0, int),
                            runtime=time.perf_counter() - t0, lead_window=cat("lead_window"),
                            tilt_window=cat("tilt_window"))
+        res.lead_clear = cat("lead_clear")
         blocked, unreach, mapped = cat("blocked"), cat("unreachable_clear"), cat("mapped")
         best = cat("best_delta")
         m = res.metrics

@@ -60,6 +60,7 @@ class MethodResult:
     metrics: dict[str, Any] = field(default_factory=dict)
     feed_dirs: np.ndarray | None = None  # (N, 3) unit feed directions X_L used for lead/tilt
     plan: Any = None  # camsmooth.smoothing.feed.FeedPlan: the time-optimal time law of this program
+    lead_clear: np.ndarray | None = None  # (N, 2) the accessibility map's lead floor, ceiling (rad; NaN: none)
 
     def __len__(self) -> int:
         return len(self.t)

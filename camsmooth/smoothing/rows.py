@@ -132,7 +132,8 @@ class RowSolution:
     where none); lead_window, tilt_window: the windows with the map's tilt narrowing (rad);
     mapped: points that got a map; blocked: points whose whole window the map found blocked;
     unreachable_clear: mapped points with a clear region that the limits kept the solution out
-    of; best_delta: the best clearance the map found (mm, NaN where not mapped); iterations
+    of; best_delta: the best clearance the map found (mm, NaN where not mapped); lead_clear: (N, 2)
+    the map's lead floor and ceiling (rad) at the solution's tilt (NaN where none); iterations
     (IPOPT, summed), rounds (solve/verify), clearance_evals (poses checked, map included),
     solve_s, map_s, check_s: time in the NLP, the map and the verification (s).
     """
@@ -147,6 +148,7 @@ class RowSolution:
     blocked: np.ndarray
     unreachable_clear: np.ndarray
     best_delta: np.ndarray
+    lead_clear: np.ndarray
     iterations: int
     rounds: int
     clearance_evals: int
@@ -316,8 +318,13 @@ def solve_row(ctx: RowContext, task: RowTask) -> RowSolution:
         T = mach.tool_axis_np(A, B)
         cl = cc_to_cl(cut, task.cc, task.normals, T)
         lift, delta = lift_along_normal(w.index, cut, cl, T, task.normals, delta, bad, tol)
+    _, tilt = lead_tilt_from_axis(mach.tool_axis_np(A, B), task.frames)
+    p = np.stack([np.ones_like(tilt), tilt, tilt ** 2], -1)
+    lead_clear = np.column_stack([np.where(has_floor, np.sum(floor * p, -1), np.nan),
+                                  np.where(has_ceiling, np.sum(ceiling * p, -1), np.nan)])
     return RowSolution(A=A, B=B, delta=delta, lift=lift, lead_window=lw, tilt_window=tw, mapped=mapped,
-                       blocked=blocked, unreachable_clear=unreachable_clear, best_delta=best, iterations=iters,
+                       blocked=blocked, unreachable_clear=unreachable_clear, best_delta=best, lead_clear=lead_clear,
+                       iterations=iters,
                        rounds=rounds, clearance_evals=evals, solve_s=t_solve, map_s=t_map, check_s=t_check)
 
 
