@@ -111,7 +111,7 @@ def read_text_file(path: str | os.PathLike, what: str = "file") -> str:
     except FileNotFoundError:
         raise InputError(f"cannot read the {what}: file not found", file=file) from None
     except IsADirectoryError:
-        raise InputError(f"cannot read the {what}: it is a directory", file=file) from None
+        raise InputError(f"cannot read the {what}: it is a folder, not a file", file=file) from None
     except OSError as exc:
         raise InputError(f"cannot read the {what}: {exc.strerror or exc}", file=file) from None
     if raw.startswith((b"\xff\xfe", b"\xfe\xff")):

@@ -93,6 +93,7 @@ from numba import njit
 
 from camsmooth.errors import InputError
 from camsmooth.io.atomic import write_text_atomic
+from camsmooth.io.table import read_text_file
 from camsmooth.machine.kinematics import IDENTITY, Chain, Frame, Machine
 
 # ----------------------------------------------------------------------------------------------
@@ -779,14 +780,7 @@ class ErrorModel:
     def from_json(path: str | os.PathLike) -> ErrorModel:
         """Read a model written by ``to_json`` (InputError naming the file, and the key where
         one is at fault, on a missing or malformed file)."""
-        try:
-            text = Path(path).read_text()
-        except FileNotFoundError:
-            raise InputError("model file not found", file=str(path)) from None
-        except UnicodeDecodeError:
-            raise InputError("not a text (UTF-8) file: a JSON error model is expected", file=str(path)) from None
-        except OSError as exc:
-            raise InputError(f"cannot read the model file: {exc.strerror or exc}", file=str(path)) from None
+        text = read_text_file(path, "model file")
         try:
             doc = json.loads(text)
         except json.JSONDecodeError as exc:
