@@ -362,3 +362,52 @@ def test_unreachable_z_in_a_real_process_leaves_the_earlier_csv(ws):
     msg = one_message(p.stderr)
     assert "Z" in msg and "travel" in msg, msg
     assert snapshot(ws) == before  # out.csv as the earlier run wrote it, no out.nc, no temporary
+
+
+# ----------------------------------------------------------------------------------------------
+# 6. the API's writers replace a file, they never write into it (issue 12's planted bug: a result
+#    CSV written in place passed, because the failure tests raised before any file was opened)
+def _writers():
+    from camsmooth.io.output import write_gcode, write_result_csv
+    from camsmooth.machine.model import ErrorModel
+    from tests.test_output import CUTTER, MACHINE, make_result
+
+    res = make_result(n_rows=2, n_pts=20)
+    return {
+        "result csv": lambda p: write_result_csv(p, res),
+        "gcode": lambda p: write_gcode(p, res, MACHINE, CUTTER, 1500.0),
+        "cc csv": lambda p: write_cc_csv(p, plane_path()),
+        "model json": lambda p: ErrorModel(geometric={"EY0A": 0.02}).to_json(p),
+    }
+
+
+@pytest.mark.parametrize("writer", ["result csv", "gcode", "cc csv", "model json"])
+def test_writer_replaces_the_file_and_never_writes_into_it(tmp_path, writer):
+    """A second name (hard link) of the earlier file keeps the earlier content: the new file is a
+    new inode renamed into place, so a reader of the old one never sees a half-written file."""
+    target, link = tmp_path / "out", tmp_path / "earlier"
+    target.write_text("earlier\n")
+    os.link(target, link)
+    _writers()[writer](target)
+    assert link.read_text() == "earlier\n"
+    assert target.read_text() != "earlier\n" and target.stat().st_size > 20
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["earlier", "out"]
+
+
+@pytest.mark.parametrize("writer", ["result csv", "cc csv"])
+def test_table_writer_failing_half_way_leaves_the_earlier_file(tmp_path, monkeypatch, writer):
+    """polars' CSV writer fails half-way (it has written part of its file): the earlier file is
+    intact and no partial file or temporary is left."""
+    import polars as pl
+
+    def half(self, file, *args, **kwargs):
+        Path(file).write_text("row,idx\n1,")
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(pl.DataFrame, "write_csv", half)
+    target = tmp_path / "out.csv"
+    target.write_text("earlier\n")
+    with pytest.raises(OSError):
+        _writers()[writer](target)
+    assert target.read_text() == "earlier\n"
+    assert [p.name for p in tmp_path.iterdir()] == ["out.csv"]
