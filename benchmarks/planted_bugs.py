@@ -82,7 +82,8 @@ BUGS: tuple[Bug, ...] = (
     Bug("csv-in-place", "`output.write_result_csv`", "writes in place instead of atomically",
         (("camsmooth/io/output.py", "    return write_table(path, columns)\n",
           "    import polars as pl\n\n"
-          "    pl.DataFrame({k: np.asarray(v) for k, v in columns.items()}).write_csv(path)\n"
+          "    Path(path).parent.mkdir(parents=True, exist_ok=True)\n"
+          "    pl.DataFrame({k: np.asarray(v) for k, v in columns.items()}).write_csv(path, line_terminator='\\n')\n"
           "    return Path(path)\n"),),
         ("tests/test_output.py", "tests/test_failure_injection.py")),
     Bug("facet", "clearance facet test (`geometry/_kernels.py`, numba)", "sign flip of the facet distance",
@@ -171,7 +172,7 @@ def _pytest(copy: Path, tests: tuple[str, ...], timeout: float) -> tuple[int, st
 
 
 def _first_failure(output: str) -> str:
-    m = re.search(r"^FAILED (\S+)", output, re.M)
+    m = re.search(r"^FAILED (.+?)(?: - |$)", output, re.M)
     return m.group(1) if m else "?"
 
 

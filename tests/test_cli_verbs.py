@@ -226,10 +226,11 @@ def test_demo_writes_its_outputs_and_meets_its_limits(tmp_path, capsys, monkeypa
     assert np.all(lead >= np.radians(2.0) - 1e-5) and np.all(lead <= np.radians(20.0) + 1e-5)
     assert np.all(np.abs(tilt) <= np.radians(15.0) + 1e-5)
     assert np.all(res["delta"] >= -0.005) and set(res["status"]) == {"ok"}
-    # the G-code holds one motion block per point of the program (machine mode: A and B words)
-    nc = (demo / "blade_smoothed.nc").read_text()
-    a_words = re.findall(r"\bA(-?[0-9.]+)", nc)
-    assert len(a_words) >= len(A)
+    # the G-code: one cutting block per point, with the CSV's A and B (deg, 4 decimals) in order
+    cut = [ln for ln in (demo / "blade_smoothed.nc").read_text().splitlines() if ln.startswith("G01")]
+    ab = np.array([[float(re.search(rf"\b{w}(-?[0-9.]+)", ln).group(1)) for w in "AB"] for ln in cut])
+    assert ab.shape == (len(A), 2)
+    np.testing.assert_allclose(ab, np.column_stack([res["A"], res["B"]]), atol=0.5e-4 + 1e-9)
 
 
 # ----------------------------------------------------------------------------------------------
