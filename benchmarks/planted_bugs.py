@@ -166,14 +166,16 @@ def _apply(copy: Path, bug: Bug) -> None:
 def _pytest(copy: Path, tests: tuple[str, ...], timeout: float) -> tuple[int, str, float]:
     env = dict(os.environ, PYTHONPATH=str(copy), PYTHONDONTWRITEBYTECODE="1")
     t0 = time.perf_counter()
-    p = subprocess.run([sys.executable, "-m", "pytest", "-x", "-q", "-rf", "-p", "no:cacheprovider", *tests],
+    p = subprocess.run([sys.executable, "-m", "pytest", "-x", "-q", "-rfE", "-p", "no:cacheprovider", *tests],
                        cwd=copy, env=env, capture_output=True, text=True, timeout=timeout)
     return p.returncode, p.stdout + p.stderr, time.perf_counter() - t0
 
 
 def _first_failure(output: str) -> str:
-    m = re.search(r"^FAILED (.+?)(?: - |$)", output, re.M)
-    return m.group(1) if m else "?"
+    m = re.search(r"^(FAILED|ERROR) (.+?)(?: - |$)", output, re.M)
+    if not m:
+        return "?"
+    return m.group(2) if m.group(1) == "FAILED" else f"{m.group(2)} (error in its set-up)"
 
 
 def main(argv: list[str] | None = None) -> int:
