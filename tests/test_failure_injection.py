@@ -115,7 +115,11 @@ VERBS = {
                  ["f.json", "m.json", "rep"]),
     "demo": (["demo", "--samples", "samples", "--sample", "tiny", "--out", "demo", "--quiet"],
              ["demo/tiny_smoothed.csv", "demo/tiny_smoothed.nc", "demo/report"]),
+    "analyze": (["analyze", "p.csv", "--surface", "plane.ply", "--cutter-radius", "4", "--corner-radius", "1",
+                 "--feed", "1000", "--json", "a.json", "--report", "rep", "--quiet"], ["a.json", "rep"]),
 }
+# a folder renamed onto an empty folder is allowed by the kernel: no "folder appears" failure there
+FOLDER_SECOND = {"analyze"}
 
 
 def _commit_renames(monkeypatch, on_second):
@@ -146,8 +150,8 @@ def _folder_appears(real, src, dst):
     return real(src, dst)
 
 
-@pytest.mark.parametrize("failure", ["no space", "folder appears"])
-@pytest.mark.parametrize("verb", list(VERBS))
+@pytest.mark.parametrize("verb,failure", [(v, f) for v in VERBS for f in ("no space", "folder appears")
+                                          if not (f == "folder appears" and v in FOLDER_SECOND)])
 def test_commit_fails_on_the_second_output(capsys, ws, monkeypatch, quick_report, verb, failure):
     argv, outputs = VERBS[verb]
     first, second = ws / outputs[0], ws / outputs[1]
