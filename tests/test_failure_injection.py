@@ -35,6 +35,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from camsmooth.cli.main import main
@@ -415,3 +416,86 @@ def test_table_writer_failing_half_way_leaves_the_earlier_file(tmp_path, monkeyp
         _writers()[writer](target)
     assert target.read_text() == "earlier\n"
     assert [p.name for p in tmp_path.iterdir()] == ["out.csv"]
+
+
+# ----------------------------------------------------------------------------------------------
+# 7. SIGTERM while the rows are solved in worker processes: no output, no process left behind
+def _descendants(pid: int) -> set[int]:
+    """Every process below ``pid`` (from /proc)."""
+    children: dict[int, list[int]] = {}
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                ppid = int((d / "stat").read_text().rsplit(")", 1)[1].split()[1])
+            except (OSError, IndexError, ValueError):
+                continue
+            children.setdefault(ppid, []).append(int(d.name))
+    out, todo = set(), [pid]
+    while todo:
+        for c in children.get(todo.pop(), []):
+            if c not in out:
+                out.add(c)
+                todo.append(c)
+    return out
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")
+def test_sigterm_while_workers_solve_rows(ws, tmp_path_factory):
+    import threading
+
+    from camsmooth.geometry.paths import zigzag_path
+    from camsmooth.geometry.surfaces import Sinusoid, tessellate_to_tolerance
+
+    s = Sinusoid(amplitude=3.0, kx=2 * np.pi / 50.0, ky=2 * np.pi / 70.0, u_range=(0.0, 50.0), v_range=(0.0, 60.0))
+    tessellate_to_tolerance(s, chord_tol=1e-3).export(ws / "eggbox.ply")
+    write_cc_csv(ws / "egg.csv", zigzag_path(s, stepover=2.0, spacing=1.0, feed=2000.0))
+    (ws / "out.csv").write_text("an earlier run's output\n")
+    before = snapshot(ws)
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    proc = subprocess.Popen([sys.executable, "-m", "camsmooth", "smooth", "egg.csv", "--surface", "eggbox.ply",
+                             "--cutter-radius", "3", "--corner-radius", "1", "--lead", "2:20", "--tilt", "-15:15",
+                             "--workers", "2", "-o", "out.csv", "--gcode", "out.nc"], cwd=ws, env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    chunks: list[bytes] = []
+
+    def read() -> None:
+        while chunk := os.read(proc.stderr.fileno(), 4096):
+            chunks.append(chunk)
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    try:
+        deadline = time.monotonic() + 180
+        workers: set[int] = set()
+        while True:  # the NLP's progress bar is up and the pool has started its workers
+            assert proc.poll() is None, b"".join(chunks).decode()
+            assert time.monotonic() < deadline, "the NLP never started in workers"
+            if b"nlp rows" in b"".join(chunks):
+                workers = _descendants(proc.pid)
+                if len(workers) >= 2:
+                    break
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    reader.join(timeout=10)
+    text = b"".join(chunks).decode()
+    assert proc.returncode == 143, text
+    last = [ln for ln in text.replace("\r", "\n").splitlines() if ln.startswith("camsmooth")]
+    assert len(last) == 1 and "terminated" in last[0], text
+    assert snapshot(ws) == before
+    deadline = time.monotonic() + 30  # the workers and the fork server follow their parent out
+    while any(_alive(p) for p in workers) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not [p for p in workers if _alive(p)], "worker processes outlived the command"
