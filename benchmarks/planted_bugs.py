@@ -3,6 +3,7 @@
     python benchmarks/planted_bugs.py              # every bug (about 5-10 minutes on 2 cores)
     python benchmarks/planted_bugs.py --only facet,backlash-sign
     python benchmarks/planted_bugs.py --list       # the bugs and their targeted tests, nothing run
+    python benchmarks/planted_bugs.py --only row-times --tests tests/test_pipeline.py  # other tests
 
 For each bug: the repository (its tracked and untracked-but-not-ignored files, and the numba
 caches under camsmooth/, with their modification times, so unchanged kernels are not compiled
@@ -182,6 +183,8 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--only", default=None, help="comma-separated bug keys (see --list)")
     ap.add_argument("--list", action="store_true", help="list the bugs and their tests, run nothing")
+    ap.add_argument("--tests", nargs="+", default=None,
+                    help="run these pytest arguments instead of each bug's targeted tests (which tests miss a bug?)")
     ap.add_argument("--no-baseline", action="store_true", help="skip the run on the unchanged copy")
     ap.add_argument("--timeout", type=float, default=1800.0, help="seconds per pytest run")
     args = ap.parse_args(argv)
@@ -192,6 +195,8 @@ def main(argv: list[str] | None = None) -> int:
         if unknown:
             ap.error(f"unknown bug(s): {', '.join(sorted(unknown))}")
         bugs = tuple(b for b in BUGS if b.key in keys)
+    if args.tests:
+        bugs = tuple(Bug(b.key, b.where, b.what, b.changes, tuple(args.tests)) for b in bugs)
     if args.list:
         for b in bugs:
             print(f"{b.key:18s} {b.where}: {b.what}  [{' '.join(b.tests)}]")
