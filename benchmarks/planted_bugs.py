@@ -164,6 +164,16 @@ def _apply(copy: Path, bug: Bug) -> None:
         p.write_text(text.replace(old, new))
 
 
+def _check_patterns(root: Path, scratch: Path, bug: Bug) -> None:
+    """Apply the bug to a scratch copy of the files it changes (SystemExit when a pattern does not
+    occur exactly once), then remove the copy."""
+    for file, _, _ in bug.changes:
+        (scratch / file).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(root / file, scratch / file)
+    _apply(scratch, bug)
+    shutil.rmtree(scratch)
+
+
 def _pytest(copy: Path, tests: tuple[str, ...], timeout: float) -> tuple[int, str, float]:
     env = dict(os.environ, PYTHONPATH=str(copy), PYTHONDONTWRITEBYTECODE="1")
     t0 = time.perf_counter()
@@ -183,6 +193,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--only", default=None, help="comma-separated bug keys (see --list)")
     ap.add_argument("--list", action="store_true", help="list the bugs and their tests, run nothing")
+    ap.add_argument("--check", action="store_true", help="check that every pattern occurs once, run nothing")
     ap.add_argument("--tests", nargs="+", default=None,
                     help="run these pytest arguments instead of each bug's targeted tests (which tests miss a bug?)")
     ap.add_argument("--no-baseline", action="store_true", help="skip the run on the unchanged copy")
@@ -201,18 +212,19 @@ def main(argv: list[str] | None = None) -> int:
         for b in bugs:
             print(f"{b.key:18s} {b.where}: {b.what}  [{' '.join(b.tests)}]")
         return 0
+    if args.check:
+        with tempfile.TemporaryDirectory(prefix="camsmooth-planted-") as tmp:
+            for b in bugs:
+                _check_patterns(ROOT, Path(tmp) / b.key, b)
+        print(f"every pattern of {len(bugs)} planted bugs occurs exactly once")
+        return 0
 
     failed = False
     with tempfile.TemporaryDirectory(prefix="camsmooth-planted-") as tmp:
         base = Path(tmp) / "base"
         _copy_repo(base)
-        for b in bugs:  # every pattern is checked (in a scratch copy of its files) before anything runs
-            scratch = Path(tmp) / "check"
-            for file, _, _ in b.changes:
-                (scratch / file).parent.mkdir(parents=True, exist_ok=True)
-                shutil.copy2(base / file, scratch / file)
-            _apply(scratch, b)
-            shutil.rmtree(scratch)
+        for b in bugs:  # every pattern is checked before anything runs
+            _check_patterns(base, Path(tmp) / "check", b)
         if not args.no_baseline:
             tests = tuple(dict.fromkeys(t for b in bugs for t in b.tests))
             rc, out, dt = _pytest(base, tests, args.timeout)
