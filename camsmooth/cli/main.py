@@ -150,6 +150,9 @@ def run_smooth(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+STRICT_ROWS_NAMED = 10  # rows the --strict message details (one line, even for a million-point program)
+
+
 class StrictFailure(CamsmoothError):
     """``smooth --strict`` refused the program (exit status 1); the message names the rows."""
 
@@ -167,7 +170,8 @@ def _strict_failure(result: Any) -> str | None:
         gouge = r.delta < -tol
     unreachable = point_status(r) == "unreachable"
     parts = []
-    for row in np.unique(r.rows[lifted | gouge | unreachable]):  # the few unclean rows
+    bad_rows = np.unique(r.rows[lifted | gouge | unreachable])
+    for row in bad_rows[:STRICT_ROWS_NAMED]:
         m = r.rows == row
         bits = []
         for sel, what, value, worst in ((lifted & m, "lifted along the normal", r.lift, np.argmax),
@@ -184,6 +188,8 @@ def _strict_failure(result: Any) -> str | None:
         parts.append(f"row {int(row)}: " + ", ".join(bits))
     if not parts:
         return None
+    if len(bad_rows) > STRICT_ROWS_NAMED:
+        parts.append(f"and {len(bad_rows) - STRICT_ROWS_NAMED} more rows")
     return (f"--strict: not clean within the tolerance {tol:g} mm: " + "; ".join(parts)
             + "; nothing written")
 
