@@ -21,6 +21,7 @@ import trimesh
 
 from camsmooth.diagnosis.recordings import Program
 from camsmooth.diagnosis.simulator import physics_from_settings, simulate_recording
+from camsmooth.machine.kinematics import DEFAULT_MACHINE_TOML
 from camsmooth.machine.model import ErrorModel
 
 
@@ -140,7 +141,7 @@ def test_backlash_after_servo_lag_matches_play_of_the_lagged_drive():
 H = 0.01  # s between points: 1 mm at 6000 mm/min
 
 
-def _counter_setup():
+def _counter_setup(linear: dict | None = None):
     from camsmooth.geometry.clearance import MeshIndex
     from camsmooth.geometry.cutter import ToroidalCutter
     from camsmooth.geometry.paths import CCPath
@@ -150,6 +151,8 @@ def _counter_setup():
     data = tomllib.loads(DEFAULT_MACHINE_TOML)
     data["axis"]["A"].update(min=-3.0, max=10.0, vmax=20.0, amax=1000.0)
     data["axis"]["B"].update(min=-10.0, max=20.0, vmax=20.0, amax=1000.0)
+    for name in "XYZ":  # the pivot's axes out of the way unless a test sets them
+        data["axis"].setdefault(name, {}).update(linear or {"vmax": 1e6, "amax": 1e9})
     machine = machine_from_dict(data)
     rows = _violating_rows()
     pts, row_id = [], []
@@ -233,10 +236,40 @@ def test_violation_counter_counts_each_limit_once():
     np.testing.assert_allclose(r.tilt, tilt, atol=1e-12)
     np.testing.assert_allclose(np.diff(program.t[program.path.rows == 0]), H, rtol=1e-12)
     assert r.metrics["violations"] == {
+        "X travel": 0, "X velocity": 0, "X acceleration": 0, "Y travel": 0, "Y velocity": 0, "Y acceleration": 0,
+        "Z travel": 0, "Z velocity": 0, "Z acceleration": 0,
         "A travel": 1, "A velocity": 1, "A acceleration": 1,
         "B travel": 1, "B velocity": 1, "B acceleration": 1,
         "lead window": 1, "tilt window": 1, "interference": 1,
     }
+
+
+def test_violation_counter_counts_the_pivot_axes():
+    """The AB head turns rotary motion into motion of the pivot, X Y Z = CL + pivot T (METHODS
+    section 1): with linear limits the kinks of the hand-made program bind on X Y Z too. The
+    expected counts come from the test's own X Y Z and differences."""
+    lin = {"vmax": 30.0, "amax": 2000.0}
+    sm, program, A, B = _counter_setup(lin)
+    n = len(A)
+    with sm:
+        r = sm._result("none", A, B, delta=np.full(n, 0.5), lift=np.zeros(n), unreachable=np.zeros(0, int),
+                       runtime=0.0)
+    T = np.column_stack([np.sin(B), -np.sin(A) * np.cos(B), np.cos(A) * np.cos(B)])
+    pivot = tomllib.loads(DEFAULT_MACHINE_TOML)["machine"]["pivot"]
+    xyz = r.cl + pivot * T
+    rows = program.path.rows
+    want = {}
+    for k, name in enumerate("XYZ"):
+        v_count = a_count = 0
+        for row in np.unique(rows):
+            q = xyz[rows == row, k]
+            v = np.diff(q) / H
+            v_count += int(np.sum(np.abs(v) > lin["vmax"] * (1 + 1e-9)))
+            a_count += int(np.sum(np.abs(np.diff(v) / H) > lin["amax"] * (1 + 1e-9)))
+        want.update({f"{name} travel": 0, f"{name} velocity": v_count, f"{name} acceleration": a_count})
+    got = {k: v for k, v in r.metrics["violations"].items() if k[0] in "XYZ"}
+    assert got == want
+    assert sum(want.values()) >= 2  # the limits were chosen to bind: the test counts something
 
 
 def test_violation_counter_is_zero_just_inside_every_limit():

@@ -31,3 +31,13 @@ def test_readme_lists_every_runnable_script() -> None:
     runnable = [p for p in SCRIPTS if '__name__ == "__main__"' in p.read_text()]
     missing = [f"{p.parent.name}/{p.name}" for p in runnable if f"{p.parent.name}/{p.name}" not in readme]
     assert not missing, f"scripts not in the README: {missing}"
+
+
+def test_planted_bugs_still_apply() -> None:
+    """Every planted bug of benchmarks/planted_bugs.py still finds its code (exactly once): a
+    refactor that moves the code must move the bug with it, or the self-check tests nothing."""
+    import subprocess
+
+    out = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "planted_bugs.py"), "--check"],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stdout + out.stderr

@@ -26,7 +26,7 @@ from camsmooth.geometry.paths import CCPath, estimate_feed_dirs
 from camsmooth.io.program import CLProgram, Tool
 from camsmooth.machine.kinematics import Machine
 from camsmooth.smoothing.feed import plan_program
-from camsmooth.smoothing.nlp import program_rates
+from camsmooth.smoothing.nlp import limit_violations, program_rates
 
 __all__ = ["SINGULAR_DEG", "ProgramAnalysis", "ToolpathAnalysis", "analyze_program"]
 
@@ -112,21 +112,9 @@ def _toolpath(name: str, tool: Tool | None, machine: Machine, tip: np.ndarray, a
     T = machine.tool_axis_np(A, B)
     xyz = machine.linear_axes(tip, T)
     t = _times(tip, feed, rows)
-    viol: dict[str, int] = {}
-    peaks: dict[str, float] = {}
-    for k, name_ in enumerate("XYZAB"):
-        q = (xyz[:, k] if k < 3 else (A, B)[k - 3])
-        lim = machine.limits.get(name_)
-        rq = program_rates(q, t, rows)
-        scale = 1.0 if k < 3 else np.degrees(1.0)
-        v, a = np.abs(rq.seg_vel), np.abs(rq.sec)
-        peaks[f"{name_} velocity"] = float(scale * v.max(initial=0.0))
-        peaks[f"{name_} acceleration"] = float(scale * a.max(initial=0.0))
-        if lim is None:
-            continue
-        viol[f"{name_} travel"] = int(np.sum((q < lim.min - 1e-9) | (q > lim.max + 1e-9)))
-        viol[f"{name_} velocity"] = int(np.sum(v > lim.vmax * (1 + 1e-9)))
-        viol[f"{name_} acceleration"] = int(np.sum(a > lim.amax * (1 + 1e-9)))
+    joints = {"X": xyz[:, 0], "Y": xyz[:, 1], "Z": xyz[:, 2], "A": A, "B": B}
+    viol, peaks = limit_violations(machine.limits, joints, t, rows)
+    peaks = {k: v * (np.degrees(1.0) if k[0] in "AB" else 1.0) for k, v in peaks.items()}  # deg for A, B
     gamma = float(np.sum(program_rates(T, t, rows).sec ** 2))
     starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
     ends = np.r_[starts[1:], len(t)] - 1

@@ -23,8 +23,9 @@ lead = atan2(|(x, y)|, n . T), tilt = atan2(y, x) and floor, ceiling quadratics 
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -120,6 +121,32 @@ def program_rates(q: np.ndarray, t: np.ndarray, rows: np.ndarray) -> ProgramRate
     acc[start] = acc[start + 1]
     acc[end] = acc[end - 1]
     return ProgramRates(seg_vel, seg, sec, mid, vel, acc)
+
+
+def limit_violations(limits: Mapping[str, Any], joints: Mapping[str, np.ndarray], t: np.ndarray, rows: np.ndarray
+                     ) -> tuple[dict[str, int], dict[str, float]]:
+    """Samples of a program outside each axis's limits under the time law t (s), and the peaks.
+
+    joints: axis name -> position per point (X, Y, Z mm; A, B rad; machine axes), in program
+    order; limits: name -> AxisLimits (min, max, vmax, amax in the same units; axes without
+    limits get peaks only). Counted per axis: positions outside [min, max], segment velocities
+    over vmax, three-point second differences over amax (``program_rates``; 1e-9 relative slack).
+    Returns ({'<axis> travel|velocity|acceleration': count}, {'<axis> velocity|acceleration':
+    largest |value|}, internal units). The one counter of the pipeline's metrics and ``analyze``."""
+    viol: dict[str, int] = {}
+    peaks: dict[str, float] = {}
+    for name, q in joints.items():
+        rq = program_rates(q, t, rows)
+        v, a = np.abs(rq.seg_vel), np.abs(rq.sec)
+        peaks[f"{name} velocity"] = float(v.max(initial=0.0))
+        peaks[f"{name} acceleration"] = float(a.max(initial=0.0))
+        lim = limits.get(name)
+        if lim is None:
+            continue
+        viol[f"{name} travel"] = int(np.sum((q < lim.min - 1e-9) | (q > lim.max + 1e-9)))
+        viol[f"{name} velocity"] = int(np.sum(v > lim.vmax * (1 + 1e-9)))
+        viol[f"{name} acceleration"] = int(np.sum(a > lim.amax * (1 + 1e-9)))
+    return viol, peaks
 
 
 def gamma(T: np.ndarray, t: np.ndarray) -> float:

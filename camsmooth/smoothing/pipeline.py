@@ -35,7 +35,7 @@ from camsmooth.geometry.paths import CCPath, check_contact_with_mesh, check_norm
 from camsmooth.geometry.surfaces import Surface, chord_deviation
 from camsmooth.machine.kinematics import Machine, load_machine
 from camsmooth.smoothing.cam import CamProgram
-from camsmooth.smoothing.nlp import program_rates, spline_row
+from camsmooth.smoothing.nlp import limit_violations, program_rates, spline_row
 from camsmooth.smoothing.orientation import (
     Orientation,
     initial_orientation,
@@ -415,17 +415,12 @@ class ProgramSmoother:
 
     def metrics(self, r: MethodResult, g: float, unreachable: np.ndarray, runtime: float) -> dict[str, Any]:
         """Summary: gamma (1/s^4), peaks (deg/s^2), min delta (mm), violation counts per
-        constraint (samples outside the TRUE limits and the user's windows, the definitions of
-        camsmooth.smoothing.nlp), interference (points with delta < -tolerance), lifts (mm)."""
+        constraint at the programmed feed (samples outside the TRUE limits of all five axes, the
+        pivot's X Y Z included, ``camsmooth.smoothing.nlp.limit_violations``, and outside the
+        user's windows), interference (points with delta < -tolerance), lifts (mm)."""
         p = self.program
-        lim = self.nominal.limits
-        viol: dict[str, int] = {}
-        for name, q in (("A", r.A), ("B", r.B)):
-            L = lim[name]
-            viol[f"{name} travel"] = int(np.sum((q > L.max + 1e-9) | (q < L.min - 1e-9)))
-            rq = program_rates(q, p.t, p.path.rows)
-            viol[f"{name} velocity"] = int(np.sum(np.abs(rq.seg_vel) > L.vmax * (1 + 1e-9)))
-            viol[f"{name} acceleration"] = int(np.sum(np.abs(rq.sec) > L.amax * (1 + 1e-9)))
+        joints = {"X": r.xyz[:, 0], "Y": r.xyz[:, 1], "Z": r.xyz[:, 2], "A": r.A, "B": r.B}
+        viol, _ = limit_violations(self.nominal.limits, joints, p.t, p.path.rows)
         tol = 1e-6
         viol["lead window"] = int(np.sum((r.lead < r.lead_window[:, 0] - tol) | (r.lead > r.lead_window[:, 1] + tol)))
         viol["tilt window"] = int(np.sum((r.tilt < r.tilt_window[:, 0] - tol) | (r.tilt > r.tilt_window[:, 1] + tol)))
