@@ -137,7 +137,7 @@ def bench_samples(names: list[str], reference: bool) -> bool:
         index = MeshIndex(surf.mesh)
         chk = independent_checks(res, machine, lead, tilt, index)
         viol = chk["travel"] + chk["velocity"] + chk["acceleration"] + chk["lead"] + chk["tilt"]
-        g = {m: res.methods[m].metrics["gamma"] for m in ("none", "spline", "nlp")}
+        g = {m: res.methods[m].metrics.gamma for m in ("none", "spline", "nlp")}
         ref = (np.nan, np.nan, 0.0)
         if reference:
             program = prepare(path, index, CUTTER, None, lead, tilt)
@@ -147,7 +147,7 @@ def bench_samples(names: list[str], reference: bool) -> bool:
         rel = g["nlp"] / ref[0] - 1 if np.isfinite(ref[0]) else np.nan
         rows.append(f"{label:>18s} {len(path.points):7d} {g['none']:11.4g} {g['spline']:10.4g} {g['nlp']:10.4g} "
                     f"{ref[0]:10.4g} {100 * rel:8.2f}% {viol:5d} {chk['min_delta']:10.2e} {ref[1]:10.2e} "
-                    f"{chk['lifted']:6d} {m['mapped_points']:6d} {m['runtime_s']:6.1f} {total:7.1f}")
+                    f"{chk['lifted']:6d} {m.mapped_points or 0:6d} {m.runtime_s:6.1f} {total:7.1f}")
         good = viol == 0 and chk["below_tol"] == 0 and chk["lifted"] == 0 and (not reference or rel <= 0.01)
         ok &= good
         print(rows[-1] + ("" if good else "   <-- FAIL"), flush=True)

@@ -50,9 +50,9 @@ def main() -> int:
                      model=model, compensate=comp)
         for name, label in (("nlp-ideal", "smoothed without the model"), ("nlp", "smoothed with the model")):
             m = res.methods[name].metrics
-            out = m["violations"]["lead window"] + m["violations"]["tilt window"]
-            print(f"{label:28s} {str(comp):>11s} {out:36d} {m['tip_error_um_max']:16.3g} "
-                  f"{m['axis_error_urad_max']:22.3g} {m['gamma']:10.4g}")
+            out = m.violations["lead window"] + m.violations["tilt window"]
+            print(f"{label:28s} {str(comp):>11s} {out:36d} {m.tip_error_um_max:16.3g} "
+                  f"{m.axis_error_urad_max:22.3g} {m.gamma:10.4g}")
     return 0
 
 

@@ -153,9 +153,9 @@ def test_fallback_lift_only_where_the_whole_window_is_blocked():
     has_clear = np.any(d >= -5e-4, axis=1)
     assert not np.any(lifted & has_clear)  # never lifted where an orientation clears
     assert np.all(nlp.delta[~lifted] >= -1e-3)  # and clear without lift everywhere else
-    blocked = {(b["row"], b["idx"]) for b in nlp.metrics["blocked"]}
+    blocked = {(b.row, b.idx) for b in nlp.metrics.blocked}
     assert blocked == {(0, int(i)) for i in np.flatnonzero(lifted)}
-    assert all(b["best_clearance_mm"] < -1e-3 for b in nlp.metrics["blocked"])
+    assert all(b.best_clearance_mm < -1e-3 for b in nlp.metrics.blocked)
     # the lift is the least that clears: scan the lift along the normal with the exact clearance
     from camsmooth.geometry.clearance import clearance
 
@@ -191,7 +191,7 @@ def test_serial_processes_and_dask_give_identical_rows(channel_program):
     pytest.importorskip("dask.distributed")
     surf, path = channel_program
     serial = _run(surf, path, workers=1)
-    assert serial.metrics["mapped_points"] > 0  # the heel gouges: the map and its constraints are exercised
+    assert serial.metrics.mapped_points > 0  # the heel gouges: the map and its constraints are exercised
     procs = _run(surf, path, workers=2)
     dask = _run(surf, path, workers=2, dask="local")
     for other in (procs, dask):

@@ -103,7 +103,7 @@ def test_cam_method_is_the_input_program(files):
     np.testing.assert_allclose(c.axis, np.concatenate(axes), atol=5e-9)
     np.testing.assert_allclose(c.cl, np.concatenate(tips), atol=5e-6)
     np.testing.assert_allclose(np.degrees(c.lead), 8.0, atol=1e-5)
-    assert abs(c.metrics["min_delta"]) < 1e-5  # the CAM's poses touch the plane
+    assert abs(c.metrics.min_delta) < 1e-5  # the CAM's poses touch the plane
     assert any("lines" in w and "does not touch" in w for w in res.warnings)
 
 

@@ -235,7 +235,7 @@ def test_violation_counter_counts_each_limit_once():
     np.testing.assert_allclose(r.lead, lead, atol=1e-12)
     np.testing.assert_allclose(r.tilt, tilt, atol=1e-12)
     np.testing.assert_allclose(np.diff(program.t[program.path.rows == 0]), H, rtol=1e-12)
-    assert r.metrics["violations"] == {
+    assert r.metrics.violations == {
         "X travel": 0, "X velocity": 0, "X acceleration": 0, "Y travel": 0, "Y velocity": 0, "Y acceleration": 0,
         "Z travel": 0, "Z velocity": 0, "Z acceleration": 0,
         "A travel": 1, "A velocity": 1, "A acceleration": 1,
@@ -267,7 +267,7 @@ def test_violation_counter_counts_the_pivot_axes():
             v_count += int(np.sum(np.abs(v) > lin["vmax"] * (1 + 1e-9)))
             a_count += int(np.sum(np.abs(np.diff(v) / H) > lin["amax"] * (1 + 1e-9)))
         want.update({f"{name} travel": 0, f"{name} velocity": v_count, f"{name} acceleration": a_count})
-    got = {k: v for k, v in r.metrics["violations"].items() if k[0] in "XYZ"}
+    got = {k: v for k, v in r.metrics.violations.items() if k[0] in "XYZ"}
     assert got == want
     assert sum(want.values()) >= 2  # the limits were chosen to bind: the test counts something
 
@@ -291,7 +291,7 @@ def test_violation_counter_is_zero_just_inside_every_limit():
     with sm:
         r = sm._result("none", A, B, delta=np.full(n, -0.9e-3), lift=np.zeros(n), unreachable=np.zeros(0, int),
                        runtime=0.0)
-    assert sum(r.metrics["violations"].values()) == 0, r.metrics["violations"]
+    assert sum(r.metrics.violations.values()) == 0, r.metrics.violations
 
 
 # ----------------------------------------------------------------------------------------------

@@ -15,7 +15,7 @@ from camsmooth.errors import InfeasibleError, InputError
 from camsmooth.io import output
 from camsmooth.io.output import RESULT_CSV_COLUMNS, point_status, read_result_csv, write_gcode, write_result_csv
 from camsmooth.machine.kinematics import load_machine
-from camsmooth.smoothing.result import OUTPUT_COLUMNS, MethodResult, SmoothResult
+from camsmooth.smoothing.result import OUTPUT_COLUMNS, MethodResult, Metrics, SmoothResult
 
 MACHINE = load_machine(None)
 CUTTER = SimpleNamespace(R=3.0, r=1.0, shank_length=40.0, diameter=8.0)
@@ -46,10 +46,9 @@ def make_method(name: str, n_rows: int = 2, n_pts: int = 50, amp: float = 0.3, s
     Aa, Ba = _per_row_gradient(Av, t, rows), _per_row_gradient(Bv, t, rows)
     delta = 0.05 + 0.02 * np.sin(idx / 3.0 + seed)
     lift = np.zeros(len(t))
-    metrics = {"gamma": 1.5 + seed, "peak_A_acc": float(np.abs(Aa).max()),
-               "peak_B_acc": float(np.abs(Ba).max()), "min_delta": float(delta.min()),
-               "violations": {"A_acc": 0}, "runtime_s": 0.1,
-               "unclean_rows": [], "unreachable": []}
+    metrics = Metrics(gamma=1.5 + seed, peak_A_acc=float(np.abs(Aa).max()), peak_B_acc=float(np.abs(Ba).max()),
+                      min_delta=float(delta.min()), violations={"A_acc": 0}, lifted_points=0, max_lift_mm=0.0,
+                      lifted_beyond_tolerance=0, unclean_rows=[], unreachable=[], tolerance_mm=1e-3, runtime_s=0.1)
     return MethodResult(method=name, rows=rows, idx=idx, t=t, cc=cc, normals=normals, cl=cl, axis=T, lead=lead,
                         tilt=tilt, A=A, B=B, A_vel=Av, B_vel=Bv, A_acc=Aa, B_acc=Ba, xyz=MACHINE.linear_axes(cl, T),
                         delta=delta, lift=lift, lead_window=np.column_stack([lead - 0.1, lead + 0.1]),
@@ -77,7 +76,7 @@ def test_point_status_priorities():
     m.delta[[4, 20]] = -0.002              # 4: lifted but still gouging -> interference
     m.delta[21] = -0.0005                  # within the -1e-3 mm tolerance -> ok
     m.delta[22] = np.nan                   # unknown clearance is not interference
-    m.metrics["unreachable"] = [(1, 10), (0, 20)]  # (0, 20) also gouges: unreachable wins
+    m.metrics.unreachable = [(1, 10), (0, 20)]  # (0, 20) also gouges: unreachable wins
     st = point_status(m)
     expect = np.full(len(m), "ok", dtype=object)
     expect[[3, 60]] = "lifted"
@@ -94,7 +93,7 @@ def test_result_csv_round_trip(tmp_path):
     r.lift[5] = 0.0123
     r.delta[7] = -0.01
     r.delta[8] = np.nan
-    r.metrics["unreachable"] = [(1, 2)]
+    r.metrics.unreachable = [(1, 2)]
     path = write_result_csv(tmp_path / "out" / "result.csv", res)
     assert _no_temp_files(path.parent)
     header = path.read_text().splitlines()[0].split(",")

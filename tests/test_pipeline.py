@@ -72,8 +72,8 @@ def test_nlp_meets_every_limit_window_and_clearance(wavy, wavy_result):
     near = np.linalg.norm(v[None, ::7, :] - r.cl[::9, None, :], axis=2) < 8.0
     sd = signed_distance(CUTTER, r.cl[::9, None, :], r.axis[::9, None, :], v[None, ::7, :])
     assert np.min(np.where(near, sd, np.inf)) >= -1e-3
-    assert r.metrics["min_delta"] >= -1e-3
-    assert sum(r.metrics["violations"].values()) == 0
+    assert r.metrics.min_delta >= -1e-3
+    assert sum(r.metrics.violations.values()) == 0
     # A, B really produce the axes, and the linear axes put the tip at CL (pivot formula)
     np.testing.assert_allclose(machine.tool_axis_np(r.A, r.B), r.axis, atol=1e-12)
     tip, _ = machine.tool_pose_np(r.A, r.B, *r.xyz.T)
@@ -81,7 +81,7 @@ def test_nlp_meets_every_limit_window_and_clearance(wavy, wavy_result):
 
 
 def test_nlp_is_smoother_than_spline_and_none(wavy_result):
-    g = {k: v.metrics["gamma"] for k, v in wavy_result.methods.items()}
+    g = {k: v.metrics.gamma for k, v in wavy_result.methods.items()}
     assert g["nlp"] < 0.5 * g["spline"]
     assert g["nlp"] < 0.5 * g["none"]
 
@@ -110,13 +110,13 @@ def test_interference_is_cured_by_tilting_not_lifting(channel):
     res = smooth(path, surf, None, CUTTER, lead_range=(np.radians(1.0), np.radians(30.0)), tilt_range=TILT,
                  method="nlp", prefer_lead=np.radians(1.0), prefer_tilt=0.0, tolerance=1e-3)
     none, nlp = res.methods["none"], res.methods["nlp"]
-    assert none.metrics["min_delta"] < -0.01  # the low preferred lead gouges with the heel
-    assert nlp.metrics["min_delta"] >= -1e-3
-    assert nlp.metrics["lifted_points"] == 0 and nlp.metrics["unclean_rows"] == []
-    assert sum(nlp.metrics["violations"].values()) == 0
+    assert none.metrics.min_delta < -0.01  # the low preferred lead gouges with the heel
+    assert nlp.metrics.min_delta >= -1e-3
+    assert nlp.metrics.lifted_points == 0 and nlp.metrics.unclean_rows == []
+    assert sum(nlp.metrics.violations.values()) == 0
     # the spline method (published) lifts along the normal instead, and says so
     sp = res.methods["spline"]
-    assert sp.metrics["lifted_points"] > 0 and sp.metrics["min_delta"] >= -1e-3
+    assert sp.metrics.lifted_points > 0 and sp.metrics.min_delta >= -1e-3
 
 
 def test_infeasible_limits_name_the_binding_constraint(wavy):
@@ -159,10 +159,10 @@ def test_error_model_keeps_real_windows_and_compensation_zeroes_tip_error(wavy):
     res = smooth(path, surf, None, CUTTER, lead_range=LEAD, tilt_range=TILT, method="nlp", model=model,
                  compensate=True)
     real, ideal = res.methods["nlp"], res.methods["nlp-ideal"]
-    assert real.metrics["violations"]["lead window"] + real.metrics["violations"]["tilt window"] == 0
-    assert ideal.metrics["violations"]["lead window"] + ideal.metrics["violations"]["tilt window"] > 0
-    assert real.metrics["tip_error_um_max"] < 1.0
-    assert real.metrics["tip_error_um_max_uncompensated"] > 1.0
+    assert real.metrics.violations["lead window"] + real.metrics.violations["tilt window"] == 0
+    assert ideal.metrics.violations["lead window"] + ideal.metrics.violations["tilt window"] > 0
+    assert real.metrics.tip_error_um_max < 1.0
+    assert real.metrics.tip_error_um_max_uncompensated > 1.0
     # the axes reported are the model's prediction for the commanded A, B
     np.testing.assert_allclose(model.apply(load_machine()).tool_axis_np(real.A, real.B), real.axis, atol=1e-12)
 
@@ -244,4 +244,4 @@ def test_raster_path_by_axial_drop_on_a_mesh_then_smooth(wavy):
     inside = (cc.points[:, 1] > 0.5) & (cc.points[:, 1] < 11.5) & (cc.points[:, 0] > 0.5) & (cc.points[:, 0] < 39.5)
     assert np.min(np.sum(cc.normals[inside] * n_true[inside], axis=1)) > np.cos(np.radians(1.0))
     res = camsmooth.smooth(cc, surf, None, CUTTER, feed=2000.0, lead_range=LEAD, tilt_range=TILT, method="spline")
-    assert res.result.metrics["min_delta"] >= -1e-3
+    assert res.result.metrics.min_delta >= -1e-3

@@ -17,7 +17,7 @@ from matplotlib.image import imread
 from camsmooth.machine.kinematics import load_machine
 from camsmooth.report import smoothing as report
 from camsmooth.report.smoothing import HTML_FILE, PLOT_FILES, SCENE_FILE, cumulative_time, write_report
-from camsmooth.smoothing.result import MethodResult, SmoothResult
+from camsmooth.smoothing.result import MethodResult, Metrics, SmoothResult
 
 MACHINE = load_machine(None)
 CUTTER = SimpleNamespace(R=3.0, r=1.0, shank_length=40.0, diameter=8.0)
@@ -47,11 +47,11 @@ def make_method(name: str, n_rows: int = 2, n_pts: int = 50, seed: int = 0) -> M
     delta = 0.05 + 0.02 * np.sin(idx / 3.0)
     if name == "none":
         delta[10] = -0.01
-    metrics = {"gamma": 12.3456 / (seed + 1), "peak_A_acc": float(np.degrees(np.abs(Aa).max())),
-               "peak_B_acc": float(np.degrees(np.abs(Ba).max())), "min_delta": float(delta.min()),
-               "violations": {"B_acc": 4 - seed, "lead": 0}, "runtime_s": 0.25 * (seed + 1),
-               "unclean_rows": [1] if name == "none" else [],
-               "unreachable": [(1, 7), (0, 3)] if name == "nlp" else []}
+    metrics = Metrics(gamma=12.3456 / (seed + 1), peak_A_acc=float(np.degrees(np.abs(Aa).max())),
+                      peak_B_acc=float(np.degrees(np.abs(Ba).max())), min_delta=float(delta.min()),
+                      violations={"B_acc": 4 - seed, "lead": 0}, runtime_s=0.25 * (seed + 1), lifted_points=0,
+                      max_lift_mm=0.0, lifted_beyond_tolerance=0, unclean_rows=[1] if name == "none" else [],
+                      unreachable=[(1, 7), (0, 3)] if name == "nlp" else [], tolerance_mm=1e-3)
     normals = np.tile([0.0, 0.0, 1.0], (len(t), 1))
     lead_w, tilt_w = np.column_stack([lead - 0.05, lead + 0.05]), np.column_stack([tilt - 0.1, tilt + 0.1])
     return MethodResult(method=name, rows=rows, idx=idx, t=t, cc=cc, normals=normals, cl=cc.copy(), axis=T,
@@ -121,13 +121,13 @@ def test_report_lists_metrics_and_notices(full_report):
         # method, points, rows, gamma, peak A'', peak B'' (deg/s^2), min delta, violations B_acc, lead,
         # unclean rows, unreachable points, run time
         assert cells[1:3] == [str(len(m)), "2"]
-        assert cells[3] == format(mt["gamma"], ".4g")
-        assert cells[4] == format(mt["peak_A_acc"], ".4g")
-        assert cells[5] == format(mt["peak_B_acc"], ".4g")
-        assert cells[6] == format(mt["min_delta"], ".4g")
-        assert cells[7:9] == [str(mt["violations"]["B_acc"]), "0"]
-        assert cells[9:11] == [str(len(mt["unclean_rows"])), str(len(mt["unreachable"]))]
-        assert cells[14] == format(mt["runtime_s"], ".3g")
+        assert cells[3] == format(mt.gamma, ".4g")
+        assert cells[4] == format(mt.peak_A_acc, ".4g")
+        assert cells[5] == format(mt.peak_B_acc, ".4g")
+        assert cells[6] == format(mt.min_delta, ".4g")
+        assert cells[7:9] == [str(mt.violations["B_acc"]), "0"]
+        assert cells[9:11] == [str(len(mt.unclean_rows)), str(len(mt.unreachable))]
+        assert cells[14] == format(mt.runtime_s, ".3g")
     assert "(primary)" in _summary_row(text, "nlp")[0]
     notice = re.search(r"<div class='notice'>(.*?)</div>", text, re.S).group(1)
     assert "rows that could not be made clean: 1" in notice
@@ -139,7 +139,7 @@ def test_report_lists_metrics_and_notices(full_report):
 def test_clean_result_has_no_red_notice(tmp_path):
     res = make_result()
     for m in res.methods.values():
-        m.metrics["unclean_rows"], m.metrics["unreachable"] = [], []
+        m.metrics.unclean_rows, m.metrics.unreachable = [], []
     text = (write_report(res, tmp_path / "r", render_3d=False) / HTML_FILE).read_text(encoding="utf-8")
     assert "<div class='notice'>" not in text and "All rows clean" in text
     assert "3D view not requested" in text

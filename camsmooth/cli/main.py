@@ -216,32 +216,32 @@ def _print_summary(result) -> None:
     print("{:8s} {:>12s} {:>10s} {:>10s} {:>10s} {:>10s} {:>9s} {:>16s} {:>8s}".format(*head))
     for name, r in result.methods.items():
         m = r.metrics
-        nviol = sum(m["violations"].values())
-        print(f"{name:8s} {m['gamma']:12.4g} {m['peak_A_acc']:10.4g} {m['peak_B_acc']:10.4g} "
-              f"{m['min_delta']:10.4g} {nviol:10d} {m.get('cycle_time_s', float('nan')):9.2f} "
-              f"{m.get('limiting', '-'):>16s} {m['runtime_s']:8.2f}")
+        nviol = sum(m.violations.values())
+        print(f"{name:8s} {m.gamma:12.4g} {m.peak_A_acc:10.4g} {m.peak_B_acc:10.4g} "
+              f"{m.min_delta:10.4g} {nviol:10d} {m.cycle_time_s:9.2f} "
+              f"{m.limiting or '-':>16s} {m.runtime_s:8.2f}")
     m = result.result.metrics
     for w in result.warnings:
         print(f"camsmooth: warning: {w}", file=sys.stderr)
-    if m.get("blocked"):
-        worst = max(m["blocked"], key=lambda b: b["lift_mm"])
-        print(f"camsmooth: warning: {len(m['blocked'])} points lifted along the normal because no orientation of "
-              f"their lead/tilt window clears the mesh; largest lift {worst['lift_mm']:.4g} mm at {worst['point']} "
-              f"(best clearance the map found there {worst['best_clearance_mm']:.4g} mm)", file=sys.stderr)
-    if m.get("unreachable_clear"):
-        worst = max(m["unreachable_clear"], key=lambda b: b["lift_mm"])
-        print(f"camsmooth: warning: {len(m['unreachable_clear'])} points lifted along the normal because the "
-              f"machine's limits kept the axis out of their clear region; largest lift {worst['lift_mm']:.4g} mm at "
-              f"{worst['point']}", file=sys.stderr)
-    if m["unclean_rows"]:
+    if m.blocked:
+        worst = max(m.blocked, key=lambda b: b.lift_mm)
+        print(f"camsmooth: warning: {len(m.blocked)} points lifted along the normal because no orientation of "
+              f"their lead/tilt window clears the mesh; largest lift {worst.lift_mm:.4g} mm at {worst.point} "
+              f"(best clearance the map found there {worst.best_clearance_mm:.4g} mm)", file=sys.stderr)
+    if m.unreachable_clear:
+        worst = max(m.unreachable_clear, key=lambda b: b.lift_mm)
+        print(f"camsmooth: warning: {len(m.unreachable_clear)} points lifted along the normal because the "
+              f"machine's limits kept the axis out of their clear region; largest lift {worst.lift_mm:.4g} mm at "
+              f"{worst.point}", file=sys.stderr)
+    if m.unclean_rows:
         r = result.result
         i = int(np.argmax(r.lift))  # the largest lift, whichever method lifted (the spline's names no map)
         largest = (f"; largest lift {r.lift[i]:.4g} mm at row {int(r.rows[i])}, point {int(r.idx[i])}"
                    if r.lift[i] > 0 else "")
-        print(f"camsmooth: warning: rows not clean without lifting along the normal: {m['unclean_rows']}{largest}",
+        print(f"camsmooth: warning: rows not clean without lifting along the normal: {m.unclean_rows}{largest}",
               file=sys.stderr)
-    if m["unreachable"]:
-        print(f"camsmooth: warning: {len(m['unreachable'])} unreachable points, first {m['unreachable'][:5]}",
+    if m.unreachable:
+        print(f"camsmooth: warning: {len(m.unreachable)} unreachable points, first {m.unreachable[:5]}",
               file=sys.stderr)
 
 

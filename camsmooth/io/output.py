@@ -36,7 +36,7 @@ _STR_COLUMNS = ("status",)
 def point_status(result: MethodResult, tol: float = INTERFERENCE_TOL_MM) -> np.ndarray:
     """Status string per point of one method (array of str, values in STATUSES).
 
-    'unreachable': (row, idx) is listed in ``metrics['unreachable']`` (no inverse-kinematics
+    'unreachable': (row, idx) is listed in ``metrics.unreachable`` (no inverse-kinematics
     solution within the travel limits); else 'interference': clearance ``delta`` < ``tol`` mm
     (gouge left after smoothing and any lift); else 'lifted': the fallback lift along the normal
     was applied (``lift`` > 0); else 'ok'. A NaN delta is not counted as interference.
@@ -48,7 +48,7 @@ def point_status(result: MethodResult, tol: float = INTERFERENCE_TOL_MM) -> np.n
     delta = np.asarray(result.delta, dtype=float)
     with np.errstate(invalid="ignore"):
         status[delta < tol] = "interference"
-    unreachable = result.metrics.get("unreachable") or []
+    unreachable = result.metrics.unreachable if result.metrics is not None else []
     if len(unreachable):
         pairs = np.asarray(unreachable, dtype=np.int64).reshape(-1, 2)
         rows = np.asarray(result.rows, dtype=np.int64)

@@ -35,7 +35,7 @@ import numpy as np
 
 from camsmooth import __version__
 from camsmooth.io.atomic import atomic_dir
-from camsmooth.smoothing.result import MethodResult, SmoothResult
+from camsmooth.smoothing.result import MethodResult, Metrics, SmoothResult
 
 #: PNG files of a report, in display order (``scene_3d.png`` only when rendering worked).
 PLOT_FILES: tuple[str, ...] = ("axes_angles.png", "axes_velocity.png", "axes_acceleration.png",
@@ -47,11 +47,10 @@ HTML_FILE = "report.html"
 CLEARANCE_TOL_MM = -1e-3
 
 
-def _gouge_line(result_or_metrics: Any) -> float:
+def _gouge_line(result_or_metrics: SmoothResult | Metrics | None) -> float:
     """-tolerance (mm) of the smoothing that made the result, CLEARANCE_TOL_MM if unknown."""
-    tol = None
-    if isinstance(result_or_metrics, dict):
-        tol = result_or_metrics.get("tolerance_mm")
+    if isinstance(result_or_metrics, Metrics):
+        tol = result_or_metrics.tolerance_mm
     else:
         tol = getattr(result_or_metrics, "inputs", {}).get("tolerance")
     return -float(tol) if tol else CLEARANCE_TOL_MM
@@ -501,38 +500,39 @@ def method_summary(m: MethodResult) -> dict[str, Any]:
     min delta (mm), violations (name -> count), unclean rows (list), unreachable (list of
     (row, idx)), runtime (s). Taken from ``m.metrics`` (peak accelerations there are deg/s^2);
     what the metrics lack is computed from the arrays (gamma and runtime become NaN)."""
-    mt = m.metrics or {}
+    mt = m.metrics
 
-    def peak(key: str, arr: np.ndarray) -> float:
-        if mt.get(key) is not None:
-            return float(mt[key])
+    def peak(value: float | None, arr: np.ndarray) -> float:
+        if value is not None:
+            return float(value)
         a = np.abs(np.asarray(arr, dtype=float))
         return float(np.degrees(np.nanmax(a))) if a.size and np.isfinite(a).any() else float("nan")
 
     d = np.asarray(m.delta, dtype=float)
-    min_delta = mt.get("min_delta")
+    min_delta = mt.min_delta if mt is not None else None
     if min_delta is None:
         min_delta = float(np.nanmin(d)) if d.size and np.isfinite(d).any() else float("nan")
+    nan = float("nan")
     return {
-        "gamma": float(mt["gamma"]) if mt.get("gamma") is not None else float("nan"),
-        "peak_A_acc_deg": peak("peak_A_acc", m.A_acc),
-        "peak_B_acc_deg": peak("peak_B_acc", m.B_acc),
+        "gamma": float(mt.gamma) if mt is not None else nan,
+        "peak_A_acc_deg": peak(mt.peak_A_acc if mt is not None else None, m.A_acc),
+        "peak_B_acc_deg": peak(mt.peak_B_acc if mt is not None else None, m.B_acc),
         "min_delta": float(min_delta),
-        "violations": dict(mt.get("violations") or {}),
-        "unclean_rows": [int(r) for r in (mt.get("unclean_rows") or [])],
-        "unreachable": [tuple(int(v) for v in p) for p in (mt.get("unreachable") or [])],
-        "runtime_s": float(mt["runtime_s"]) if mt.get("runtime_s") is not None else float("nan"),
-        "cycle_time_s": float(mt["cycle_time_s"]) if mt.get("cycle_time_s") is not None else float("nan"),
+        "violations": dict(mt.violations) if mt is not None else {},
+        "unclean_rows": [int(r) for r in mt.unclean_rows] if mt is not None else [],
+        "unreachable": [tuple(int(v) for v in p) for p in mt.unreachable] if mt is not None else [],
+        "runtime_s": float(mt.runtime_s) if mt is not None else nan,
+        "cycle_time_s": float(mt.cycle_time_s) if mt is not None else nan,
         "gouge_line": _gouge_line(mt),
-        "limiting": str(mt.get("limiting", "")),
-        "mapped_points": mt.get("mapped_points"),
-        "lifted_beyond_tolerance": int(mt.get("lifted_beyond_tolerance", 0)),
-        "blocked": list(mt.get("blocked") or []),
-        "unreachable_clear": list(mt.get("unreachable_clear") or []),
+        "limiting": mt.limiting if mt is not None else "",
+        "mapped_points": mt.mapped_points if mt is not None else None,
+        "lifted_beyond_tolerance": mt.lifted_beyond_tolerance if mt is not None else 0,
+        "blocked": list(mt.blocked) if mt is not None else [],
+        "unreachable_clear": list(mt.unreachable_clear) if mt is not None else [],
         "points": len(m),
         "rows": int(len(_row_starts(m.rows))),
-        "model": {k: mt[k] for k in ("tip_error_um_max", "tip_error_um_max_uncompensated", "axis_error_urad_max")
-                  if k in mt},
+        "model": {k: getattr(mt, k) for k in ("tip_error_um_max", "tip_error_um_max_uncompensated",
+                                               "axis_error_urad_max") if mt is not None and getattr(mt, k) is not None},
     }
 
 
@@ -594,10 +594,10 @@ def _notice(order: list[str], summaries: dict[str, dict[str, Any]], primary: str
         for key, why in (("blocked", "no orientation of its lead/tilt window clears the mesh"),
                          ("unreachable_clear", "the machine's limits kept the axis out of its clear region")):
             for b in s[key][:20]:
-                items.append(f"<li><b>{tag}</b>: {html.escape(b['point'])} lifted along the normal by "
-                             f"{b['lift_mm']:.4g} mm: {why}"
-                             + (f" (best clearance found {b['best_clearance_mm']:.4g} mm)" if "best_clearance_mm" in b
-                                else "") + "</li>")
+                items.append(f"<li><b>{tag}</b>: {html.escape(b.point)} lifted along the normal by "
+                             f"{b.lift_mm:.4g} mm: {why}"
+                             + (f" (best clearance found {b.best_clearance_mm:.4g} mm)"
+                                if b.best_clearance_mm is not None else "") + "</li>")
             if len(s[key]) > 20:
                 items.append(f"<li><b>{tag}</b>: \u2026 and {len(s[key]) - 20} more such points</li>")
         if s["unreachable"]:

@@ -44,7 +44,7 @@ from camsmooth.smoothing.orientation import (
     surface_curvature_tensors,
 )
 from camsmooth.smoothing.parallel import RowPool, default_workers
-from camsmooth.smoothing.result import MethodResult, SmoothResult
+from camsmooth.smoothing.result import MethodResult, Metrics, PointNote, SmoothResult
 from camsmooth.smoothing.rows import (
     RowContext,
     RowOptions,
@@ -207,7 +207,7 @@ def smooth(path: CCPath | CamProgram, surface: Surface, machine: Machine | None 
         for r in results.values():
             sm.plan(r)
     for r in results.values():
-        r.metrics["chord_deviation_mm"] = chord
+        r.metrics.chord_deviation_mm = chord
     return SmoothResult(methods=results, primary=method, machine=nominal, cutter=cutter, surface_mesh=surface.mesh,
                         warnings=warnings,
                         inputs={"path": path.source, "surface": surface.source, "feed": program.feed,
@@ -328,19 +328,18 @@ class ProgramSmoother:
         blocked, unreach, mapped = cat("blocked"), cat("unreachable_clear"), cat("mapped")
         best = cat("best_delta")
         m = res.metrics
-        m["ipopt_iterations"] = int(sum(s.iterations for s in sols))
-        m["rounds_max"] = int(max((s.rounds for s in sols), default=0))
-        m["mapped_points"] = int(mapped.sum())
-        m["clearance_evals"] = int(sum(s.clearance_evals for s in sols))
-        m["nlp_solve_s"] = float(sum(s.solve_s for s in sols))
-        m["map_s"] = float(sum(s.map_s for s in sols))
-        m["check_s"] = float(sum(s.check_s for s in sols))
+        m.ipopt_iterations = int(sum(s.iterations for s in sols))
+        m.rounds_max = int(max((s.rounds for s in sols), default=0))
+        m.mapped_points = int(mapped.sum())
+        m.clearance_evals = int(sum(s.clearance_evals for s in sols))
+        m.nlp_solve_s = float(sum(s.solve_s for s in sols))
+        m.map_s = float(sum(s.map_s for s in sols))
+        m.check_s = float(sum(s.check_s for s in sols))
         name = self._point_names
-        m["blocked"] = [{"point": name(i), "row": int(p.path.rows[i]), "idx": int(p.idx[i]),
-                         "best_clearance_mm": float(best[i]), "lift_mm": float(lift[i])}
-                        for i in np.flatnonzero(blocked & (lift > 0))]
-        m["unreachable_clear"] = [{"point": name(i), "row": int(p.path.rows[i]), "idx": int(p.idx[i]),
-                                   "lift_mm": float(lift[i])} for i in np.flatnonzero(unreach)]
+        m.blocked = [PointNote(point=name(i), row=int(p.path.rows[i]), idx=int(p.idx[i]), lift_mm=float(lift[i]),
+                               best_clearance_mm=float(best[i])) for i in np.flatnonzero(blocked & (lift > 0))]
+        m.unreachable_clear = [PointNote(point=name(i), row=int(p.path.rows[i]), idx=int(p.idx[i]),
+                                         lift_mm=float(lift[i])) for i in np.flatnonzero(unreach)]
         return res
 
     def plan(self, r: MethodResult) -> None:
@@ -362,9 +361,9 @@ class ProgramSmoother:
         parts = [(p.path.rows[a:b], q[a:b], tip[a:b], p.feed[a:b]) for a, b in zip(cuts[:-1], cuts[1:], strict=True)]
         plans = [x for part in self.pool.map(plan_chunk, parts) for x in part]
         r.plan = combine([int(p.path.rows[s.start]) for s in p.slices], plans)
-        r.metrics["cycle_time_s"] = r.plan.cycle_time
-        r.metrics["limiting"] = r.plan.limiting
-        r.metrics["row_cycle_time_s"] = r.plan.row_cycle_time.tolist()
+        r.metrics.cycle_time_s = r.plan.cycle_time
+        r.metrics.limiting = r.plan.limiting
+        r.metrics.row_cycle_time_s = r.plan.row_cycle_time.tolist()
 
     def _point_names(self, i: int) -> str:
         return self.program.name(i)
@@ -405,15 +404,15 @@ class ProgramSmoother:
             tip_real = self.real.tool_pose_np(A, B, *xyz.T)[0]
             tip_unc = self.real.tool_pose_np(A, B, *xyz_nominal.T)[0]
             ideal_axis = self.nominal.tool_axis_np(A, B)
-            res.metrics["tip_error_um_max"] = float(1e3 * np.max(np.linalg.norm(tip_real - cl, axis=1)))
-            res.metrics["tip_error_um_max_uncompensated"] = float(
+            res.metrics.tip_error_um_max = float(1e3 * np.max(np.linalg.norm(tip_real - cl, axis=1)))
+            res.metrics.tip_error_um_max_uncompensated = float(
                 1e3 * np.max(np.linalg.norm(tip_unc - cl, axis=1)))
-            res.metrics["axis_error_urad_max"] = float(1e6 * np.max(np.arccos(np.clip(
+            res.metrics.axis_error_urad_max = float(1e6 * np.max(np.arccos(np.clip(
                 np.sum(ideal_axis * T, axis=1), -1, 1))))
-            res.metrics["compensated"] = bool(self.compensate)
+            res.metrics.compensated = bool(self.compensate)
         return res
 
-    def metrics(self, r: MethodResult, g: float, unreachable: np.ndarray, runtime: float) -> dict[str, Any]:
+    def metrics(self, r: MethodResult, g: float, unreachable: np.ndarray, runtime: float) -> Metrics:
         """Summary: gamma (1/s^4), peaks (deg/s^2), min delta (mm), violation counts per
         constraint at the programmed feed (samples outside the TRUE limits of all five axes, the
         pivot's X Y Z included, ``camsmooth.smoothing.nlp.limit_violations``, and outside the
@@ -427,20 +426,13 @@ class ProgramSmoother:
         viol["interference"] = int(np.sum(r.delta < -self.tolerance))
         lifted = r.lift > 0
         unclean = sorted({int(x) for x in r.rows[(r.delta < -self.tolerance) | lifted]})
-        return {
-            "gamma": g,
-            "peak_A_acc": float(np.degrees(np.max(np.abs(r.A_acc)))),
-            "peak_B_acc": float(np.degrees(np.max(np.abs(r.B_acc)))),
-            "min_delta": float(np.min(r.delta)),
-            "violations": viol,
-            "lifted_points": int(np.sum(lifted)),
-            "max_lift_mm": float(np.max(r.lift, initial=0.0)),
-            "lifted_beyond_tolerance": int(np.sum(r.lift > self.tolerance)),
-            "unclean_rows": unclean,
-            "unreachable": [(int(r.rows[i]), int(r.idx[i])) for i in unreachable],
-            "tolerance_mm": self.tolerance,
-            "runtime_s": runtime,
-        }
+        return Metrics(gamma=g, peak_A_acc=float(np.degrees(np.max(np.abs(r.A_acc)))),
+                       peak_B_acc=float(np.degrees(np.max(np.abs(r.B_acc)))), min_delta=float(np.min(r.delta)),
+                       violations=viol, lifted_points=int(np.sum(lifted)),
+                       max_lift_mm=float(np.max(r.lift, initial=0.0)),
+                       lifted_beyond_tolerance=int(np.sum(r.lift > self.tolerance)), unclean_rows=unclean,
+                       unreachable=[(int(r.rows[i]), int(r.idx[i])) for i in unreachable],
+                       tolerance_mm=self.tolerance, runtime_s=runtime)
 
 
 def _linear_axes_for_tip(machine: Machine, A: np.ndarray, B: np.ndarray, tip: np.ndarray) -> np.ndarray:

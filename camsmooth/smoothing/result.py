@@ -16,6 +16,65 @@ OUTPUT_COLUMNS = ("row", "idx", "t", "x", "y", "z", "nx", "ny", "nz", "clx", "cl
 
 
 @dataclass(kw_only=True)
+class PointNote:
+    """A point the summary names: its name in the input (file and row), row id, index in the
+    row, the lift along the normal it got (mm) and, for a blocked point, the best clearance the
+    accessibility map found over its lead/tilt window (mm; < 0 = gouge)."""
+
+    point: str
+    row: int
+    idx: int
+    lift_mm: float
+    best_clearance_mm: float | None = None
+
+
+@dataclass(kw_only=True)
+class Metrics:
+    """Summary of one method's program (camsmooth.smoothing.pipeline.ProgramSmoother.metrics).
+
+    At the programmed feed: gamma = sum |T''|^2 (1/s^4); peak_A_acc, peak_B_acc (deg/s^2);
+    violations: samples outside each axis's TRUE travel, velocity, acceleration limits (all five
+    axes, camsmooth.smoothing.nlp.limit_violations) and the user's windows, and 'interference'
+    (points with delta < -tolerance_mm); min_delta (mm). Lifts along the normal (mm) and the rows
+    that are not clean; unreachable: (row, idx) without inverse kinematics. Planned time law
+    (camsmooth.smoothing.feed): cycle_time_s, limiting, row_cycle_time_s. Row NLP work (nlp
+    methods): IPOPT iterations, rounds, points mapped, clearance evaluations, times (s), the
+    points lifted because their whole window is blocked or the limits kept them out of their
+    clear region. With an error model: the largest tip error (um) with and without compensation
+    and the axis error (urad). chord_deviation_mm: the mesh's estimated chord deviation."""
+
+    gamma: float
+    peak_A_acc: float
+    peak_B_acc: float
+    min_delta: float
+    violations: dict[str, int]
+    lifted_points: int
+    max_lift_mm: float
+    lifted_beyond_tolerance: int
+    unclean_rows: list[int]
+    unreachable: list[tuple[int, int]]
+    tolerance_mm: float
+    runtime_s: float
+    cycle_time_s: float = float("nan")
+    limiting: str = ""
+    row_cycle_time_s: list[float] = field(default_factory=list)
+    ipopt_iterations: int = 0
+    rounds_max: int = 0
+    mapped_points: int | None = None
+    clearance_evals: int = 0
+    nlp_solve_s: float = 0.0
+    map_s: float = 0.0
+    check_s: float = 0.0
+    blocked: list[PointNote] = field(default_factory=list)
+    unreachable_clear: list[PointNote] = field(default_factory=list)
+    tip_error_um_max: float | None = None
+    tip_error_um_max_uncompensated: float | None = None
+    axis_error_urad_max: float | None = None
+    compensated: bool | None = None
+    chord_deviation_mm: float | None = None
+
+
+@dataclass(kw_only=True)
 class MethodResult:
     """The tool program one smoothing method produced.
 
@@ -28,9 +87,7 @@ class MethodResult:
     lift: distance the tool was lifted along the normal as the fallback (mm, 0 where none).
     lead_window, tilt_window: (N, 2) admissible [min, max] per point (rad) after curvature
     (gouge) tightening. compound_acc: |d^2 T / dt^2| per point (1/s^2).
-    metrics: summary (camsmooth.smoothing.pipeline): gamma (1/s^4), peak_A_acc, peak_B_acc (deg/s^2),
-    min_delta, violations (dict name -> count), runtime_s, unclean_rows, unreachable, cycle_time_s
-    (the planned time law's) and limiting (the constraint that binds longest).
+    metrics: the summary (``Metrics``), None for a result built outside the pipeline.
     plan: the planned time law under every axis's limits and the programmed feed
     (camsmooth.smoothing.feed.FeedPlan: t_plan s from each row's start, feed_plan mm/min per point).
     """
@@ -57,7 +114,7 @@ class MethodResult:
     lead_window: np.ndarray
     tilt_window: np.ndarray
     compound_acc: np.ndarray
-    metrics: dict[str, Any] = field(default_factory=dict)
+    metrics: Metrics | None = None
     feed_dirs: np.ndarray | None = None  # (N, 3) unit feed directions X_L used for lead/tilt
     plan: Any = None  # camsmooth.smoothing.feed.FeedPlan: the time-optimal time law of this program
     lead_clear: np.ndarray | None = None  # (N, 2) the accessibility map's lead floor, ceiling (rad; NaN: none)
