@@ -22,6 +22,7 @@ sys.path.insert(0, str(ROOT))
 
 from camsmooth.geometry.cutter import ToroidalCutter  # noqa: E402
 from camsmooth.geometry.paths import CCPath  # noqa: E402
+from camsmooth.geometry.surfaces import load_surface  # noqa: E402
 from camsmooth.io.ccpath import read_cc_csv  # noqa: E402
 from camsmooth.machine.model import ErrorModel  # noqa: E402
 from camsmooth.smoothing.pipeline import smooth  # noqa: E402
@@ -45,7 +46,7 @@ def main() -> int:
             "max axis vs ideal urad", "Gamma")
     print("{:28s} {:>11s} {:>36s} {:>16s} {:>22s} {:>10s}".format(*head))
     for comp in (False, True):
-        res = smooth(cc, ROOT / "surfaces" / f"{a.sample}.ply", None, ToroidalCutter(R=4.0, r=1.0),
+        res = smooth(cc, load_surface(ROOT / "surfaces" / f"{a.sample}.ply"), None, ToroidalCutter(R=4.0, r=1.0),
                      lead_range=np.radians([2, 20]), tilt_range=np.radians([-15, 15]), method="nlp",
                      model=model, compensate=comp)
         for name, label in (("nlp-ideal", "smoothed without the model"), ("nlp", "smoothed with the model")):
