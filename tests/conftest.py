@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import os
 from pathlib import Path
 
@@ -20,3 +21,18 @@ def umich_dir() -> Path:
 UMICH = umich_dir()
 needs_umich = pytest.mark.skipif(not (UMICH / "experiment_01.csv").exists(),
                                  reason=f"Michigan data not found at {UMICH} (set CAMSMOOTH_UMICH)")
+
+
+def snapshot(folder: Path) -> dict[str, tuple]:
+    """Every file (size, mtime, SHA-1) and folder under ``folder``: equal snapshots mean nothing was
+    written, removed or touched."""
+    out = {}
+    for root, dirs, files in os.walk(folder):
+        for name in dirs:
+            out[os.path.relpath(os.path.join(root, name), folder) + "/"] = ()
+        for name in files:
+            p = os.path.join(root, name)
+            st = os.stat(p)
+            out[os.path.relpath(p, folder)] = (st.st_size, st.st_mtime_ns,
+                                              hashlib.sha1(Path(p).read_bytes()).hexdigest())
+    return out

@@ -9,7 +9,6 @@ The CLI runs in-process (camsmooth.cli.main.main); only the signal cases use a s
 from __future__ import annotations
 
 import errno
-import hashlib
 import os
 import re
 import shutil
@@ -27,7 +26,7 @@ from camsmooth.cli.main import main
 from camsmooth.errors import InputError
 from camsmooth.geometry.paths import CCPath, check_contact_with_mesh, check_normals_against_mesh
 from camsmooth.io.ccpath import write_cc_csv
-from tests.conftest import ROOT
+from tests.conftest import ROOT, snapshot
 
 NP_REPR = re.compile(r"np\.[a-z_]+\d*\(")
 
@@ -110,19 +109,6 @@ def no_render(monkeypatch):
     real = rs.write_report
     monkeypatch.setattr(rs, "write_report", lambda result, out, **kw: real(result, out, render_3d=False, **kw))
     monkeypatch.setattr(rs, "_save_png", lambda fig, path: Path(path).write_bytes(b"\x89PNG stand-in"))
-
-
-def snapshot(folder: Path) -> dict[str, tuple]:
-    out = {}
-    for root, dirs, files in os.walk(folder):
-        for name in dirs:
-            out[os.path.relpath(os.path.join(root, name), folder) + "/"] = ()
-        for name in files:
-            p = os.path.join(root, name)
-            st = os.stat(p)
-            out[os.path.relpath(p, folder)] = (st.st_size, st.st_mtime_ns,
-                                              hashlib.sha1(Path(p).read_bytes()).hexdigest())
-    return out
 
 
 SMOOTH = ["smooth", "p.csv", "--surface", "plane.ply", "--cutter-radius", "4", "--corner-radius", "1",

@@ -12,10 +12,8 @@ from __future__ import annotations
 
 import contextlib
 import csv
-import hashlib
 import io
 import math
-import os
 import re
 import shutil
 import tomllib
@@ -29,7 +27,7 @@ from camsmooth.cli.main import main
 from camsmooth.geometry.paths import CCPath
 from camsmooth.geometry.surfaces import Plane, tessellate_to_tolerance
 from camsmooth.io.ccpath import write_cc_csv
-from tests.conftest import ROOT
+from tests.conftest import ROOT, snapshot
 from tests.test_limits_bind import own_axis, own_lead_tilt, own_times, usage, violated
 
 SAMPLES = ROOT / "surfaces"
@@ -47,17 +45,6 @@ def read_csv(path: Path) -> dict[str, np.ndarray]:
         except ValueError:
             cols[name] = np.array(values)
     return cols
-
-
-def snapshot(folder: Path) -> dict[str, tuple]:
-    out = {}
-    for root, dirs, files in os.walk(folder):
-        for name in dirs:
-            out[os.path.relpath(os.path.join(root, name), folder) + "/"] = ()
-        for name in files:
-            p = os.path.join(root, name)
-            out[os.path.relpath(p, folder)] = (os.stat(p).st_mtime_ns, hashlib.sha1(Path(p).read_bytes()).hexdigest())
-    return out
 
 
 def run(capsys, argv) -> tuple[int, str, str]:

@@ -40,8 +40,8 @@ import pytest
 
 from camsmooth.cli.main import main
 from camsmooth.io.ccpath import write_cc_csv
-from tests.conftest import ROOT
-from tests.test_cli_faults import one_message, plane_mesh, plane_path, snapshot
+from tests.conftest import ROOT, snapshot
+from tests.test_cli_faults import one_message, plane_mesh, plane_path
 
 TAG = ".camsmooth-"
 SMOOTH = ["smooth", "p.csv", "--surface", "plane.ply", "--cutter-radius", "4", "--corner-radius", "1",
