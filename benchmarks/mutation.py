@@ -1,0 +1,272 @@
+"""Mutation testing of camsmooth's core modules with mutmut 3; prints the score per module.
+
+For each core module the script copies the repository (the files git tracks plus untracked,
+non-ignored ones) into a temporary directory, writes a ``[tool.mutmut]`` section into the copy's
+pyproject.toml (mutate only that module; run only the test files listed for it in TARGETS), runs
+``mutmut run`` there and reads the verdicts from mutmut's meta files (``mutants/<path>.meta``) and
+the diffs from its generated sources. The working tree is never mutated and no ``mutants/`` is left
+in it; the copy is deleted afterwards (``--keep`` keeps it, e.g. to ``mutmut show`` a mutant).
+
+Per module it prints: mutants, killed, timeouts, survived (including mutants no selected test
+reaches: mutmut's "no tests"), reviewed-equivalent, the score
+
+    score = (killed + timeouts) / (mutants - equivalent)
+
+(a mutant that makes the tests run past mutmut's time limit is detected: mutmut counts it as killed
+in its own badge), PASS/FAIL against 85 %, then every surviving mutant (mutmut's name, function and
+the changed line) and every mutant declared equivalent with the reason. Equivalents are declared in
+EQUIVALENT below, keyed by a description that does not shift when the file changes elsewhere: the
+file, the function and the changed line before -> after (whitespace-normalised), not mutmut's
+mutant number.
+
+numba kernels (camsmooth/geometry/_kernels.py): mutmut never mutates a decorated function (its
+trampolines cannot wrap a decorator's product, and numba could not compile a trampoline anyway),
+so every ``@njit`` kernel is skipped by mutmut itself. Stripping the decorators in the copy and
+running with NUMBA_DISABLE_JIT=1 would run the bounding-volume traversal and the per-facet
+distance loops as Python: test_interference.py takes ~47 s compiled (most of it the brute-force
+reference), interpreted kernels multiply the clearance part by ~100, and every surviving mutant
+reruns all covering tests -- not tractable on 2 shared cores. The kernels are therefore not
+mutated; they are covered by the clearance tests that compare the compiled kernels with an
+independent brute-force minimisation on random meshes and with closed forms (touching and
+penetrating planes, prism ridges and vertices, spheres, cylinders): tests/test_interference.py.
+The undecorated Python in clearance.py (index building, batching, result assembly, axial_drop) is
+mutated as usual; the kernels run compiled in the mutation run, as in production.
+
+Usage (from the repository root, with the project's venv):
+    python benchmarks/mutation.py                        # all modules
+    python benchmarks/mutation.py --modules cutter terms --max-children 2
+Takes minutes per module (the list printed at the end gives the wall time of each). Not part of CI.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+THRESHOLD = 0.85
+
+
+@dataclass(frozen=True)
+class Target:
+    """One core module: the files mutmut mutates and the test files that run against them."""
+
+    paths: tuple[str, ...]
+    tests: tuple[str, ...]
+    env: dict[str, str] = field(default_factory=dict)
+
+
+TARGETS: dict[str, Target] = {
+    "cutter": Target(("camsmooth/geometry/cutter.py",),
+                     ("tests/test_cutter.py", "tests/test_contact.py")),
+    "kinematics": Target(("camsmooth/machine/kinematics.py",),
+                         ("tests/test_kinematics.py", "tests/test_ik_continuity.py", "tests/test_machine_model.py")),
+    "orientation": Target(("camsmooth/smoothing/orientation.py",), ("tests/test_orientation.py",)),
+    "pipeline": Target(("camsmooth/smoothing/pipeline.py",), ("tests/test_pipeline.py", "tests/test_oracles.py")),
+    "clearance": Target(("camsmooth/geometry/clearance.py",), ("tests/test_interference.py",)),
+    "terms": Target(("camsmooth/diagnosis/terms/*.py",), ("tests/test_diagnosis_terms.py", "tests/test_oracles.py")),
+    "calibration": Target(("camsmooth/machine/calibration.py",),
+                          ("tests/test_calibration.py", "tests/test_oracles.py")),
+    "output": Target(("camsmooth/io/output.py",), ("tests/test_output.py",)),
+    "atomic": Target(("camsmooth/io/atomic.py",), ("tests/test_atomic.py", "tests/test_output.py")),
+}
+
+# Reviewed equivalent mutants: key (see _describe) -> why no test can tell the mutant from the code.
+EQUIVALENT: dict[str, str] = {
+}
+
+STATUS = {1: "killed", 3: "killed", 0: "survived", 5: "no tests", 33: "no tests", 34: "skipped",
+          36: "timeout", -24: "timeout", 24: "timeout", 152: "timeout", 255: "timeout",
+          37: "type check", None: "not checked"}
+
+
+@dataclass
+class Mutant:
+    name: str
+    path: str
+    status: str
+    function: str = ""
+    change: str = ""
+
+    @property
+    def key(self) -> str:
+        return f"{self.path}::{self.function}: {self.change}"
+
+
+@dataclass
+class ModuleResult:
+    module: str
+    mutants: list[Mutant]
+    seconds: float
+
+    def count(self, *status: str) -> int:
+        return sum(m.status in status for m in self.mutants)
+
+    @property
+    def equivalent(self) -> list[Mutant]:
+        return [m for m in self.mutants if m.status not in ("killed", "timeout") and m.key in EQUIVALENT]
+
+    @property
+    def surviving(self) -> list[Mutant]:
+        return [m for m in self.mutants if m.status not in ("killed", "timeout") and m.key not in EQUIVALENT]
+
+    @property
+    def score(self) -> float:
+        n = len(self.mutants) - len(self.equivalent)
+        return (self.count("killed", "timeout") / n) if n else 1.0
+
+
+def _copy_repository(dst: Path) -> None:
+    """Copy the files git knows (tracked + untracked, not ignored) into dst."""
+    out = subprocess.run(["git", "ls-files", "-co", "--exclude-standard", "-z"], cwd=ROOT, check=True,
+                         capture_output=True).stdout.decode()
+    for rel in filter(None, out.split("\0")):
+        src = ROOT / rel
+        if src.is_file() and not rel.startswith("mutants/"):
+            (dst / rel).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src, dst / rel)
+
+
+def _configure(dst: Path, target: Target) -> None:
+    """Append mutmut's configuration for this target to the copy's pyproject.toml."""
+    also = sorted(p.name for p in dst.iterdir() if p.name not in ("camsmooth", "tests", "pyproject.toml", ".git"))
+    toml = "\n".join([
+        "", "[tool.mutmut]",
+        'source_paths = ["camsmooth"]',
+        f"only_mutate = {json.dumps(list(target.paths))}",
+        f"pytest_add_cli_args_test_selection = {json.dumps(list(target.tests))}",
+        'pytest_add_cli_args = ["-p", "no:cacheprovider"]',
+        f"also_copy = {json.dumps(also)}",
+        "use_git_change_detection = false",
+        # polars (camsmooth.io.table) starts a Rust thread pool on first use; a worker forked from a
+        # process that ran the tests deadlocks on it, so fork the workers from a server that only collects
+        'process_isolation = "forkserver"',
+        "",
+    ])
+    with open(dst / "pyproject.toml", "a") as f:
+        f.write(toml)
+
+
+def _environment(target: Target) -> dict[str, str]:
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "MUTANT_UNDER_TEST")}
+    # one thread per worker: the machine has 2 shared cores and --max-children sets the parallelism
+    for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+        env[k] = "1"
+    # conftest finds the Michigan data beside the repository; the copy is elsewhere
+    env.setdefault("CAMSMOOTH_UMICH", str(ROOT.parent / "shared" / "data" / "umich-cnc-mill"))
+    env.update(target.env)
+    return env
+
+
+def _describe(diff: str) -> str:
+    """The changed lines of a mutant's diff, whitespace-normalised: 'before -> after'."""
+    minus = [" ".join(ln[1:].split()) for ln in diff.splitlines() if ln.startswith("-") and not ln.startswith("---")]
+    plus = [" ".join(ln[1:].split()) for ln in diff.splitlines() if ln.startswith("+") and not ln.startswith("+++")]
+    return f"{' / '.join(minus)} -> {' / '.join(plus)}"
+
+
+def _function(name: str) -> str:
+    """Function (Class.method) of a mutmut mutant name such as pkg.mod.xǁClassǁmeth__mutmut_3."""
+    mangled = name.rpartition(".")[2].partition("__mutmut_")[0]
+    if mangled.startswith("xǁ"):
+        return ".".join(mangled[2:].split("ǁ"))
+    return mangled[2:]
+
+
+def _collect(work: Path) -> list[Mutant]:
+    """Verdicts from mutmut's meta files and, for the undetected mutants, their diffs."""
+    from mutmut.mutation.diff_apply import get_diff_for_mutant
+
+    mutants: list[Mutant] = []
+    cwd = os.getcwd()
+    os.chdir(work)  # mutmut resolves mutants/<path> against the working directory
+    try:
+        for meta in sorted(Path("mutants").rglob("*.py.meta")):
+            path = str(meta.relative_to("mutants"))[: -len(".meta")]
+            codes = json.loads(meta.read_text())["exit_code_by_key"]
+            for name, code in codes.items():
+                m = Mutant(name=name, path=path, status=STATUS.get(code, f"exit {code}"), function=_function(name))
+                if m.status not in ("killed", "timeout"):
+                    m.change = _describe(get_diff_for_mutant(name, path=path))
+                mutants.append(m)
+    finally:
+        os.chdir(cwd)
+    return mutants
+
+
+def run_module(module: str, max_children: int, keep: bool) -> ModuleResult:
+    target = TARGETS[module]
+    work = Path(tempfile.mkdtemp(prefix=f"camsmooth-mutation-{module}-"))
+    t0 = time.perf_counter()
+    try:
+        _copy_repository(work)
+        _configure(work, target)
+        mutmut = Path(sys.executable).parent / "mutmut"
+        log = work / "mutmut.log"
+        with open(log, "w") as f:
+            proc = subprocess.run([str(mutmut), "run", "--max-children", str(max_children)], cwd=work,
+                                  env=_environment(target), stdout=f, stderr=subprocess.STDOUT)
+        if proc.returncode != 0:
+            tail = log.read_text(errors="replace").replace("\r", "\n").splitlines()[-40:]
+            raise RuntimeError(f"mutmut run failed for {module} (exit {proc.returncode}):\n" + "\n".join(tail))
+        mutants = _collect(work)
+    finally:
+        if keep:
+            print(f"[{module}] copy kept at {work}")
+        else:
+            shutil.rmtree(work, ignore_errors=True)
+    return ModuleResult(module=module, mutants=mutants, seconds=time.perf_counter() - t0)
+
+
+def report(results: list[ModuleResult]) -> bool:
+    head = f"{'module':<12} {'mutants':>7} {'killed':>6} {'timeout':>7} {'survived':>8} {'equiv':>5} {'score':>7}  verdict"
+    print(head)
+    print("-" * len(head))
+    ok = True
+    for r in results:
+        passed = r.score >= THRESHOLD
+        ok &= passed
+        print(f"{r.module:<12} {len(r.mutants):>7} {r.count('killed'):>6} {r.count('timeout'):>7} "
+              f"{len(r.surviving):>8} {len(r.equivalent):>5} {100 * r.score:>6.1f}%  "
+              f"{'PASS' if passed else 'FAIL'} (>= {100 * THRESHOLD:.0f}%)   {r.seconds:.0f} s")
+    for r in results:
+        print(f"\n== {r.module}: {len(r.surviving)} surviving mutants")
+        for m in r.surviving:
+            print(f"  [{m.status}] {m.name}\n      {m.function}: {m.change}")
+        if r.equivalent:
+            print(f"== {r.module}: {len(r.equivalent)} reviewed equivalent")
+            for m in r.equivalent:
+                print(f"  {m.name}\n      {m.function}: {m.change}\n      why: {EQUIVALENT[m.key]}")
+    return ok
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--modules", nargs="+", choices=sorted(TARGETS), default=list(TARGETS),
+                    help="core modules to mutate (default: all)")
+    ap.add_argument("--max-children", type=int, default=2, help="parallel mutmut workers (default 2)")
+    ap.add_argument("--keep", action="store_true", help="keep the temporary copies (mutmut show works there)")
+    args = ap.parse_args(argv)
+    results = []
+    t0 = time.perf_counter()
+    for module in args.modules:
+        print(f"[{module}] mutating {', '.join(TARGETS[module].paths)} against {' '.join(TARGETS[module].tests)}",
+              flush=True)
+        results.append(run_module(module, args.max_children, args.keep))
+    print()
+    ok = report(results)
+    print(f"\nwall time {time.perf_counter() - t0:.0f} s, --max-children {args.max_children}")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
