@@ -76,13 +76,53 @@ TARGETS: dict[str, Target] = {
     "terms": Target(("camsmooth/diagnosis/terms/*.py",), ("tests/test_diagnosis_terms.py", "tests/test_oracles.py")),
     "calibration": Target(("camsmooth/machine/calibration.py",),
                           ("tests/test_calibration.py", "tests/test_oracles.py")),
-    "output": Target(("camsmooth/io/output.py",), ("tests/test_output.py",)),
+    "output": Target(("camsmooth/io/output.py",), ("tests/test_output.py", "tests/test_result_csv_columns.py")),
     "atomic": Target(("camsmooth/io/atomic.py",), ("tests/test_atomic.py", "tests/test_output.py")),
 }
 
-# Reviewed equivalent mutants: key (see _describe) -> why no test can tell the mutant from the code.
-EQUIVALENT: dict[str, str] = {
-}
+# Reviewed equivalent mutants: "path::function: before -> after" (Mutant.key) -> why no test can tell the
+# mutant from the code. Each was read in its function; the reason says what makes the two the same.
+EQUIVALENT: dict[str, str] = {}
+
+
+def _equivalent(path: str, function: str, changes: list[str], why: str) -> None:
+    for change in changes:
+        EQUIVALENT[f"{path}::{function}: {change}"] = why
+
+
+_OUT = "camsmooth/io/output.py"
+_equivalent(_OUT, "point_status", [
+    "lift = np.asarray(result.lift, dtype=float) -> lift = np.asarray(result.lift, dtype=None)",
+    "lift = np.asarray(result.lift, dtype=float) -> lift = np.asarray(result.lift, )",
+    "delta = np.asarray(result.delta, dtype=float) -> delta = np.asarray(result.delta, dtype=None)",
+    "delta = np.asarray(result.delta, dtype=float) -> delta = np.asarray(result.delta, )",
+], "MethodResult.lift / .delta are float arrays (camsmooth.smoothing.result); without dtype=float asarray "
+   "returns the same array, and nan_to_num / '>' / '<' give the same booleans for any numeric dtype")
+_equivalent(_OUT, "point_status", [
+    'status[np.nan_to_num(lift, nan=0.0) > 0.0] = "lifted" -> status[np.nan_to_num(lift, ) > 0.0] = "lifted"',
+], "nan=0.0 is numpy's default for nan_to_num (a NaN lift is still mapped to 0: tested)")
+_equivalent(_OUT, "point_status", [
+    'with np.errstate(invalid="ignore"): -> with np.errstate(invalid=None):',
+], "numpy comparisons with NaN set no floating-point 'invalid' flag (checked under errstate(all='raise')), "
+   "so the errstate is a guard only; None keeps the current setting")
+_equivalent(_OUT, "point_status", [
+    "pairs = np.asarray(unreachable, dtype=np.int64).reshape(-1, 2) -> "
+    "pairs = np.asarray(unreachable, dtype=None).reshape(-1, 2)",
+    "pairs = np.asarray(unreachable, dtype=np.int64).reshape(-1, 2) -> pairs = np.asarray(unreachable, ).reshape(-1, 2)",
+    "rows = np.asarray(result.rows, dtype=np.int64) -> rows = np.asarray(result.rows, dtype=None)",
+    "rows = np.asarray(result.rows, dtype=np.int64) -> rows = np.asarray(result.rows, )",
+    "idx = np.asarray(result.idx, dtype=np.int64) -> idx = np.asarray(result.idx, dtype=None)",
+    "idx = np.asarray(result.idx, dtype=np.int64) -> idx = np.asarray(result.idx, )",
+], "the values are only assigned into the int64 fields of the structured key arrays, which cast them "
+   "to int64 anyway")
+_equivalent(_OUT, "point_status", [
+    "pairs = np.asarray(unreachable, dtype=np.int64).reshape(-1, 2) -> "
+    "pairs = np.asarray(unreachable, dtype=np.int64).reshape(-2, 2)",
+], "numpy (2.x) treats any negative dimension in reshape as the one to infer")
+_equivalent(_OUT, "write_result_csv", [
+    'columns["lift"] = np.asarray(r.lift, float) -> columns["lift"] = np.asarray(r.lift, None)',
+    'columns["lift"] = np.asarray(r.lift, float) -> columns["lift"] = np.asarray(r.lift, )',
+], "MethodResult.lift is a float array: asarray without dtype returns it unchanged")
 
 STATUS = {1: "killed", 3: "killed", 0: "survived", 5: "no tests", 33: "no tests", 34: "skipped",
           36: "timeout", -24: "timeout", 24: "timeout", 152: "timeout", 255: "timeout",
