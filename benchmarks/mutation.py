@@ -43,7 +43,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import re
 import shutil
 import subprocess
 import sys
@@ -67,7 +66,8 @@ class Target:
 
 TARGETS: dict[str, Target] = {
     "cutter": Target(("camsmooth/geometry/cutter.py",),
-                     ("tests/test_cutter.py", "tests/test_contact.py")),
+                     ("tests/test_cutter.py", "tests/test_contact.py", "tests/test_cylinder_distance_gradient.py",
+                      "tests/test_cutter_inputs.py")),
     "kinematics": Target(("camsmooth/machine/kinematics.py",),
                          ("tests/test_kinematics.py", "tests/test_ik_continuity.py", "tests/test_machine_model.py")),
     "orientation": Target(("camsmooth/smoothing/orientation.py",), ("tests/test_orientation.py",)),
@@ -90,6 +90,46 @@ def _equivalent(path: str, function: str, changes: list[str], why: str) -> None:
         EQUIVALENT[f"{path}::{function}: {change}"] = why
 
 
+_CUT = "camsmooth/geometry/cutter.py"
+_FLOAT_MIX = ("the array is combined with float arrays (unit vectors, float multiples) before anything reads "
+              "it, so ints or lists give the same float results with or without dtype=float")
+_equivalent(_CUT, "_unit", ["v = np.asarray(v, dtype=float) -> v = np.asarray(v, dtype=None)",
+                            "v = np.asarray(v, dtype=float) -> v = np.asarray(v, )"],
+            "isfinite and norm accept any numeric dtype and v / |v| is float: same result for ints or lists")
+for _f, _v in (("cc_to_cl", "cc"), ("cl_to_cc", "cl"), ("signed_distance", "tip"), ("signed_distance", "points"),
+               ("support_point", "tip")):
+    _equivalent(_CUT, _f, [f"{_v} = np.asarray({_v}, dtype=float) -> {_v} = np.asarray({_v}, dtype=None)",
+                           f"{_v} = np.asarray({_v}, dtype=float) -> {_v} = np.asarray({_v}, )"], _FLOAT_MIX)
+_equivalent(_CUT, "_dot", ['return np.einsum("...i,...i->...", a, b) -> return np.einsum("...I,...I->...", a, b)'],
+            "einsum labels are arbitrary letters: the same contraction")
+_equivalent(_CUT, "_cylinder_sd", [
+    "grad: bool = False) -> tuple[np.ndarray, np.ndarray | None]: -> "
+    "grad: bool = True) -> tuple[np.ndarray, np.ndarray | None]:"],
+    "every caller that wants the gradient passes grad=True and signed_distance reads only the value, "
+    "which does not depend on grad")
+_SD_BRANCH = ("the outside formula hypot(max(dr,0), max(dz,0)) equals max(dr, dz) whenever at most one of dr, dz "
+              "is positive (and is 0 = max(dr, dz) when one is 0 and the other <= 0): the branch only matters "
+              "when both are positive, which every variant sends outside, or both are negative, which none does")
+_sd_where = "sd = np.where((dr > 0.0) | (dz > 0.0), out, np.maximum(dr, dz))"
+_equivalent(_CUT, "_cylinder_sd", [f"{_sd_where} -> {_sd_where.replace(a, b)}" for a, b in (
+    ("(dr > 0.0) | (dz > 0.0)", "(dr > 0.0) & (dz > 0.0)"), ("dr > 0.0", "dr >= 0.0"), ("dr > 0.0", "dr > 1.0"),
+    ("dz > 0.0", "dz >= 0.0"), ("dz > 0.0", "dz > 1.0"))], _SD_BRANCH)
+_INNER = ("the inner where only avoids a division by zero where the outer where discards the quotient anyway "
+          "(the discarded entries differ, the result does not)")
+_ring = "u = np.where(wn > _PARALLEL_EPS, w / np.where(wn > _PARALLEL_EPS, wn, 1.0), 0.0)"
+_equivalent(_CUT, "_ring_direction", [
+    f"{_ring} -> u = np.where(wn > _PARALLEL_EPS, w / np.where(wn >= _PARALLEL_EPS, wn, 1.0), 0.0)",
+    f"{_ring} -> u = np.where(wn > _PARALLEL_EPS, w / np.where(wn > _PARALLEL_EPS, wn, 2.0), 0.0)"], _INNER)
+_sup = "w / np.where(wn > 0.0, wn, 1.0)[..., None], 0.0)"
+_equivalent(_CUT, "_cylinder_support", [
+    f"{_sup} -> w / np.where(wn >= 0.0, wn, 1.0)[..., None], 0.0)",
+    f"{_sup} -> w / np.where(wn > 0.0, wn, 2.0)[..., None], 0.0)"], _INNER)
+_equivalent(_CUT, "_cylinder_support", [
+    "radial = np.where((wn > _PARALLEL_EPS * np.maximum(1.0, np.abs(dt)))[..., None], -> "
+    "radial = np.where((wn > _PARALLEL_EPS / np.maximum(1.0, np.abs(dt)))[..., None],"],
+    "direction and axis are unit vectors (normalised by the callers), so |dt| <= 1 and max(1, |dt|) = 1: "
+    "multiplying or dividing by it is the same")
+
 _OUT = "camsmooth/io/output.py"
 _equivalent(_OUT, "point_status", [
     "lift = np.asarray(result.lift, dtype=float) -> lift = np.asarray(result.lift, dtype=None)",
@@ -108,7 +148,8 @@ _equivalent(_OUT, "point_status", [
 _equivalent(_OUT, "point_status", [
     "pairs = np.asarray(unreachable, dtype=np.int64).reshape(-1, 2) -> "
     "pairs = np.asarray(unreachable, dtype=None).reshape(-1, 2)",
-    "pairs = np.asarray(unreachable, dtype=np.int64).reshape(-1, 2) -> pairs = np.asarray(unreachable, ).reshape(-1, 2)",
+    "pairs = np.asarray(unreachable, dtype=np.int64).reshape(-1, 2) -> "
+    "pairs = np.asarray(unreachable, ).reshape(-1, 2)",
     "rows = np.asarray(result.rows, dtype=np.int64) -> rows = np.asarray(result.rows, dtype=None)",
     "rows = np.asarray(result.rows, dtype=np.int64) -> rows = np.asarray(result.rows, )",
     "idx = np.asarray(result.idx, dtype=np.int64) -> idx = np.asarray(result.idx, dtype=None)",
@@ -268,7 +309,8 @@ def run_module(module: str, max_children: int, keep: bool) -> ModuleResult:
 
 
 def report(results: list[ModuleResult]) -> bool:
-    head = f"{'module':<12} {'mutants':>7} {'killed':>6} {'timeout':>7} {'survived':>8} {'equiv':>5} {'score':>7}  verdict"
+    head = (f"{'module':<12} {'mutants':>7} {'killed':>6} {'timeout':>7} {'survived':>8} {'equiv':>5} "
+            f"{'score':>7}  verdict")
     print(head)
     print("-" * len(head))
     ok = True

@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 
 from camsmooth.errors import InputError
-from camsmooth.io.output import RESULT_CSV_COLUMNS, INTERFERENCE_TOL_MM, point_status, read_result_csv, \
-    write_result_csv
+from camsmooth.io.output import INTERFERENCE_TOL_MM, RESULT_CSV_COLUMNS, point_status, read_result_csv, write_result_csv
 from camsmooth.smoothing.feed import FeedPlan
 from camsmooth.smoothing.result import OUTPUT_COLUMNS, SmoothResult
 from tests.test_output import make_method, make_result
