@@ -120,6 +120,11 @@ _ring = "u = np.where(wn > _PARALLEL_EPS, w / np.where(wn > _PARALLEL_EPS, wn, 1
 _equivalent(_CUT, "_ring_direction", [
     f"{_ring} -> u = np.where(wn > _PARALLEL_EPS, w / np.where(wn >= _PARALLEL_EPS, wn, 1.0), 0.0)",
     f"{_ring} -> u = np.where(wn > _PARALLEL_EPS, w / np.where(wn > _PARALLEL_EPS, wn, 2.0), 0.0)"], _INNER)
+_equivalent(_CUT, "_cylinder_sd", [
+    "e = w / np.where(rho > 0.0, rho, 1.0)[..., None] -> e = w / np.where(rho > 0.0, rho, 2.0)[..., None]"],
+    "rho = |w| is 0 only where w = 0, so e = 0 there whatever the divisor")
+_equivalent(_CUT, "_cylinder_sd", [
+    "inv = 1.0 / np.where(outside, out, 1.0) -> inv = 1.0 / np.where(outside, out, 2.0)"], _INNER)
 _sup = "w / np.where(wn > 0.0, wn, 1.0)[..., None], 0.0)"
 _equivalent(_CUT, "_cylinder_support", [
     f"{_sup} -> w / np.where(wn >= 0.0, wn, 1.0)[..., None], 0.0)",

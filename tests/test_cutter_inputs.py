@@ -49,12 +49,13 @@ def test_bad_vector_messages_name_the_argument(call, words):
 
 
 def test_axis_into_the_material_names_the_first_such_point_and_the_reason():
-    n = np.tile(Z, (4, 1))
-    T = np.array([[0, 0, 1.0], [0, 0.6, -0.8], [0, 0, 1.0], [0, -0.6, -0.8]])
+    # point 2 is tangent (n.T = 0, allowed), points 3 and 5 point into the material
+    n = np.tile(Z, (5, 1))
+    T = np.array([[0, 0, 1.0], [1.0, 0, 0], [0, 0.6, -0.8], [0, 0, 1.0], [0, -0.6, -0.8]])
     for f in (cc_to_cl, cl_to_cc):
-        with pytest.raises(InputError, match=r"^tool axis points into the material at point 2 \(n\.T = -0\.8 < 0\): "
+        with pytest.raises(InputError, match=r"^tool axis points into the material at point 3 \(n\.T = -0\.8 < 0\): "
                                              "the contact would lie on the rounded top, not on the cutting end$"):
-            f(CUT, np.zeros((4, 3)), n, T)
+            f(CUT, np.zeros((5, 3)), n, T)
 
 
 def test_axis_tangent_to_the_surface_contacts_the_equator_of_the_corner():

@@ -86,6 +86,13 @@ def test_compiled_kernels_agree_with_the_numpy_reference():
             assert _kernels._sd(*args) == pytest.approx(sd[k], abs=1e-12)
             assert s1 == pytest.approx(sd[k], abs=1e-12)
             np.testing.assert_allclose(g1, g[k], atol=1e-12)
+    # inside, 1 mm from both the side and the bottom cap (an exact tie): both pick the side's normal
+    p = np.array([1.0, 0.0, 1.0])
+    sd, g = _cylinder_sd(np.zeros(3), np.array([0.0, 0.0, 1.0]), 4.0, 2.0, p, grad=True)
+    s1, *g1 = _kernels._sd_grad(*p, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 4.0, 2.0)
+    assert sd == s1 == -1.0
+    np.testing.assert_array_equal(g, [1.0, 0.0, 0.0])
+    np.testing.assert_array_equal(g1, [1.0, 0.0, 0.0])
 
 
 def test_support_point_ties_in_closed_form():
