@@ -69,7 +69,8 @@ TARGETS: dict[str, Target] = {
                      ("tests/test_cutter.py", "tests/test_contact.py", "tests/test_cylinder_distance_gradient.py",
                       "tests/test_cutter_inputs.py")),
     "kinematics": Target(("camsmooth/machine/kinematics.py",),
-                         ("tests/test_kinematics.py", "tests/test_ik_continuity.py", "tests/test_machine_model.py")),
+                         ("tests/test_kinematics.py", "tests/test_ik_continuity.py", "tests/test_machine_model.py",
+                          "tests/test_gcode.py", "tests/test_machine_file.py", "tests/test_kinematics_frames.py")),
     "orientation": Target(("camsmooth/smoothing/orientation.py",), ("tests/test_orientation.py",)),
     "pipeline": Target(("camsmooth/smoothing/pipeline.py",), ("tests/test_pipeline.py", "tests/test_oracles.py")),
     "clearance": Target(("camsmooth/geometry/clearance.py",), ("tests/test_interference.py",)),
@@ -134,6 +135,149 @@ _equivalent(_CUT, "_cylinder_support", [
     "radial = np.where((wn > _PARALLEL_EPS / np.maximum(1.0, np.abs(dt)))[..., None],"],
     "direction and axis are unit vectors (normalised by the callers), so |dt| <= 1 and max(1, |dt|) = 1: "
     "multiplying or dividing by it is the same")
+
+_KIN = "camsmooth/machine/kinematics.py"
+_equivalent(_KIN, "Frame.from_matrix", [
+    "T = np.asarray(T, dtype=float) -> "
+    "T = np.asarray(T, dtype=None)", "T = np.asarray(T, dtype=float) -> T = np.asarray(T, )"],
+    "every entry goes through float() anyway")
+_equivalent(_KIN, "Frame.from_matrix", [
+    "return Frame(tuple(tuple(float(T[i, j]) for j in range(3)) for i in range(3)), -> "
+    "return Frame(tuple(tuple(float(T[i, j]) for j in range(4)) for i in range(3)),",
+    "return Frame(tuple(tuple(float(T[i, j]) for j in range(3)) for i in range(3)), -> "
+    "return Frame(tuple(tuple(float(T[i, j]) for j in range(3)) for i in range(4)),",
+    "tuple(float(T[i, 3]) for i in range(3))) -> tuple(float(T[i, 3]) for i in range(4)))"],
+    "the extra row / column of the 4x4 matrix is carried along but never read: every consumer (products, "
+    "apply, rotate, to_numpy, tool_pose) indexes R[i][j] and p[i] with i, j < 3")
+for _v in ("w", "v"):
+    _equivalent(_KIN, "exp_twist", [f"{_v} = np.asarray({_v}, dtype=float) -> {_v} = np.asarray({_v}, dtype=None)",
+                                    f"{_v} = np.asarray({_v}, dtype=float) -> {_v} = np.asarray({_v}, )"],
+                "the screw's entries are read through float() (and W from them), so integer screws give the "
+                "same frame")
+_equivalent(_KIN, "Joint.screw", [
+    "d = np.asarray(self.direction, dtype=float) -> d = np.asarray(self.direction, dtype=None)",
+    "d = np.asarray(self.direction, dtype=float) -> d = np.asarray(self.direction, )",
+    "return d, -np.cross(d, np.asarray(self.point, dtype=float)) -> "
+    "return d, -np.cross(d, np.asarray(self.point, dtype=None))",
+    "return d, -np.cross(d, np.asarray(self.point, dtype=float)) -> return d, -np.cross(d, np.asarray(self.point, ))"],
+    "d is divided by its norm (float) before it is used, and an integer point only changes the dtype of v, "
+    "not its values; exp_twist and with_screws cast the screw to float")
+_equivalent(_KIN, "_mul", [
+    "if (isinstance(a, float) and a == 0.0) or (isinstance(b, float) and b == 0.0): -> "
+    "if (isinstance(a, float) and a == 0.0) and (isinstance(b, float) and b == 0.0):"],
+    "only the shortcut for one exact float 0 is lost: the product 0.0 * x is then computed, with the same value "
+    "for the finite entries of a transform (numpy and CasADi alike)")
+_equivalent(_KIN, "Chain.with_screws", [
+    "tuple((np.asarray(w, float), np.asarray(v, float)) for w, v in screws)) -> "
+    "tuple((np.asarray(w, None), np.asarray(v, float)) for w, v in screws))",
+    "tuple((np.asarray(w, float), np.asarray(v, float)) for w, v in screws)) -> "
+    "tuple((np.asarray(w, ), np.asarray(v, float)) for w, v in screws))",
+    "tuple((np.asarray(w, float), np.asarray(v, float)) for w, v in screws)) -> "
+    "tuple((np.asarray(w, float), np.asarray(v, None)) for w, v in screws))",
+    "tuple((np.asarray(w, float), np.asarray(v, float)) for w, v in screws)) -> "
+    "tuple((np.asarray(w, float), np.asarray(v, )) for w, v in screws))",
+    "return Chain(self.joints, self.home if home is None else np.asarray(home, dtype=float), -> "
+    "return Chain(self.joints, self.home if home is None else np.asarray(home, dtype=None),",
+    "return Chain(self.joints, self.home if home is None else np.asarray(home, dtype=float), -> "
+    "return Chain(self.joints, self.home if home is None else np.asarray(home, ),"],
+    "the screws are read by exp_twist and space_jacobian, and the home pose by Frame.from_matrix, all "
+    "of which cast to float: a list or integer array gives the same transforms")
+_equivalent(_KIN, "Chain.forward", [
+    "if isinstance(value, float) and value == 0.0: -> if isinstance(value, float) and value == 1.0:"],
+    "exp_twist(w, v, 0.0) is exactly the identity (sin 0 = 0, 1 - cos 0 = 0), so not skipping a zero gives "
+    "the same frame")
+_equivalent(_KIN, "Machine.inverse_axis", [
+    "return np.stack([np.stack([A0, B0], -1), np.stack([A1, B1], -1)], axis=1) -> "
+    "return np.stack([np.stack([A0, B0], +1), np.stack([A1, B1], -1)], axis=1)",
+    "return np.stack([np.stack([A0, B0], -1), np.stack([A1, B1], -1)], axis=1) -> "
+    "return np.stack([np.stack([A0, B0], -1), np.stack([A1, B1], +1)], axis=1)",
+    "T = np.atleast_2d(np.asarray(T, dtype=float)) -> T = np.atleast_2d(np.asarray(T, dtype=None))",
+    "T = np.atleast_2d(np.asarray(T, dtype=float)) -> T = np.atleast_2d(np.asarray(T, ))"],
+    "T is made 2-D, so A0, B0 are 1-D and axis +1 is axis -1 of the stacked pair; arcsin / arctan2 of an "
+    "integer T are the same floats")
+_equivalent(_KIN, "Machine.within", [
+    "values = np.asarray(values, dtype=float) -> values = np.asarray(values, dtype=None)",
+    "values = np.asarray(values, dtype=float) -> values = np.asarray(values, )"],
+    "the comparisons with the float limits give the same booleans for integer or list input")
+_equivalent(_KIN, "Machine.linear_axes", [
+    "return np.asarray(cl, float) + self.pivot * np.asarray(T, float) -> "
+    "return np.asarray(cl, None) + self.pivot * np.asarray(T, float)",
+    "return np.asarray(cl, float) + self.pivot * np.asarray(T, float) -> "
+    "return np.asarray(cl, ) + self.pivot * np.asarray(T, float)",
+    "return np.asarray(cl, float) + self.pivot * np.asarray(T, float) -> "
+    "return np.asarray(cl, float) + self.pivot * np.asarray(T, None)",
+    "return np.asarray(cl, float) + self.pivot * np.asarray(T, float) -> "
+    "return np.asarray(cl, float) + self.pivot * np.asarray(T, )"], _FLOAT_MIX)
+for _f, _line in (("Machine.tool_axis_np", "A = np.asarray(A, dtype=float)"),
+                  ("Machine.tool_axis_np", "B = np.asarray(B, dtype=float)"),
+                  ("Machine.solve_row", "T = np.atleast_2d(np.asarray(T, dtype=float))")):
+    _equivalent(_KIN, _f, [f"{_line} -> {_line.replace('dtype=float', 'dtype=None')}",
+                           f"{_line} -> {_line.replace('dtype=float', '')}"],
+                "the values only reach sin / cos / arcsin / arctan2 and float arithmetic: the same floats for "
+                "integer or list input")
+_equivalent(_KIN, "Machine.tool_pose_np", [
+    "args = [np.asarray(a, dtype=float) for a in (A, B, X, Y, Z)] -> "
+    "args = [np.asarray(a, dtype=None) for a in (A, B, X, Y, Z)]",
+    "args = [np.asarray(a, dtype=float) for a in (A, B, X, Y, Z)] -> "
+    "args = [np.asarray(a, ) for a in (A, B, X, Y, Z)]"],
+    "the arrays only reach sin / cos and products with float screws: the same floats for integer input "
+    "(and a 0-d array is never the Python float 0.0 that Chain.forward skips)")
+_equivalent(_KIN, "Machine.solve_row", [
+    "prev = np.array(previous if previous is not None else (0.0, 0.0), dtype=float) -> "
+    "prev = np.array(previous if previous is not None else (0.0, 0.0), dtype=None)",
+    "prev = np.array(previous if previous is not None else (0.0, 0.0), dtype=float) -> "
+    "prev = np.array(previous if previous is not None else (0.0, 0.0), )",
+    "mask = ok[i] if reach[i] else np.ones(len(c), bool) -> mask = ok[i] if reach[i] else np.ones(len(c), None)",
+    "mask = ok[i] if reach[i] else np.ones(len(c), bool) -> mask = ok[i] if reach[i] else np.ones(len(c), )"],
+    "prev only enters a float distance; np.where takes a float mask of ones as all True")
+_UNIQUE = ("the vectorised branch is a shortcut for rows where exactly one candidate is reachable at every point; "
+           "the sequential branch picks the same (only reachable) candidate there, so sending rows to it "
+           "instead changes the running time, not the result")
+_equivalent(_KIN, "Machine.solve_row", [
+    "unique = ok.sum(axis=1) == 1 -> unique = None", "unique = ok.sum(axis=1) == 1 -> unique = ok.sum(axis=1) == 2",
+    "unique = ok.sum(axis=1) == 1 -> unique = ok.sum(axis=None) == 1", "if np.all(unique): -> if np.all(None):"],
+    _UNIQUE)
+_equivalent(_KIN, "Machine.inverse_candidates", [
+    'grid = np.stack(np.meshgrid(shifts, shifts, indexing="ij"), -1) -> '
+    'grid = np.stack(np.meshgrid(shifts, shifts, ), -1)',
+    "cand = (sols[:, :, None, None, :] + grid[None, None]).reshape(len(sols), -1, 2) -> "
+    "cand = (sols[:, :, None, None, :] - grid[None, None]).reshape(len(sols), -1, 2)"],
+    "the shifts (-2 pi, 0, 2 pi) are symmetric and the same for A and B: the 9 shift pairs are the same set "
+    "in another order, and candidates are chosen by distance (the order only breaks exact ties)")
+_equivalent(_KIN, "Machine.inverse_candidates", [
+    "cand = (sols[:, :, None, None, :] + grid[None, None]).reshape(len(sols), -1, 2) -> "
+    "cand = (sols[:, :, None, None, :] + grid[None, None]).reshape(len(sols), -2, 2)"],
+    "numpy (2.x) treats any negative dimension in reshape as the one to infer")
+_equivalent(_KIN, "_wrap", [
+    "return -((-np.asarray(a) + np.pi) % (2 * np.pi) - np.pi) -> "
+    "return -((-np.asarray(a) - np.pi) % (2 * np.pi) - np.pi)"],
+    "x + pi and x - pi differ by 2 pi, so their remainders modulo 2 pi agree (to rounding)")
+_equivalent(_KIN, "ab_head_chain", [
+    'Joint("X", "prismatic", (1.0, 0.0, 0.0)), -> Joint("X", "prismatic", (2.0, 0.0, 0.0)),',
+    'Joint("Y", "prismatic", (0.0, 1.0, 0.0)), -> Joint("Y", "prismatic", (0.0, 2.0, 0.0)),',
+    'Joint("Z", "prismatic", (0.0, 0.0, 1.0)), -> Joint("Z", "prismatic", (0.0, 0.0, 2.0)),'],
+    "Joint.screw normalises the direction")
+_equivalent(_KIN, "ab_head_chain", [
+    'Joint("A", "revolute", (1.0, 0.0, 0.0), (0.0, 0.0, 0.0)), -> Joint("A", "revolute", (1.0, 0.0, 0.0), ),',
+    'Joint("B", "revolute", (0.0, 1.0, 0.0), (0.0, 0.0, 0.0)), -> Joint("B", "revolute", (0.0, 1.0, 0.0), ),'],
+    "(0, 0, 0) is Joint.point's default")
+_equivalent(_KIN, "space_jacobian", [
+    "last = max(i for i, nm in enumerate(names) if nm in want) if want else -1 -> "
+    "last = max(i for i, nm in enumerate(names) if nm in want) if want else +1",
+    "last = max(i for i, nm in enumerate(names) if nm in want) if want else -1 -> "
+    "last = max(i for i, nm in enumerate(names) if nm in want) if want else -2"],
+    "with no joint wanted no column is ever written: where the loop stops only changes the work done")
+_equivalent(_KIN, "space_jacobian", [
+    "vals = [np.atleast_1d(np.asarray(q.get(j.name, 0.0), dtype=float)) for j in chain.joints] -> "
+    "vals = [np.atleast_1d(np.asarray(q.get(j.name, 0.0), dtype=None)) for j in chain.joints]",
+    "vals = [np.atleast_1d(np.asarray(q.get(j.name, 0.0), dtype=float)) for j in chain.joints] -> "
+    "vals = [np.atleast_1d(np.asarray(q.get(j.name, 0.0), )) for j in chain.joints]"],
+    "joint values only reach sin / cos and products with float screws: the same floats for integer input")
+_equivalent(_KIN, "space_jacobian", [
+    'p = p + (step if R is None else np.einsum("nij,nj->ni", R, step)) -> '
+    'p = p + (step if R is None else np.einsum("NIJ,NJ->NI", R, step))',
+    'p = p + np.einsum("nij,nj->ni", Rp, T[:, :3, 3]) -> p = p + np.einsum("NIJ,NJ->NI", Rp, T[:, :3, 3])'],
+    "einsum labels are arbitrary letters: the same contraction")
 
 _OUT = "camsmooth/io/output.py"
 _equivalent(_OUT, "point_status", [
