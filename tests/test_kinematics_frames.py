@@ -154,10 +154,11 @@ def test_identity_frame_leaves_points_in_place():
 
 
 def _rpr_chain():
-    """A revolute - prismatic - revolute arm (not the AB head): a prismatic joint after a rotation."""
+    """An R-P-R-P arm (not the AB head): prismatic joints after rotations."""
     joints = (Joint("R1", "revolute", (0.0, 0.0, 1.0), (1.0, 0.0, 0.0)),
               Joint("P", "prismatic", (1.0, 0.0, 0.0)),
-              Joint("R2", "revolute", (0.0, 1.0, 0.0), (2.0, 0.0, 3.0)))
+              Joint("R2", "revolute", (0.0, 1.0, 0.0), (2.0, 0.0, 3.0)),
+              Joint("P2", "prismatic", (0.0, 0.6, 0.8)))
     home = _matrix(_rot([1, 1, 0], 0.3), [4.0, -1.0, 2.0])
     return Chain(joints, home)
 
@@ -177,7 +178,7 @@ def _forward_matrix(chain, q):
 
 def test_space_jacobian_of_a_general_chain_against_finite_differences():
     chain = _rpr_chain()
-    q = {"R1": 0.7, "P": 1.5, "R2": -0.4}
+    q = {"R1": 0.7, "P": 1.5, "R2": -0.4, "P2": 2.0}
     np.testing.assert_allclose(chain.forward(q).to_numpy(), _forward_matrix(chain, q), atol=1e-12)
     J = space_jacobian(chain, {k: np.array([v]) for k, v in q.items()})[0]
     h = 1e-6
@@ -192,17 +193,17 @@ def test_space_jacobian_of_a_general_chain_against_finite_differences():
     # one column wanted: the same column, the others zero; none wanted: all zero
     J1 = space_jacobian(chain, {k: np.array([v]) for k, v in q.items()}, joints=["P"])[0]
     np.testing.assert_array_equal(J1[:, 1], J[:, 1])
-    assert not J1[:, [0, 2]].any()
+    assert not J1[:, [0, 2, 3]].any()
     assert not space_jacobian(chain, q, joints=[]).any()
     # missing joints are at 0
     np.testing.assert_allclose(space_jacobian(chain, {"P": 1.5})[0],
-                               space_jacobian(chain, {"R1": 0.0, "P": 1.5, "R2": 0.0})[0], atol=0)
+                               space_jacobian(chain, {"R1": 0.0, "P": 1.5, "R2": 0.0, "P2": 0.0})[0], atol=0)
     np.testing.assert_allclose(chain.forward({"P": 1.5}).to_numpy(), _forward_matrix(chain, {"P": 1.5}), atol=1e-12)
 
 
 def test_chain_with_other_screws_and_home():
     chain = _rpr_chain()
-    q = {"R1": 0.2, "P": -0.5, "R2": 1.0}
+    q = {"R1": 0.2, "P": -0.5, "R2": 1.0, "P2": 0.3}
     same = chain.with_screws([(list(w), list(v)) for w, v in chain.joint_screws()])
     np.testing.assert_allclose(same.forward(q).to_numpy(), chain.forward(q).to_numpy(), atol=0)
     moved = chain.with_screws(chain.joint_screws(), home=np.eye(4))
@@ -243,6 +244,11 @@ def test_solve_row_start_and_out_of_travel_points():
     # from (0, 0) the first point takes A = -160 (nearer than +200)
     res = wide.solve_row(T[:1])
     assert np.degrees(res.A[0]) == pytest.approx(-160.0)
+    # (A, B) = (120, 50) deg: nearer to (0, 0) than the other branch (-60, 130) deg, which is nearer to
+    # (0, 57) deg: the start is (0, 0) in both angles
+    tall = _machine(200.0, 180.0)
+    res = tall.solve_row(tall.tool_axis_np(np.radians([120.0]), np.radians([50.0])))
+    np.testing.assert_allclose(np.degrees([res.A[0], res.B[0]]), [120.0, 50.0], atol=1e-9)
     # from a previous A of 400 deg the nearest candidate (530 deg) is out of travel: 170 is taken
     res = wide.solve_row(T[1:2], previous=(np.radians(400.0), 0.0))
     assert np.degrees(res.A[0]) == pytest.approx(170.0) and res.unreachable.size == 0

@@ -78,17 +78,25 @@ def test_post_table_values_and_defaults():
     ("machine.pivot", -0.5, "[machine] pivot must be >= 0 mm, got -0.5"),
     ("machine.name", 7, "[machine] name must be a string, got 7"),
     ("axis", "none", "axis = \"none\": [axis] must be a table, not a value"),
+    ("axis", None, "missing [axis.A] table"),
     ("axis.C", {"min": 0.0}, "unknown axis table(s) C (an AB head has A, B, X, Y, Z)"),
+    ("axis.W", {"min": 0.0}, "unknown axis table(s) C, W (an AB head has A, B, X, Y, Z)"),
     ("axis.A", None, "missing [axis.A] table"),
     ("axis.B", 1.5, "[axis] B = 1.5: [axis.B] must be a table, not a value"),
     ("axis.A.speed", 1.0, "unknown key(s) speed in [axis.A] (known: min, max, vmax, amax, jmax)"),
+    ("axis.A", {"min": 0.0, "max": 1.0, "vmax": 1.0, "amax": 1.0, "v": 1, "a": 2},
+     "unknown key(s) a, v in [axis.A] (known: min, max, vmax, amax, jmax)"),
     ("axis.A.vmax", None, "missing key 'vmax' in [axis.A]"),
     ("axis.A.jmax", "fast", '[axis.A] jmax must be a finite number, got "fast"'),
     ("axis.A.min", 45.0, "[axis.A] min 45 must be below max 45"),
     ("axis.B.amax", 0.0, "[axis.B] amax must be > 0, got 0"),
     ("axis.B.jmax", -1.0, "[axis.B] jmax must be > 0, got -1"),
     ("axis.Z", {"min": 0.0, "max": -1.0}, "[axis.Z] min 0 must be below max -1"),
+    ("axis.Z", {"min": 2.0, "max": 2.0}, "[axis.Z] min 2 must be below max 2"),
     ("axis.X", {"min": 0.0}, "missing key 'max' in [axis.X]"),
+    ("axis.X", {"max": 0.0}, "missing key 'min' in [axis.X]"),
+    ("axis.X", 5.0, "[axis] X = 5.0: [axis.X] must be a table, not a value"),
+    ("axis.X", {"min": 0.0, "max": 1.0, "vmax": "fast"}, '[axis.X] vmax must be a finite number, got "fast"'),
     ("axis.Y", {"min": 0.0, "max": 1.0, "vmax": -2.0}, "[axis.Y] vmax must be > 0, got -2"),
     ("axis.Y", {"min": 0.0, "max": 1.0, "accel": 2.0},
      "unknown key(s) accel in [axis.Y] (known: min, max, vmax, amax, jmax)"),
@@ -106,10 +114,21 @@ def test_post_table_values_and_defaults():
     ("post", {"tcp_off": 129}, "[post] tcp_off must be one line of text, got 129"),
 ])
 def test_every_mistake_has_one_message_naming_table_and_key(path, value, message):
+    data = _with(path, value)
+    if path == "axis.W":
+        data["axis"]["C"] = {}
     with pytest.raises(InputError) as exc:
-        machine_from_dict(_with(path, value), "m.toml")
+        machine_from_dict(data, "m.toml")
     assert exc.value.message == message
     assert exc.value.file == "m.toml"
+    with pytest.raises(InputError) as exc:   # without a file name: the dictionary is named as such
+        machine_from_dict(data)
+    assert exc.value.file == "<machine>"
+
+
+def test_small_positive_dynamics_are_accepted():
+    m = machine_from_dict(_with("axis.Y", {"min": 0.0, "max": 1.0, "vmax": 0.5, "amax": 0.25, "jmax": 0.125}))
+    assert (m.limits["Y"].vmax, m.limits["Y"].amax, m.limits["Y"].jmax) == (0.5, 0.25, 0.125)
 
 
 def test_nested_value_where_a_table_belongs_is_spelled_as_in_the_file():
@@ -138,6 +157,10 @@ def test_machine_file_on_disk(tmp_path):
         with pytest.raises(InputError) as exc:
             load_machine(str(path))
         assert exc.value.message == message and exc.value.file == str(path)
+    long = tmp_path / ("m" * 300 + ".toml")   # an OSError other than missing / folder: the system's reason
+    with pytest.raises(InputError) as exc:
+        load_machine(str(long))
+    assert exc.value.message == "cannot read the machine file: File name too long" and exc.value.file == str(long)
     bad = tmp_path / "bad.toml"
     bad.write_text("[machine\nkind = 1\n")
     with pytest.raises(InputError) as exc:
