@@ -1,0 +1,189 @@
+"""The diagnosis terms on a five-axis recording (camsmooth.diagnosis.terms): which parameters
+each term offers (names, units from the error model's own table, groups, optional higher-order
+parts), where a term does not apply and why, how parameters land in the error model, the states
+reported, and the starting points against closed forms: a residual that is exactly a lag or a
+clock offset gives that lag or offset back, and one Gauss-Newton step recovers a tool-length
+error that enters linearly."""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+import re
+
+import numpy as np
+import pytest
+
+from benchmarks.synthetic import make_program, record
+from camsmooth.diagnosis.problem import prepare
+from camsmooth.diagnosis.terms import term
+from camsmooth.machine.model import GEOMETRIC_PARAMETERS, ErrorModel
+
+NOISE = {"axes": 1e-6, "tip": 1e-6, "rotary": 1e-8, "axis": 1e-8}
+
+
+@pytest.fixture(scope="module")
+def P():
+    prog = make_program("rotary", duration=4.0, rate=50.0, seed=2, spindle=6000.0)
+    return prepare(prog, record(prog, {"EZ0T": 0.05}, channels=("axes", "tip", "axis"), noise=NOISE, seed=1))
+
+
+@pytest.fixture(scope="module")
+def P_axes_only():
+    prog = make_program("rotary", duration=4.0, rate=50.0, seed=2, spindle=0.0)
+    return prepare(prog, record(prog, {}, channels=("axes",), noise=NOISE, seed=1))
+
+
+def _names(t, P):
+    return [p.name for p in term(t).params(P)]
+
+
+def test_parameters_offered_on_a_five_axis_program(P):
+    assert _names("servo_lag", P) == ["tau_X", "tau_Y", "tau_Z", "tau_A", "tau_B"]
+    assert _names("backlash", P) == ["b_X", "b_Y", "b_Z", "b_A", "b_B"]
+    assert _names("rotary_location", P) == ["EY0A", "EZ0A", "EX0B", "EZ0B"]
+    assert _names("rotary_squareness", P) == ["EB0A", "EC0A", "EA0B", "EC0B"]
+    assert _names("spindle_tilt", P) == ["EA0S", "EB0S"]
+    assert _names("tool_length", P) == ["EZ0T"]
+    assert _names("spindle_runout", P) == ["rc", "rs"]
+    assert _names("linear_positioning", P) == [f"E{a}{a}{k}" for a in "XYZ" for k in ("", "2", "3")]
+    assert _names("linear_straightness", P) == [f"E{b}{a}{k}" for a in "XYZ" for b in "XYZ" if b != a
+                                                for k in ("2", "3")]
+    assert _names("linear_squareness", P) == ["EC0Y", "EB0Z", "EA0Z"]
+    for name in ("rotary_location", "rotary_squareness", "spindle_tilt", "tool_length", "linear_positioning",
+                 "linear_straightness", "linear_squareness"):
+        for p in term(name).params(P):
+            assert p.unit == GEOMETRIC_PARAMETERS[p.name][0], p   # the model's own unit for it
+            assert p.lo == -p.hi and p.hi > 0 and p.scale > 0
+            # the higher-order parts (pitch and cubic of positioning, cubic of straightness, whose
+            # leading part is quadratic) are dropped on their own; the leading ones are not
+            higher = {"linear_positioning": "23", "linear_straightness": "3"}.get(name, "")
+            assert p.optional == (p.name[-1] in higher if higher else False), p
+    groups = {p.name: p.group for t in ("rotary_location", "linear_straightness", "backlash", "servo_lag")
+              for p in term(t).params(P)}
+    assert groups["EZ0A"] == "A" and groups["EX0B"] == "B" and groups["EZY3"] == "Y in Z"
+    assert groups["b_A"] == "A" and groups["tau_Z"] == "Z"
+    units = {p.name: p.unit for t in ("backlash", "servo_lag", "spindle_runout", "time_offset")
+             for p in term(t).params(P)}
+    assert (units["b_X"], units["b_A"], units["tau_A"], units["rc"], units["offset_s"]) == ("mm", "rad", "s", "mm", "s")
+
+
+def test_where_a_term_does_not_apply_and_why(P, P_axes_only):
+    assert term("tool_length").applicable(P_axes_only) == "needs measured tool-tip or tool-axis channels"
+    assert term("spindle_runout").applicable(P_axes_only) == "needs measured tool-tip channels"
+    assert term("thermal_drift").applicable(P_axes_only) == "needs measured tool-tip or tool-axis channels"
+    knots = copy.copy(P.knots)   # a plain object: a shallow copy with the spindle stopped
+    knots.S = np.zeros_like(P.knots.S)
+    no_spindle = dataclasses.replace(P, knots=knots)
+    assert term("spindle_runout").applicable(no_spindle) == "the spindle does not turn in the program"
+    assert term("thermal_machine").applicable(no_spindle) == "the spindle does not turn in the program"
+    for name in ("servo_lag", "time_offset", "backlash", "spindle_runout", "thermal_drift", "rotary_location"):
+        assert term(name).applicable(P) is None, name
+
+
+def test_parameters_land_in_the_error_model():
+    m = ErrorModel()
+    term("servo_lag").write(m, ["tau_X", "tau_B"], [0.02, 0.05])
+    term("backlash").write(m, ["b_Y", "b_A"], [0.01, 1e-4])
+    term("time_offset").write(m, ["offset_s"], [0.003])
+    term("spindle_runout").write(m, ["rc", "rs"], [0.002, -0.001])
+    term("tool_length").write(m, ["EZ0T"], [0.05])
+    term("thermal_drift").write(m, ["gain_dz", "tau_dz"], [0.01, 40.0])
+    assert m.tau == {"X": 0.02, "B": 0.05} and m.backlash == {"Y": 0.01, "A": 1e-4}
+    assert (m.offset_s, m.runout, m.geometric["EZ0T"]) == (0.003, (0.002, -0.001), 0.05)
+    assert m.thermal["dz"] == {"gain": 0.01, "tau": 40.0}
+    assert term("servo_lag").read(m, ["tau_X", "tau_Y"]).tolist() == [0.02, 0.0]
+    assert term("backlash").read(m, ["b_A", "b_X"]).tolist() == [1e-4, 0.0]
+    assert term("thermal_drift").read(m, ["gain_dz", "tau_dz", "gain_dx"]).tolist() == [0.01, 40.0, 0.0]
+    assert math.isnan(term("thermal_drift").read(m, ["tau_dx"])[0])
+    assert term("time_offset").read(m, ["offset_s"]).tolist() == [0.003]
+    assert term("spindle_runout").read(m, ["rc", "rs"]).tolist() == [0.002, -0.001]
+    assert term("tool_length").read(m, ["EZ0T", "EX0S"]).tolist() == [0.05, 0.0]
+
+
+def test_lag_and_clock_offset_starting_points_from_an_exact_residual(P):
+    # a residual that is exactly -tau v on the X axis channel: the starting lag is tau
+    resid = np.zeros_like(P.data_fit)
+    jx = P.channels.index("X_act")
+    resid[:, jx] = -0.03 * P.states["v_X"]
+    x = term("servo_lag").initial(P, ErrorModel(), ["tau_X", "tau_Y"], resid)
+    assert x[0] == pytest.approx(0.03, rel=1e-9) and x[1] == 0.0
+    # a lag already in the model is kept
+    assert term("servo_lag").initial(P, ErrorModel(tau={"X": 0.1}), ["tau_X"], resid)[0] == 0.1
+    # a residual that is -d v on every moving axis: the recording runs d behind, from 1 ms already in the model
+    d = 0.004
+    for a in "XYZAB":
+        resid[:, P.channels.index(f"{a}_act")] = -d * P.states[f"v_{a}"]
+    model = ErrorModel()
+    model.offset_s = 0.001
+    assert term("time_offset").initial(P, model, ["offset_s"], resid)[0] == pytest.approx(0.001 + d, rel=1e-9)
+
+
+def test_one_gauss_newton_step_recovers_a_linear_effect(P):
+    # the recording has a tool 0.05 mm long: the tip moves along the axis, linearly in EZ0T
+    x = term("tool_length").initial(P, P.base.copy(), ["EZ0T"], np.zeros_like(P.data_fit))
+    assert x[0] == pytest.approx(0.05, abs=1e-5)
+
+
+def test_states_the_report_plots_against(P):
+    label, values, unit = term("servo_lag").state(P, ["tau_X", "tau_A"])
+    k = max(("X", "A"), key=lambda a: np.std(P.states[f"v_{a}"]))
+    assert unit == ("deg/s" if k == "A" else "mm/s") and label == f"commanded velocity {k} ({unit})"
+    np.testing.assert_allclose(values, P.states[f"v_{k}"] * (180 / math.pi if k == "A" else 1.0))
+    assert term("backlash").state(P, ["b_Y"])[0] == "last direction of Y (-1/+1)"
+    label, values, unit = term("tool_length").state(P, ["EZ0T"])
+    assert (label, unit) == ("rotary axis A (deg)", "deg")
+    np.testing.assert_allclose(values, np.degrees(P.states["pos_A"]))
+    assert term("linear_positioning").state(P, ["EYY2"])[0] == "commanded position Y (mm)"
+    assert term("linear_straightness").state(P, ["EXZ2"])[0] == "commanded position Z (mm)"
+    assert term("linear_squareness").state(P, ["EC0Y"])[0] == "commanded position Y (mm)"
+    assert term("linear_squareness").state(P, ["EA0Z"])[0] == "commanded position Z (mm)"
+    label, values, unit = term("spindle_runout").state(P, ["rc", "rs"])
+    assert (label, unit) == ("spindle angle (deg, mod 360)", "deg") and values.min() >= 0 and values.max() < 360
+    assert term("thermal_drift").state(P, ["gain_dz"])[0] == "elapsed time (s)"
+
+
+def test_refusals_of_fitted_values(P):
+    t = term("time_offset")
+    period = P.dt
+    assert t.unresolvable(P, ["offset_s"], [0.05 * period], [0.0]).startswith(
+        f"the fitted clock offset {0.05 * period * 1e6:.3g} us is below 0.1 of the sample period")
+    assert t.unresolvable(P, ["offset_s"], [0.5 * period], [0.0]) is None
+    # a geometric error whose effect stays below a 10 um quantisation step of every tip channel
+    Q = dataclasses.replace(P, floor_info={c: dict(v, q_recording_rms=0.01) for c, v in P.floor_info.items()})
+    why = term("tool_length").unresolvable(Q, ["EZ0T"], np.array([1e-4]), np.array([1e-5]))
+    assert re.fullmatch(r"its largest effect \(0\.1 um on tip_[xyz]\) stays below the recording's resolution "
+                        r"\(10 um\)", why), why
+    assert term("tool_length").unresolvable(Q, ["EZ0T"], np.array([0.05]), np.array([1e-5])) is None
+    assert term("tool_length").unresolvable(P, ["EZ0T"], np.array([1e-4]), np.array([1e-5])) is None
+
+
+@pytest.fixture(scope="module")
+def P_warm():
+    """The spindle grows 0.01 mm per 1000 rpm along the tool axis with a 1 s time constant."""
+    prog = make_program("rotary", duration=4.0, rate=50.0, seed=2, spindle=6000.0)
+    truth = {"thermal_dz_gain": 0.01, "thermal_dz_tau": 1.0}
+    return prepare(prog, record(prog, truth, channels=("axes", "tip", "axis"), noise=NOISE, seed=1))
+
+
+def test_thermal_growth_is_found_in_the_spindle_frame_with_a_start_near_the_truth(P_warm):
+    t = term("thermal_drift")
+    assert t.elements(P_warm) == ["dx", "dy", "dz", "exz", "eyz"]
+    assert t.select_elements(P_warm, P_warm.base) == ["dz"]
+    span = float(P_warm.t[-1] - P_warm.t[0])
+    (tau_lo, tau_hi), = [(p.lo, p.hi) for p in t.params(P_warm) if p.name == "tau_dz"]
+    # a time constant below 5% of the record cannot be told from an offset; at most 20 records
+    assert (tau_lo, tau_hi) == pytest.approx((0.05 * span, 20 * span))
+    names = [p.name for p in t.params(P_warm)]
+    assert names == ["gain_dz", "tau_dz"]
+    x0 = t.initial(P_warm, ErrorModel(), names, None)
+    assert x0[0] == pytest.approx(0.01, rel=0.2) and 0.5 <= x0[1] <= 2.0
+    # a fitted time constant on its lower bound is a step, not a drift
+    lo = 0.05 * span
+    assert t.veto(P_warm, names, [0.01, lo]) == (
+        f"the fitted time constant of dz sits on its lower bound ({lo:.3g} s, 5% of the record): a step, not a "
+        "drift; it cannot be told from a constant offset")
+    assert t.veto(P_warm, names, [0.01, 1.0]) is None
+    # the machine frame sees only tip elements
+    assert term("thermal_machine").elements(P_warm) == ["mx", "my", "mz"]
