@@ -86,7 +86,8 @@ TARGETS: dict[str, Target] = {
     "calibration": Target(("camsmooth/machine/calibration.py",),
                           ("tests/test_calibration.py", "tests/test_oracles.py")),
     "output": Target(("camsmooth/io/output.py",), ("tests/test_output.py", "tests/test_result_csv_columns.py")),
-    "atomic": Target(("camsmooth/io/atomic.py",), ("tests/test_atomic.py", "tests/test_output.py")),
+    "atomic": Target(("camsmooth/io/atomic.py",),
+                     ("tests/test_atomic.py", "tests/test_output.py", "tests/test_atomic_folders.py")),
 }
 
 # Reviewed equivalent mutants: "path::function: before -> after" (Mutant.key) -> why no test can tell the
@@ -297,6 +298,15 @@ _equivalent(_KIN, "load_machine", [
     for _a in ("None", "", '"XX<default machine>XX"', '"<DEFAULT MACHINE>"')],
     "the name only appears in an error about the built-in DEFAULT_MACHINE_TOML, which is valid (loaded by "
     "many tests), so it is never shown")
+
+_ATO = "camsmooth/io/atomic.py"
+_equivalent(_ATO, "_default_mode", ["umask = os.umask(0) -> umask = os.umask(1)"],
+            "os.umask returns the previous mask whatever the new one, and the next line restores it")
+_equivalent(_ATO, "OutputTransaction.commit", ["self.committed = True -> self.committed = None",
+                                               "self.committed = True -> self.committed = False"],
+            "after a successful commit every temporary has been renamed or removed and every folder created "
+            "holds an output, so the rollback a false flag triggers finds nothing to remove (rmdir of a "
+            "non-empty folder fails and is ignored)")
 
 _OUT = "camsmooth/io/output.py"
 _equivalent(_OUT, "point_status", [
