@@ -187,3 +187,20 @@ def test_thermal_growth_is_found_in_the_spindle_frame_with_a_start_near_the_trut
     assert t.veto(P_warm, names, [0.01, 1.0]) is None
     # the machine frame sees only tip elements
     assert term("thermal_machine").elements(P_warm) == ["mx", "my", "mz"]
+
+
+def test_interface_defaults_of_a_new_term(P):
+    from camsmooth.diagnosis.terms.base import Term
+
+    class Plain(Term):
+        name = "plain"
+
+    t = Plain()
+    assert t.applicable(P) is None and t.jacobian(P, ErrorModel(), ["a"]) is None
+    assert t.unresolvable(P, ["a"], [1.0], [0.1]) is None and t.veto(P, ["a"], [1.0]) is None
+    par, unc, unit = t.report(["a", "b"], np.array([1.5, -2.0]), np.array([0.25, 0.5]))
+    assert par == {"a": 1.5, "b": -2.0} and unc == {"a": 0.25, "b": 0.5} and unit == {"a": "", "b": ""}
+    assert all(type(v) is float for v in (*par.values(), *unc.values()))
+    label, values, unit = t.state(P, ["a"])
+    assert (label, unit) == ("elapsed time (s)", "s")
+    np.testing.assert_array_equal(values, P.states["elapsed"])
