@@ -574,13 +574,20 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     results = []
     t0 = time.perf_counter()
+    failed = []
     for module in args.modules:
         t = TARGETS[module]
         only = f" (functions {', '.join(t.functions)})" if t.functions else ""
         print(f"[{module}] mutating {', '.join(t.paths)}{only} against {' '.join(t.tests)}", flush=True)
-        results.append(run_module(module, args.max_children, args.keep))
+        try:
+            results.append(run_module(module, args.max_children, args.keep))
+        except RuntimeError as exc:   # one module's failure does not lose the others' results
+            print(exc, flush=True)
+            failed.append(module)
     print()
-    ok = report(results)
+    ok = report(results) and not failed
+    if failed:
+        print(f"\nmutmut failed for: {', '.join(failed)} (see above)")
     print(f"\nwall time {time.perf_counter() - t0:.0f} s, --max-children {args.max_children}")
     return 0 if ok else 1
 
