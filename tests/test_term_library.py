@@ -204,3 +204,15 @@ def test_interface_defaults_of_a_new_term(P):
     label, values, unit = t.state(P, ["a"])
     assert (label, unit) == ("elapsed time (s)", "s")
     np.testing.assert_array_equal(values, P.states["elapsed"])
+
+
+def test_travel_is_the_largest_commanded_position_and_at_least_1_mm(P):
+    from camsmooth.diagnosis.terms.base import travel
+
+    prog = make_program("rotary", duration=4.0, rate=50.0, seed=2, spindle=6000.0)
+    for a in "XYZ":
+        assert travel(P, a) == pytest.approx(max(1.0, float(np.max(np.abs(prog.axes[a])))))
+    assert travel(P, "W") == 1.0   # an axis the program does not have
+    small = dataclasses.replace(P, knots=copy.copy(P.knots))
+    small.knots.u = {**P.knots.u, "X": 0.25 * np.sin(np.linspace(0, 3, len(P.knots.u["X"])))}
+    assert travel(small, "X") == 1.0
