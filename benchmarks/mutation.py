@@ -32,6 +32,19 @@ penetrating planes, prism ridges and vertices, spheres, cylinders): tests/test_i
 The undecorated Python in clearance.py (index building, batching, result assembly, axial_drop) is
 mutated as usual; the kernels run compiled in the mutation run, as in production.
 
+What is not mutated, and why (each run must stay within minutes on 2 shared cores):
+
+* camsmooth/smoothing/nlp.py: every NLP test builds CasADi graphs and solves with IPOPT (seconds each),
+  and a surviving mutant reruns all of them; ~1500 mutants would take hours. Covered by
+  tests/test_smoothing.py (limits and windows met at every sample, derivatives against automatic
+  differentiation), tests/test_pipeline.py and the end-to-end limit tests.
+* pipeline.py: only the functions that are not the NLP / spline / planning drivers (TARGETS'
+  ``functions``; the others are marked "# pragma: no mutate block" in the temporary copy only).
+* calibration.py: the least-squares / particle-swarm fitting drivers (see TARGETS).
+* Tests that run the command line in a subprocess cannot run under mutmut (the child imports the
+  trampolined package without mutmut's configuration) and are deselected; so are the three slow
+  brute-force clearance comparisons (they would rerun for every surviving clearance mutant).
+
 Usage (from the repository root, with the project's venv):
     python benchmarks/mutation.py                        # all modules
     python benchmarks/mutation.py --modules cutter terms --max-children 2
