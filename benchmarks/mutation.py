@@ -92,7 +92,7 @@ TARGETS: dict[str, Target] = {
     # tests that run the command line in a subprocess cannot run under mutmut (the child process imports
     # the trampolined package without mutmut's configuration): they are left out here
     "pipeline": Target(("camsmooth/smoothing/pipeline.py",), (
-        "tests/test_oracles.py", "tests/test_pipeline.py",
+        "tests/test_oracles.py", "tests/test_pipeline.py", "tests/test_pipeline_results.py",
         "--deselect", "tests/test_pipeline.py::test_cli_bad_input_names_file_row_column_and_writes_nothing",
         "--deselect", "tests/test_pipeline.py::test_cli_smooth_writes_csv_gcode_report"),
                        functions=("row_times", "Program.name", "prepare", "ProgramSmoother.metrics",
