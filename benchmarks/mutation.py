@@ -113,7 +113,7 @@ TARGETS: dict[str, Target] = {
     # Levenberg-Marquardt or particle-swarm fits (~2 s a mutant, ~25 min on 2 cores); the recovery tests of
     # tests/test_calibration.py cover them. Mutated: the data checks, files, geometry and report.
     "calibration": Target(("camsmooth/machine/calibration.py",),
-                          ("tests/test_calibration.py", "tests/test_oracles.py"),
+                          ("tests/test_calibration.py", "tests/test_oracles.py", "tests/test_calibration_inputs.py"),
                           functions=("trilaterate", "_ballbar_trilateration", "validate_probe", "validate_spindle",
                                      "validate_ballbar", "read_table", "_write_csv", "read_probe_csv",
                                      "write_probe_csv", "read_spindle_csv", "write_spindle_csv", "read_ballbar_csv",
