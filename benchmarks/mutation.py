@@ -552,6 +552,7 @@ def run_module(module: str, max_children: int, keep: bool) -> ModuleResult:
             tail = log.read_text(errors="replace").replace("\r", "\n").splitlines()[-40:]
             raise RuntimeError(f"mutmut run failed for {module} (exit {proc.returncode}):\n" + "\n".join(tail))
         mutants = _collect(work)
+        (work / "mutation-seconds.txt").write_text(f"{time.perf_counter() - t0:.1f}\n")
     finally:
         if keep:
             print(f"[{module}] copy kept at {work}")
@@ -589,9 +590,18 @@ def main(argv: list[str] | None = None) -> int:
                     help="core modules to mutate (default: all)")
     ap.add_argument("--max-children", type=int, default=2, help="parallel mutmut workers (default 2)")
     ap.add_argument("--keep", action="store_true", help="keep the temporary copies (mutmut show works there)")
+    ap.add_argument("--report", nargs="+", metavar="COPY",
+                    help="print the table again from copies kept by --keep (with the current EQUIVALENT table)")
     args = ap.parse_args(argv)
     results = []
     t0 = time.perf_counter()
+    if args.report:
+        for copy in map(Path, args.report):
+            module = copy.name.removeprefix("camsmooth-mutation-").rsplit("-", 1)[0]
+            sec = copy / "mutation-seconds.txt"
+            results.append(ModuleResult(module=module, mutants=_collect(copy),
+                                        seconds=float(sec.read_text()) if sec.exists() else float("nan")))
+        return 0 if report(results) else 1
     failed = []
     for module in args.modules:
         t = TARGETS[module]
