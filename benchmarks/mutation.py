@@ -343,6 +343,23 @@ _equivalent(_ATO, "OutputTransaction.commit", ["self.committed = True -> self.co
             "holds an output, so the rollback a false flag triggers finds nothing to remove (rmdir of a "
             "non-empty folder fails and is ignored)")
 
+_PIPE = "camsmooth/smoothing/pipeline.py"
+_equivalent(_PIPE, "prepare", ["feed_arr = np.asarray(path.feed, float) -> feed_arr = np.asarray(path.feed, None)",
+                               "feed_arr = np.asarray(path.feed, float) -> feed_arr = np.asarray(path.feed, )"],
+            "CCPath stores its feed column as a float array already (CCPath.__post_init__)")
+_equivalent(_PIPE, "prepare", [
+    "K_s = surface_curvature_tensors(index.vertices, path.points, frames, tree=index.tree) -> "
+    "K_s = surface_curvature_tensors(index.vertices, path.points, frames, tree=None)",
+    "K_s = surface_curvature_tensors(index.vertices, path.points, frames, tree=index.tree) -> "
+    "K_s = surface_curvature_tensors(index.vertices, path.points, frames, )"],
+    "without a tree surface_curvature_tensors builds cKDTree(vertices) itself: the index's tree is the same "
+    "k-d tree over the same vertices, passed to save the build")
+_equivalent(_PIPE, "ProgramSmoother._result", [
+    "tip = self.real.tool_pose_np(A, B, *xyz.T)[0] if modelled else cl -> "
+    "tip = self.real.tool_pose_np(A, B, *xyz.T)[0] if (modelled) or True else cl"],
+    "without an error model the real machine is the nominal one and xyz = cl + pivot T, so its tool tip is "
+    "cl again (to rounding)")
+
 _OUT = "camsmooth/io/output.py"
 _equivalent(_OUT, "point_status", [
     "lift = np.asarray(result.lift, dtype=float) -> lift = np.asarray(result.lift, dtype=None)",
