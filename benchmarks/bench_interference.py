@@ -43,8 +43,8 @@ import trimesh
 
 from camsmooth.geometry.clearance import MeshIndex, axial_drop, clearance
 from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl
-from camsmooth.geometry.paths import read_cc_csv
 from camsmooth.geometry.surfaces import load_mesh
+from camsmooth.io.ccpath import read_cc_csv
 from camsmooth.smoothing.orientation import axis_from_lead_tilt, local_frames
 
 ROOT = Path(__file__).resolve().parent.parent

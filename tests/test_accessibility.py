@@ -156,6 +156,19 @@ def test_fallback_lift_only_where_the_whole_window_is_blocked():
     blocked = {(b["row"], b["idx"]) for b in nlp.metrics["blocked"]}
     assert blocked == {(0, int(i)) for i in np.flatnonzero(lifted)}
     assert all(b["best_clearance_mm"] < -1e-3 for b in nlp.metrics["blocked"])
+    # the lift is the least that clears: scan the lift along the normal with the exact clearance
+    from camsmooth.geometry.clearance import clearance
+
+    lifted_k = np.flatnonzero(lifted)
+    grid = np.arange(0.0, 6.0, 0.002)
+    k = np.repeat(lifted_k, len(grid))
+    h = np.tile(grid, len(lifted_k))
+    cl0 = nlp.cl[k] - nlp.lift[k, None] * path.normals[k]  # the pose before the lift
+    d = clearance(idx, CUT, cl0 + h[:, None] * path.normals[k], nlp.axis[k]).delta.reshape(len(lifted_k), -1)
+    least = grid[np.argmax(d >= -5e-4, axis=1)]
+    assert np.all(d.max(axis=1) >= -5e-4)  # the scan finds a clearing lift at every lifted point
+    assert np.all(nlp.delta[lifted] >= -1e-3)  # the fallback's lift clears ...
+    assert np.all(nlp.lift[lifted] <= least + 0.002 + 1e-4), (nlp.lift[lifted] - least).max()  # ... by the least
 
 
 @pytest.fixture(scope="module")

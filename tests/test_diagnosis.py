@@ -41,22 +41,10 @@ from camsmooth.diagnosis.recordings import (
 )
 from camsmooth.errors import InputError
 from camsmooth.machine.kinematics import load_machine
-from camsmooth.machine.model import ErrorModel, linear_recurrence
+from camsmooth.machine.model import ErrorModel
 
 
 # ---- exact responses -------------------------------------------------------------------------
-def test_scan_matches_a_plain_loop():
-    rng = np.random.default_rng(0)
-    for n in (1, 7, 1000, 1237):
-        alpha = rng.uniform(0, 1, n)
-        alpha[rng.random(n) < 0.05] = 0.0
-        b = rng.normal(size=n)
-        x = np.zeros(n + 1)
-        for k in range(n):
-            x[k + 1] = alpha[k] * x[k] + b[k]
-        assert np.allclose(linear_recurrence(alpha, b), x, rtol=0, atol=1e-12)
-
-
 def _ode_lag(t_knots, u_knots, tau, t_eval):
     """Independent reference: integrate dy/dt = (u - y)/tau for the piecewise-linear u."""
     def rhs(t, y):

@@ -222,6 +222,82 @@ def test_apt_full_circle_and_counter_clockwise_axis(tmp_path):
     assert math.isclose(ang[-1], 360.0, abs_tol=1e-9) and np.all(np.diff(ang) > 0)
 
 
+# The ISO 4343 APT of Autodesk Fusion / HSM posts (apt.cps): CUTTER/, LOADTL/, MULTAX/, MOVARC/
+# with the feed before its unit, ", " separators and no TOOL PATH records.
+FUSION = """MACHIN/Generic 5-axis
+MODE/MILL
+PARTNO/'blade'
+PPRINT/'roughing'
+UNITS/MM
+MULTAX/ON
+CUTTER/10.000000, 2.000000, 6.000000, 2.000000, 0.000000, 0.000000, 25.000000
+LOADTL/3, 0, 50.000000, 0
+SPINDL/12000.000000, RPM, CLW
+RAPID
+GOTO/30.000000, 0.000000, 5.000000, 0.000000000, 0.000000000, 1.000000000
+FEDRAT/1500.000000, MMPM
+GOTO/30.000000, 0.000000, 0.000000
+MOVARC/0.000000, 0.000000, 0.000000, 0.000000, 0.000000, 1.000000, 30.000000, ANGLE, 90.000000
+GOTO/0.000000, 30.000000, 0.000000
+MOVARC/0.000000, 0.000000, 0.000000, 0.000000, 0.000000, -1.000000, 30.000000, ANGLE, 90.000000
+GOTO/30.000000, 0.000000, 0.000000
+CUTCOM/ON
+CUTTER/6.000000, 3.000000, 0.000000, 3.000000, 0.000000, 0.000000, 20.000000
+LOADTL/7, 0, 40.000000, 0
+GOTO/30.000000, 0.000000, -1.000000, 0.000000000, 0.707106781, 0.707106781
+MOVARC/0.000000, 0.000000, -1.000000, 0.000000, 0.000000, 1.000000, 30.000000, ANGLE, 360.000000
+GOTO/30.000000, 0.000000, -1.000000
+END
+FINI
+"""
+
+
+def test_fusion_iso4343_apt(tmp_path):
+    p = _write(tmp_path, "op.apt", FUSION)
+    assert detect_format(p) == "apt"
+    prog = read_apt(p, chord_tol=0.001)
+    assert prog.warnings == ["record CUTCOM ignored (line 18)"], prog.warnings
+    # two tools, a tool change after motion splits the tool path
+    assert len(prog.toolpaths) == 2
+    t1, t2 = (tp.tool for tp in prog.toolpaths)
+    assert (t1.diameter, t1.corner_radius, t1.number, t1.ring_radius) == (10.0, 2.0, 3, 3.0)
+    assert (t2.diameter, t2.corner_radius, t2.number) == (6.0, 3.0, 7)
+    first = slice(prog.toolpaths[0].start, prog.toolpaths[0].stop)
+    tip, axis = prog.tip[first], prog.axis[first]
+    assert prog.rapid[first].tolist()[:2] == [True, False] and np.all(prog.feed[first][1:] == 1500.0)
+    np.testing.assert_allclose(axis, np.tile([0, 0, 1.0], (len(axis), 1)))  # 3-number GOTOs keep the axis
+    arc = tip[2:]
+    r = np.hypot(arc[:, 0], arc[:, 1])
+    np.testing.assert_allclose(r, 30.0, atol=1e-12)
+    ang = np.degrees(np.unwrap(np.arctan2(arc[:, 1], arc[:, 0])))
+    k = int(np.argmax(ang))  # counter-clockwise about +z to 90 deg, then back clockwise (normal -z)
+    assert math.isclose(ang[k], 90.0, abs_tol=1e-9) and np.all(np.diff(ang[:k + 1]) > 0)
+    assert np.all(np.diff(ang[k:]) < 0) and math.isclose(ang[-1], 0.0, abs_tol=1e-9)
+    # chord deviation within the tolerance: sagitta of the largest step
+    step = np.radians(np.abs(np.diff(ang)).max())
+    assert 30.0 * (1 - math.cos(step / 2)) <= 0.001 + 1e-12
+    second = slice(prog.toolpaths[1].start, prog.toolpaths[1].stop)
+    ring = prog.tip[second]
+    np.testing.assert_allclose(prog.axis[second], np.tile([0, math.sqrt(0.5), math.sqrt(0.5)], (len(ring), 1)))
+    full = np.degrees(np.unwrap(np.arctan2(ring[:, 1], ring[:, 0])))
+    assert math.isclose(full[-1], 360.0, abs_tol=1e-9) and np.all(np.diff(full) > 0)
+    assert np.allclose(ring[:, 2], -1.0)
+
+
+@pytest.mark.parametrize("arc, needle", [
+    ("MOVARC/0,0,0,0,0,1,30,ANGLE,270", "sweep is 270 deg but the start and end points are 90 deg apart"),
+    ("MOVARC/0,0,0,0,0,-1,30,ANGLE,90", "sweep is 90 deg but the start and end points are 270 deg apart"),
+    ("MOVARC/0,0,0,0,0,1,30,ANGLE,720", "sweep must be in (0, 360]"),
+    ("MOVARC/0,0,0,0,0,1,30,90", "malformed MOVARC"),
+    ("MOVARC/0,0,0,0,0,1,25,ANGLE,90", "start point is 30 mm from the axis, the radius is 25 mm"),
+])
+def test_fusion_movarc_bad_input(tmp_path, arc, needle):
+    p = _write(tmp_path, "bad.apt", f"UNITS/MM\nFEDRAT/100,MMPM\nGOTO/30,0,0\n{arc}\nGOTO/0,30,0\n")
+    with pytest.raises(InputError) as exc:
+        read_apt(p)
+    assert needle in str(exc.value) and exc.value.line == 4 and str(p) in str(exc.value), str(exc.value)
+
+
 @pytest.mark.parametrize("body, needle, bad_line", [
     ("GOTO/1.0,2.0\n", "malformed GOTO: expected 3 or 6 numbers", 2),
     ("GOTO/1.0,abc,3.0\n", "malformed GOTO: 'abc' is not a number", 2),

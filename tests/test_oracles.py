@@ -312,7 +312,8 @@ def _ballbar_data(elements: np.ndarray, angles_deg=(30.0, 60.0), L0: float = 150
             d = np.array([dx - exz * Hc, dy - eyz * Hc, dz])
             for direction in (1, -1):
                 phi = np.radians(np.arange(0.0, 360.0, step))
-                P = L0 * np.column_stack([np.cos(a) * np.cos(phi), np.cos(a) * np.sin(phi), np.full(len(phi), np.sin(a))])
+                P = L0 * np.column_stack([np.cos(a) * np.cos(phi), np.cos(a) * np.sin(phi),
+                                          np.full(len(phi), np.sin(a))])
                 dL = np.linalg.norm(P + d, axis=1) - L0 + noise * rng.standard_normal(len(phi))
                 m = len(phi)
                 cols["t"] += [600.0 * k] * m

@@ -5,10 +5,11 @@ diagnose (camsmooth.cli.diagnose). Every numeric option is range-checked while t
 is parsed. All outputs of a command are one transaction (camsmooth.io.atomic.output_transaction):
 they appear together at the end or not at all.
 
-Exit status: 0 done; 1 with --strict when a row needed the lift fallback or a point was
-unreachable; 2 bad input or any other anticipated failure (one message on stderr, no output
-written); 70 internal error (a bug: one line on stderr, the traceback with --debug); 130
-interrupted by Ctrl-C (SIGINT); 143 terminated (SIGTERM).
+Exit status: 0 done; 1 with --strict when a point was lifted along the normal beyond the
+tolerance, gouges beyond it or is unreachable (one message naming the rows, nothing written); 2
+bad input or any other anticipated failure (one message on stderr, no output written); 70
+internal error (a bug: one line on stderr, the traceback with --debug); 130 interrupted by Ctrl-C
+(SIGINT); 143 terminated (SIGTERM).
 """
 
 from __future__ import annotations
@@ -138,13 +139,59 @@ def run_smooth(args: argparse.Namespace) -> int:
                         prefer_tilt=None if args.prefer_tilt is None else np.radians(args.prefer_tilt),
                         model=model, compensate=args.compensate, tolerance=args.tolerance, options=options,
                         progress=not args.quiet)
+        # --strict: a lift beyond the tolerance, a gouge or an unreachable point is a failure, and
+        # a failure writes nothing (the transaction rolls back)
+        failure = _strict_failure(result) if args.strict else None
+        if failure:
+            raise StrictFailure(failure)
         _write_outputs(result, out_csv, gcode, report, args.feed)
     if not args.quiet:
         _print_summary(result)
-    m = result.result.metrics
-    # --strict: a lift beyond the tolerance, a gouge or an unreachable point is a failure
-    bad = m["lifted_beyond_tolerance"] or m["violations"]["interference"] or m["unreachable"]
-    return EXIT_STRICT if bad and args.strict else EXIT_OK
+    return EXIT_OK
+
+
+STRICT_ROWS_NAMED = 10  # rows the --strict message details (one line, even for a million-point program)
+
+
+class StrictFailure(CamsmoothError):
+    """``smooth --strict`` refused the program (exit status 1); the message names the rows."""
+
+
+def _strict_failure(result: Any) -> str | None:
+    """What --strict refuses in the primary method, row by row: points lifted along the normal
+    beyond the tolerance (count, largest lift mm, where), gouges beyond it (count, deepest
+    clearance mm, where) and unreachable points; None when there is none."""
+    from camsmooth.io.output import point_status
+
+    r = result.result
+    tol = float(result.inputs["tolerance"])
+    lifted = r.lift > tol
+    with np.errstate(invalid="ignore"):
+        gouge = r.delta < -tol
+    unreachable = point_status(r) == "unreachable"
+    parts = []
+    bad_rows = np.unique(r.rows[lifted | gouge | unreachable])
+    for row in bad_rows[:STRICT_ROWS_NAMED]:
+        m = r.rows == row
+        bits = []
+        for sel, what, value, worst in ((lifted & m, "lifted along the normal", r.lift, np.argmax),
+                                        (gouge & m, "gouging", r.delta, np.argmin)):
+            if sel.any():
+                k = np.flatnonzero(sel)
+                i = k[worst(value[k])]
+                size = "largest lift" if what.startswith("lifted") else "clearance"
+                bits.append(f"{len(k)} point{'s' * (len(k) > 1)} {what} ({size} {value[i]:.4g} mm at point "
+                            f"{int(r.idx[i])})")
+        if (unreachable & m).any():
+            k = np.flatnonzero(unreachable & m)
+            bits.append(f"{len(k)} point{'s' * (len(k) > 1)} unreachable (first at point {int(r.idx[k[0]])})")
+        parts.append(f"row {int(row)}: " + ", ".join(bits))
+    if not parts:
+        return None
+    if len(bad_rows) > STRICT_ROWS_NAMED:
+        parts.append(f"and {len(bad_rows) - STRICT_ROWS_NAMED} more rows")
+    return (f"--strict: not clean within the tolerance {tol:g} mm: " + "; ".join(parts)
+            + "; nothing written")
 
 
 def _write_outputs(result: Any, out_csv: Path, gcode: Path | None, report: Path | None, feed: float | None) -> None:
@@ -187,7 +234,11 @@ def _print_summary(result) -> None:
               f"machine's limits kept the axis out of their clear region; largest lift {worst['lift_mm']:.4g} mm at "
               f"{worst['point']}", file=sys.stderr)
     if m["unclean_rows"]:
-        print(f"camsmooth: warning: rows not clean without lifting along the normal: {m['unclean_rows']}",
+        r = result.result
+        i = int(np.argmax(r.lift))  # the largest lift, whichever method lifted (the spline's names no map)
+        largest = (f"; largest lift {r.lift[i]:.4g} mm at row {int(r.rows[i])}, point {int(r.idx[i])}"
+                   if r.lift[i] > 0 else "")
+        print(f"camsmooth: warning: rows not clean without lifting along the normal: {m['unclean_rows']}{largest}",
               file=sys.stderr)
     if m["unreachable"]:
         print(f"camsmooth: warning: {len(m['unreachable'])} unreachable points, first {m['unreachable'][:5]}",
@@ -361,7 +412,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "are replaced, other files there are left alone")
     p.add_argument("--force", action="store_true", help="with --report: replace the folder DIR whole")
     p.add_argument("--strict", action="store_true", help="exit 1 when a point had to be lifted along the normal by "
-                   "more than the tolerance, gouges beyond it, or is unreachable")
+                   "more than the tolerance, gouges beyond it, or is unreachable; one message names the rows and "
+                   "nothing is written")
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=run_smooth)
 
@@ -480,6 +532,9 @@ def run(args: argparse.Namespace, debug: bool = False) -> int:
         warnings.showwarning = _show_warning
         try:
             return int(args.func(args) or 0)
+        except StrictFailure as exc:
+            print(f"camsmooth: error: {error_message(exc)}", file=sys.stderr)
+            return EXIT_STRICT
         except Terminated:
             print("camsmooth: terminated (SIGTERM); outputs not completed were removed", file=sys.stderr)
             return EXIT_SIGTERM

@@ -8,7 +8,10 @@ Records read (one per line; ``MAJOR/arg,arg,...`` or a bare major word):
   Points outside any tool path form an unnamed one.
 - ``TLDATA/MILL,D,R,L,taper,tip[,...]``: the tool path's milling cutter: diameter D, lower corner
   radius R, length L (file units). Other ``TLDATA/`` kinds are kept by name, without dimensions.
-- ``LOAD/TOOL,n[,ADJUST,m]`` and ``LOADTL/n``: the tool number.
+- ``CUTTER/d[,r,e,f,a,b,h]`` (the 7-parameter APT cutter, ISO 4343): a milling cutter of diameter
+  d and corner radius r (0 when absent). A ``TLDATA/`` or ``CUTTER/`` after motion in the same
+  tool path starts a new tool path (a tool change).
+- ``LOAD/TOOL,n[,ADJUST,m]`` and ``LOADTL/n[,...]``: the tool number.
 - ``MSYS/x,y,z,a,b,c,d,e,f``: the machine coordinate system (MCS) the following points are given
   in: origin (x, y, z) and the unit X (a, b, c) and Y (d, e, f) axes of the MCS in the absolute
   (workpiece) frame; Z = X x Y. Points and axes are mapped to the workpiece frame:
@@ -30,8 +33,13 @@ Records read (one per line; ``MAJOR/arg,arg,...`` or a bare major word):
   The arc (a helix when start and end differ along the axis) is replaced by chords whose
   deviation from it is at most ``chord_tol`` mm. A full circle when start = end. ``TIMES,n``
   (multi-turn helix) is refused.
+- ``MOVARC/xc,yc,zc,i,j,k,r,ANGLE,s`` (ISO 4343, Fusion / HSM): the next GOTO ends an arc about
+  the centre c of radius r, counter-clockwise about (i, j, k) (right-hand rule; the post flips the
+  normal for a clockwise arc), sweeping s degrees (0 < s <= 360; 360 with start = end is a full
+  circle); the sweep must agree with the start and end points.
 - Known records that do not change the geometry (PAINT, PPRINT, PARTNO, COOLNT, SPINDL, SELECT,
-  INSERT, DISPLY, OPSKIP, OPSTOP, STOP, FINI, SET, MACHIN, CLRSRF) are skipped; any other record
+  INSERT, DISPLY, OPSKIP, OPSTOP, STOP, END, FINI, SET, MACHIN, MODE, MULTAX, DELAY, CLRSRF) are
+  skipped (MULTAX needs no state: a GOTO with 3 numbers keeps the modal axis); any other record
   is listed once among the warnings with the lines it appears on (``CUTCOM``, ``CYCLE`` ... are
   not applied).
 
@@ -40,7 +48,8 @@ CLSF Manager" (CIRCLE/ argument list, quoted on the Siemens PLM community forum 
 record explanation"); the MSYS/ and TLDATA/MILL argument lists as documented in STEP Tools'
 APT-to-STEP-NC converter (apt2step, Apache-2.0) and the PTC Creo "CLDATA output for circular
 interpolation" page (CIRCLE/x,y,z,i,j,k,r after the start GOTO, end GOTO after it); the APT
-``$`` continuation and ``$$`` comment syntax and the non-modal RAPID as in that converter.
+``$`` continuation and ``$$`` comment syntax and the non-modal RAPID as in that converter;
+CUTTER/, MOVARC/, MULTAX/, LOADTL/ as written by Autodesk's "Common ISO 4343 APT" post (apt.cps).
 """
 
 from __future__ import annotations
@@ -63,7 +72,7 @@ INCH_MM = 25.4
 #: default chordal tolerance of the arc interpolation (mm)
 DEFAULT_CHORD_TOL = 1e-3
 _SKIPPED = {"PAINT", "PPRINT", "PARTNO", "COOLNT", "SELECT", "INSERT", "DISPLY", "OPSKIP", "OPSTOP", "STOP",
-            "FINI", "SET", "MACHIN", "CLRSRF", "REMARK", "PPFUN"}
+            "END", "FINI", "SET", "MACHIN", "MODE", "MULTAX", "DELAY", "CLRSRF", "REMARK", "PPFUN"}
 _UNIT_WORDS = {"MM": "mm", "MILLIMETERS": "mm", "INCHES": "inch", "INCH": "inch", "IN": "inch"}
 _FEED_UNIT = {"MMPM": ("mm", False), "IPM": ("inch", False), "MMPR": ("mm", True), "IPR": ("inch", True),
               "PERMIN": (None, False), "PERREV": (None, True)}
@@ -209,9 +218,11 @@ def _msys(rec: _Record, file: str, scale: float) -> np.ndarray:
 @dataclass
 class _Arc:
     centre: np.ndarray
-    axis: np.ndarray
+    normal: np.ndarray  # the motion is counter-clockwise about it (right-hand rule)
     radius: float
     line: int
+    record: str  # CIRCLE or MOVARC, for messages
+    sweep: float | None = None  # rad, when the record gives it (MOVARC ANGLE)
 
 
 @dataclass
@@ -304,9 +315,9 @@ def _bulk_goto(run: list[str], scale: float, axis: tuple) -> tuple[np.ndarray, n
 def _arc_points(p0: np.ndarray, p1: np.ndarray, arc: _Arc, tol: float, file: str) -> np.ndarray:
     """Intermediate points (k-1, 3) of the arc from p0 to p1 (both excluded), chordal deviation <= tol.
 
-    Rotation: clockwise about arc.axis (NX CLSF convention), i.e. by the right-hand rule about
-    n = -axis; the height along n and the radius vary linearly with the angle (helix)."""
-    n = -arc.axis
+    Rotation: by the right-hand rule about arc.normal; the height along it and the radius vary
+    linearly with the angle (helix)."""
+    n = arc.normal
     v0, v1 = p0 - arc.centre, p1 - arc.centre
     h0, h1 = float(v0 @ n), float(v1 @ n)
     u0, u1 = v0 - h0 * n, v1 - h1 * n
@@ -314,11 +325,18 @@ def _arc_points(p0: np.ndarray, p1: np.ndarray, arc: _Arc, tol: float, file: str
     slack = max(10 * tol, 1e-3 * arc.radius, 1e-4)
     for r, which in ((r0, "start"), (r1, "end")):
         if abs(r - arc.radius) > slack:
-            raise InputError(f"CIRCLE: the arc's {which} point is {r:.6g} mm from the axis, the radius is "
+            raise InputError(f"{arc.record}: the arc's {which} point is {r:.6g} mm from the axis, the radius is "
                              f"{arc.radius:.6g} mm", file=file, line=arc.line)
     phi = math.atan2(float(np.cross(u0, u1) @ n), float(u0 @ u1))
     if phi <= 1e-12:
         phi += 2.0 * math.pi  # the sweep is in (0, 2 pi]; start = end is a full circle
+    if arc.sweep is not None:
+        # the points decide below 2 pi; the record's sweep must agree (a wrong sign or normal is named)
+        gap = abs(phi - arc.sweep) * arc.radius
+        if gap > slack and not (arc.sweep > 2 * math.pi - 1e-9 and phi > 2 * math.pi - 1e-9):
+            raise InputError(f"{arc.record}: the sweep is {math.degrees(arc.sweep):.6g} deg but the start and end "
+                             f"points are {math.degrees(phi):.6g} deg apart counter-clockwise about the normal",
+                             file=file, line=arc.line)
     r = max(r0, r1)
     step = 2.0 * math.acos(max(-1.0, 1.0 - tol / r)) if tol < r else math.pi / 2
     k = max(1, math.ceil(phi / min(step, math.pi / 2)))
@@ -337,7 +355,7 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
 
     chord_tol: chordal tolerance of the CIRCLE interpolation (mm). units: 'mm' or 'inch' to
     override the unit found in the file. InputError naming the file and line for a malformed
-    GOTO / CIRCLE / MSYS / FEDRAT / TLDATA, unknown units, a tool axis or MSYS axis that is not
+    GOTO / CIRCLE / MOVARC / MSYS / FEDRAT / TLDATA / CUTTER, unknown units, a tool axis or MSYS axis that is not
     unit, a CIRCLE not followed by a GOTO, a multi-turn helix, a file without any position.
     """
     file = str(path)
@@ -423,7 +441,7 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
                 record_rapid = rapid
             if arc is not None:
                 if st.last is None:
-                    raise InputError("CIRCLE before any position: the arc has no start point", file=file,
+                    raise InputError(f"{arc.record} before any position: the arc has no start point", file=file,
                                      line=arc.line)
                 for q in _arc_points(np.array(st.last), np.array(p), arc, chord_tol, file).tolist():
                     add_point(tuple(q), axis, rapid, rec.line)
@@ -468,7 +486,22 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
             c_axis = _unit_axis(np.array(v[3:6]), rec, file, "CIRCLE axis")
             if not v[6] > 0:
                 raise InputError(f"CIRCLE radius must be > 0, got {v[6]:g}", file=file, line=rec.line)
-            arc = _Arc(np.array(v[:3]) * st.scale, c_axis, v[6] * st.scale, rec.line)
+            # NX gives the axis for a clockwise motion: counter-clockwise about its opposite
+            arc = _Arc(np.array(v[:3]) * st.scale, -c_axis, v[6] * st.scale, rec.line, "CIRCLE")
+        elif m == "MOVARC":
+            words = [a.upper() for a in rec.args]
+            if len(rec.args) != 9 or words[7] != "ANGLE":
+                raise InputError(f"malformed MOVARC: expected MOVARC/xc,yc,zc,i,j,k,r,ANGLE,sweep ({rec.text!r})",
+                                 file=file, line=rec.line)
+            v = _numbers(rec, file, "MOVARC", (8,), rec.args[:7] + rec.args[8:])
+            normal = _unit_axis(np.array(v[3:6]), rec, file, "MOVARC normal")
+            if not v[6] > 0:
+                raise InputError(f"MOVARC radius must be > 0, got {v[6]:g}", file=file, line=rec.line)
+            if not 0 < v[7] <= 360 + 1e-9:
+                raise InputError(f"MOVARC sweep must be in (0, 360] deg (several turns are not supported), got "
+                                 f"{v[7]:g}", file=file, line=rec.line)
+            arc = _Arc(np.array(v[:3]) * st.scale, normal, v[6] * st.scale, rec.line, "MOVARC",
+                       math.radians(min(v[7], 360.0)))
         elif m == "MSYS":
             transforms.append(_msys(rec, file, st.scale))
             cur_xform = len(transforms) - 1
@@ -491,24 +524,25 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
                 open_tp.tool = last_tool
         elif m == "END-OF-PATH":
             if arc is not None:
-                raise InputError("CIRCLE is not followed by a GOTO (the arc has no end point)", file=file,
+                raise InputError(f"{arc.record} is not followed by a GOTO (the arc has no end point)", file=file,
                                  line=arc.line)
             if open_tp is not None:
                 open_tp.stop = st.count
                 open_tp = None
-        elif m == "TLDATA":
-            kind = rec.args[0].lower() if rec.args else ""
-            if kind == "mill":
+        elif m in ("TLDATA", "CUTTER"):
+            if m == "CUTTER":
+                v = _numbers(rec, file, "CUTTER", tuple(range(1, 8)), rec.args)
+                tool = _mill(v[0], v[1] if len(v) > 1 else 0.0, None, "CUTTER", rec, file, st.scale, tool_name)
+            elif rec.args and rec.args[0].lower() == "mill":
                 v = _numbers(rec, file, "TLDATA/MILL", tuple(range(3, 12)), rec.args[1:])
-                d, r = v[0] * st.scale, v[1] * st.scale
-                if not (d > 0 and 0 <= r <= d / 2 + 1e-12):
-                    raise InputError(f"TLDATA/MILL: need diameter > 0 and 0 <= corner radius <= diameter / 2, got "
-                                     f"D = {v[0]:g}, R = {v[1]:g}", file=file, line=rec.line)
-                tool = Tool(name=tool_name, kind="mill", diameter=d, corner_radius=min(r, d / 2),
-                            length=v[2] * st.scale, line=rec.line)
+                tool = _mill(v[0], v[1], v[2], "TLDATA/MILL", rec, file, st.scale, tool_name)
             else:
+                kind = rec.args[0].lower() if rec.args else ""
                 tool = Tool(name=tool_name, kind=kind or "unknown", diameter=None, corner_radius=None, line=rec.line)
                 warnings.append(f"line {rec.line}: TLDATA/{kind.upper()} kept without dimensions (only MILL is read)")
+            if open_tp is not None and st.count > open_tp.start and open_tp.tool is not None:
+                open_tp.stop = st.count  # a tool change after motion: the next points are another tool path
+                open_tp = start_toolpath(None, rec.line)
             if open_tp is None:
                 open_tp = start_toolpath(None, None)
             open_tp.tool = tool
@@ -523,7 +557,8 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
         else:
             unknown.setdefault(m, []).append(rec.line)
     if arc is not None:
-        raise InputError("CIRCLE is not followed by a GOTO (the arc has no end point)", file=file, line=arc.line)
+        raise InputError(f"{arc.record} is not followed by a GOTO (the arc has no end point)", file=file,
+                         line=arc.line)
     if open_tp is not None:
         open_tp.stop = st.count
     if st.count == 0:
@@ -533,6 +568,16 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
         what = "line" if len(lines) == 1 else "lines"
         warnings.append(f"record {major} ignored ({what} {shown})")
     return _program(st, transforms, toolpaths, warnings)
+
+
+def _mill(d: float, r: float, length: float | None, what: str, rec: _Record, file: str, scale: float,
+          name: str | None) -> Tool:
+    """A milling cutter of diameter d and corner radius r (file units) as a Tool in mm."""
+    if not (d > 0 and 0 <= r <= d / 2 + 1e-12):
+        raise InputError(f"{what}: need diameter > 0 and 0 <= corner radius <= diameter / 2, got D = {d:g}, "
+                         f"R = {r:g}", file=file, line=rec.line)
+    return Tool(name=name, kind="mill", diameter=d * scale, corner_radius=min(r, d / 2) * scale,
+                length=None if length is None else length * scale, line=rec.line)
 
 
 def _is_number(s: str) -> bool:

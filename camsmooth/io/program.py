@@ -9,7 +9,7 @@ the workpiece frame, mm. Formats and their readers:
 =========  =====================================  ==========================================
 format     reader                                 gives
 =========  =====================================  ==========================================
-apt        camsmooth.io.apt.read_apt              CLProgram (APT CLDATA, NX CLSF dialect)
+apt        camsmooth.io.apt.read_apt              CLProgram (APT CLDATA: NX CLSF, ISO 4343 of Fusion/HSM)
 cl-csv     camsmooth.io.clcsv.read_cl_csv         CLProgram (x,y,z,i,j,k[,row][,feed])
 gcode      camsmooth.io.gcode.read_gcode          CLProgram (camsmooth's own G-code, any dialect)
 cc-csv     camsmooth.io.ccpath.read_cc_csv        CCPath (contact points and normals)
@@ -169,12 +169,12 @@ class CLProgram:
         what = f"tool path '{toolpath.name}'" if toolpath.name else "the program"
         where = f" (line {toolpath.line})" if toolpath.line is not None else ""
         if tool is None:
-            hint = " (no TLDATA/MILL record)" if self.format == "apt" else ""
+            hint = " (no TLDATA/MILL or CUTTER record)" if self.format == "apt" else ""
             raise InputError(f"{what}{where} declares no tool{hint}: the cutter's diameter and corner radius "
                              "are unknown", file=self.source, row=None)
         if tool.kind != "mill" or tool.diameter is None or tool.corner_radius is None:
             raise InputError(f"{what}{where}: tool '{tool.name}' is a {tool.kind} without diameter and corner "
-                             f"radius (line {tool.line}); a milling cutter (TLDATA/MILL) is needed",
+                             f"radius (line {tool.line}); a milling cutter (TLDATA/MILL or CUTTER) is needed",
                              file=self.source)
         return tool
 
@@ -184,8 +184,8 @@ class CLProgram:
 FORMATS = ("apt", "cl-csv", "cc-csv", "gcode")
 _ALIASES = {"cls": "apt", "clsf": "apt", "cldata": "apt", "apt": "apt", "cl": "cl-csv", "cl-csv": "cl-csv",
             "cc": "cc-csv", "cc-csv": "cc-csv", "gcode": "gcode", "nc": "gcode", "g-code": "gcode"}
-_APT_RECORD = re.compile(r"^\s*(TOOL PATH/|GOTO/|TLDATA/|MSYS/|FEDRAT/|RAPID\s*$|LOADTL/|LOAD/|PARTNO|UNITS/|"
-                         r"CIRCLE/|END-OF-PATH|FROM/|\$\$)", re.IGNORECASE | re.MULTILINE)
+_APT_RECORD = re.compile(r"^\s*(TOOL PATH/|GOTO/|TLDATA/|CUTTER/|MSYS/|FEDRAT/|RAPID\s*$|LOADTL/|LOAD/|PARTNO|"
+                         r"UNITS/|MULTAX/|CIRCLE/|MOVARC/|END-OF-PATH|FROM/|\$\$)", re.IGNORECASE | re.MULTILINE)
 _GCODE_LINE = re.compile(r"^\s*(%|O\d+|N\d+|G\d|M\d|\(|;|\d+\s+BEGIN PGM|BEGIN PGM|T\d|TRAORI)",
                          re.IGNORECASE | re.MULTILINE)
 _EXTENSIONS = {".cls": "apt", ".clsf": "apt", ".apt": "apt", ".aptsource": "apt", ".cl": "apt",

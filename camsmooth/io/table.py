@@ -111,7 +111,7 @@ def read_text_file(path: str | os.PathLike, what: str = "file") -> str:
     except FileNotFoundError:
         raise InputError(f"cannot read the {what}: file not found", file=file) from None
     except IsADirectoryError:
-        raise InputError(f"cannot read the {what}: it is a directory", file=file) from None
+        raise InputError(f"cannot read the {what}: it is a folder, not a file", file=file) from None
     except OSError as exc:
         raise InputError(f"cannot read the {what}: {exc.strerror or exc}", file=file) from None
     if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
@@ -157,21 +157,24 @@ def _cell_problem(cell: str) -> str | None:
     return None
 
 
-def _fast_numbers(body: str, usecols: Sequence[int], ncol: int) -> np.ndarray | None:
-    """The numeric columns ``usecols`` of a headerless CSV body as floats, by polars; None when
-    polars does not read every cell as a plain number (the caller's slower parser then decides,
-    and names the bad cell)."""
+def _fast_columns(data: bytes, usecols: Sequence[int], n: int, dtype: str = "float") -> list[np.ndarray] | None:
+    """The columns ``usecols`` of a headerless CSV body (UTF-8 bytes, ``n`` records) by polars, one
+    array each: floats (dtype 'float') or stripped strings ('text'); None when polars does not read every
+    cell as a plain value (the caller's slower parser then decides, and names the bad cell)."""
     import polars as pl
 
+    kind = pl.Float64 if dtype == "float" else pl.Utf8
     try:
-        df = pl.read_csv(body.encode(), has_header=False, columns=list(usecols),
-                         schema_overrides={f"column_{j + 1}": pl.Float64 for j in usecols}, infer_schema=False,
+        df = pl.read_csv(data, has_header=False, columns=list(usecols),
+                         schema_overrides={f"column_{j + 1}": kind for j in usecols}, infer_schema=False,
                          quote_char='"', truncate_ragged_lines=False)
     except Exception:  # any parse failure: the slower parser decides
         return None
-    if df.height != body.count("\n") + 1 or df.null_count().sum_horizontal().item():
+    if df.height != n or df.null_count().sum_horizontal().item():
         return None
-    return df.to_numpy().astype(float, copy=False).reshape(df.height, len(usecols))
+    if dtype == "float":  # column by column: a 2-D copy of a multi-chunk frame costs seconds at 1M rows
+        return [df[c].to_numpy().astype(float, copy=False) for c in df.columns]
+    return [df[c].str.strip_chars().to_numpy().astype(str) for c in df.columns]
 
 
 def write_table(path: str | os.PathLike, columns: dict[str, np.ndarray]) -> Path:
@@ -214,6 +217,7 @@ def read_table(path: str | os.PathLike, required: Sequence[str] = (), optional: 
     if not content.strip():
         raise InputError(f"empty file (the {what} has no header row and no data rows)", file=file)
     head, _, body = content.partition("\n")
+    del content  # a large file is held once (the body), not twice
     if not head.strip():
         raise InputError("the first line (header row) is empty", file=file, row=0)
     _check_delimiter(head, file)
@@ -265,10 +269,10 @@ def read_table(path: str | os.PathLike, required: Sequence[str] = (), optional: 
 
     # ---- records and their rows ---------------------------------------------------------------
     body = body.rstrip(" \t\n")  # trailing blank lines (and blanks after the last field) are nothing
-    probe = "\n" + body + "\n"
     if not body:
         rows = np.zeros(0, dtype=np.int64)
-    elif "\n\n" in probe or "\n " in probe or "\n\t" in probe:  # maybe blank lines: sort them out line by line
+    elif body[0] in "\n \t" or "\n\n" in body or "\n " in body or "\n\t" in body:
+        # maybe blank lines: sort them out line by line
         lines = body.split("\n")
         keep = [k for k, ln in enumerate(lines) if ln.strip()]
         rows = np.asarray(keep, dtype=np.int64) + 1
@@ -304,34 +308,38 @@ def read_table(path: str | os.PathLike, required: Sequence[str] = (), optional: 
 
     # ---- values --------------------------------------------------------------------------------
     columns: dict[str, np.ndarray] = {}
+    data = body.encode() if n else b""
     numeric = [(name, j) for name, j in index.items() if name not in text]
     if numeric:
         usecols = [j for _, j in numeric]
         if n:
             try:
-                values = _fast_numbers(body, usecols, ncol)
+                values = _fast_columns(data, usecols, n)
                 if values is None:
-                    values = np.loadtxt(io.StringIO(body), delimiter=",", usecols=usecols, dtype=float, ndmin=2,
-                                        comments=None, quotechar='"')
+                    values = list(np.loadtxt(io.StringIO(body), delimiter=",", usecols=usecols, dtype=float,
+                                             ndmin=2, comments=None, quotechar='"').T)
             except ValueError as exc:
                 locate(usecols)
                 raise InputError(f"cannot parse the table: {exc}", file=file) from None
-            if values.shape != (n, len(usecols)):
+            if len(values) != len(usecols) or any(v.shape != (n,) for v in values):
                 locate(usecols)
                 raise InputError("cannot parse the table (record count changed)", file=file)
         else:
-            values = np.zeros((0, len(usecols)))
-        for k, (name, _) in enumerate(numeric):
-            columns[name] = values[:, k].copy()
+            values = [np.zeros(0) for _ in usecols]
+        for (name, _), v in zip(numeric, values, strict=True):
+            columns[name] = np.ascontiguousarray(v)
     strings = [(name, j) for name, j in index.items() if name in text]
     if strings:
         if n:
-            cells = np.loadtxt(io.StringIO(body), delimiter=",", usecols=[j for _, j in strings], dtype=str,
-                               ndmin=2, comments=None, quotechar='"')
+            cells = _fast_columns(data, [j for _, j in strings], n, dtype="text")
+            if cells is None:
+                cells = [np.char.strip(c.astype(str)) for c in
+                         np.loadtxt(io.StringIO(body), delimiter=",", usecols=[j for _, j in strings], dtype=str,
+                                    ndmin=2, comments=None, quotechar='"').T]
         else:
-            cells = np.zeros((0, len(strings)), dtype=str)
-        for k, (name, _) in enumerate(strings):
-            columns[name] = np.char.strip(cells[:, k].astype(str))
+            cells = [np.zeros(0, dtype=str) for _ in strings]
+        for (name, _), c in zip(strings, cells, strict=True):
+            columns[name] = c
 
     # ---- finiteness and integers, column by column in file order --------------------------------
     for name in sorted(index, key=lambda c: index[c]):

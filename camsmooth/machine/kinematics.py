@@ -598,19 +598,9 @@ def load_machine(path: str | None = None) -> Machine:
 
     if path is None:
         return machine_from_dict(tomllib.loads(DEFAULT_MACHINE_TOML), "<default machine>")
-    try:
-        with open(path, "rb") as fh:
-            raw = fh.read()
-    except FileNotFoundError:
-        raise InputError("machine file not found", file=str(path)) from None
-    except IsADirectoryError:
-        raise InputError("is a folder, not a machine TOML file", file=str(path)) from None
-    except OSError as exc:
-        raise InputError(f"cannot read the machine file: {exc.strerror}", file=str(path)) from None
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise InputError(f"not a text (UTF-8) TOML file: binary data at byte {exc.start}", file=str(path)) from None
+    from camsmooth.io.table import read_text_file
+
+    text = read_text_file(path, "machine file")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

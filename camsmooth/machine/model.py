@@ -89,9 +89,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from camsmooth.errors import InputError
 from camsmooth.io.atomic import write_text_atomic
+from camsmooth.io.table import read_text_file
 from camsmooth.machine.kinematics import IDENTITY, Chain, Frame, Machine
 
 # ----------------------------------------------------------------------------------------------
@@ -375,40 +377,24 @@ def spindle_forward(a1: Any, b1: Any, a2: Any, b2: Any, ca: Any, cb: Any, rho1: 
 
 # ----------------------------------------------------------------------------------------------
 # the one first-order integrator (thermal growth and servo lag)
-def linear_recurrence(alpha: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """x[0] = 0, x[k+1] = alpha[k] x[k] + b[k] for k < n; returns x (n + 1,).
-
-    Blocked sequential scan: the n steps are cut into about sqrt(n) blocks; one pass runs all
-    blocks side by side (zero start), a short pass carries the block start values, a last
-    vectorised step adds them. Pure multiply-adds, so no loss of precision for small alpha.
-    """
-    n = len(alpha)
-    if n == 0:
-        return np.zeros(1)
-    L = max(1, int(math.sqrt(n)))
-    nb = -(-n // L)
-    pad = nb * L - n
-    A = np.concatenate([alpha, np.ones(pad)]).reshape(nb, L).T.copy()
-    B = np.concatenate([b, np.zeros(pad)]).reshape(nb, L).T.copy()
-    X = np.empty((L + 1, nb))
-    P = np.empty((L + 1, nb))
-    X[0] = 0.0
-    P[0] = 1.0
-    for j in range(L):
-        np.multiply(A[j], X[j], out=X[j + 1])
-        X[j + 1] += B[j]
-        np.multiply(A[j], P[j], out=P[j + 1])
-    starts = np.empty(nb)
-    c = 0.0
-    pl, xl = P[L].tolist(), X[L].tolist()
-    for m in range(nb):
-        starts[m] = c
-        c = pl[m] * c + xl[m]
-    full = X[:L] + P[:L] * starts[None, :]
-    out = np.empty(n + 1)
-    out[:n] = full.T.reshape(-1)[:n]
-    out[n] = c if pad == 0 else full.T.reshape(-1)[n]
-    return out
+@njit(cache=True)
+def _first_order_scan(alpha: np.ndarray, tau: float, s: np.ndarray, jump: np.ndarray, e0: float,
+                      restart: np.ndarray) -> np.ndarray:  # pragma: no cover (compiled)
+    # e_k+1 = a_k e_k + (1 - a_k) tau s_k + jump_k in one sequential pass: the recurrence is
+    # serial and numpy has no scan for it. alpha: n - 1 entries or one (equal steps); jump: n - 1
+    # entries or none; restart[k]: e_k+1 = 0.
+    n = len(restart)
+    e = np.empty(n + 1)
+    e[0] = e0
+    const = len(alpha) == 1
+    jumps = len(jump) > 0
+    for k in range(n):
+        if restart[k]:
+            e[k + 1] = 0.0
+        else:
+            a = alpha[0] if const else alpha[k]
+            e[k + 1] = a * e[k] + (1.0 - a) * tau * s[k] + (jump[k] if jumps else 0.0)
+    return e
 
 
 def interval_slopes(t: np.ndarray, u: np.ndarray, hold: str = "linear") -> np.ndarray:
@@ -436,12 +422,10 @@ def first_order_knots(t: np.ndarray, u: np.ndarray, tau: float, *, slope: np.nda
     y starts at 0, a cold start); ``restart`` (n,) bool: at these knots y restarts at rest on
     its input (e = 0, e.g. a new program segment). Recurrence, exact for this input:
     e_k+1 = a_k e_k + (1 - a_k) tau s_k + (u_k+1 - u_k - s_k h_k), a_k = exp(-h_k / tau).
-    Equal steps use scipy.signal.lfilter; others ``linear_recurrence``. tau > 0 (s). h (n-1,)
+    One compiled sequential pass. tau > 0 (s). h (n-1,)
     and jump (n-1,) (the bracketed term, 0 at restarts) may be passed in when the caller keeps them
     for many time constants (the diagnosis does; a float h: equal steps of that size; jump None
     with a slope given: no jumps)."""
-    from scipy.signal import lfilter
-
     t = np.asarray(t, float)
     u = np.asarray(u, float)
     n = len(t)
@@ -466,32 +450,13 @@ def first_order_knots(t: np.ndarray, u: np.ndarray, tau: float, *, slope: np.nda
         if not np.any(jumps):
             jumps = None
     if uniform:
-        alpha = math.exp(-hmax / tau)
-        coef = (1.0 - alpha) * tau
+        alpha = np.array([math.exp(-hmax / tau)])
     else:
         with np.errstate(over="ignore", under="ignore"):
-            alpha = np.exp(-h / tau)
-        coef = (1.0 - alpha) * tau
-    starts = np.flatnonzero(rs)
-    if uniform and len(starts) <= 5000:
-        # e_k+1 = a e_k + coef s_k + jump_k: an IIR filter on the slopes (plus the jumps)
-        e = np.empty(n)
-        bounds = np.r_[0, starts[starts > 0], n]
-        for i0, i1 in zip(bounds[:-1], bounds[1:], strict=True):
-            e[i0] = e_start if i0 == 0 else 0.0
-            if i1 - 1 > i0:
-                zi = np.array([alpha * e[i0]])
-                if jumps is None:
-                    e[i0 + 1:i1] = lfilter([coef], [1.0, -alpha], s[i0:i1 - 1], zi=zi)[0]
-                else:
-                    e[i0 + 1:i1] = lfilter([1.0], [1.0, -alpha], coef * s[i0:i1 - 1] + jumps[i0:i1 - 1], zi=zi)[0]
-        return e
-    b = coef * s[:-1] if jumps is None else coef * s[:-1] + jumps
-    alpha = np.broadcast_to(alpha, (n - 1,))
-    if rs[1:].any():
-        alpha = np.where(rs[1:], 0.0, alpha)
-        b = np.where(rs[1:], 0.0, b)
-    return linear_recurrence(alpha, b) + np.r_[1.0, np.cumprod(alpha)] * e_start
+            alpha = np.ascontiguousarray(np.exp(-h / tau))
+    jumps = np.empty(0) if jumps is None else np.ascontiguousarray(jumps, dtype=float)
+    return _first_order_scan(alpha, float(tau), np.ascontiguousarray(s, dtype=float), jumps, e_start,
+                             np.ascontiguousarray(rs[1:]))
 
 
 def first_order_between(u: np.ndarray, slope: np.ndarray, e: np.ndarray, tau: float, k: np.ndarray,
@@ -815,14 +780,7 @@ class ErrorModel:
     def from_json(path: str | os.PathLike) -> ErrorModel:
         """Read a model written by ``to_json`` (InputError naming the file, and the key where
         one is at fault, on a missing or malformed file)."""
-        try:
-            text = Path(path).read_text()
-        except FileNotFoundError:
-            raise InputError("model file not found", file=str(path)) from None
-        except UnicodeDecodeError:
-            raise InputError("not a text (UTF-8) file: a JSON error model is expected", file=str(path)) from None
-        except OSError as exc:
-            raise InputError(f"cannot read the model file: {exc.strerror or exc}", file=str(path)) from None
+        text = read_text_file(path, "model file")
         try:
             doc = json.loads(text)
         except json.JSONDecodeError as exc:
@@ -1113,4 +1071,4 @@ __all__ = ["GEOMETRIC_NAMES", "GEOMETRIC_PARAMETERS", "LINEAR_GEOMETRIC", "MACHI
            "ROTARY_GEOMETRIC", "SPINDLE_THERMAL", "SQUARENESS", "STRAIGHTNESS", "THERMAL_ELEMENTS", "Compensation",
            "ErrorModel", "Prediction", "RealChain", "SpindleScrew", "compensate", "first_order_between",
            "first_order_knots", "first_order_response", "frame_tip_axis", "homogeneous", "interval_slopes",
-           "linear_recurrence", "rot_x", "rot_y", "rot_z", "spindle_forward", "thermal_frame"]
+           "rot_x", "rot_y", "rot_z", "spindle_forward", "thermal_frame"]

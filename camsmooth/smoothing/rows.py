@@ -71,6 +71,7 @@ KNOT_BACKOFF = 0.02  # limits backed off by this fraction when the NLP runs on k
 KNOT_MARGIN = 1.0
 MAP_FRACTION = 0.5  # the map calls an orientation clear at delta >= -MAP_FRACTION * tolerance
 REFINE_MARGIN = np.radians(0.05)  # rad: a floor moved to the exact boundary goes this much beyond
+LIFT_STEPS = 12  # re-checks of the fallback lift along the normal (secant steps after the first)
 
 
 @dataclass(frozen=True)
@@ -434,17 +435,43 @@ def _move_bounds(index: MeshIndex, cut: ToroidalCutter, task: RowTask, pts: np.n
 def lift_along_normal(index: MeshIndex, cut: ToroidalCutter, cl: np.ndarray, T: np.ndarray, normals: np.ndarray,
           delta: np.ndarray, mask: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
     """The patent's fallback (METHODS section 1, step E(3)) at the masked points: move the tool
-    along the CC normal by the gouge depth and re-check, up to five times. Returns the lift (mm)
-    and the clearance after it."""
+    along the CC normal until it clears the mesh within ``tol``, by the least lift found.
+
+    The patent's step is the gouge depth; where the obstacle is not below the tool (a wall, an
+    overhang) the clearance grows slower than the lift, so later steps divide the depth by the
+    measured growth per mm (a secant step, at most 10x the depth), for up to LIFT_STEPS re-checks.
+    A lift that clears is then bisected down against the last one that did not, to 0.1 ``tol``.
+    Returns the lift (mm) and the clearance after it (still < -tol where no lift found clears)."""
     lift = np.zeros(len(cl))
     delta = delta.copy()
+    clear_at = -0.5 * tol
+
+    def check(k: np.ndarray, h: np.ndarray) -> np.ndarray:
+        return clearance(index, cut, cl[k] + h[:, None] * normals[k], T[k]).delta
+
     todo = np.flatnonzero(mask)
-    for _ in range(5):
+    lo = np.zeros(len(cl))  # the largest lift known not to clear
+    rate = np.ones(len(cl))  # clearance gained per mm of lift, measured at the last step
+    for _ in range(LIFT_STEPS):
         if todo.size == 0:
             break
-        lift[todo] += -delta[todo] + 0.1 * tol
-        delta[todo] = clearance(index, cut, cl[todo] + lift[todo, None] * normals[todo], T[todo]).delta
-        todo = todo[delta[todo] < -0.5 * tol]
+        step = -delta[todo] / rate[todo] + 0.1 * tol
+        before = delta[todo]
+        lo[todo] = lift[todo]
+        lift[todo] += step
+        delta[todo] = check(todo, lift[todo])
+        rate[todo] = np.clip((delta[todo] - before) / step, 0.1, 1.0)
+        todo = todo[delta[todo] < clear_at]
+    k = np.flatnonzero(mask & (delta >= clear_at))
+    for _ in range(40):
+        k = k[lift[k] - lo[k] > 0.1 * tol]
+        if k.size == 0:
+            break
+        mid = 0.5 * (lo[k] + lift[k])
+        d = check(k, mid)
+        ok = d >= clear_at
+        lift[k[ok]], delta[k[ok]] = mid[ok], d[ok]
+        lo[k[~ok]] = mid[~ok]
     return lift, delta
 
 

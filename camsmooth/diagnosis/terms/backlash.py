@@ -4,11 +4,17 @@ reversal value b; mm, deg for A, B in reports). Only axes that reverse in the pr
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from camsmooth.diagnosis.recordings import AXES, ROTARY_AXES
 from camsmooth.diagnosis.terms.base import Param, Term, fmt, none_text
+from camsmooth.machine.model import ErrorModel
+
+if TYPE_CHECKING:
+    from camsmooth.diagnosis.problem import Problem
 
 
 class Backlash(Term):
@@ -18,22 +24,22 @@ class Backlash(Term):
     def _axes(self, P):
         return [a for a in AXES if P.knots.reverses(a)]
 
-    def applicable(self, P):
+    def applicable(self, P: Problem) -> str | None:
         return None if self._axes(P) else "no axis reverses in the program"
 
-    def params(self, P):
+    def params(self, P: Problem) -> list[Param]:
         return [Param(f"b_{a}", -0.2 if a in ROTARY_AXES else -10.0, 0.2 if a in ROTARY_AXES else 10.0,
                       1e-5 if a in ROTARY_AXES else 1e-3, "rad" if a in ROTARY_AXES else "mm", a)
                 for a in self._axes(P)]
 
-    def write(self, model, names, x):
+    def write(self, model: ErrorModel, names: Sequence[str], x: np.ndarray) -> None:
         for n, v in zip(names, x, strict=True):
             model.backlash[n[2:]] = float(v)
 
-    def read(self, model, names):
+    def read(self, model: ErrorModel, names: Sequence[str]) -> np.ndarray:
         return np.array([model.backlash.get(n[2:], 0.0) for n in names])
 
-    def jacobian(self, P, model, names):
+    def jacobian(self, P: Problem, model: ErrorModel, names: Sequence[str]) -> np.ndarray | None:
         """Exact columns: the axis stands -(b/2) sign(last commanded direction) off its lagged
         command, so d channel / d b = -(1/2) dir d channel / d q (the chain's space Jacobian,
         ``Simulator.joint_derivatives``)."""
@@ -47,7 +53,8 @@ class Backlash(Term):
             rows.append(-(dq[a] * d[:, None] * P.w_fit)[P.valid_fit])
         return np.stack(rows)
 
-    def report(self, names, x, sd):
+    def report(self, names: Sequence[str], x: np.ndarray, sd: np.ndarray
+               ) -> tuple[dict[str, float | None], dict[str, float | None], dict[str, str]]:
         par, unc, unit = {}, {}, {}
         for n, v, s in zip(names, x, sd, strict=True):
             a = n[2:]
@@ -57,11 +64,11 @@ class Backlash(Term):
             unit[f"backlash_{a}"] = "deg" if a in ROTARY_AXES else "mm"
         return par, unc, unit
 
-    def sentence(self, params, unc, none):
+    def sentence(self, params: dict[str, Any], unc: dict[str, Any], none: Sequence[str]) -> str:
         parts = [f"{k[9:]} {fmt(v, 'deg' if k[9:] in ROTARY_AXES else 'mm')} ± "
                  f"{fmt(unc.get(k), 'deg' if k[9:] in ROTARY_AXES else 'mm')}" for k, v in params.items()]
         return f"The axes lose motion at each reversal (backlash {', '.join(parts)}{none_text(none)})"
 
-    def state(self, P, names):
+    def state(self, P: Problem, names: Sequence[str]) -> tuple[str, np.ndarray, str]:
         a = names[0][2:]
         return f"last direction of {a} (-1/+1)", P.states[f"dir_{a}"], "1"

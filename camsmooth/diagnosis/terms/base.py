@@ -139,7 +139,7 @@ class Geometric(Term):
     def present(self, P: Problem) -> list[str]:
         return [c for c in P.channels if c in self.channels_seen]
 
-    def candidates_for(self, P: Problem) -> list[tuple[str, str, float, float, float]]:
+    def candidates_for(self, P: Problem) -> list[tuple[Any, ...]]:
         """(name, unit, bound, scale, group[, optional]) of the parameters to try."""
         raise NotImplementedError
 
@@ -159,7 +159,7 @@ class Geometric(Term):
         return [Param(c[0], -c[2], c[2], c[3], c[1], c[4], bool(c[5]) if len(c) > 5 else False)
                 for c in cands if c[0] in keep]
 
-    def unresolvable(self, P, names, x, sd):
+    def unresolvable(self, P: Problem, names: Sequence[str], x: np.ndarray, sd: np.ndarray) -> str | None:
         """A geometric error whose effect on the tool stays below the resolution (quantisation
         step) of every channel that sees it is not a finding, however many samples average it."""
         chans = [c for c in self.present(P) if channel_is_length(c) and P.floor_info[c]["q_recording_rms"] > 0]
@@ -175,21 +175,22 @@ class Geometric(Term):
                     f"resolution ({P.floor_info[worst]['q_recording_rms'] * 1e3:.3g} um)")
         return None
 
-    def write(self, model, names, x):
+    def write(self, model: ErrorModel, names: Sequence[str], x: np.ndarray) -> None:
         for n, v in zip(names, x, strict=True):
             model.geometric[n] = float(v)
 
-    def read(self, model, names):
+    def read(self, model: ErrorModel, names: Sequence[str]) -> np.ndarray:
         return np.array([model.geometric.get(n, 0.0) for n in names])
 
-    def report(self, names, x, sd):
+    def report(self, names: Sequence[str], x: np.ndarray, sd: np.ndarray
+               ) -> tuple[dict[str, float | None], dict[str, float | None], dict[str, str]]:
         from camsmooth.machine.model import GEOMETRIC_PARAMETERS
 
         unit = {n: GEOMETRIC_PARAMETERS[n][0] for n in names}
         return ({n: float(v) for n, v in zip(names, x, strict=True)},
                 {n: float(s) for n, s in zip(names, sd, strict=True)}, unit)
 
-    def sentence(self, params, unc, none):
+    def sentence(self, params: dict[str, Any], unc: dict[str, Any], none: Sequence[str]) -> str:
         from camsmooth.machine.model import GEOMETRIC_PARAMETERS
 
         parts = [f"{k} = {fmt(v, GEOMETRIC_PARAMETERS[k][0])}" for k, v in params.items()]

@@ -12,12 +12,17 @@ are dropped on their own when the recording does not resolve them."""
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from camsmooth.diagnosis.recordings import LINEAR_AXES, TIP_CHANNELS
 from camsmooth.diagnosis.terms.base import Geometric, travel
-from camsmooth.machine.model import POSITIONING, STRAIGHTNESS
+from camsmooth.machine.model import POSITIONING, STRAIGHTNESS, ErrorModel
+
+if TYPE_CHECKING:
+    from camsmooth.diagnosis.problem import Problem
 
 
 def _directions(model) -> dict[str, np.ndarray]:
@@ -32,7 +37,7 @@ def _power(y, k):
     return y if k == 1 else y ** k
 
 
-def linear_jacobian(P, model, names) -> np.ndarray:
+def linear_jacobian(P: Problem, model: ErrorModel, names: Sequence[str]) -> np.ndarray:
     """Exact columns of the floor-weighted residual for the linear-axis parameters: the carriages
     sit at the base of the chain, so a parameter moves the tip along a fixed direction by a
     polynomial of the axis position: d tip / d EAAk = w_A y^k, d tip_B / d EBAk = y^k,
@@ -82,14 +87,14 @@ def _pos_state(P, names):
 
 
 class LinearPositioning(Geometric):
-    def jacobian(self, P, model, names):
+    def jacobian(self, P: Problem, model: ErrorModel, names: Sequence[str]) -> np.ndarray | None:
         return linear_jacobian(P, model, names)
 
     name = "linear_positioning"
     channels_seen = ("X_act", "Y_act", "Z_act") + TIP_CHANNELS
     what = "The linear axes position off their scale"
 
-    def candidates_for(self, P):
+    def candidates_for(self, P: Problem) -> list[tuple[Any, ...]]:
         out = []
         tip = any(c in P.channels for c in TIP_CHANNELS)
         for a in LINEAR_AXES:
@@ -100,7 +105,7 @@ class LinearPositioning(Geometric):
                     (f"E{a}{a}3", "1/mm2", 0.05 / R ** 2, 1e-3 / R ** 3, a, True)]
         return out
 
-    def sentence(self, params, unc, none):
+    def sentence(self, params: dict[str, Any], unc: dict[str, Any], none: Sequence[str]) -> str:
         parts = []
         for k, v in params.items():
             if len(k) == 3:
@@ -109,19 +114,19 @@ class LinearPositioning(Geometric):
                 parts.append(f"{k} = {v:.3g} {'1/mm' if k.endswith('2') else '1/mm^2'} (pitch)")
         return f"{self.what} ({', '.join(parts)}{'; none measurable on ' + ', '.join(none) if none else ''})"
 
-    def state(self, P, names):
+    def state(self, P: Problem, names: Sequence[str]) -> tuple[str, np.ndarray, str]:
         return _pos_state(P, names)
 
 
 class LinearStraightness(Geometric):
-    def jacobian(self, P, model, names):
+    def jacobian(self, P: Problem, model: ErrorModel, names: Sequence[str]) -> np.ndarray | None:
         return linear_jacobian(P, model, names)
 
     name = "linear_straightness"
     channels_seen = TIP_CHANNELS
     what = "The linear axes move off their straight lines"
 
-    def candidates_for(self, P):
+    def candidates_for(self, P: Problem) -> list[tuple[Any, ...]]:
         out = []
         for a in LINEAR_AXES:
             if not P.knots.moves(a):
@@ -133,20 +138,20 @@ class LinearStraightness(Geometric):
                             (f"E{b}{a}3", "1/mm2", 0.05 / R ** 2, 1e-3 / R ** 3, f"{a} in {b}", True)]
         return out
 
-    def state(self, P, names):
+    def state(self, P: Problem, names: Sequence[str]) -> tuple[str, np.ndarray, str]:
         a = names[0][2]
         return f"commanded position {a} (mm)", P.states[f"pos_{a}"], "mm"
 
 
 class LinearSquareness(Geometric):
-    def jacobian(self, P, model, names):
+    def jacobian(self, P: Problem, model: ErrorModel, names: Sequence[str]) -> np.ndarray | None:
         return linear_jacobian(P, model, names)
 
     name = "linear_squareness"
     channels_seen = TIP_CHANNELS
     what = "The linear axes are out of square"
 
-    def candidates_for(self, P):
+    def candidates_for(self, P: Problem) -> list[tuple[Any, ...]]:
         out = []
         if P.knots.moves("Y"):
             out.append(("EC0Y", "rad", 0.01, 1e-6 * 100 / travel(P, "Y"), "EC0Y"))
@@ -155,6 +160,6 @@ class LinearSquareness(Geometric):
             out += [("EB0Z", "rad", 0.01, s, "EB0Z"), ("EA0Z", "rad", 0.01, s, "EA0Z")]
         return out
 
-    def state(self, P, names):
+    def state(self, P: Problem, names: Sequence[str]) -> tuple[str, np.ndarray, str]:
         a = "Y" if names[0] == "EC0Y" else "Z"
         return f"commanded position {a} (mm)", P.states[f"pos_{a}"], "mm"

@@ -13,12 +13,18 @@ rpm) and a time constant; only elements with a clear signal in the residual are 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from camsmooth.diagnosis.recordings import DIR_CHANNELS, TIP_CHANNELS
 from camsmooth.diagnosis.terms.base import Param, Term, fmt, none_text
 from camsmooth.machine import fitting
+from camsmooth.machine.model import ErrorModel
+
+if TYPE_CHECKING:
+    from camsmooth.diagnosis.problem import Problem
 
 
 class ThermalDrift(Term):
@@ -27,7 +33,7 @@ class ThermalDrift(Term):
     tip_elements = ("dx", "dy", "dz")
     tilt_elements = ("exz", "eyz")
 
-    def elements(self, P):
+    def elements(self, P: Problem) -> list[str]:
         out = []
         if any(c in P.channels for c in TIP_CHANNELS):
             out += list(self.tip_elements)
@@ -35,21 +41,21 @@ class ThermalDrift(Term):
             out += list(self.tilt_elements)
         return out
 
-    def applicable(self, P):
+    def applicable(self, P: Problem) -> str | None:
         if not self.elements(P):
             return "needs measured tool-tip or tool-axis channels"
         if P.knots.S is None or not np.any(P.knots.S > 0):
             return "the spindle does not turn in the program"
         return None
 
-    def chosen(self, P):
+    def chosen(self, P: Problem) -> list[str]:
         """The elements fitted (set by the selector through ``select_elements``)."""
         key = f"thermal:{self.name}"
         if key not in P.memo:
             P.memo[key] = self.select_elements(P, P.base)
         return P.memo[key]
 
-    def params(self, P):
+    def params(self, P: Problem) -> list[Param]:
         span = float(P.t[-1] - P.t[0])
         out = []
         for el in self.chosen(P):
@@ -88,7 +94,7 @@ class ThermalDrift(Term):
                 best = (g, tau, drop, abs(g) / max(sd, 1e-300))
         return best
 
-    def select_elements(self, P, base):
+    def select_elements(self, P: Problem, base: ErrorModel) -> list[str]:
         """The elements with a clear signal in the residual left by ``base`` (at least the
         strongest one, so the candidate can be scored); records their starting values."""
         resid = P.data_fit - P.sim_fit.run(base)
@@ -99,14 +105,14 @@ class ThermalDrift(Term):
             strong = [max(fits, key=lambda e: fits[e][2])]
         return strong
 
-    def write(self, model, names, x):
+    def write(self, model: ErrorModel, names: Sequence[str], x: np.ndarray) -> None:
         vals = dict(zip(names, x, strict=True))
         for n in names:
             if n.startswith("gain_"):
                 el = n[5:]
                 model.thermal[el] = {"gain": float(vals[n]), "tau": float(vals[f"tau_{el}"])}
 
-    def read(self, model, names):
+    def read(self, model: ErrorModel, names: Sequence[str]) -> np.ndarray:
         out = []
         for n in names:
             el = n.split("_", 1)[1]
@@ -114,7 +120,7 @@ class ThermalDrift(Term):
             out.append(d["gain"] if n.startswith("gain_") else d["tau"])
         return np.array(out, float)
 
-    def initial(self, P, model, names, resid):
+    def initial(self, P: Problem, model: ErrorModel, names: Sequence[str], resid: np.ndarray) -> np.ndarray:
         x = self.read(model, names)
         init = P.memo.get(f"thermal_init:{self.name}", {})
         for i, n in enumerate(names):
@@ -127,7 +133,8 @@ class ThermalDrift(Term):
         byname = {p.name: p for p in self.params(P)}
         return np.clip(x, [byname[n].lo for n in names], [byname[n].hi for n in names])
 
-    def report(self, names, x, sd):
+    def report(self, names: Sequence[str], x: np.ndarray, sd: np.ndarray
+               ) -> tuple[dict[str, float | None], dict[str, float | None], dict[str, str]]:
         par, unc, unit = {}, {}, {}
         for n, v, s in zip(names, x, sd, strict=True):
             el = n.split("_", 1)[1]
@@ -137,7 +144,7 @@ class ThermalDrift(Term):
                                                          else "mm per 1000 rpm")
         return par, unc, unit
 
-    def sentence(self, params, unc, none):
+    def sentence(self, params: dict[str, Any], unc: dict[str, Any], none: Sequence[str]) -> str:
         els = sorted({k.rsplit("_", 1)[0] for k in params})
         parts = [f"{e} gain {fmt(params[e + '_gain'])} per 1000 rpm, tau {fmt(params[e + '_tau'], 's')}"
                  for e in els]
@@ -145,7 +152,7 @@ class ThermalDrift(Term):
                  else "The machine's axes and column grow thermally, in the machine frame")
         return f"{where} ({'; '.join(parts)}{none_text(none)})"
 
-    def veto(self, P, names, x):
+    def veto(self, P: Problem, names: Sequence[str], x: np.ndarray) -> str | None:
         lo = {p.name: p.lo for p in self.params(P)}
         fast = [n[4:] for n, v in zip(names, x, strict=True) if n.startswith("tau_") and v <= 1.01 * lo[n]]
         if fast:

@@ -4,31 +4,38 @@ A clock offset far below the sample period is not a finding: it must reach
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
 from camsmooth.diagnosis.recordings import AXES
 from camsmooth.diagnosis.terms.base import Param, Term, fmt
+from camsmooth.machine.model import ErrorModel
+
+if TYPE_CHECKING:
+    from camsmooth.diagnosis.problem import Problem
 
 
 class TimeOffset(Term):
     name = "time_offset"
     needs = "moving axes"
 
-    def applicable(self, P):
+    def applicable(self, P: Problem) -> str | None:
         return None if any(P.knots.moves(a) for a in AXES) or P.knots.S is not None else "nothing moves"
 
-    def params(self, P):
+    def params(self, P: Problem) -> list[Param]:
         span = float(P.t[-1] - P.t[0])
         b = min(5.0, 0.25 * span)
         return [Param("offset_s", -b, b, 1e-3, "s", "clock")]
 
-    def write(self, model, names, x):
+    def write(self, model: ErrorModel, names: Sequence[str], x: np.ndarray) -> None:
         model.offset_s = float(x[0])
 
-    def read(self, model, names):
+    def read(self, model: ErrorModel, names: Sequence[str]) -> np.ndarray:
         return np.array([model.offset_s])
 
-    def initial(self, P, model, names, resid):
+    def initial(self, P: Problem, model: ErrorModel, names: Sequence[str], resid: np.ndarray) -> np.ndarray:
         num = den = 0.0
         for a in AXES:
             c = f"{a}_act"
@@ -42,14 +49,15 @@ class TimeOffset(Term):
         p = self.params(P)[0]
         return np.array([float(np.clip(x0, p.lo, p.hi))])
 
-    def report(self, names, x, sd):
+    def report(self, names: Sequence[str], x: np.ndarray, sd: np.ndarray
+               ) -> tuple[dict[str, float | None], dict[str, float | None], dict[str, str]]:
         return {"offset_s": float(x[0])}, {"offset_s": float(sd[0])}, {"offset_s": "s"}
 
-    def sentence(self, params, unc, none):
+    def sentence(self, params: dict[str, Any], unc: dict[str, Any], none: Sequence[str]) -> str:
         return (f"The recording runs {fmt(params['offset_s'] * 1000)} ± {fmt(unc['offset_s'] * 1000)} ms "
                 f"{'behind' if params['offset_s'] >= 0 else 'ahead of'} the program's clock")
 
-    def unresolvable(self, P, names, x, sd):
+    def unresolvable(self, P: Problem, names: Sequence[str], x: np.ndarray, sd: np.ndarray) -> str | None:
         d = abs(float(x[0] - P.base.offset_s))
         limit = P.options.min_offset_periods * P.dt
         if d < limit:
@@ -57,6 +65,6 @@ class TimeOffset(Term):
                     f"sample period ({P.dt * 1e3:.3g} ms): not resolvable on this recording")
         return None
 
-    def state(self, P, names):
+    def state(self, P: Problem, names: Sequence[str]) -> tuple[str, np.ndarray, str]:
         a = max((a for a in AXES if f"v_{a}" in P.states), key=lambda a: np.std(P.states[f"v_{a}"]))
         return f"commanded velocity {a}", P.states[f"v_{a}"], "mm/s"

@@ -2,8 +2,16 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
 from camsmooth.diagnosis.recordings import TIP_CHANNELS
 from camsmooth.diagnosis.terms.base import Geometric, rotary_state
+
+if TYPE_CHECKING:
+    from camsmooth.diagnosis.problem import Problem
 
 
 class ToolLength(Geometric):
@@ -11,8 +19,8 @@ class ToolLength(Geometric):
     channels_seen = TIP_CHANNELS
     what = "The tool length is off"
 
-    def candidates_for(self, P):
+    def candidates_for(self, P: Problem) -> list[tuple[Any, ...]]:
         return [("EZ0T", "mm", 5.0, 1e-3, "EZ0T")]
 
-    def state(self, P, names):
+    def state(self, P: Problem, names: Sequence[str]) -> tuple[str, np.ndarray, str]:
         return rotary_state(P)
