@@ -146,10 +146,12 @@ def test_machine_file_on_disk(tmp_path):
     m, d = load_machine(str(p)), load_machine(None)
     assert m.limits == d.limits and m.pivot == d.pivot == 150.0 and m.name == "generic AB head"
     assert d.limits["A"].min == pytest.approx(-100.0 * math.pi / 180, rel=1e-15)
+    # unreadable files: the project's one text reader (camsmooth.io.table.read_text_file) names the file
     cases = [
-        (tmp_path / "missing.toml", None, "machine file not found"),
-        (tmp_path, None, "is a folder, not a machine TOML file"),
-        (tmp_path / "bin.toml", b"[machine]\nkind = \xff\n", "not a text (UTF-8) TOML file: binary data at byte 17"),
+        (tmp_path / "missing.toml", None, "cannot read the machine file: file not found"),
+        (tmp_path, None, "cannot read the machine file: it is a folder, not a file"),
+        (tmp_path / "bin.toml", b"[machine]\nkind = \xff\n",
+         "the machine file is not UTF-8 text (byte 0xff on line 2)"),
     ]
     for path, content, message in cases:
         if content is not None:
@@ -157,10 +159,6 @@ def test_machine_file_on_disk(tmp_path):
         with pytest.raises(InputError) as exc:
             load_machine(str(path))
         assert exc.value.message == message and exc.value.file == str(path)
-    long = tmp_path / ("m" * 300 + ".toml")   # an OSError other than missing / folder: the system's reason
-    with pytest.raises(InputError) as exc:
-        load_machine(str(long))
-    assert exc.value.message == "cannot read the machine file: File name too long" and exc.value.file == str(long)
     bad = tmp_path / "bad.toml"
     bad.write_text("[machine\nkind = 1\n")
     with pytest.raises(InputError) as exc:
