@@ -358,6 +358,18 @@ _equivalent(_PIPE, "ProgramSmoother._result", [
     "without an error model the real machine is the nominal one and xyz = cl + pivot T, so its tool tip is "
     "cl again (to rounding)")
 
+_TH = "camsmooth/diagnosis/terms/thermal.py"
+_SPLIT = ("the thermal elements are dx, dy, dz, exz, eyz, mx, my, mz (no underscore) and the parameter names "
+          "gain_<el> / tau_<el>: split, rsplit and any maxsplit give the same two parts")
+for _f in ("ThermalDrift.initial", "ThermalDrift.report"):
+    _equivalent(_TH, _f, ['el = n.split("_", 1)[1] -> el = n.split("_", )[1]',
+                          'el = n.split("_", 1)[1] -> el = n.rsplit("_", 1)[1]',
+                          'el = n.split("_", 1)[1] -> el = n.split("_", 2)[1]'], _SPLIT)
+_equivalent(_TH, "ThermalDrift.report", [
+    "key = f\"{el}_{n.split('_', 1)[0]}\" -> key = f\"{el}_{n.split('_', )[0]}\"",
+    "key = f\"{el}_{n.split('_', 1)[0]}\" -> key = f\"{el}_{n.rsplit('_', 1)[0]}\"",
+    "key = f\"{el}_{n.split('_', 1)[0]}\" -> key = f\"{el}_{n.split('_', 2)[0]}\""], _SPLIT)
+
 _OUT = "camsmooth/io/output.py"
 _equivalent(_OUT, "point_status", [
     "lift = np.asarray(result.lift, dtype=float) -> lift = np.asarray(result.lift, dtype=None)",

@@ -216,3 +216,57 @@ def test_travel_is_the_largest_commanded_position_and_at_least_1_mm(P):
     small = dataclasses.replace(P, knots=copy.copy(P.knots))
     small.knots.u = {**P.knots.u, "X": 0.25 * np.sin(np.linspace(0, 3, len(P.knots.u["X"])))}
     assert travel(small, "X") == 1.0
+
+
+def test_bounds_follow_the_record_whatever_its_start_time(P_warm):
+    from camsmooth.diagnosis.terms.base import channel_is_length
+
+    late = dataclasses.replace(P_warm, t=P_warm.t + 100.0, memo={"thermal:thermal_drift": ["dz", "exz"]})
+    span = float(P_warm.t[-1] - P_warm.t[0])
+    params = {p.name: p for p in term("thermal_drift").params(late)}
+    assert list(params) == ["gain_dz", "tau_dz", "gain_exz", "tau_exz"]
+    assert (params["tau_dz"].lo, params["tau_dz"].hi) == pytest.approx((0.05 * span, 20 * span))
+    assert (params["gain_dz"].unit, params["gain_exz"].unit, params["tau_exz"].unit) == \
+        ("mm/1000rpm", "rad/1000rpm", "s")
+    assert params["gain_exz"].group == "exz" and params["gain_dz"].lo == -params["gain_dz"].hi
+    assert params["gain_exz"].hi < params["gain_dz"].hi   # a tilt (rad) bounded tighter than a length (mm)
+    (off,) = term("time_offset").params(late)
+    assert (off.lo, off.hi, off.unit, off.group) == (pytest.approx(-span / 4), pytest.approx(span / 4), "s", "clock")
+    runout = term("spindle_runout").params(late)
+    assert [(p.name, p.unit, p.group) for p in runout] == [("rc", "mm", "runout"), ("rs", "mm", "runout")]
+    assert [c for c in late.channels if channel_is_length(c)] == ["X_act", "Y_act", "Z_act", "tip_x", "tip_y",
+                                                                  "tip_z"]
+    # with no element chosen yet, the start is no gain and a fifth of the record
+    fresh = dataclasses.replace(late, memo={"thermal:thermal_drift": ["dz"]})
+    x = term("thermal_drift").initial(fresh, ErrorModel(), ["gain_dz", "tau_dz"], None)
+    assert x.tolist() == pytest.approx([0.0, 0.2 * span])
+    kept = ErrorModel(thermal={"dz": {"gain": 0.02, "tau": 3.0}})
+    assert term("thermal_drift").initial(fresh, kept, ["gain_dz", "tau_dz"], None).tolist() == [0.02, 3.0]
+
+
+def test_lag_start_without_a_usable_axis_channel(P):
+    t = term("servo_lag")
+    resid = np.zeros_like(P.data_fit)
+    jx = P.channels.index("X_act")
+    blind = dataclasses.replace(P, valid_fit=P.valid_fit.copy())
+    blind.valid_fit[:, jx] = False   # no valid sample on X: the 10 ms default
+    assert t.initial(blind, ErrorModel(), ["tau_X"], resid).tolist() == [0.01]
+    resid[:, jx] = 5.0 * P.states["v_X"]   # a lead, not a lag: clipped at 0
+    assert t.initial(P, ErrorModel(), ["tau_X"], resid).tolist() == [0.0]
+    resid[:, jx] = -3.0 * P.states["v_X"]   # 3 s: clipped at 1 s
+    assert t.initial(P, ErrorModel(), ["tau_X"], resid).tolist() == [1.0]
+    tip_only = dataclasses.replace(P, channels=tuple(c for c in P.channels if not c.endswith("_act")))
+    assert t.initial(tip_only, ErrorModel(), ["tau_X", "tau_B"], resid).tolist() == [0.01, 0.01]
+    assert t.initial(tip_only, ErrorModel(tau={"B": 0.2}), ["tau_B"], resid).tolist() == [0.2]
+
+
+def test_gauss_newton_start_from_a_non_zero_value_and_at_the_bounds():
+    prog = make_program("rotary", duration=4.0, rate=50.0, seed=2, spindle=6000.0)
+    t = term("tool_length")
+    for truth in (0.05, 6.0, -6.0):   # the bound of EZ0T is 5 mm
+        P = prepare(prog, record(prog, {"EZ0T": truth}, channels=("axes", "tip", "axis"), noise=NOISE, seed=1))
+        x = t.initial(P, ErrorModel({"EZ0T": 0.02}), ["EZ0T"], None)[0]
+        if abs(truth) < 5:
+            assert x == pytest.approx(truth, abs=1e-5)
+        else:
+            assert abs(x) < 5.0 and abs(x) == pytest.approx(5.0, abs=1e-9) and np.sign(x) == np.sign(truth)
