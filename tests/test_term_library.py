@@ -270,3 +270,77 @@ def test_gauss_newton_start_from_a_non_zero_value_and_at_the_bounds():
             assert x == pytest.approx(truth, abs=1e-5)
         else:
             assert abs(x) < 5.0 and abs(x) == pytest.approx(5.0, abs=1e-9) and np.sign(x) == np.sign(truth)
+
+
+def test_states_pick_the_axis_that_shows_the_effect(P):
+    std = {a: float(np.std(P.states[f"v_{a}"])) for a in "XYZAB"}
+    # among the names, the axis whose commanded velocity varies most (whatever the names' order)
+    for pair in (("X", "Y"), ("Y", "Z"), ("X", "Z"), ("A", "B")):
+        names = [f"tau_{a}" for a in sorted(pair, key=lambda a: std[a])]   # the larger spread last
+        label, values, unit = term("servo_lag").state(P, names[::-1])
+        k = names[-1][4:]
+        rot = k in "AB"
+        assert (label, unit) == (f"commanded velocity {k} ({'deg/s' if rot else 'mm/s'})", "deg/s" if rot else "mm/s")
+        np.testing.assert_allclose(values, P.states[f"v_{k}"] * (180 / math.pi if rot else 1.0))
+    k = max((a for a in "XYZAB"), key=lambda a: std[a])
+    label, values, unit = term("time_offset").state(P, ["offset_s"])
+    assert (label, unit) == (f"commanded velocity {k}", "mm/s")
+    np.testing.assert_array_equal(values, P.states[f"v_{k}"])
+    assert term("linear_positioning").state(P, ["EZZ3"])[2] == "mm"
+    # rotary states: the first rotary axis that moves, else elapsed time
+    knots = copy.copy(P.knots)
+    knots.u = {**P.knots.u, "A": np.zeros_like(P.knots.u["A"])}
+    only_b = dataclasses.replace(P, knots=knots)
+    assert term("spindle_tilt").state(only_b, ["EA0S"])[0] == "rotary axis B (deg)"
+    knots2 = copy.copy(knots)
+    knots2.u = {**knots.u, "B": np.zeros_like(P.knots.u["B"])}
+    still = dataclasses.replace(P, knots=knots2)
+    label, values, unit = term("rotary_location").state(still, ["EY0A"])
+    assert (label, unit) == ("elapsed time (s)", "s")
+    np.testing.assert_array_equal(values, P.states["elapsed"])
+
+
+def test_linear_terms_use_the_exact_columns(P):
+    from camsmooth.diagnosis.terms.linear import linear_jacobian
+
+    model = ErrorModel({"EXX": 1e-4})
+    for name, names in (("linear_positioning", ["EXX", "EYY2"]), ("linear_straightness", ["EYX2"]),
+                        ("linear_squareness", ["EC0Y", "EA0Z"])):
+        np.testing.assert_array_equal(term(name).jacobian(P, model, names), linear_jacobian(P, model, names))
+
+
+def test_backlash_bounds_and_steps_in_each_axis_units(P):
+    params = {p.name: p for p in term("backlash").params(P)}
+    for a in "XYZ":
+        for r in "AB":
+            # 0.2 rad and 1e-5 rad against 10 mm and 1e-3 mm: the rotary ones are the smaller numbers
+            assert params[f"b_{r}"].hi < params[f"b_{a}"].hi and params[f"b_{r}"].scale < params[f"b_{a}"].scale
+            assert params[f"b_{r}"].lo == -params[f"b_{r}"].hi < 0 and params[f"b_{a}"].lo == -params[f"b_{a}"].hi
+
+
+def test_clock_offset_start_without_axis_channels(P):
+    tip_only = dataclasses.replace(P, channels=tuple(c for c in P.channels if not c.endswith("_act")))
+    model = ErrorModel()
+    model.offset_s = 0.002
+    resid = np.ones_like(P.data_fit)
+    assert term("time_offset").initial(tip_only, model, ["offset_s"], resid).tolist() == [0.002]
+    model.offset_s = 50.0   # beyond a quarter of the record: clipped to it
+    span = float(P.t[-1] - P.t[0])
+    assert term("time_offset").initial(tip_only, model, ["offset_s"], resid).tolist() == [pytest.approx(span / 4)]
+    model.offset_s = -50.0
+    assert term("time_offset").initial(tip_only, model, ["offset_s"], resid).tolist() == [pytest.approx(-span / 4)]
+
+
+def test_unresolvable_names_the_channel_where_the_effect_is_largest_against_its_step(P):
+    t = term("tool_length")
+    q = {"tip_x": 0.004, "tip_y": 0.02, "tip_z": 0.05}
+    Q = dataclasses.replace(P, floor_info={c: dict(v, q_recording_rms=q.get(c, 0.0)) for c, v in P.floor_info.items()})
+    m = P.base.copy()
+    m.geometric["EZ0T"] = 1e-3
+    d = P.sim_fit.run(m) - P.sim_fit.run(P.base)
+    peaks = {c: float(np.max(np.abs(d[:, P.channels.index(c)]))) for c in q}
+    assert all(peaks[c] < q[c] for c in q)
+    worst = max(q, key=lambda c: peaks[c] / q[c])
+    assert t.unresolvable(Q, ["EZ0T"], np.array([1e-3]), np.array([1e-5])) == (
+        f"its largest effect ({peaks[worst] * 1e3:.3g} um on {worst}) stays below the recording's resolution "
+        f"({q[worst] * 1e3:.3g} um)")
