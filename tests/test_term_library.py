@@ -344,3 +344,28 @@ def test_unresolvable_names_the_channel_where_the_effect_is_largest_against_its_
     assert t.unresolvable(Q, ["EZ0T"], np.array([1e-3]), np.array([1e-5])) == (
         f"its largest effect ({peaks[worst] * 1e3:.3g} um on {worst}) stays below the recording's resolution "
         f"({q[worst] * 1e3:.3g} um)")
+
+
+def test_thermal_element_fit_recovers_an_exact_response(P):
+    t = term("thermal_drift")
+    late = dataclasses.replace(P, t=P.t + 50.0, memo={})
+    span = float(P.t[-1] - P.t[0])
+    grid = t._tau_grid(late)
+    assert grid == sorted(grid) and grid[0] > 0.05 * span and grid[-1] >= 3 * span   # from a step to a ramp
+    np.testing.assert_allclose(np.diff(np.log(grid[2:])), math.log(2.0))           # doubling
+    base = P.base.copy()
+    for el, gain in (("dz", 0.02), ("exz", 2e-4)):
+        tau = grid[3]
+        m = base.copy()
+        m.thermal[el] = {"gain": gain, "tau": tau}
+        resid = P.sim_fit.run(m) - P.sim_fit.run(base)
+        g, tau_fit, drop, z = t._element_fit(late, el, resid, base)
+        # a length enters linearly (exact); a tilt through the rotation, linear to 1e-5 at this size
+        tol = 1e-9 if el == "dz" else 1e-4
+        assert g == pytest.approx(gain, rel=tol) and tau_fit == tau and drop == pytest.approx(1.0, abs=tol)
+        assert z > 100
+        memo = dataclasses.replace(late, data_fit=P.sim_fit.run(m), memo={})
+        assert t.select_elements(memo, base) == [el]
+        assert memo.memo["thermal_init:thermal_drift"][el] == (pytest.approx(gain, rel=tol), tau)
+    quiet = dataclasses.replace(late, data_fit=P.sim_fit.run(base), memo={})
+    assert len(t.select_elements(quiet, base)) == 1   # nothing to see: the strongest one is still scored
