@@ -369,3 +369,18 @@ def test_thermal_element_fit_recovers_an_exact_response(P):
         assert memo.memo["thermal_init:thermal_drift"][el] == (pytest.approx(gain, rel=tol), tau)
     quiet = dataclasses.replace(late, data_fit=P.sim_fit.run(base), memo={})
     assert len(t.select_elements(quiet, base)) == 1   # nothing to see: the strongest one is still scored
+
+
+@pytest.mark.parametrize("name", ["rotary_location", "rotary_squareness", "spindle_tilt", "tool_length",
+                                  "linear_positioning", "linear_straightness", "linear_squareness"])
+def test_finite_difference_steps_are_a_typical_small_effect(P, name):
+    """Each geometric parameter's scale (finite-difference steps are 1e-4 of it; identifiability
+    compares columns of one scale step) moves the tool tip by 1 nm to 10 micrometres over the
+    program: comparable columns, far above rounding."""
+    tip = [P.channels.index(c) for c in ("tip_x", "tip_y", "tip_z")]
+    s0 = P.sim_fit.run(P.base)
+    for p in term(name).params(P):
+        m = P.base.copy()
+        m.geometric[p.name] = p.scale
+        peak = float(np.max(np.abs((P.sim_fit.run(m) - s0)[:, tip])))
+        assert 1e-6 <= peak <= 1e-2, (p.name, peak)
