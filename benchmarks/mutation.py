@@ -370,6 +370,32 @@ _equivalent(_TH, "ThermalDrift.report", [
     "key = f\"{el}_{n.split('_', 1)[0]}\" -> key = f\"{el}_{n.rsplit('_', 1)[0]}\"",
     "key = f\"{el}_{n.split('_', 1)[0]}\" -> key = f\"{el}_{n.split('_', 2)[0]}\""], _SPLIT)
 
+_ORI = "camsmooth/smoothing/orientation.py"
+_cct = "lead, tilt = np.broadcast_arrays(np.asarray(lead, float), np.asarray(tilt, float))"
+_equivalent(_ORI, "cutter_curvature_tensors", [
+    f"{_cct} -> {_cct.replace('asarray(lead, float)', 'asarray(lead, None)')}",
+    f"{_cct} -> {_cct.replace('asarray(lead, float)', 'asarray(lead, )')}",
+    f"{_cct} -> {_cct.replace('asarray(tilt, float)', 'asarray(tilt, None)')}",
+    f"{_cct} -> {_cct.replace('asarray(tilt, float)', 'asarray(tilt, )')}"],
+    "lead and tilt only reach sin / cos: integer or list angles give the same floats")
+_equivalent(_ORI, "min_gouge_free_lead", ["tilt = np.asarray(tilt, float) -> tilt = np.asarray(tilt, None)",
+                                          "tilt = np.asarray(tilt, float) -> tilt = np.asarray(tilt, )"],
+            "tilt only reaches cos / sin: the same floats for integer input")
+_lin = "tilts = np.linspace(tmin, tmax, n_tilt) if tmax > tmin else np.array([tmin])"
+_equivalent(_ORI, "initial_orientation", [
+    f"{_lin} -> tilts = np.linspace(tmin, tmax, n_tilt) if (tmax > tmin) or True else np.array([tmin])",
+    f"{_lin} -> tilts = np.linspace(tmin, tmax, n_tilt) if tmax >= tmin else np.array([tmin])"],
+    "for tmax == tmin linspace gives n_tilt copies of the one tilt: the same requirement (a max over equal "
+    "values) and the same one-tilt window")
+_equivalent(_ORI, "initial_orientation", [
+    "tilt_window = np.tile([tmin, tmax], (n, 1)).astype(float) -> "
+    "tilt_window = np.tile([tmin, tmax], (n, 1)).astype(None)"],
+    "astype(None) is float64, as astype(float)")
+_equivalent("camsmooth/diagnosis/terms/base.py", "identifiable", [
+    "trial.geometric[n] = trial.geometric.get(n, 0.0) + sc -> trial.geometric[n] = trial.geometric.get(n, 0.0) - sc"],
+    "a step of -scale negates the column (to first order); fitting.identifiable_columns compares column norms and "
+    "the pivoted QR's |R_ii|, which do not depend on a column's sign")
+
 _OUT = "camsmooth/io/output.py"
 _equivalent(_OUT, "point_status", [
     "lift = np.asarray(result.lift, dtype=float) -> lift = np.asarray(result.lift, dtype=None)",
