@@ -396,6 +396,9 @@ _equivalent("camsmooth/diagnosis/terms/base.py", "identifiable", [
     "a step of -scale negates the column (to first order); fitting.identifiable_columns compares column norms and "
     "the pivoted QR's |R_ii|, which do not depend on a column's sign")
 
+_equivalent(_ATO, "_refuse_replace", ['why = None -> why = ""'],
+            "only the truth of why is tested (if why:), and None and '' are both false")
+
 _OUT = "camsmooth/io/output.py"
 _equivalent(_OUT, "point_status", [
     "lift = np.asarray(result.lift, dtype=float) -> lift = np.asarray(result.lift, dtype=None)",

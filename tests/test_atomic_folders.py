@@ -175,3 +175,89 @@ def test_a_folder_replaced_whole_may_not_hold_another_output_of_the_command(tmp_
     assert exc.value.strerror == f"will not replace this folder whole (it holds {out / 'y.csv'}, an input or " \
                                  "output of this command)"
     assert list(out.iterdir()) == []
+
+
+def test_staging_folder_inside_an_existing_folder_beside_a_new_one(tmp_path):
+    out = tmp_path / "out"
+    with atomic_dir(out) as d:   # new: staged beside it, named after it
+        assert d.parent == tmp_path and d.name.startswith(".out.camsmooth-")
+    out.mkdir(exist_ok=True)
+    with atomic_dir(out) as d:   # existing, merged: staged inside it (its parent may not be writable)
+        assert d.parent == out and d.name.startswith(".camsmooth-")
+    with atomic_dir(out, replace=True) as d:   # replaced whole: beside it
+        assert d.parent == tmp_path and d.name.startswith(".out.camsmooth-")
+    assert not _leftovers(tmp_path)
+    # a folder output in folders that do not exist yet: they are removed again when the block fails
+    with pytest.raises(RuntimeError):
+        with atomic_dir(tmp_path / "new" / "deep" / "rep") as d:
+            (d / "x.txt").write_text("x")
+            raise RuntimeError("stop")
+    assert not (tmp_path / "new").exists()
+    # where no file can be created at all (/proc): say so, naming the output
+    with pytest.raises(OSError) as exc:
+        with atomic_dir(Path("/proc") / "camsmooth-report"):
+            pass
+    assert (exc.value.errno, exc.value.strerror, exc.value.filename) == (
+        errno.ENOENT, "cannot create files in this folder", "/proc/camsmooth-report")
+    # a path that is only an input is not a reason to refuse
+    (tmp_path / "rep").mkdir()
+    with atomic_dir(tmp_path / "rep", replace=True, keep=[tmp_path / "elsewhere.csv"]) as d:
+        (d / "r.txt").write_text("r")
+    assert _tree(tmp_path / "rep") == {"r.txt": "r"}
+
+
+def test_merge_continues_after_a_nested_folder(tmp_path):
+    out = tmp_path / "out"
+    (out / "a_sub").mkdir(parents=True)
+    with atomic_dir(out) as d:
+        (d / "a_sub").mkdir()
+        (d / "a_sub" / "1.txt").write_text("1")
+        (d / "b.txt").write_text("b")
+        (d / "c_sub").mkdir()
+        (d / "c_sub" / "2.txt").write_text("2")
+    assert _tree(out) == {"a_sub/1.txt": "1", "b.txt": "b", "c_sub/2.txt": "2"}
+
+
+@pytest.mark.parametrize("links", [True, False])
+def test_a_failed_commit_restores_every_earlier_output(tmp_path, monkeypatch, links):
+    import camsmooth.io.atomic as atomic
+
+    old = tmp_path / "old.csv"
+    old.write_text("old csv")
+    rep = tmp_path / "rep"
+    rep.mkdir()
+    (rep / "old.txt").write_text("old report")
+    if not links:   # a file system without hard links: the old version is kept as a copy
+        def no_link(*a, **k):
+            raise OSError(errno.EPERM, "Operation not permitted")
+        monkeypatch.setattr(atomic.os, "link", no_link)
+    real_replace = os.replace
+
+    def failing_replace(src, dst, *a, **k):
+        if Path(dst).name == "last.nc":
+            raise OSError(errno.ENOSPC, "No space left on device", str(src), None, str(dst))
+        return real_replace(src, dst, *a, **k)
+
+    monkeypatch.setattr(atomic.os, "replace", failing_replace)
+    with pytest.raises(OSError) as exc:
+        with output_transaction() as tx:
+            tx.file(old).write_text("new csv")
+            d = tx.folder(rep, replace=True)
+            (d / "new.txt").write_text("new report")
+            tx.file(tmp_path / "last.nc").write_text("gcode")
+    # the error names the user's file, not a temporary
+    assert exc.value.errno == errno.ENOSPC and exc.value.filename2 == str(tmp_path / "last.nc")
+    assert ".camsmooth-" not in str(exc.value.filename)
+    assert old.read_text() == "old csv" and _tree(rep) == {"old.txt": "old report"}
+    assert not (tmp_path / "last.nc").exists() and not _leftovers(tmp_path)
+
+
+def test_an_output_turned_into_a_folder_before_the_move_is_named_with_the_users_path(tmp_path):
+    target = tmp_path / "r.csv"
+    with pytest.raises(IsADirectoryError) as exc:
+        with output_transaction() as tx:
+            tx.file(target).write_text("x")
+            target.mkdir()   # something else made a folder there meanwhile
+            (target / "inside.txt").write_text("i")
+    assert exc.value.filename == str(target) and ".camsmooth-" not in str(exc.value)
+    assert (target / "inside.txt").read_text() == "i" and not _leftovers(tmp_path)
