@@ -662,8 +662,10 @@ def main(argv: list[str] | None = None) -> int:
         for copy in map(Path, args.report):
             module = copy.name.removeprefix("camsmooth-mutation-").rsplit("-", 1)[0]
             sec = copy / "mutation-seconds.txt"
-            results.append(ModuleResult(module=module, mutants=_collect(copy),
-                                        seconds=float(sec.read_text()) if sec.exists() else float("nan")))
+            # copies from before the wall time was recorded: from the copy's own file times
+            seconds = float(sec.read_text()) if sec.exists() else \
+                (copy / "mutmut.log").stat().st_mtime - (copy / "pyproject.toml").stat().st_mtime
+            results.append(ModuleResult(module=module, mutants=_collect(copy), seconds=seconds))
         return 0 if report(results) else 1
     failed = []
     for module in args.modules:
