@@ -435,9 +435,11 @@ _equivalent(_OUT, "write_result_csv", [
     'columns["lift"] = np.asarray(r.lift, float) -> columns["lift"] = np.asarray(r.lift, )',
 ], "MethodResult.lift is a float array: asarray without dtype returns it unchanged")
 
+# mutmut's exit codes; -9 is the SIGKILL its runner sends one second after the CPU limit's SIGXCPU (a
+# timeout that ignored SIGXCPU), -11 a crash of the test process: the tests did not pass either way
 STATUS = {1: "killed", 3: "killed", 0: "survived", 5: "no tests", 33: "no tests", 34: "skipped",
-          36: "timeout", -24: "timeout", 24: "timeout", 152: "timeout", 255: "timeout",
-          37: "type check", None: "not checked"}
+          36: "timeout", -24: "timeout", 24: "timeout", 152: "timeout", 255: "timeout", -9: "timeout",
+          -11: "killed", 37: "type check", None: "not checked"}
 
 
 @dataclass
