@@ -261,3 +261,46 @@ def test_an_output_turned_into_a_folder_before_the_move_is_named_with_the_users_
             (target / "inside.txt").write_text("i")
     assert exc.value.filename == str(target) and ".camsmooth-" not in str(exc.value)
     assert (target / "inside.txt").read_text() == "i" and not _leftovers(tmp_path)
+
+
+def test_temporaries_and_refusals_of_single_files(tmp_path):
+    from camsmooth.io.atomic import atomic_path
+
+    target = tmp_path / "r.csv"
+    with atomic_path(target) as tmp:   # beside the output, hidden, named after it, same suffix
+        assert tmp.parent == tmp_path and tmp.name.startswith(".r.csv.camsmooth-") and tmp.suffix == ".csv"
+        tmp.write_text("x")
+    with atomic_path(target, suffix=".part") as tmp:
+        assert tmp.name.endswith(".part")
+        tmp.write_text("y")
+    assert target.read_text() == "y"
+    (tmp_path / "folder").mkdir()
+    with pytest.raises(IsADirectoryError) as exc:
+        with atomic_path(tmp_path / "folder"):
+            pass
+    assert (exc.value.errno, exc.value.strerror, exc.value.filename) == (
+        errno.EISDIR, "is a folder; a file name is needed here", str(tmp_path / "folder"))
+    with pytest.raises(OSError) as exc:
+        with atomic_path("/proc/camsmooth.csv"):
+            pass
+    assert (exc.value.errno, exc.value.strerror, exc.value.filename) == (
+        errno.ENOENT, "cannot create files in this folder", "/proc/camsmooth.csv")
+    with pytest.raises(OSError) as exc:
+        with output_transaction() as tx:
+            tx.file(target)
+            tx.file(tmp_path / "folder" / ".." / "r.csv")   # the same file by another spelling
+    assert (exc.value.errno, exc.value.strerror, exc.value.filename) == (
+        errno.EEXIST, "named twice as an output of this command", str(tmp_path / "folder" / ".." / "r.csv"))
+    assert target.read_text() == "y" and not _leftovers(tmp_path)
+
+
+def test_a_file_appearing_where_a_replaced_folder_goes_is_refused_at_commit(tmp_path):
+    out = tmp_path / "out"
+    with pytest.raises(NotADirectoryError) as exc:
+        with output_transaction() as tx:
+            d = tx.folder(out, replace=True)
+            (d / "x.txt").write_text("x")
+            out.write_text("a file made meanwhile")
+    assert (exc.value.errno, exc.value.strerror, exc.value.filename) == (
+        errno.ENOTDIR, "is a file; a folder is needed here", str(out))
+    assert out.read_text() == "a file made meanwhile" and not _leftovers(tmp_path)
