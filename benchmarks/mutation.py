@@ -116,9 +116,10 @@ TARGETS: dict[str, Target] = {
     # _spindle_params, _polar_report, fit_thermal_response: ~2000 of the file's ~3000 mutants) are left out:
     # their mutants rerun Levenberg-Marquardt or particle-swarm fits (~2 s a mutant, most of an hour on 2
     # cores); the recovery tests of tests/test_calibration.py cover them. Mutated: the data checks, the
-    # files, the ballbar trilateration and the report.
+    # files, the ballbar trilateration and the report, against the fast tests only (test_calibration.py's
+    # fixtures fit models for seconds each, and every surviving mutant would rerun them).
     "calibration": Target(("camsmooth/machine/calibration.py",),
-                          ("tests/test_calibration.py", "tests/test_oracles.py", "tests/test_calibration_inputs.py"),
+                          ("tests/test_calibration_inputs.py", "tests/test_oracles.py"),
                           functions=("trilaterate", "_ballbar_trilateration", "validate_probe", "validate_spindle",
                                      "validate_ballbar", "read_table", "_write_csv", "read_probe_csv",
                                      "write_probe_csv", "read_spindle_csv", "write_spindle_csv", "read_ballbar_csv",

@@ -183,3 +183,34 @@ def test_measurement_files_round_trip_in_degrees(tmp_path):
     with pytest.raises(InputError) as exc:
         read_ballbar_csv(tmp_path / "bad.csv")
     assert str(exc.value) == f"{tmp_path / 'bad.csv'}, row 3, column 'dir': dir must be +1 or -1"
+
+
+def test_report_summary_in_display_units():
+    from camsmooth.machine.calibration import CalibrationReport
+    from camsmooth.machine.model import ErrorModel
+
+    r = CalibrationReport(kind="probe", model=ErrorModel(), parameters={"EY0A": 0.0125, "EB0A": -2.5e-5,
+                                                                        "theta1": math.pi / 4, "tau": 30.0},
+                          uncertainties={"EY0A": 0.0005, "EB0A": 1e-6, "theta1": math.pi / 180},
+                          units={"EY0A": "mm", "EB0A": "rad", "theta1": "rad", "tau": "s"},
+                          unidentifiable={"EZ0T": "confounded with EZ0A"}, rms_before=0.0042, rms_after=0.00051,
+                          singular_values=np.array([120.0, 3.5, 0.25]), condition_number=480.0, n_observations=24)
+    lines = r.summary().split("\n")
+    assert lines[0] == "calibration: probe  (24 observations)"
+    assert lines[1] == "  residual RMS before 4.2000 um, after 0.5100 um"
+    assert lines[2] == "  parameter             value              std. uncertainty"
+    # mm -> um, rad -> urad, phases (theta...) in degrees; other units as given; no uncertainty: nan
+    assert lines[3].split() == ["EY0A", "12.5", "um", "+-", "0.5"]
+    assert lines[4].split() == ["EB0A", "-25", "urad", "+-", "1"]
+    assert lines[5].split() == ["theta1", "45", "deg", "+-", "1"]
+    assert lines[6].split() == ["tau", "30", "s", "+-", "nan"]
+    assert lines[7] == ("  identification Jacobian (um per um / urad): singular values [120, 3.5, 0.25], "
+                        "condition number 480")
+    assert lines[8:] == ["  not determinable from these data (not fitted):", "    EZ0T: confounded with EZ0A"]
+    r.singular_values = np.arange(13.0, 0.0, -1.0)   # more than 12: the range only
+    r.residual_unit, r.rms_before, r.rms_after, r.unidentifiable = "deg", 0.5, 0.125, {}
+    lines = r.summary().split("\n")
+    assert lines[1] == "  residual RMS before 0.5 deg, after 0.125 deg"
+    assert lines[-1].endswith("singular values (13 values, 13 ... 1), condition number 480")
+    r.singular_values = np.arange(12.0, 0.0, -1.0)   # twelve are listed
+    assert r.summary().split("\n")[-1].count(", ") == 12
