@@ -1,0 +1,692 @@
+"""Mutation testing of camsmooth's core modules with mutmut 3; prints the score per module.
+
+For each core module the script copies the repository (the files git tracks plus untracked,
+non-ignored ones) into a temporary directory, writes a ``[tool.mutmut]`` section into the copy's
+pyproject.toml (mutate only that module; run only the test files listed for it in TARGETS), runs
+``mutmut run`` there and reads the verdicts from mutmut's meta files (``mutants/<path>.meta``) and
+the diffs from its generated sources. The working tree is never mutated and no ``mutants/`` is left
+in it; the copy is deleted afterwards (``--keep`` keeps it, e.g. to ``mutmut show`` a mutant).
+
+Per module it prints: mutants, killed, timeouts, survived (including mutants no selected test
+reaches: mutmut's "no tests"), reviewed-equivalent, the score
+
+    score = (killed + timeouts) / (mutants - equivalent)
+
+(a mutant that makes the tests run past mutmut's time limit is detected: mutmut counts it as killed
+in its own badge), PASS/FAIL against 85 %, then every surviving mutant (mutmut's name, function and
+the changed line) and every mutant declared equivalent with the reason. Equivalents are declared in
+EQUIVALENT below, keyed by a description that does not shift when the file changes elsewhere: the
+file, the function and the changed line before -> after (whitespace-normalised), not mutmut's
+mutant number.
+
+numba kernels (camsmooth/geometry/_kernels.py): mutmut never mutates a decorated function (its
+trampolines cannot wrap a decorator's product, and numba could not compile a trampoline anyway),
+so every ``@njit`` kernel is skipped by mutmut itself. Stripping the decorators in the copy and
+running with NUMBA_DISABLE_JIT=1 would run the bounding-volume traversal and the per-facet
+distance loops as Python: test_interference.py takes ~47 s compiled (most of it the brute-force
+reference), interpreted kernels multiply the clearance part by ~100, and every surviving mutant
+reruns all covering tests -- not tractable on 2 shared cores. The kernels are therefore not
+mutated; they are covered by the clearance tests that compare the compiled kernels with an
+independent brute-force minimisation on random meshes and with closed forms (touching and
+penetrating planes, prism ridges and vertices, spheres, cylinders): tests/test_interference.py.
+The undecorated Python in clearance.py (index building, batching, result assembly, axial_drop) is
+mutated as usual; the kernels run compiled in the mutation run, as in production.
+
+What is not mutated, and why (each run must stay within minutes on 2 shared cores):
+
+* camsmooth/smoothing/nlp.py: every NLP test builds CasADi graphs and solves with IPOPT (seconds each),
+  and a surviving mutant reruns all of them; ~1500 mutants would take hours. Covered by
+  tests/test_smoothing.py (limits and windows met at every sample, derivatives against automatic
+  differentiation), tests/test_pipeline.py and the end-to-end limit tests.
+* pipeline.py: only the functions that are not the NLP / spline / planning drivers (TARGETS'
+  ``functions``; the others are marked "# pragma: no mutate block" in the temporary copy only).
+* calibration.py: the least-squares / particle-swarm fitting drivers (see TARGETS).
+* clearance.py has ~1700 mutants and each surviving one reruns the clearance tests (seconds): a run
+  measured ~25 mutants a minute on 2 cores, over an hour for the file. It is in TARGETS and runs
+  with ``--modules clearance`` when there is the time; the kernels it calls are covered as above.
+* Tests that run the command line in a subprocess cannot run under mutmut (the child imports the
+  trampolined package without mutmut's configuration) and are deselected; so are the three slow
+  brute-force clearance comparisons (they would rerun for every surviving clearance mutant).
+
+Usage (from the repository root, with the project's venv):
+    python benchmarks/mutation.py                        # all modules
+    python benchmarks/mutation.py --modules cutter terms --max-children 2
+Takes minutes per module (the list printed at the end gives the wall time of each). Not part of CI.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+THRESHOLD = 0.85
+
+
+@dataclass(frozen=True)
+class Target:
+    """One core module: the files mutmut mutates and the test files that run against them."""
+
+    paths: tuple[str, ...]
+    tests: tuple[str, ...]
+    env: dict[str, str] = field(default_factory=dict)
+    #: when given, only these functions ("name" or "Class.method") of the files are mutated: the others are
+    #: marked "# pragma: no mutate block" in the temporary copy (never in the working tree)
+    functions: tuple[str, ...] = ()
+
+
+TARGETS: dict[str, Target] = {
+    "cutter": Target(("camsmooth/geometry/cutter.py",),
+                     ("tests/test_cutter.py", "tests/test_contact.py", "tests/test_cylinder_distance_gradient.py",
+                      "tests/test_cutter_inputs.py")),
+    "kinematics": Target(("camsmooth/machine/kinematics.py",),
+                         ("tests/test_kinematics.py", "tests/test_ik_continuity.py", "tests/test_machine_model.py",
+                          "tests/test_gcode.py", "tests/test_machine_file.py", "tests/test_kinematics_frames.py")),
+    "orientation": Target(("camsmooth/smoothing/orientation.py",),
+                          ("tests/test_orientation.py", "tests/test_orientation_windows.py")),
+    # tests that run the command line in a subprocess cannot run under mutmut (the child process imports
+    # the trampolined package without mutmut's configuration): they are left out here
+    "pipeline": Target(("camsmooth/smoothing/pipeline.py",), (
+        "tests/test_oracles.py", "tests/test_pipeline.py", "tests/test_pipeline_results.py",
+        "--deselect", "tests/test_pipeline.py::test_cli_bad_input_names_file_row_column_and_writes_nothing",
+        "--deselect", "tests/test_pipeline.py::test_cli_smooth_writes_csv_gcode_report"),
+                       functions=("row_times", "Program.name", "prepare", "ProgramSmoother.metrics",
+                                  "ProgramSmoother._result", "_linear_axes_for_tip")),
+    # the three brute-force comparisons of test_interference.py (25 s, 7 s, 6 s) are left out: every
+    # surviving mutant would rerun them; the closed-form and agreement tests of the file stay in
+    "clearance": Target(("camsmooth/geometry/clearance.py",), (
+        "tests/test_interference.py",
+        "--deselect", "tests/test_interference.py::test_clearance_matches_brute_force_on_random_meshes",
+        "--deselect", "tests/test_interference.py::test_coarse_sliver_strip_against_brute_force",
+        "--deselect",
+        "tests/test_interference.py::test_deep_penetration_into_two_large_triangles_against_brute_force")),
+    "terms": Target(("camsmooth/diagnosis/terms/*.py",),
+                    ("tests/test_diagnosis_terms.py", "tests/test_oracles.py", "tests/test_term_reports.py",
+                     "tests/test_term_library.py")),
+    # the fitting drivers and their model helpers (calibrate_probe / _spindle / _ballbar, _ballbar_lsq,
+    # _spindle_pso, pso, _lsq, _central_jacobian, probe_offsets, _probe_residual, _spindle_model,
+    # _spindle_params, _polar_report, fit_thermal_response: ~2000 of the file's ~3000 mutants) are left out:
+    # their mutants rerun Levenberg-Marquardt or particle-swarm fits (~2 s a mutant, most of an hour on 2
+    # cores); the recovery tests of tests/test_calibration.py cover them. Mutated: the data checks, the
+    # files, the ballbar trilateration and the report, against the fast tests only (test_calibration.py's
+    # fixtures fit models for seconds each, and every surviving mutant would rerun them).
+    "calibration": Target(("camsmooth/machine/calibration.py",),
+                          ("tests/test_calibration_inputs.py", "tests/test_oracles.py"),
+                          functions=("trilaterate", "_ballbar_trilateration", "validate_probe", "validate_spindle",
+                                     "validate_ballbar", "read_table", "_write_csv", "read_probe_csv",
+                                     "write_probe_csv", "read_spindle_csv", "write_spindle_csv", "read_ballbar_csv",
+                                     "write_ballbar_csv", "CalibrationReport.summary", "_display", "_fmt_res",
+                                     "_max_gap", "_scale")),
+    "output": Target(("camsmooth/io/output.py",), ("tests/test_output.py", "tests/test_result_csv_columns.py")),
+    "atomic": Target(("camsmooth/io/atomic.py",),
+                     ("tests/test_atomic.py", "tests/test_output.py", "tests/test_atomic_folders.py")),
+}
+
+# Reviewed equivalent mutants: "path::function: before -> after" (Mutant.key) -> why no test can tell the
+# mutant from the code. Each was read in its function; the reason says what makes the two the same.
+EQUIVALENT: dict[str, str] = {}
+
+
+def _equivalent(path: str, function: str, changes: list[str], why: str) -> None:
+    for change in changes:
+        EQUIVALENT[f"{path}::{function}: {change}"] = why
+
+
+_CUT = "camsmooth/geometry/cutter.py"
+_FLOAT_MIX = ("the array is combined with float arrays (unit vectors, float multiples) before anything reads "
+              "it, so ints or lists give the same float results with or without dtype=float")
+_equivalent(_CUT, "_unit", ["v = np.asarray(v, dtype=float) -> v = np.asarray(v, dtype=None)",
+                            "v = np.asarray(v, dtype=float) -> v = np.asarray(v, )"],
+            "isfinite and norm accept any numeric dtype and v / |v| is float: same result for ints or lists")
+for _f, _v in (("cc_to_cl", "cc"), ("cl_to_cc", "cl"), ("signed_distance", "tip"), ("signed_distance", "points"),
+               ("support_point", "tip")):
+    _equivalent(_CUT, _f, [f"{_v} = np.asarray({_v}, dtype=float) -> {_v} = np.asarray({_v}, dtype=None)",
+                           f"{_v} = np.asarray({_v}, dtype=float) -> {_v} = np.asarray({_v}, )"], _FLOAT_MIX)
+_equivalent(_CUT, "_dot", ['return np.einsum("...i,...i->...", a, b) -> return np.einsum("...I,...I->...", a, b)'],
+            "einsum labels are arbitrary letters: the same contraction")
+_equivalent(_CUT, "_cylinder_sd", [
+    "grad: bool = False) -> tuple[np.ndarray, np.ndarray | None]: -> "
+    "grad: bool = True) -> tuple[np.ndarray, np.ndarray | None]:"],
+    "every caller that wants the gradient passes grad=True and signed_distance reads only the value, "
+    "which does not depend on grad")
+_SD_BRANCH = ("the outside formula hypot(max(dr,0), max(dz,0)) equals max(dr, dz) whenever at most one of dr, dz "
+              "is positive (and is 0 = max(dr, dz) when one is 0 and the other <= 0): the branch only matters "
+              "when both are positive, which every variant sends outside, or both are negative, which none does")
+_sd_where = "sd = np.where((dr > 0.0) | (dz > 0.0), out, np.maximum(dr, dz))"
+_equivalent(_CUT, "_cylinder_sd", [f"{_sd_where} -> {_sd_where.replace(a, b)}" for a, b in (
+    ("(dr > 0.0) | (dz > 0.0)", "(dr > 0.0) & (dz > 0.0)"), ("dr > 0.0", "dr >= 0.0"), ("dr > 0.0", "dr > 1.0"),
+    ("dz > 0.0", "dz >= 0.0"), ("dz > 0.0", "dz > 1.0"))], _SD_BRANCH)
+_INNER = ("the inner where only avoids a division by zero where the outer where discards the quotient anyway "
+          "(the discarded entries differ, the result does not)")
+_ring = "u = np.where(wn > _PARALLEL_EPS, w / np.where(wn > _PARALLEL_EPS, wn, 1.0), 0.0)"
+_equivalent(_CUT, "_ring_direction", [
+    f"{_ring} -> u = np.where(wn > _PARALLEL_EPS, w / np.where(wn >= _PARALLEL_EPS, wn, 1.0), 0.0)",
+    f"{_ring} -> u = np.where(wn > _PARALLEL_EPS, w / np.where(wn > _PARALLEL_EPS, wn, 2.0), 0.0)"], _INNER)
+_equivalent(_CUT, "_cylinder_sd", [
+    "e = w / np.where(rho > 0.0, rho, 1.0)[..., None] -> e = w / np.where(rho > 0.0, rho, 2.0)[..., None]"],
+    "rho = |w| is 0 only where w = 0, so e = 0 there whatever the divisor")
+_equivalent(_CUT, "_cylinder_sd", [
+    "inv = 1.0 / np.where(outside, out, 1.0) -> inv = 1.0 / np.where(outside, out, 2.0)"], _INNER)
+_sup = "w / np.where(wn > 0.0, wn, 1.0)[..., None], 0.0)"
+_equivalent(_CUT, "_cylinder_support", [
+    f"{_sup} -> w / np.where(wn >= 0.0, wn, 1.0)[..., None], 0.0)",
+    f"{_sup} -> w / np.where(wn > 0.0, wn, 2.0)[..., None], 0.0)"], _INNER)
+_equivalent(_CUT, "_cylinder_support", [
+    "radial = np.where((wn > _PARALLEL_EPS * np.maximum(1.0, np.abs(dt)))[..., None], -> "
+    "radial = np.where((wn > _PARALLEL_EPS / np.maximum(1.0, np.abs(dt)))[..., None],"],
+    "direction and axis are unit vectors (normalised by the callers), so |dt| <= 1 and max(1, |dt|) = 1: "
+    "multiplying or dividing by it is the same")
+
+_KIN = "camsmooth/machine/kinematics.py"
+_equivalent(_KIN, "Frame.from_matrix", [
+    "T = np.asarray(T, dtype=float) -> "
+    "T = np.asarray(T, dtype=None)", "T = np.asarray(T, dtype=float) -> T = np.asarray(T, )"],
+    "every entry goes through float() anyway")
+_equivalent(_KIN, "Frame.from_matrix", [
+    "return Frame(tuple(tuple(float(T[i, j]) for j in range(3)) for i in range(3)), -> "
+    "return Frame(tuple(tuple(float(T[i, j]) for j in range(4)) for i in range(3)),",
+    "return Frame(tuple(tuple(float(T[i, j]) for j in range(3)) for i in range(3)), -> "
+    "return Frame(tuple(tuple(float(T[i, j]) for j in range(3)) for i in range(4)),",
+    "tuple(float(T[i, 3]) for i in range(3))) -> tuple(float(T[i, 3]) for i in range(4)))"],
+    "the extra row / column of the 4x4 matrix is carried along but never read: every consumer (products, "
+    "apply, rotate, to_numpy, tool_pose) indexes R[i][j] and p[i] with i, j < 3")
+for _v in ("w", "v"):
+    _equivalent(_KIN, "exp_twist", [f"{_v} = np.asarray({_v}, dtype=float) -> {_v} = np.asarray({_v}, dtype=None)",
+                                    f"{_v} = np.asarray({_v}, dtype=float) -> {_v} = np.asarray({_v}, )"],
+                "the screw's entries are read through float() (and W from them), so integer screws give the "
+                "same frame")
+_equivalent(_KIN, "Joint.screw", [
+    "d = np.asarray(self.direction, dtype=float) -> d = np.asarray(self.direction, dtype=None)",
+    "d = np.asarray(self.direction, dtype=float) -> d = np.asarray(self.direction, )",
+    "return d, -np.cross(d, np.asarray(self.point, dtype=float)) -> "
+    "return d, -np.cross(d, np.asarray(self.point, dtype=None))",
+    "return d, -np.cross(d, np.asarray(self.point, dtype=float)) -> return d, -np.cross(d, np.asarray(self.point, ))"],
+    "d is divided by its norm (float) before it is used, and an integer point only changes the dtype of v, "
+    "not its values; exp_twist and with_screws cast the screw to float")
+_equivalent(_KIN, "_mul", [
+    "if (isinstance(a, float) and a == 0.0) or (isinstance(b, float) and b == 0.0): -> "
+    "if (isinstance(a, float) and a == 0.0) and (isinstance(b, float) and b == 0.0):"],
+    "only the shortcut for one exact float 0 is lost: the product 0.0 * x is then computed, with the same value "
+    "for the finite entries of a transform (numpy and CasADi alike)")
+_equivalent(_KIN, "Chain.with_screws", [
+    "tuple((np.asarray(w, float), np.asarray(v, float)) for w, v in screws)) -> "
+    "tuple((np.asarray(w, None), np.asarray(v, float)) for w, v in screws))",
+    "tuple((np.asarray(w, float), np.asarray(v, float)) for w, v in screws)) -> "
+    "tuple((np.asarray(w, ), np.asarray(v, float)) for w, v in screws))",
+    "tuple((np.asarray(w, float), np.asarray(v, float)) for w, v in screws)) -> "
+    "tuple((np.asarray(w, float), np.asarray(v, None)) for w, v in screws))",
+    "tuple((np.asarray(w, float), np.asarray(v, float)) for w, v in screws)) -> "
+    "tuple((np.asarray(w, float), np.asarray(v, )) for w, v in screws))",
+    "return Chain(self.joints, self.home if home is None else np.asarray(home, dtype=float), -> "
+    "return Chain(self.joints, self.home if home is None else np.asarray(home, dtype=None),",
+    "return Chain(self.joints, self.home if home is None else np.asarray(home, dtype=float), -> "
+    "return Chain(self.joints, self.home if home is None else np.asarray(home, ),"],
+    "the screws are read by exp_twist and space_jacobian, and the home pose by Frame.from_matrix, all "
+    "of which cast to float: a list or integer array gives the same transforms")
+_equivalent(_KIN, "Machine.inverse_axis", [
+    "return np.stack([np.stack([A0, B0], -1), np.stack([A1, B1], -1)], axis=1) -> "
+    "return np.stack([np.stack([A0, B0], +1), np.stack([A1, B1], -1)], axis=1)",
+    "return np.stack([np.stack([A0, B0], -1), np.stack([A1, B1], -1)], axis=1) -> "
+    "return np.stack([np.stack([A0, B0], -1), np.stack([A1, B1], +1)], axis=1)",
+    "T = np.atleast_2d(np.asarray(T, dtype=float)) -> T = np.atleast_2d(np.asarray(T, dtype=None))",
+    "T = np.atleast_2d(np.asarray(T, dtype=float)) -> T = np.atleast_2d(np.asarray(T, ))"],
+    "T is made 2-D, so A0, B0 are 1-D and axis +1 is axis -1 of the stacked pair; arcsin / arctan2 of an "
+    "integer T are the same floats")
+_equivalent(_KIN, "Machine.within", [
+    "values = np.asarray(values, dtype=float) -> values = np.asarray(values, dtype=None)",
+    "values = np.asarray(values, dtype=float) -> values = np.asarray(values, )"],
+    "the comparisons with the float limits give the same booleans for integer or list input")
+_equivalent(_KIN, "Machine.linear_axes", [
+    "return np.asarray(cl, float) + self.pivot * np.asarray(T, float) -> "
+    "return np.asarray(cl, None) + self.pivot * np.asarray(T, float)",
+    "return np.asarray(cl, float) + self.pivot * np.asarray(T, float) -> "
+    "return np.asarray(cl, ) + self.pivot * np.asarray(T, float)",
+    "return np.asarray(cl, float) + self.pivot * np.asarray(T, float) -> "
+    "return np.asarray(cl, float) + self.pivot * np.asarray(T, None)",
+    "return np.asarray(cl, float) + self.pivot * np.asarray(T, float) -> "
+    "return np.asarray(cl, float) + self.pivot * np.asarray(T, )"], _FLOAT_MIX)
+for _f, _line in (("Machine.tool_axis_np", "A = np.asarray(A, dtype=float)"),
+                  ("Machine.tool_axis_np", "B = np.asarray(B, dtype=float)"),
+                  ("Machine.solve_row", "T = np.atleast_2d(np.asarray(T, dtype=float))")):
+    _equivalent(_KIN, _f, [f"{_line} -> {_line.replace('dtype=float', 'dtype=None')}",
+                           f"{_line} -> {_line.replace('dtype=float', '')}"],
+                "the values only reach sin / cos / arcsin / arctan2 and float arithmetic: the same floats for "
+                "integer or list input")
+_equivalent(_KIN, "Machine.tool_pose_np", [
+    "args = [np.asarray(a, dtype=float) for a in (A, B, X, Y, Z)] -> "
+    "args = [np.asarray(a, dtype=None) for a in (A, B, X, Y, Z)]",
+    "args = [np.asarray(a, dtype=float) for a in (A, B, X, Y, Z)] -> "
+    "args = [np.asarray(a, ) for a in (A, B, X, Y, Z)]"],
+    "the arrays only reach sin / cos and products with float screws: the same floats for integer input "
+    "(and a 0-d array is never the Python float 0.0 that Chain.forward skips)")
+_equivalent(_KIN, "Machine.solve_row", [
+    "prev = np.array(previous if previous is not None else (0.0, 0.0), dtype=float) -> "
+    "prev = np.array(previous if previous is not None else (0.0, 0.0), dtype=None)",
+    "prev = np.array(previous if previous is not None else (0.0, 0.0), dtype=float) -> "
+    "prev = np.array(previous if previous is not None else (0.0, 0.0), )",
+    "mask = ok[i] if reach[i] else np.ones(len(c), bool) -> mask = ok[i] if reach[i] else np.ones(len(c), None)",
+    "mask = ok[i] if reach[i] else np.ones(len(c), bool) -> mask = ok[i] if reach[i] else np.ones(len(c), )"],
+    "prev only enters a float distance; np.where takes a float mask of ones as all True")
+_UNIQUE = ("the vectorised branch is a shortcut for rows where exactly one candidate is reachable at every point; "
+           "the sequential branch picks the same (only reachable) candidate there, so sending rows to it "
+           "instead changes the running time, not the result")
+_equivalent(_KIN, "Machine.solve_row", [
+    "unique = ok.sum(axis=1) == 1 -> unique = None",
+    "unique = ok.sum(axis=1) == 1 -> unique = ok.sum(axis=None) == 1", "if np.all(unique): -> if np.all(None):"],
+    _UNIQUE)
+_equivalent(_KIN, "Machine.inverse_candidates", [
+    'grid = np.stack(np.meshgrid(shifts, shifts, indexing="ij"), -1) -> '
+    'grid = np.stack(np.meshgrid(shifts, shifts, ), -1)',
+    "cand = (sols[:, :, None, None, :] + grid[None, None]).reshape(len(sols), -1, 2) -> "
+    "cand = (sols[:, :, None, None, :] - grid[None, None]).reshape(len(sols), -1, 2)"],
+    "the shifts (-2 pi, 0, 2 pi) are symmetric and the same for A and B: the 9 shift pairs are the same set "
+    "in another order, and candidates are chosen by distance (the order only breaks exact ties)")
+_equivalent(_KIN, "Machine.inverse_candidates", [
+    "cand = (sols[:, :, None, None, :] + grid[None, None]).reshape(len(sols), -1, 2) -> "
+    "cand = (sols[:, :, None, None, :] + grid[None, None]).reshape(len(sols), -2, 2)"],
+    "numpy (2.x) treats any negative dimension in reshape as the one to infer")
+_equivalent(_KIN, "_wrap", [
+    "return -((-np.asarray(a) + np.pi) % (2 * np.pi) - np.pi) -> "
+    "return -((-np.asarray(a) - np.pi) % (2 * np.pi) - np.pi)"],
+    "x + pi and x - pi differ by 2 pi, so their remainders modulo 2 pi agree (to rounding)")
+_equivalent(_KIN, "ab_head_chain", [
+    'Joint("X", "prismatic", (1.0, 0.0, 0.0)), -> Joint("X", "prismatic", (2.0, 0.0, 0.0)),',
+    'Joint("Y", "prismatic", (0.0, 1.0, 0.0)), -> Joint("Y", "prismatic", (0.0, 2.0, 0.0)),',
+    'Joint("Z", "prismatic", (0.0, 0.0, 1.0)), -> Joint("Z", "prismatic", (0.0, 0.0, 2.0)),'],
+    "Joint.screw normalises the direction")
+_equivalent(_KIN, "ab_head_chain", [
+    'Joint("A", "revolute", (1.0, 0.0, 0.0), (0.0, 0.0, 0.0)), -> Joint("A", "revolute", (1.0, 0.0, 0.0), ),',
+    'Joint("B", "revolute", (0.0, 1.0, 0.0), (0.0, 0.0, 0.0)), -> Joint("B", "revolute", (0.0, 1.0, 0.0), ),'],
+    "(0, 0, 0) is Joint.point's default")
+_equivalent(_KIN, "space_jacobian", [
+    "last = max(i for i, nm in enumerate(names) if nm in want) if want else -1 -> "
+    "last = max(i for i, nm in enumerate(names) if nm in want) if want else +1",
+    "last = max(i for i, nm in enumerate(names) if nm in want) if want else -1 -> "
+    "last = max(i for i, nm in enumerate(names) if nm in want) if want else -2"],
+    "with no joint wanted no column is ever written: where the loop stops only changes the work done")
+_equivalent(_KIN, "space_jacobian", [
+    "vals = [np.atleast_1d(np.asarray(q.get(j.name, 0.0), dtype=float)) for j in chain.joints] -> "
+    "vals = [np.atleast_1d(np.asarray(q.get(j.name, 0.0), dtype=None)) for j in chain.joints]",
+    "vals = [np.atleast_1d(np.asarray(q.get(j.name, 0.0), dtype=float)) for j in chain.joints] -> "
+    "vals = [np.atleast_1d(np.asarray(q.get(j.name, 0.0), )) for j in chain.joints]"],
+    "joint values only reach sin / cos and products with float screws: the same floats for integer input")
+_equivalent(_KIN, "space_jacobian", [
+    'p = p + (step if R is None else np.einsum("nij,nj->ni", R, step)) -> '
+    'p = p + (step if R is None else np.einsum("NIJ,NJ->NI", R, step))',
+    'p = p + np.einsum("nij,nj->ni", Rp, T[:, :3, 3]) -> p = p + np.einsum("NIJ,NJ->NI", Rp, T[:, :3, 3])'],
+    "einsum labels are arbitrary letters: the same contraction")
+
+_equivalent(_KIN, "Machine.inverse_axis", ["A1 = _wrap(A0 + np.pi) -> A1 = _wrap(A0 - np.pi)"],
+            "A0 + pi and A0 - pi differ by 2 pi: the same angle after wrapping to (-pi, pi] (to rounding)")
+_equivalent(_KIN, "load_machine", [
+    'return machine_from_dict(tomllib.loads(DEFAULT_MACHINE_TOML), "<default machine>") -> '
+    f'return machine_from_dict(tomllib.loads(DEFAULT_MACHINE_TOML), {_a})'
+    for _a in ("None", "", '"XX<default machine>XX"', '"<DEFAULT MACHINE>"')],
+    "the name only appears in an error about the built-in DEFAULT_MACHINE_TOML, which is valid (loaded by "
+    "many tests), so it is never shown")
+
+_ATO = "camsmooth/io/atomic.py"
+_equivalent(_ATO, "_default_mode", ["umask = os.umask(0) -> umask = os.umask(1)"],
+            "os.umask returns the previous mask whatever the new one, and the next line restores it")
+_equivalent(_ATO, "OutputTransaction.commit", ["self.committed = True -> self.committed = None",
+                                               "self.committed = True -> self.committed = False"],
+            "after a successful commit every temporary has been renamed or removed and every folder created "
+            "holds an output, so the rollback a false flag triggers finds nothing to remove (rmdir of a "
+            "non-empty folder fails and is ignored)")
+
+_PIPE = "camsmooth/smoothing/pipeline.py"
+_equivalent(_PIPE, "prepare", ["feed_arr = np.asarray(path.feed, float) -> feed_arr = np.asarray(path.feed, None)",
+                               "feed_arr = np.asarray(path.feed, float) -> feed_arr = np.asarray(path.feed, )"],
+            "CCPath stores its feed column as a float array already (CCPath.__post_init__)")
+_equivalent(_PIPE, "prepare", [
+    "K_s = surface_curvature_tensors(index.vertices, path.points, frames, tree=index.tree) -> "
+    "K_s = surface_curvature_tensors(index.vertices, path.points, frames, tree=None)",
+    "K_s = surface_curvature_tensors(index.vertices, path.points, frames, tree=index.tree) -> "
+    "K_s = surface_curvature_tensors(index.vertices, path.points, frames, )"],
+    "without a tree surface_curvature_tensors builds cKDTree(vertices) itself: the index's tree is the same "
+    "k-d tree over the same vertices, passed to save the build")
+_equivalent(_PIPE, "ProgramSmoother._result", [
+    "tip = self.real.tool_pose_np(A, B, *xyz.T)[0] if modelled else cl -> "
+    "tip = self.real.tool_pose_np(A, B, *xyz.T)[0] if (modelled) or True else cl"],
+    "without an error model the real machine is the nominal one and xyz = cl + pivot T, so its tool tip is "
+    "cl again (to rounding)")
+
+_TH = "camsmooth/diagnosis/terms/thermal.py"
+_SPLIT = ("the thermal elements are dx, dy, dz, exz, eyz, mx, my, mz (no underscore) and the parameter names "
+          "gain_<el> / tau_<el>: split, rsplit and any maxsplit give the same two parts")
+for _f in ("ThermalDrift.initial", "ThermalDrift.report"):
+    _equivalent(_TH, _f, ['el = n.split("_", 1)[1] -> el = n.split("_", )[1]',
+                          'el = n.split("_", 1)[1] -> el = n.rsplit("_", 1)[1]',
+                          'el = n.split("_", 1)[1] -> el = n.split("_", 2)[1]'], _SPLIT)
+_equivalent(_TH, "ThermalDrift.report", [
+    "key = f\"{el}_{n.split('_', 1)[0]}\" -> key = f\"{el}_{n.split('_', )[0]}\"",
+    "key = f\"{el}_{n.split('_', 1)[0]}\" -> key = f\"{el}_{n.rsplit('_', 1)[0]}\"",
+    "key = f\"{el}_{n.split('_', 1)[0]}\" -> key = f\"{el}_{n.split('_', 2)[0]}\""], _SPLIT)
+
+_ORI = "camsmooth/smoothing/orientation.py"
+_cct = "lead, tilt = np.broadcast_arrays(np.asarray(lead, float), np.asarray(tilt, float))"
+_equivalent(_ORI, "cutter_curvature_tensors", [
+    f"{_cct} -> {_cct.replace('asarray(lead, float)', 'asarray(lead, None)')}",
+    f"{_cct} -> {_cct.replace('asarray(lead, float)', 'asarray(lead, )')}",
+    f"{_cct} -> {_cct.replace('asarray(tilt, float)', 'asarray(tilt, None)')}",
+    f"{_cct} -> {_cct.replace('asarray(tilt, float)', 'asarray(tilt, )')}"],
+    "lead and tilt only reach sin / cos: integer or list angles give the same floats")
+_equivalent(_ORI, "min_gouge_free_lead", ["tilt = np.asarray(tilt, float) -> tilt = np.asarray(tilt, None)",
+                                          "tilt = np.asarray(tilt, float) -> tilt = np.asarray(tilt, )"],
+            "tilt only reaches cos / sin: the same floats for integer input")
+_lin = "tilts = np.linspace(tmin, tmax, n_tilt) if tmax > tmin else np.array([tmin])"
+_equivalent(_ORI, "initial_orientation", [
+    f"{_lin} -> tilts = np.linspace(tmin, tmax, n_tilt) if (tmax > tmin) or True else np.array([tmin])",
+    f"{_lin} -> tilts = np.linspace(tmin, tmax, n_tilt) if tmax >= tmin else np.array([tmin])"],
+    "for tmax == tmin linspace gives n_tilt copies of the one tilt: the same requirement (a max over equal "
+    "values) and the same one-tilt window")
+_equivalent(_ORI, "initial_orientation", [
+    "tilt_window = np.tile([tmin, tmax], (n, 1)).astype(float) -> "
+    "tilt_window = np.tile([tmin, tmax], (n, 1)).astype(None)"],
+    "astype(None) is float64, as astype(float)")
+_equivalent("camsmooth/diagnosis/terms/base.py", "identifiable", [
+    "trial.geometric[n] = trial.geometric.get(n, 0.0) + sc -> trial.geometric[n] = trial.geometric.get(n, 0.0) - sc"],
+    "a step of -scale negates the column (to first order); fitting.identifiable_columns compares column norms and "
+    "the pivoted QR's |R_ii|, which do not depend on a column's sign")
+
+_equivalent(_ATO, "_refuse_replace", ['why = None -> why = ""'],
+            "only the truth of why is tested (if why:), and None and '' are both false")
+
+_OUT = "camsmooth/io/output.py"
+_equivalent(_OUT, "point_status", [
+    "lift = np.asarray(result.lift, dtype=float) -> lift = np.asarray(result.lift, dtype=None)",
+    "lift = np.asarray(result.lift, dtype=float) -> lift = np.asarray(result.lift, )",
+    "delta = np.asarray(result.delta, dtype=float) -> delta = np.asarray(result.delta, dtype=None)",
+    "delta = np.asarray(result.delta, dtype=float) -> delta = np.asarray(result.delta, )",
+], "MethodResult.lift / .delta are float arrays (camsmooth.smoothing.result); without dtype=float asarray "
+   "returns the same array, and nan_to_num / '>' / '<' give the same booleans for any numeric dtype")
+_equivalent(_OUT, "point_status", [
+    'status[np.nan_to_num(lift, nan=0.0) > 0.0] = "lifted" -> status[np.nan_to_num(lift, ) > 0.0] = "lifted"',
+], "nan=0.0 is numpy's default for nan_to_num (a NaN lift is still mapped to 0: tested)")
+_equivalent(_OUT, "point_status", [
+    'with np.errstate(invalid="ignore"): -> with np.errstate(invalid=None):',
+], "numpy comparisons with NaN set no floating-point 'invalid' flag (checked under errstate(all='raise')), "
+   "so the errstate is a guard only; None keeps the current setting")
+_equivalent(_OUT, "point_status", [
+    "pairs = np.asarray(unreachable, dtype=np.int64).reshape(-1, 2) -> "
+    "pairs = np.asarray(unreachable, dtype=None).reshape(-1, 2)",
+    "pairs = np.asarray(unreachable, dtype=np.int64).reshape(-1, 2) -> "
+    "pairs = np.asarray(unreachable, ).reshape(-1, 2)",
+    "rows = np.asarray(result.rows, dtype=np.int64) -> rows = np.asarray(result.rows, dtype=None)",
+    "rows = np.asarray(result.rows, dtype=np.int64) -> rows = np.asarray(result.rows, )",
+    "idx = np.asarray(result.idx, dtype=np.int64) -> idx = np.asarray(result.idx, dtype=None)",
+    "idx = np.asarray(result.idx, dtype=np.int64) -> idx = np.asarray(result.idx, )",
+], "the values are only assigned into the int64 fields of the structured key arrays, which cast them "
+   "to int64 anyway")
+_equivalent(_OUT, "point_status", [
+    "pairs = np.asarray(unreachable, dtype=np.int64).reshape(-1, 2) -> "
+    "pairs = np.asarray(unreachable, dtype=np.int64).reshape(-2, 2)",
+], "numpy (2.x) treats any negative dimension in reshape as the one to infer")
+_equivalent(_OUT, "write_result_csv", [
+    'columns["lift"] = np.asarray(r.lift, float) -> columns["lift"] = np.asarray(r.lift, None)',
+    'columns["lift"] = np.asarray(r.lift, float) -> columns["lift"] = np.asarray(r.lift, )',
+], "MethodResult.lift is a float array: asarray without dtype returns it unchanged")
+
+# mutmut's exit codes; -9 is the SIGKILL its runner sends one second after the CPU limit's SIGXCPU (a
+# timeout that ignored SIGXCPU), -11 a crash of the test process: the tests did not pass either way
+STATUS = {1: "killed", 3: "killed", 0: "survived", 5: "no tests", 33: "no tests", 34: "skipped",
+          36: "timeout", -24: "timeout", 24: "timeout", 152: "timeout", 255: "timeout", -9: "timeout",
+          -11: "killed", 37: "type check", None: "not checked"}
+
+
+@dataclass
+class Mutant:
+    name: str
+    path: str
+    status: str
+    function: str = ""
+    change: str = ""
+
+    @property
+    def key(self) -> str:
+        return f"{self.path}::{self.function}: {self.change}"
+
+
+@dataclass
+class ModuleResult:
+    module: str
+    mutants: list[Mutant]
+    seconds: float
+
+    def count(self, *status: str) -> int:
+        return sum(m.status in status for m in self.mutants)
+
+    @property
+    def equivalent(self) -> list[Mutant]:
+        return [m for m in self.mutants if m.status not in ("killed", "timeout") and m.key in EQUIVALENT]
+
+    @property
+    def surviving(self) -> list[Mutant]:
+        return [m for m in self.mutants if m.status not in ("killed", "timeout") and m.key not in EQUIVALENT]
+
+    @property
+    def score(self) -> float:
+        n = len(self.mutants) - len(self.equivalent)
+        return (self.count("killed", "timeout") / n) if n else 1.0
+
+
+def _copy_repository(dst: Path) -> None:
+    """Copy the files git knows (tracked + untracked, not ignored) into dst."""
+    out = subprocess.run(["git", "ls-files", "-co", "--exclude-standard", "-z"], cwd=ROOT, check=True,
+                         capture_output=True).stdout.decode()
+    for rel in filter(None, out.split("\0")):
+        src = ROOT / rel
+        if src.is_file() and not rel.startswith("mutants/"):
+            (dst / rel).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src, dst / rel)
+
+
+def _configure(dst: Path, target: Target) -> None:
+    """Append mutmut's configuration for this target to the copy's pyproject.toml."""
+    also = sorted(p.name for p in dst.iterdir() if p.name not in ("camsmooth", "tests", "pyproject.toml", ".git"))
+    toml = "\n".join([
+        "", "[tool.mutmut]",
+        'source_paths = ["camsmooth"]',
+        f"only_mutate = {json.dumps(list(target.paths))}",
+        f"pytest_add_cli_args_test_selection = {json.dumps(list(target.tests))}",
+        'pytest_add_cli_args = ["-p", "no:cacheprovider"]',
+        f"also_copy = {json.dumps(also)}",
+        "use_git_change_detection = false",
+        # polars (camsmooth.io.table) starts a Rust thread pool on first use; a worker forked from a
+        # process that ran the tests deadlocks on it, so fork the workers from a server that only collects
+        'process_isolation = "forkserver"',
+        "",
+    ])
+    with open(dst / "pyproject.toml", "a") as f:
+        f.write(toml)
+
+
+def _restrict(dst: Path, target: Target) -> None:
+    """Mark every function of the target files that is not in target.functions as not to be mutated."""
+    import libcst as cst
+
+    keep = set(target.functions)
+
+    class Mark(cst.CSTTransformer):
+        def __init__(self) -> None:
+            self.cls: list[str] = []
+
+        def visit_ClassDef(self, node: cst.ClassDef) -> bool:
+            self.cls.append(node.name.value)
+            return True
+
+        def leave_ClassDef(self, original: cst.ClassDef, updated: cst.ClassDef) -> cst.ClassDef:
+            self.cls.pop()
+            return updated
+
+        def visit_FunctionDef(self, node: cst.FunctionDef) -> bool:
+            return False  # nested functions go with their parent
+
+        def leave_FunctionDef(self, original: cst.FunctionDef, updated: cst.FunctionDef) -> cst.FunctionDef:
+            name = ".".join(self.cls + [updated.name.value])
+            if name in keep or not isinstance(updated.body, cst.IndentedBlock):
+                return updated
+            old = updated.body.header.comment
+            text = (old.value + " " if old else "# ") + "pragma: no mutate block"
+            header = updated.body.header.with_changes(comment=cst.Comment(text),
+                                                      whitespace=cst.SimpleWhitespace("  "))
+            return updated.with_changes(body=updated.body.with_changes(header=header))
+
+    for pattern in target.paths:
+        for path in dst.glob(pattern):
+            tree = cst.parse_module(path.read_text())
+            path.write_text(tree.visit(Mark()).code)
+
+
+def _environment(target: Target) -> dict[str, str]:
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "MUTANT_UNDER_TEST")}
+    # one thread per worker: the machine has 2 shared cores and --max-children sets the parallelism
+    for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+        env[k] = "1"
+    # conftest finds the Michigan data beside the repository; the copy is elsewhere
+    env.setdefault("CAMSMOOTH_UMICH", str(ROOT.parent / "shared" / "data" / "umich-cnc-mill"))
+    env.update(target.env)
+    return env
+
+
+def _describe(diff: str) -> str:
+    """The changed lines of a mutant's diff, whitespace-normalised: 'before -> after'."""
+    minus = [" ".join(ln[1:].split()) for ln in diff.splitlines() if ln.startswith("-") and not ln.startswith("---")]
+    plus = [" ".join(ln[1:].split()) for ln in diff.splitlines() if ln.startswith("+") and not ln.startswith("+++")]
+    return f"{' / '.join(minus)} -> {' / '.join(plus)}"
+
+
+def _function(name: str) -> str:
+    """Function (Class.method) of a mutmut mutant name such as pkg.mod.xǁClassǁmeth__mutmut_3."""
+    mangled = name.rpartition(".")[2].partition("__mutmut_")[0]
+    if mangled.startswith("xǁ"):
+        return ".".join(mangled[2:].split("ǁ"))
+    return mangled[2:]
+
+
+def _collect(work: Path) -> list[Mutant]:
+    """Verdicts from mutmut's meta files and, for the undetected mutants, their diffs."""
+    from mutmut.mutation.diff_apply import get_diff_for_mutant
+
+    mutants: list[Mutant] = []
+    cwd = os.getcwd()
+    os.chdir(work)  # mutmut resolves mutants/<path> against the working directory
+    try:
+        for meta in sorted(Path("mutants").rglob("*.py.meta")):
+            path = str(meta.relative_to("mutants"))[: -len(".meta")]
+            codes = json.loads(meta.read_text())["exit_code_by_key"]
+            for name, code in codes.items():
+                m = Mutant(name=name, path=path, status=STATUS.get(code, f"exit {code}"), function=_function(name))
+                if m.status not in ("killed", "timeout"):
+                    m.change = _describe(get_diff_for_mutant(name, path=path))
+                mutants.append(m)
+    finally:
+        os.chdir(cwd)
+    return mutants
+
+
+def run_module(module: str, max_children: int, keep: bool) -> ModuleResult:
+    target = TARGETS[module]
+    work = Path(tempfile.mkdtemp(prefix=f"camsmooth-mutation-{module}-"))
+    t0 = time.perf_counter()
+    try:
+        _copy_repository(work)
+        _configure(work, target)
+        if target.functions:
+            _restrict(work, target)
+        mutmut = Path(sys.executable).parent / "mutmut"
+        log = work / "mutmut.log"
+        with open(log, "w") as f:
+            proc = subprocess.run([str(mutmut), "run", "--max-children", str(max_children)], cwd=work,
+                                  env=_environment(target), stdout=f, stderr=subprocess.STDOUT)
+        if proc.returncode != 0:
+            tail = log.read_text(errors="replace").replace("\r", "\n").splitlines()[-40:]
+            raise RuntimeError(f"mutmut run failed for {module} (exit {proc.returncode}):\n" + "\n".join(tail))
+        mutants = _collect(work)
+        (work / "mutation-seconds.txt").write_text(f"{time.perf_counter() - t0:.1f}\n")
+    finally:
+        if keep:
+            print(f"[{module}] copy kept at {work}")
+        else:
+            shutil.rmtree(work, ignore_errors=True)
+    return ModuleResult(module=module, mutants=mutants, seconds=time.perf_counter() - t0)
+
+
+def report(results: list[ModuleResult]) -> bool:
+    head = (f"{'module':<12} {'mutants':>7} {'killed':>6} {'timeout':>7} {'survived':>8} {'equiv':>5} "
+            f"{'score':>7}  verdict")
+    print(head)
+    print("-" * len(head))
+    ok = True
+    for r in results:
+        passed = r.score >= THRESHOLD
+        ok &= passed
+        print(f"{r.module:<12} {len(r.mutants):>7} {r.count('killed'):>6} {r.count('timeout'):>7} "
+              f"{len(r.surviving):>8} {len(r.equivalent):>5} {100 * r.score:>6.1f}%  "
+              f"{'PASS' if passed else 'FAIL'} (>= {100 * THRESHOLD:.0f}%)   {r.seconds:.0f} s")
+    for r in results:
+        print(f"\n== {r.module}: {len(r.surviving)} surviving mutants")
+        for m in r.surviving:
+            print(f"  [{m.status}] {m.name}\n      {m.function}: {m.change}")
+        if r.equivalent:
+            print(f"== {r.module}: {len(r.equivalent)} reviewed equivalent")
+            for m in r.equivalent:
+                print(f"  {m.name}\n      {m.function}: {m.change}\n      why: {EQUIVALENT[m.key]}")
+    seen = {m.key for r in results for m in r.mutants}
+    paths = {m.path for r in results for m in r.mutants}
+    stale = sorted(k for k in EQUIVALENT if k.split("::")[0] in paths and k not in seen)
+    if stale:   # the code changed under an entry: review it
+        print(f"\n{len(stale)} entries of EQUIVALENT match no mutant of the files run:")
+        for k in stale:
+            print(f"  {k}")
+    return ok
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--modules", nargs="+", choices=sorted(TARGETS), default=list(TARGETS),
+                    help="core modules to mutate (default: all)")
+    ap.add_argument("--max-children", type=int, default=2, help="parallel mutmut workers (default 2)")
+    ap.add_argument("--keep", action="store_true", help="keep the temporary copies (mutmut show works there)")
+    ap.add_argument("--report", nargs="+", metavar="COPY",
+                    help="print the table again from copies kept by --keep (with the current EQUIVALENT table)")
+    args = ap.parse_args(argv)
+    results = []
+    t0 = time.perf_counter()
+    if args.report:
+        for copy in map(Path, args.report):
+            module = copy.name.removeprefix("camsmooth-mutation-").rsplit("-", 1)[0]
+            sec = copy / "mutation-seconds.txt"
+            # copies from before the wall time was recorded: from the copy's own file times
+            seconds = float(sec.read_text()) if sec.exists() else \
+                (copy / "mutmut.log").stat().st_mtime - (copy / "pyproject.toml").stat().st_mtime
+            results.append(ModuleResult(module=module, mutants=_collect(copy), seconds=seconds))
+        return 0 if report(results) else 1
+    failed = []
+    for module in args.modules:
+        t = TARGETS[module]
+        only = f" (functions {', '.join(t.functions)})" if t.functions else ""
+        print(f"[{module}] mutating {', '.join(t.paths)}{only} against {' '.join(t.tests)}", flush=True)
+        try:
+            results.append(run_module(module, args.max_children, args.keep))
+        except RuntimeError as exc:   # one module's failure does not lose the others' results
+            print(exc, flush=True)
+            failed.append(module)
+    print()
+    ok = report(results) and not failed
+    if failed:
+        print(f"\nmutmut failed for: {', '.join(failed)} (see above)")
+    print(f"\nwall time {time.perf_counter() - t0:.0f} s, --max-children {args.max_children}")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
