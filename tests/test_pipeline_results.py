@@ -82,9 +82,9 @@ def test_result_carries_lifted_tips_their_clearance_and_the_rates(setup):
     np.testing.assert_array_equal(r.A_acc, ra.acc)
     np.testing.assert_array_equal(r.B_acc, rb.acc)
     np.testing.assert_allclose(r.compound_acc, np.linalg.norm(rt.acc, axis=1), rtol=1e-15)
-    assert r.metrics["gamma"] == pytest.approx(float(np.sum(rt.sec ** 2)), rel=1e-15)
-    assert r.metrics["unreachable"] == [(int(program.path.rows[4]), int(program.idx[4]))]
-    assert r.metrics["runtime_s"] == 0.5
+    assert r.metrics.gamma == pytest.approx(float(np.sum(rt.sec ** 2)), rel=1e-15)
+    assert r.metrics.unreachable == [(int(program.path.rows[4]), int(program.idx[4]))]
+    assert r.metrics.runtime_s == 0.5
     # given tool tips (a CAM program's own) are used as they are, lifted along the normal
     tips = cl - lift[:, None] * nrm + np.array([0.0, 0.0, 3.0])
     with sm:
