@@ -245,3 +245,22 @@ def test_raster_path_by_axial_drop_on_a_mesh_then_smooth(wavy):
     assert np.min(np.sum(cc.normals[inside] * n_true[inside], axis=1)) > np.cos(np.radians(1.0))
     res = camsmooth.smooth(cc, surf, None, CUTTER, feed=2000.0, lead_range=LEAD, tilt_range=TILT, method="spline")
     assert res.result.metrics.min_delta >= -1e-3
+
+
+@pytest.mark.parametrize("compensate", [False, True])
+def test_tool_length_error_metrics_in_closed_form(wavy, compensate):
+    """A tool 20 um longer than nominal (EZ0T) moves the real tip 20 um along -T at every pose and
+    leaves the axis as it is: uncompensated tip error 20 um everywhere, axis error 0; compensated
+    (the linear axes moved to put the real tip on the CL point) the tip error vanishes."""
+    from camsmooth.machine.model import ErrorModel
+
+    surf, path = wavy
+    one = CCPath(path.points[path.rows == 0], path.normals[path.rows == 0], path.rows[path.rows == 0],
+                 path.feed_dirs[path.rows == 0], path.feed[path.rows == 0], "one row")
+    res = smooth(one, surf, None, CUTTER, lead_range=LEAD, tilt_range=TILT, method="nlp",
+                 model=ErrorModel(geometric={"EZ0T": 0.020}), compensate=compensate)
+    m = res.methods["nlp"].metrics
+    assert m.compensated is compensate
+    assert m.tip_error_um_max_uncompensated == pytest.approx(20.0, abs=1e-6)
+    assert m.axis_error_urad_max == pytest.approx(0.0, abs=1e-3)
+    assert m.tip_error_um_max == pytest.approx(0.0 if compensate else 20.0, abs=1e-6)

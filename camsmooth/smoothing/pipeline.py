@@ -407,8 +407,9 @@ class ProgramSmoother:
             res.metrics.tip_error_um_max = float(1e3 * np.max(np.linalg.norm(tip_real - cl, axis=1)))
             res.metrics.tip_error_um_max_uncompensated = float(
                 1e3 * np.max(np.linalg.norm(tip_unc - cl, axis=1)))
-            res.metrics.axis_error_urad_max = float(1e6 * np.max(np.arccos(np.clip(
-                np.sum(ideal_axis * T, axis=1), -1, 1))))
+            # atan2(|a x b|, a.b): arccos near 1 would give ~1e-8 rad of rounding
+            res.metrics.axis_error_urad_max = float(1e6 * np.max(np.arctan2(
+                np.linalg.norm(np.cross(ideal_axis, T), axis=1), np.sum(ideal_axis * T, axis=1))))
             res.metrics.compensated = bool(self.compensate)
         return res
 
