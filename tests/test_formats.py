@@ -432,3 +432,12 @@ def test_apt_long_goto_runs_match_record_by_record(tmp_path):
     with pytest.raises(InputError) as exc:
         read_apt(_write(tmp_path, "bad.cls", head + "\n".join(bad) + "\n"))
     assert exc.value.line == 4 + 37 and "'x' is not a number" in str(exc.value)
+
+
+def test_table_text_columns_quotes_commas_blanks(tmp_path):
+    # a quoted text cell may hold the delimiter; text is stripped; an empty text cell stays empty
+    p = _write(tmp_path, "t.csv", 'x,note,y\n1," a, b ",2\n3,plain ,4\n5,,6\n')
+    t = read_table(p, ["x", "y"], ["note"], text=["note"])
+    assert t["note"].tolist() == ["a, b", "plain", ""]
+    np.testing.assert_array_equal(t["x"], [1, 3, 5])
+    np.testing.assert_array_equal(t["y"], [2, 4, 6])
