@@ -100,6 +100,11 @@ TARGETS: dict[str, Target] = {
         "--deselect", "tests/test_pipeline.py::test_cli_smooth_writes_csv_gcode_report"),
                        functions=("row_times", "Program.name", "prepare", "ProgramSmoother.metrics",
                                   "ProgramSmoother._result", "_linear_axes_for_tip")),
+    # the NLP against the fast tests that certify its results with the independent reference formulation
+    # (benchmarks/reference_nlp.py: KKT residual by automatic differentiation), check its derivatives against
+    # automatic differentiation and recompute every limit (30-point rows; a second each)
+    "nlp": Target(("camsmooth/smoothing/nlp.py",),
+                  ("tests/test_nlp.py", "tests/test_smoothing.py", "tests/test_oracles.py")),
     # the three brute-force comparisons of test_interference.py (25 s, 7 s, 6 s) are left out: every
     # surviving mutant would rerun them; the closed-form and agreement tests of the file stay in
     "clearance": Target(("camsmooth/geometry/clearance.py",), (

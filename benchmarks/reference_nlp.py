@@ -42,10 +42,24 @@ def gamma_of(machine: Machine, A: np.ndarray, B: np.ndarray, t: np.ndarray) -> f
     return float(np.sum(second_differences(machine.tool_axis_np(A, B), t) ** 2))
 
 
-def build(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_w: np.ndarray, tilt_w: np.ndarray,
-          floor: np.ndarray | None = None, ceiling: np.ndarray | None = None, has_floor: np.ndarray | None = None,
-          has_ceiling: np.ndarray | None = None, tol: float = 1e-8) -> tuple[ca.Function, np.ndarray, ...]:
-    """The plain NLP of one row (module docstring) as an IPOPT solver and its bounds."""
+@dataclass(frozen=True)
+class Formulation:
+    """The plain NLP of one row: variables x = (A_0, B_0, A_1, ...) rad, objective f, constraint
+    rows g with bounds lbg <= g <= ubg and box bounds lbx <= x <= ubx (CasADi SX)."""
+
+    x: ca.SX
+    f: ca.SX
+    g: ca.SX
+    lbx: np.ndarray
+    ubx: np.ndarray
+    lbg: np.ndarray
+    ubg: np.ndarray
+
+
+def formulate(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_w: np.ndarray, tilt_w: np.ndarray,
+              floor: np.ndarray | None = None, ceiling: np.ndarray | None = None, has_floor: np.ndarray | None = None,
+              has_ceiling: np.ndarray | None = None) -> Formulation:
+    """The plain NLP of one row (module docstring)."""
     n = len(t)
     x = ca.SX.sym("x", 2 * n)
     A, B = x[0::2], x[1::2]
@@ -77,12 +91,58 @@ def build(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_w: np.ndarra
         g.append(lead[k.tolist()] - bound)
         lbg.append(np.full(len(k), -np.inf if upper else 0.0))
         ubg.append(np.full(len(k), 0.0 if upper else np.inf))
-    solver = ca.nlpsol("reference", "ipopt", {"x": x, "f": f, "g": ca.vertcat(*g)},
-                       {"ipopt.print_level": 0, "print_time": 0, "ipopt.sb": "yes", "ipopt.tol": tol,
-                        "ipopt.max_iter": 3000})
     lbx = np.tile([lim["A"].min, lim["B"].min], n)
     ubx = np.tile([lim["A"].max, lim["B"].max], n)
-    return solver, lbx, ubx, np.concatenate(lbg), np.concatenate(ubg)
+    return Formulation(x, f, ca.vertcat(*g), lbx, ubx, np.concatenate(lbg), np.concatenate(ubg))
+
+
+def build(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_w: np.ndarray, tilt_w: np.ndarray,
+          floor: np.ndarray | None = None, ceiling: np.ndarray | None = None, has_floor: np.ndarray | None = None,
+          has_ceiling: np.ndarray | None = None, tol: float = 1e-8) -> tuple[ca.Function, np.ndarray, ...]:
+    """The plain NLP of one row (module docstring) as an IPOPT solver and its bounds."""
+    fm = formulate(machine, t, frames, lead_w, tilt_w, floor, ceiling, has_floor, has_ceiling)
+    solver = ca.nlpsol("reference", "ipopt", {"x": fm.x, "f": fm.f, "g": fm.g},
+                       {"ipopt.print_level": 0, "print_time": 0, "ipopt.sb": "yes", "ipopt.tol": tol,
+                        "ipopt.max_iter": 3000})
+    return solver, fm.lbx, fm.ubx, fm.lbg, fm.ubg
+
+
+@dataclass(frozen=True)
+class Stationarity:
+    """First-order optimality of a point in the plain formulation: the largest violation of a
+    bound (in each row's units), the number of active rows (within ``active_tol`` of a bound) and
+    the stationarity residual |grad f + sum mu_i grad c_i| / |grad f| with the best multipliers
+    mu >= 0 of the active rows (non-negative least squares)."""
+
+    violation: float
+    active: int
+    residual: float
+
+
+def stationarity(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_w: np.ndarray, tilt_w: np.ndarray,
+                 A: np.ndarray, B: np.ndarray, active_tol: float = 1e-6, **bounds) -> Stationarity:
+    """How far (A, B) (rad) is from a KKT point of the plain NLP (``Stationarity``); derivatives
+    by CasADi's automatic differentiation of ``formulate``, multipliers by scipy's NNLS."""
+    from scipy.optimize import nnls
+
+    fm = formulate(machine, t, frames, lead_w, tilt_w, **bounds)
+    ev = ca.Function("ev", [fm.x], [fm.g, ca.gradient(fm.f, fm.x), ca.jacobian(fm.g, fm.x)])
+    xv = np.empty(2 * len(t))
+    xv[0::2], xv[1::2] = A, B
+    g, grad, J = (np.asarray(ca.DM(v)) for v in ev(xv))
+    g, grad, J = g.ravel(), grad.ravel(), J.reshape(len(g), len(xv))
+    viol = max(float(np.max(fm.lbg - g, initial=0.0)), float(np.max(g - fm.ubg, initial=0.0)),
+               float(np.max(fm.lbx - xv, initial=0.0)), float(np.max(xv - fm.ubx, initial=0.0)))
+    eye = np.eye(len(xv))
+    # minimise f: at an upper bound grad f + mu grad c = 0, at a lower bound grad f - mu grad c = 0
+    cols = [J[g >= fm.ubg - active_tol], -J[g <= fm.lbg + active_tol],
+            eye[xv >= fm.ubx - active_tol], -eye[xv <= fm.lbx + active_tol]]
+    G = np.concatenate(cols).T
+    if G.shape[1] == 0:
+        return Stationarity(viol, 0, float(np.linalg.norm(grad) / max(np.linalg.norm(grad), 1e-300)) if np.any(grad)
+                            else 0.0)
+    _, res = nnls(G, -grad, maxiter=50 * G.shape[1])
+    return Stationarity(viol, G.shape[1], float(res / max(np.linalg.norm(grad), 1e-300)))
 
 
 def solve(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_w: np.ndarray, tilt_w: np.ndarray,

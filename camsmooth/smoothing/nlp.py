@@ -667,17 +667,21 @@ class RowNLP:
 class Binding:
     """What an elastic re-solve found binds on a row: the constraint ('A travel', 'B velocity',
     ...), the point index, the value the windows need there and the machine's limit, in ``unit``
-    (deg, deg/s or deg/s^2); ``binds`` says whether the need exceeds the limit."""
+    (deg, deg/s or deg/s^2; travel angles in the machine's sign convention); ``lower`` when the
+    limit is a lower bound (the travel's min). ``binds`` says whether the need is past the limit
+    (by more than 1e-6 of it)."""
 
     constraint: str
     point: int
     need: float
     limit: float
     unit: str
+    lower: bool = False
 
     @property
     def binds(self) -> bool:
-        return self.need > self.limit * (1 + 1e-6)
+        tol = 1e-6 * abs(self.limit)
+        return self.need < self.limit - tol if self.lower else self.need > self.limit + tol
 
 
 def elastic_diagnosis(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_window: np.ndarray,
@@ -732,8 +736,9 @@ def elastic_diagnosis(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_
     if k >= 4:  # travel: the point furthest outside, and the angle it needs
         over = np.maximum(q - L.max, L.min - q)
         i = int(np.argmax(over))
-        return Binding(names[k], i, float(np.degrees(q[i])),
-                       float(np.degrees(L.max if q[i] > L.max else L.min)), "deg")
+        lower = bool(q[i] < L.min)
+        return Binding(names[k], i, float(np.degrees(q[i])), float(np.degrees(L.min if lower else L.max)), "deg",
+                       lower=lower)
     vals = np.abs(D1 @ q) if k < 2 else np.abs(D2 @ q)
     i = int(np.argmax(vals)) + (0 if k < 2 else 1)
     return Binding(names[k], i, float(np.degrees(vals.max())), float(np.degrees(L.vmax if k < 2 else L.amax)),
