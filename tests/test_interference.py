@@ -613,21 +613,46 @@ def test_axial_drop_misses_and_per_point_axes():
             np.testing.assert_allclose(one.cl[0], each.cl[k], atol=1e-9)
 
 
+def _mesh_samples(mesh: trimesh.Trimesh, k: int) -> np.ndarray:
+    """Points of a barycentric grid of k + 1 per side on every triangle."""
+    tri = mesh.triangles
+    i, j = np.meshgrid(np.arange(k + 1), np.arange(k + 1), indexing="ij")
+    m = i + j <= k
+    bu, bv = i[m] / k, j[m] / k
+    return (tri[:, None, 0] + bu[None, :, None] * (tri[:, None, 1] - tri[:, None, 0])
+            + bv[None, :, None] * (tri[:, None, 2] - tri[:, None, 0])).reshape(-1, 3)
+
+
+def _check_drop(mesh, index, cutter, P, A, drop, samples, gap):
+    """At every dropped position the tool touches without penetrating (clearance 0, the compiled
+    kernels: an independent algorithm), the contact is a mesh point (trimesh) at zero signed
+    distance, no sampled mesh point asks for a higher tool and the best sample is within ``gap``
+    (mm) of the drop; the contact normal is unit and the tool's tangent plane there."""
+    A = np.broadcast_to(A, P.shape)
+    s = np.sum((drop.cl - P) * A, axis=1)
+    res = clearance(index, cutter, drop.cl, A)
+    np.testing.assert_allclose(res.delta, 0.0, atol=1e-8)
+    assert np.all(_on_mesh(drop.contact, mesh) < 1e-9)
+    np.testing.assert_allclose(signed_distance(cutter, drop.cl, A, drop.contact), 0.0, atol=1e-9)
+    q = samples[None, :, :] - P[:, None, :]
+    h = np.einsum("nmk,nk->nm", q, A)
+    rho = np.linalg.norm(q - h[..., None] * A[:, None, :], axis=-1)
+    x = np.clip(rho - cutter.R, 0.0, cutter.r)
+    sv = np.where(rho <= cutter.R + cutter.r, h - (cutter.r - np.sqrt(cutter.r ** 2 - x * x)), -np.inf)
+    assert np.all(sv.max(axis=1) <= s + 1e-9)
+    assert np.all(sv.max(axis=1) >= s - gap)
+    np.testing.assert_allclose(np.linalg.norm(drop.contact_normal, axis=1), 1.0, atol=1e-12)
+    below = drop.contact - 1e-4 * drop.contact_normal
+    np.testing.assert_allclose(signed_distance(cutter, drop.cl, A, below), 1e-4, atol=1e-9)
+
+
 def test_axial_drop_agrees_with_clearance_and_dense_sampling():
-    """At the dropped position the tool touches without penetrating (clearance 0, an
-    independent algorithm), the contact is a mesh point with that drop value, and no densely
-    sampled mesh point asks for a higher tool."""
+    """Per-point axes within ~27 deg of +z over a noisy wave (``_check_drop``), three cutters."""
     rng = np.random.default_rng(15)
     mesh = _grid_mesh(13, 24.0,
                       lambda x, y: 2 * np.sin(x / 2.5) * np.cos(y / 3.5) + 0.3 * rng.normal(size=x.shape))
     index = MeshIndex(mesh)
-    tri = mesh.triangles
-    k = 12
-    i, j = np.meshgrid(np.arange(k + 1), np.arange(k + 1), indexing="ij")
-    m = i + j <= k
-    bu, bv = i[m] / k, j[m] / k
-    samples = (tri[:, None, 0] + bu[None, :, None] * (tri[:, None, 1] - tri[:, None, 0])
-               + bv[None, :, None] * (tri[:, None, 2] - tri[:, None, 0])).reshape(-1, 3)
+    samples = _mesh_samples(mesh, 12)
     for cutter in (ToroidalCutter(R=2.0, r=1.0), ToroidalCutter(R=0.0, r=1.5), ToroidalCutter(R=3.0, r=0.5)):
         N = 60
         A = rng.normal(size=(N, 3))
@@ -636,23 +661,52 @@ def test_axial_drop_agrees_with_clearance_and_dense_sampling():
         P = np.column_stack([rng.uniform(-8, 8, N), rng.uniform(-8, 8, N), np.full(N, 5.0)])
         drop = axial_drop(index, cutter, P, A)
         assert drop.hit.all()
-        s = np.sum((drop.cl - P) * A, axis=1)
-        res = clearance(index, cutter, drop.cl, A)
-        np.testing.assert_allclose(res.delta, 0.0, atol=1e-8)
-        assert np.all(_on_mesh(drop.contact, mesh) < 1e-9)
-        np.testing.assert_allclose(signed_distance(cutter, drop.cl, A, drop.contact), 0.0, atol=1e-9)
-        # dense samples: s(x) = (x - p).A - zlow(rho) over the footprint never exceeds the drop
-        q = samples[None, :, :] - P[:, None, :]
-        h = np.einsum("nmk,nk->nm", q, A)
-        rho = np.linalg.norm(q - h[..., None] * A[:, None, :], axis=-1)
-        x = np.clip(rho - cutter.R, 0.0, cutter.r)
-        sv = np.where(rho <= cutter.R + cutter.r, h - (cutter.r - np.sqrt(cutter.r ** 2 - x * x)), -np.inf)
-        assert np.all(sv.max(axis=1) <= s + 1e-9)
-        assert np.all(sv.max(axis=1) >= s - 0.05)
-        # contact normal: unit, and along it the tool's surface is the contact's tangent plane
-        np.testing.assert_allclose(np.linalg.norm(drop.contact_normal, axis=1), 1.0, atol=1e-12)
-        below = drop.contact - 1e-4 * drop.contact_normal
-        np.testing.assert_allclose(signed_distance(cutter, drop.cl, A, below), 1e-4, atol=1e-9)
+        _check_drop(mesh, index, cutter, P, A, drop, samples, 0.05)
+
+
+@pytest.mark.parametrize("case", ["steep axes, coarse mesh", "fixed tilted axis", "from far below",
+                                  "axis in a coordinate plane"])
+def test_axial_drop_hard_cases(case):
+    """Cases the wave above does not reach: axes 50-70 deg from +z over triangles larger than the
+    cutter (the line crosses the mesh's box through its sides, facet contacts dominate); one
+    common tilted axis (the projected-tree path); drop lines starting far below and beyond the
+    mesh (the line is clipped to the box: the whole line counts, not the ray); axes with a zero
+    component (a slab parallel to the line). Checked as ``_check_drop``; unpacking gives
+    (cl, contact, contact_normal)."""
+    rng = np.random.default_rng(21)
+    coarse = case == "steep axes, coarse mesh"
+    mesh = _grid_mesh(5 if coarse else 11, 30.0,
+                      lambda x, y: 3 * np.sin(x / 4) * np.cos(y / 5) + 0.4 * rng.normal(size=x.shape))
+    index = MeshIndex(mesh)
+    samples = _mesh_samples(mesh, 40 if coarse else 14)
+    cutter = ToroidalCutter(R=2.5, r=1.0)
+    N = 40
+    P = np.column_stack([rng.uniform(-9, 9, N), rng.uniform(-9, 9, N), np.full(N, 4.0)])
+    if coarse:
+        polar, az = np.radians(rng.uniform(50, 70, N)), rng.uniform(0, 2 * np.pi, N)
+        A = np.column_stack([np.sin(polar) * np.cos(az), np.sin(polar) * np.sin(az), np.cos(polar)])
+    elif case == "fixed tilted axis":
+        A = np.array([0.5, -0.3, 0.8])
+        A = A / np.linalg.norm(A)
+    elif case == "from far below":
+        A = rng.normal(size=(N, 3)) * [0.4, 0.4, 0.0] + [0.0, 0.0, 1.0]
+        A /= np.linalg.norm(A, axis=1, keepdims=True)
+        P = P - 60.0 * A  # 60 mm back along the axis: below the mesh's box
+    else:
+        A = np.tile([[0.6, 0.0, 0.8], [0.0, -0.6, 0.8], [0.0, 0.0, 1.0]], (N // 3 + 1, 1))[:N]
+    drop = axial_drop(index, cutter, P, A)
+    keep = drop.hit
+    assert keep.sum() >= N // 2
+    if A.ndim == 1:
+        fixed = axial_drop(index, cutter, P, np.tile(A, (N, 1)))  # the per-point path agrees
+        np.testing.assert_allclose(fixed.cl[keep], drop.cl[keep], atol=1e-9)
+        assert np.array_equal(fixed.hit, drop.hit)
+    cl, contact, normal = drop
+    assert cl is drop.cl and contact is drop.contact and normal is drop.contact_normal
+    Ak = A[keep] if A.ndim == 2 else A
+    sub = type(drop)(cl=drop.cl[keep], contact=drop.contact[keep], contact_normal=drop.contact_normal[keep],
+                     hit=drop.hit[keep])
+    _check_drop(mesh, index, cutter, P[keep], Ak, sub, samples, 0.1 if coarse else 0.05)
 
 
 def test_axial_drop_bad_input():
