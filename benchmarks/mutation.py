@@ -134,6 +134,12 @@ TARGETS: dict[str, Target] = {
                                      "write_probe_csv", "read_spindle_csv", "write_spindle_csv", "read_ballbar_csv",
                                      "write_ballbar_csv", "CalibrationReport.summary", "_display", "_fmt_res",
                                      "_max_gap", "_scale")),
+    # the fitting drivers left out above, on a random sample of their mutants (each reruns Levenberg-Marquardt
+    # or particle-swarm fits: the whole ~2000 would take hours), against the recovery tests
+    "calibration-fit": Target(("camsmooth/machine/calibration.py",), ("tests/test_calibration.py",),
+        functions=("calibrate_probe", "calibrate_spindle", "calibrate_ballbar", "_ballbar_lsq", "_spindle_pso", "pso",
+                   "_lsq", "_central_jacobian", "probe_offsets", "_probe_residual", "_spindle_model",
+                   "_spindle_params", "_polar_report", "fit_thermal_response"), sample=250),
     "output": Target(("camsmooth/io/output.py",), ("tests/test_output.py", "tests/test_result_csv_columns.py")),
     "atomic": Target(("camsmooth/io/atomic.py",),
                      ("tests/test_atomic.py", "tests/test_output.py", "tests/test_atomic_folders.py")),

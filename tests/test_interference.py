@@ -498,6 +498,81 @@ def test_clearance_bad_input():
         MeshIndex(np.zeros((3, 3)))
 
 
+@pytest.mark.parametrize("vertices, faces, message", [
+    (np.zeros((3, 3)), np.zeros((0, 3), int), "mesh has no triangles"),
+    (np.eye(3), np.array([[0, 1, 3]]), "mesh faces index missing vertices"),
+    (np.eye(3), np.array([[0, 1, -1]]), "mesh faces index missing vertices"),
+    (np.array([[0.0, 0, 0], [1, 0, 0], [0, np.inf, 0]]), np.array([[0, 1, 2]]),
+     "mesh has non-finite vertex coordinates"),
+])
+def test_mesh_index_names_what_is_wrong_with_the_mesh(vertices, faces, message):
+    with pytest.raises(InputError) as err:
+        MeshIndex(trimesh.Trimesh(vertices, faces, process=False, validate=False))
+    assert str(err.value) == message
+    # a one-triangle mesh is valid (3 vertices, 1 face), and a small positive max_edge too
+    MeshIndex(trimesh.Trimesh(np.eye(3), [[0, 1, 2]], process=False), max_edge=0.5)
+
+
+def test_zero_axes_are_named_by_their_row_in_the_callers_words():
+    index = MeshIndex(_grid_mesh(5, 10.0))
+    cutter = ToroidalCutter(R=1.0, r=1.0)
+    axes = np.array([[0.0, 0, 1], [0, 0, 1], [0, 0, 0]])
+    with pytest.raises(InputError) as err:
+        clearance(index, cutter, np.zeros((3, 3)), axes)
+    assert str(err.value).startswith("tool axis of tool tip 3 has zero length")
+    with pytest.raises(InputError) as err:
+        axial_drop(index, cutter, np.zeros((3, 3)), axes)
+    assert str(err.value).startswith("tool axis of point 3 has zero length")
+
+
+def test_axes_of_any_length_are_normalised():
+    """Docstrings: 'normalised here'. Axes scaled by 3 and by 0.2 give the unit axes' answers."""
+    mesh = _grid_mesh(9, 20.0, lambda x, y: np.sin(x / 3) * np.cos(y / 4))
+    index = MeshIndex(mesh)
+    cutter = ToroidalCutter(R=2.0, r=1.0)
+    rng = np.random.default_rng(5)
+    A = rng.normal(size=(30, 3)) * [0.3, 0.3, 0.0] + [0, 0, 1]
+    A /= np.linalg.norm(A, axis=1, keepdims=True)
+    P = np.column_stack([rng.uniform(-6, 6, 30), rng.uniform(-6, 6, 30), np.full(30, 3.0)])
+    unit = clearance(index, cutter, P, A, margin=5.0)
+    drop = axial_drop(index, cutter, P, A)
+    for k in (3.0, 0.2):
+        np.testing.assert_allclose(clearance(index, cutter, P, k * A, margin=5.0).delta, unit.delta, atol=1e-12)
+        np.testing.assert_allclose(axial_drop(index, cutter, P, k * A).cl, drop.cl, atol=1e-12)
+    assert unit.margin == 5.0
+    assert np.array_equal(unit.capped, unit.delta >= 5.0)
+
+
+@pytest.mark.parametrize("shift", [0, 1, 2])
+def test_axial_drop_onto_a_ridge_edge(shift):
+    """A ball-nose dropped onto the ridge of a tent (faces sloping down at 45 deg from the x axis):
+    the ridge's normal cone holds +z, so the ball's lowest point sits on the ridge (cl_z = 0) and
+    touches it right below the tip. The faces' vertex order is rotated by ``shift``, so the ridge is each of
+    a face's three edges in turn."""
+    V = np.array([[-10.0, 0, 0], [10, 0, 0], [10, 10, -10], [-10, 10, -10], [10, -10, -10], [-10, -10, -10]])
+    F = np.roll(np.array([[0, 1, 2], [0, 2, 3], [1, 0, 5], [1, 5, 4]]), shift, axis=1)
+    mesh = trimesh.Trimesh(V, F, process=False)
+    cutter = ToroidalCutter(R=0.0, r=2.0)
+    x = np.linspace(-6, 6, 7)
+    P = np.column_stack([x, np.zeros(7), np.full(7, 5.0)])
+    drop = axial_drop(MeshIndex(mesh), cutter, P, np.array([0.0, 0.0, 1.0]))
+    np.testing.assert_allclose(drop.cl[:, 2], 0.0, atol=1e-9)
+    np.testing.assert_allclose(drop.contact, np.column_stack([x, np.zeros(7), np.zeros(7)]), atol=1e-6)
+
+
+def test_axial_drop_in_several_chunks_equals_point_by_point():
+    """More points than one chunk (512): every chunk's answer lands on its own points."""
+    mesh = _grid_mesh(9, 20.0, lambda x, y: np.sin(x / 3) * np.cos(y / 4))
+    index = MeshIndex(mesh)
+    cutter = ToroidalCutter(R=2.0, r=1.0)
+    rng = np.random.default_rng(6)
+    P = np.column_stack([rng.uniform(-6, 6, 1100), rng.uniform(-6, 6, 1100), np.full(1100, 3.0)])
+    up = np.array([0.0, 0.0, 1.0])
+    drop = axial_drop(index, cutter, P, up)
+    for k in (0, 511, 512, 1023, 1024, 1099):
+        np.testing.assert_allclose(axial_drop(index, cutter, P[k:k + 1], up).cl[0], drop.cl[k], atol=1e-12)
+
+
 # ---------------------------------------------------------------------------------------------
 # axial drop
 

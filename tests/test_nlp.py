@@ -312,40 +312,94 @@ def test_constraint_report_names_each_violation_with_its_size():
     assert RowNLP(m, 8).constraint_report(t, np.zeros(8), np.full(8, LB.min)) == []
 
 
-def test_elastic_diagnosis_names_the_limit_the_windows_need_and_how_much():
-    """The lead window [0, 0.01] deg pins the axis to the surface normal, so B must follow the normal's
-    angle beta = atan(dz/dx) (closed form on the wave): a B velocity limit below max |d beta / dt| is
-    named with that need, a travel limit inside the range of beta with the angle it needs."""
-    t, fr, _ = wave_row()
+@pytest.mark.parametrize("turned", [False, True], ids=["B", "A"])
+@pytest.mark.parametrize("kind", ["velocity", "acceleration"])
+def test_elastic_diagnosis_names_the_rate_the_windows_need_and_where(kind, turned):
+    """The lead window [0, 0.01] deg pins the axis to the surface normal, so the moving axis (B on the
+    row along x, A along y) must follow the normal's angle beta = atan(dz/dx) (closed form on the
+    wave): a limit at half of max |beta'| or |beta''| (the test's own differences) is named with
+    that need (within 2.5%: the window's 0.01 deg of slack) at the point where beta needs it."""
+    t, fr, _ = wave_row(turned=turned)
     x = np.arange(N) * 0.4
     beta = np.degrees(np.arctan(0.5 * np.cos(x / 10)))
-    need_v = np.abs(np.diff(beta) / np.diff(t)).max()
+    rate = np.abs(_d1(beta, t) if kind == "velocity" else _d2(beta, t))
+    where = int(np.argmax(rate)) + (0 if kind == "velocity" else 1)
+    axis = "A" if turned else "B"
+    field = "vmax" if kind == "velocity" else "amax"
+    m = with_limits(M0, **{f"{axis}_{field}": 0.5 * rate.max()})
     lw, tw = np.tile(np.radians([0.0, 0.01]), (N, 1)), np.tile(np.radians([-15.0, 15.0]), (N, 1))
-    m = with_limits(M0, B_vmax=0.5 * need_v)
-    T = fr[:, :, 2]
-    ik = m.solve_row(T)
+    ik = m.solve_row(fr[:, :, 2])
     b = elastic_diagnosis(m, t, fr, lw, tw, ik.A, ik.B)
-    assert b.constraint == "B velocity" and b.unit == "deg/s" and b.binds
-    assert b.limit == pytest.approx(0.5 * need_v)
-    assert b.need == pytest.approx(need_v, rel=0.02)
-    # travel, on each side of the range (the wave's normal needs B of one sign: the row mirrored in
-    # x needs the other)
+    assert b.constraint == f"{axis} {kind}" and b.binds and not b.lower
+    assert b.unit == ("deg/s" if kind == "velocity" else "deg/s^2")
+    assert b.limit == pytest.approx(0.5 * rate.max())
+    assert b.need == pytest.approx(rate.max(), rel=0.025)
+    assert b.point == where
+
+
+@pytest.mark.parametrize("turned", [False, True], ids=["B", "A"])
+def test_elastic_diagnosis_names_the_travel_the_windows_need_on_either_side(turned):
+    """As above with the travel limited to +-half of max |beta|: the angle needed is named, on
+    each side of the range (the row mirrored in its feed direction needs the other sign)."""
+    t, fr, _ = wave_row(turned=turned)
+    x = np.arange(N) * 0.4
+    beta = np.degrees(np.arctan(0.5 * np.cos(x / 10)))
     half = 0.5 * np.abs(beta).max()
-    m = with_limits(M0, B_min=-half, B_max=half)
-    mirror = np.diag([-1.0, 1.0, 1.0])
+    axis = "A" if turned else "B"
+    m = with_limits(M0, **{f"{axis}_min": -half, f"{axis}_max": half})
+    lw, tw = np.tile(np.radians([0.0, 0.01]), (N, 1)), np.tile(np.radians([-15.0, 15.0]), (N, 1))
+    k = 1 if turned else 0
+    mirror = np.eye(3)
+    mirror[k, k] = -1.0
     fr_m = np.einsum("ij,njk->nik", mirror, fr)
     fr_m[:, :, 1] *= -1  # keep the frames right-handed
     sides = set()
     for frames in (fr, fr_m):
         ik = m.solve_row(frames[:, :, 2])
-        b = elastic_diagnosis(m, t, frames, lw, tw, np.clip(ik.A, -1, 1), np.clip(ik.B, -np.radians(half),
-                                                                                    np.radians(half)))
-        assert b.constraint == "B travel" and b.unit == "deg" and b.binds
+        lim = np.radians(half)
+        b = elastic_diagnosis(m, t, frames, lw, tw, np.clip(ik.A, -lim, lim), np.clip(ik.B, -lim, lim))
+        assert b.constraint == f"{axis} travel" and b.unit == "deg" and b.binds
         assert abs(b.need) == pytest.approx(np.abs(beta).max(), abs=0.05)
+        assert b.point == 0  # the wave is steepest at its start
         assert b.limit == pytest.approx(-half if b.lower else half)
         assert np.sign(b.need) == np.sign(b.limit)
         sides.add(b.lower)
     assert sides == {True, False}
+
+
+def test_the_fallback_keeps_the_better_feasible_candidate():
+    """Of the last iterate and the warm start, the one with the lower Gamma that meets every row
+    (IPOPT failed); neither meeting them is a failure."""
+    t, fr, T = wave_row()
+    t = 2 * t
+    lw, tw = np.tile(np.radians([2.0, 20.0]), (N, 1)), np.tile(np.radians([-15.0, 15.0]), (N, 1))
+    ik = M0.solve_row(T)
+    row = RowNLP(M0, N, screening=False)
+    A, B, st = row.solve(t, fr, ik.A, ik.B, lw, tw)
+    x0, x1 = np.empty(2 * N), np.empty(2 * N)
+    x0[0::2], x0[1::2] = ik.A, ik.B
+    x1[0::2], x1[1::2] = A, B
+    lbx, ubx, lbg, ubg = row.bounds(lw)
+    p = row._params(t, fr, tw, 1.0, LeadBounds.none(N))
+    exists = np.arange(len(lbg)) < sum(row.sizes[:7])
+    for first, second in ((x1, x0), (x0, x1)):
+        x, status, ok = row._feasible_fallback(first, second, p, lbx, ubx, lbg, ubg, exists, t, "Failed")
+        assert ok and status == "Failed; a feasible point kept"
+        np.testing.assert_array_equal(x, x1)  # the optimum, whichever comes first
+    bad = x0 + 1.0  # outside the lead window everywhere
+    x, status, ok = row._feasible_fallback(bad, bad, p, lbx, ubx, lbg, ubg, exists, t, "Failed")
+    assert not ok and status == "Failed"
+
+
+def test_spline_row_on_short_rows_uses_four_spread_knots():
+    """A 5-point row has knots 0, 1, 3, 4 (four spread points): not-a-knot through four points is
+    their interpolating cubic (numpy polyfit of degree 3), so point 2 is that cubic's value."""
+    t = np.array([0.0, 0.011, 0.019, 0.032, 0.040])
+    y = np.array([0.0, 1.0, -3.0, 0.5, 2.0])
+    A, _ = spline_row(y, y, t)
+    knots = [0, 1, 3, 4]
+    np.testing.assert_allclose(A[knots], y[knots], atol=1e-12)
+    assert A[2] == pytest.approx(np.polyval(np.polyfit(t[knots], y[knots], 3), t[2]), rel=1e-9)
 
 
 def test_binding_threshold():
