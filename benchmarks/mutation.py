@@ -20,30 +20,26 @@ file, the function and the changed line before -> after (whitespace-normalised),
 mutant number.
 
 numba kernels (camsmooth/geometry/_kernels.py): mutmut never mutates a decorated function (its
-trampolines cannot wrap a decorator's product, and numba could not compile a trampoline anyway),
-so every ``@njit`` kernel is skipped by mutmut itself. Stripping the decorators in the copy and
-running with NUMBA_DISABLE_JIT=1 would run the bounding-volume traversal and the per-facet
-distance loops as Python: test_interference.py takes ~47 s compiled (most of it the brute-force
-reference), interpreted kernels multiply the clearance part by ~100, and every surviving mutant
-reruns all covering tests -- not tractable on 2 shared cores. The kernels are therefore not
-mutated; they are covered by the clearance tests that compare the compiled kernels with an
-independent brute-force minimisation on random meshes and with closed forms (touching and
-penetrating planes, prism ridges and vertices, spheres, cylinders): tests/test_interference.py.
-The undecorated Python in clearance.py (index building, batching, result assembly, axial_drop) is
-mutated as usual; the kernels run compiled in the mutation run, as in production.
+trampolines cannot wrap a decorator's product), so the "kernels" target removes the ``@njit``
+decorators in the temporary copy and runs with NUMBA_DISABLE_JIT=1: the kernels run as plain Python,
+~100 times slower, so only the closed-form clearance tests that stay within seconds interpreted are
+selected and a sample of the kernels' mutants is run. The independent brute-force comparisons on
+random meshes (tests/test_interference.py) run compiled in the suite, not here.
 
-What is not mutated, and why (each run must stay within minutes on 2 shared cores):
+Sampled modules (Target.sample): smoothing/nlp.py has ~2900 mutants and the fitting drivers of
+calibration.py ~2000; each surviving mutant reruns IPOPT solves or Levenberg-Marquardt / particle-swarm
+fits (seconds), hours for all of them on 2 cores. For these a seeded random sample of mutants is run
+(mutmut generates every mutant; the script draws the sample from their names and runs only those) and
+the printed score is the sample's, with its 95% Wilson interval: random mutant sampling estimates the
+score without bias (Acree 1980; Zhang et al., ICSE 2010). ``--seed`` draws another sample.
 
-* camsmooth/smoothing/nlp.py: every NLP test builds CasADi graphs and solves with IPOPT (seconds each),
-  and a surviving mutant reruns all of them; ~1500 mutants would take hours. Covered by
-  tests/test_smoothing.py (limits and windows met at every sample, derivatives against automatic
-  differentiation), tests/test_pipeline.py and the end-to-end limit tests.
+What else is left out, and why (each run must stay within minutes to an hour on 2 shared cores):
+
 * pipeline.py: only the functions that are not the NLP / spline / planning drivers (TARGETS'
   ``functions``; the others are marked "# pragma: no mutate block" in the temporary copy only).
-* calibration.py: the least-squares / particle-swarm fitting drivers (see TARGETS).
-* clearance.py has ~1700 mutants and each surviving one reruns the clearance tests (seconds): a run
-  measured ~25 mutants a minute on 2 cores, over an hour for the file. It is in TARGETS and runs
-  with ``--modules clearance`` when there is the time; the kernels it calls are covered as above.
+* calibration.py: the fitting drivers in the "calibration" target (they are the sampled
+  "calibration-fit" target).
+* clearance.py (~1700 mutants, ~25 minutes with 2 workers) runs in full.
 * Tests that run the command line in a subprocess cannot run under mutmut (the child imports the
   trampolined package without mutmut's configuration) and are deselected; so are the three slow
   brute-force clearance comparisons (they would rerun for every surviving clearance mutant).
@@ -82,6 +78,9 @@ class Target:
     #: when given, only these functions ("name" or "Class.method") of the files are mutated: the others are
     #: marked "# pragma: no mutate block" in the temporary copy (never in the working tree)
     functions: tuple[str, ...] = ()
+    #: remove the ``@njit`` decorators of the target files in the copy (numba kernels; run with
+    #: NUMBA_DISABLE_JIT=1 as plain Python, which mutmut can mutate)
+    strip_njit: bool = False
     #: when > 0, only a random sample of this many of the module's mutants is run (seeded; see the
     #: module docstring), the score is the sample's, with its 95% Wilson interval
     sample: int = 0
@@ -109,6 +108,12 @@ TARGETS: dict[str, Target] = {
     # automatic differentiation and recompute every limit (30-point rows; a second each)
     "nlp": Target(("camsmooth/smoothing/nlp.py",),
                   ("tests/test_nlp.py", "tests/test_smoothing.py", "tests/test_oracles.py"), sample=400),
+    # the compiled clearance kernels, run as plain Python (decorators removed in the copy, NUMBA_DISABLE_JIT=1)
+    # against the closed-form clearance tests small enough to run interpreted (seconds each instead of
+    # milliseconds): a sample of their mutants
+    "kernels": Target(("camsmooth/geometry/_kernels.py",), (
+        "tests/test_interference.py", "-k", "not brute_force and not axial_drop and not subdivision"),
+        env={"NUMBA_DISABLE_JIT": "1"}, strip_njit=True, sample=150),
     # the three brute-force comparisons of test_interference.py (25 s, 7 s, 6 s) are left out: every
     # surviving mutant would rerun them; the closed-form and agreement tests of the file stay in
     "clearance": Target(("camsmooth/geometry/clearance.py",), (
@@ -641,6 +646,11 @@ def run_module(module: str, max_children: int, keep: bool, seed: int = 1) -> Mod
         _configure(work, target)
         if target.functions:
             _restrict(work, target)
+        if target.strip_njit:
+            for pattern in target.paths:
+                for path in work.glob(pattern):
+                    lines = path.read_text().splitlines(keepends=True)
+                    path.write_text("".join(ln for ln in lines if not ln.lstrip().startswith("@njit")))
         mutmut = Path(sys.executable).parent / "mutmut"
         log = work / "mutmut.log"
         names: list[str] = []
