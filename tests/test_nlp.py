@@ -416,3 +416,24 @@ def test_dilate_stays_inside_each_group():
     mask[[0, 6]] = True
     got = nlp_mod._dilate(mask, [5, 3, 4], 2)
     np.testing.assert_array_equal(got, [1, 1, 1, 0, 0, 1, 1, 1, 0, 0, 0, 0])
+
+
+def test_limit_violation_peaks_are_the_largest_rates_even_below_one():
+    """The peaks ``limit_violations`` reports are the largest |segment velocity| and |second
+    difference| of each axis (the test's own differences), also when they are below 1 (a slow
+    program in rad/s), and nothing is counted inside the limits."""
+    t = np.array([0.0, 0.1, 0.25, 0.35, 0.0, 0.2, 0.3])
+    t[4:] += 1.0
+    rows = np.array([0, 0, 0, 0, 1, 1, 1])
+    q = np.array([0.0, 0.01, 0.015, 0.03, 0.5, 0.52, 0.5])
+    viol, peaks = nlp_mod.limit_violations(M0.limits, {"A": q}, t, rows)
+    v = np.concatenate([_d1(q[:4], t[:4]), _d1(q[4:], t[4:])])
+    a = np.concatenate([_d2(q[:4], t[:4]), _d2(q[4:], t[4:])])
+    assert peaks["A velocity"] == pytest.approx(np.abs(v).max(), rel=1e-12) and np.abs(v).max() < 1
+    assert peaks["A acceleration"] == pytest.approx(np.abs(a).max(), rel=1e-12)
+    assert viol == {"A travel": 0, "A velocity": 0, "A acceleration": 0}
+
+
+def test_rows_from_a_thousand_points_are_screened_by_default():
+    assert RowNLP(M0, nlp_mod.SCREEN_MIN_POINTS).screening
+    assert not RowNLP(M0, nlp_mod.SCREEN_MIN_POINTS - 1).screening
