@@ -793,3 +793,22 @@ def test_axial_drop_bad_input():
         axial_drop(index, cutter, np.zeros((2, 3)), np.zeros((3, 3)))
     with pytest.raises(InputError, match="zero length"):
         axial_drop(index, cutter, np.zeros((2, 3)), np.zeros(3))
+
+
+def test_mesh_index_leaf_order_maps_back_to_the_faces():
+    """``bvh_faces`` is a permutation of the faces and the kernels' per-triangle tables are the
+    faces in that order; edges are each undirected edge once, three per face."""
+    mesh = _grid_mesh(7, 10.0, lambda x, y: np.sin(x) * np.cos(y))
+    index = MeshIndex(mesh)
+    assert sorted(index.bvh_faces.tolist()) == list(range(len(mesh.faces)))
+    np.testing.assert_array_equal(index._bvh_ti, mesh.faces[index.bvh_faces])
+    np.testing.assert_allclose(index._bvh_tf[:, 3:6], mesh.triangles[index.bvh_faces].mean(axis=1))
+    undirected = {tuple(sorted(e)) for f in mesh.faces for e in ((f[0], f[1]), (f[1], f[2]), (f[2], f[0]))}
+    assert {tuple(e) for e in index.edges.tolist()} == undirected and len(index.edges) == len(undirected)
+    for k, f in enumerate(mesh.faces):
+        assert {tuple(index.edges[e]) for e in index.face_edges[k]} == \
+            {tuple(sorted(e)) for e in ((f[0], f[1]), (f[1], f[2]), (f[2], f[0]))}
+    # vertex -> faces table
+    for v in range(len(mesh.vertices)):
+        got = sorted(index.vf_faces[index.vf_ptr[v]:index.vf_ptr[v + 1]].tolist())
+        assert got == sorted(np.flatnonzero((mesh.faces == v).any(axis=1)).tolist())
