@@ -455,6 +455,158 @@ _equivalent(_OUT, "write_result_csv", [
     'columns["lift"] = np.asarray(r.lift, float) -> columns["lift"] = np.asarray(r.lift, )',
 ], "MethodResult.lift is a float array: asarray without dtype returns it unchanged")
 
+_NLP = "camsmooth/smoothing/nlp.py"
+_WHY_MXONLY = ("the branch for a constant tool-axis component is never taken: camsmooth accepts one machine kind, "
+               "the AB head, whose T = (sin B, -sin A cos B, cos A cos B) (also with an error model's tilted screws) "
+               "has every component depending on A or B, i.e. an MX expression")
+_WHY_NAME = "the name of a CasADi symbol or Function is a label: the same expressions and values"
+_WHY_LASTCOL = ("bincount's minlength only matters when the last column holds no entry; the Hessian has a diagonal "
+                "entry in every column and the Jacobian the lead-window rows (always in the NLP) in every column, so "
+                "the counts have length ncol either way")
+_WHY_SLACKSTART = ("the starting slacks only start IPOPT: the elastic problem (linear objective, the row's "
+                   "constraints) ends at the same least total slack")
+_WHY_ELASTICOPTS = ("without the options IPOPT prints its log and may take 3000 iterations instead of 1000: the "
+                    "elastic solves of the tests converge in far fewer, to the same point")
+_WHY_FDSHAPE = ("the shape scipy infers from the triplets equals the given one (the entries reach the last row and "
+                "column), and time stamps are combined with float arithmetic either way")
+_WHY_EMPTY = ("initial only matters for an empty array; program_rates needs rows of at least 3 points, so every "
+              "axis has second differences")
+_WHY_EQUALITY = "the comparison changes only at exact equality with the bound (a measure-zero set of inputs)"
+_WHY_DTYPE = ("the arrays are boolean / integer / float already or are cast by their consumer (np.asarray(..., bool), "
+              "np.concatenate into a float vector, index arrays): the same values either way")
+_WHY_REPMAT = ("repmat(c, 1) is c itself, and CasADi multiplies an (m, 1) column into an (m, 3) matrix column by "
+               "column: the same stencil")
+_WHY_GRADF = ("without the structured gradient CasADi differentiates the objective itself (slower to build): the "
+              "same gradient, checked against automatic differentiation in test_smoothing.py")
+_WHY_NOROWS = ("m == 0 never happens: the lead-window rows are always in the NLP (module comment at SCREEN_MARGIN), "
+               "so the empty-Jacobian branch is unreachable")
+_WHY_STRICT = "the zipped sequences always have the same length: strict or not, the same pairs"
+_WHY_BCZERO = ("a 1x1 zero broadcasts against the (n, 1) curvature terms added to it: the same sums, and zero when "
+               "there are no clearance rows")
+_WHY_CACHE = "the solver cache's size only decides when a solver is rebuilt: the same solver for the same rows"
+_WHY_ITERCOUNT = "IPOPT's stats always hold iter_count: the default is never used"
+_WHY_SCREENROWS = ("screening decides which rows enter the next round; the loop ends only when no row left out is "
+                   "violated (or solves with every row), so the result is a KKT point of the whole NLP either way: "
+                   "more rows, or rows dilated across group boundaries, change the rounds, not the answer")
+_equivalent(_NLP, '_lead_functions', [
+    'T = ca.horzcat(*[c if isinstance(c, ca.MX) else ca.MX(ca.DM.ones(n) * float(c)) for c in comps]) -> T = '
+    'ca.horzcat(*[c if (isinstance(c, ca.MX)) or True else ca.MX(ca.DM.ones(n) * float(c)) for c in comps])',
+    'T = ca.horzcat(*[c if isinstance(c, ca.MX) else ca.MX(ca.DM.ones(n) * float(c)) for c in comps]) -> T = '
+    'ca.horzcat(*[c if isinstance(c, ca.MX) else ca.MX(ca.DM.ones(n) / float(c)) for c in comps])',
+    'T = ca.horzcat(*[c if isinstance(c, ca.MX) else ca.MX(ca.DM.ones(n) * float(c)) for c in comps]) -> T = '
+    'ca.horzcat(*[c if isinstance(c, ca.MX) else ca.MX(ca.DM.ones(None) * float(c)) for c in comps])',
+], _WHY_MXONLY)
+_equivalent(_NLP, '_lead_functions', [
+    'return ca.Function("lead_bound", [a, b, X, Y, Z, C], -> return ca.Function("LEAD_BOUND", [a, b, X, Y, Z, '
+    'C],',
+], _WHY_NAME)
+_equivalent(_NLP, '_sparse_mx', [
+    'colind = np.concatenate([[0], np.cumsum(np.bincount(cols, minlength=ncol))]) -> colind = '
+    'np.concatenate([[0], np.cumsum(np.bincount(cols, ))])',
+], _WHY_LASTCOL)
+_equivalent(_NLP, 'elastic_diagnosis', [
+    's = ca.SX.sym("s", 6) # A vel, B vel, A acc, B acc (fraction of the limit), A, B travel (of the span) -> '
+    's = ca.SX.sym("S", 6) # A vel, B vel, A acc, B acc (fraction of the limit), A, B travel (of the span)',
+], _WHY_NAME)
+_equivalent(_NLP, 'elastic_diagnosis', [
+    '{"ipopt.print_level": 0, "print_time": 0, "ipopt.sb": "yes", "ipopt.max_iter": 1000}) -> )',
+], _WHY_ELASTICOPTS)
+_equivalent(_NLP, 'elastic_diagnosis', [
+    'x0 = np.concatenate([np.ravel(np.column_stack([A0, B0])), np.full(6, 10.0)]) -> x0 = '
+    'np.concatenate([np.ravel(np.column_stack([A0, B0])), np.full(6, 11.0)])',
+], _WHY_SLACKSTART)
+_equivalent(_NLP, 'fd_operators', [
+    'shape=(n - 1, n)) -> shape=None)',
+    't = np.asarray(t, float) -> t = np.asarray(t, )',
+    'D2 = sp.csr_matrix((vals, (np.tile(j, 3), np.concatenate([j, j + 1, j + 2]))), shape=(n - 2, n)) -> D2 = '
+    'sp.csr_matrix((vals, (np.tile(j, 3), np.concatenate([j, j + 1, j + 2]))), shape=None)',
+], _WHY_FDSHAPE)
+_equivalent(_NLP, 'limit_violations', [
+    'peaks[f"{name} acceleration"] = float(a.max(initial=0.0)) -> peaks[f"{name} acceleration"] = '
+    'float(a.max(initial=None))',
+], _WHY_EMPTY)
+_equivalent(_NLP, 'limit_violations', [
+    'viol[f"{name} velocity"] = int(np.sum(v > lim.vmax * (1 + 1e-9))) -> viol[f"{name} velocity"] = '
+    'int(np.sum(v >= lim.vmax * (1 + 1e-9)))',
+], _WHY_EQUALITY)
+_equivalent(_NLP, 'program_rates', [
+    't = np.asarray(t, float) -> t = np.asarray(t, )',
+], _WHY_FDSHAPE)
+_equivalent(_NLP, 'LeadBounds.none', [
+    'return LeadBounds(z, z, np.zeros(n, bool), np.zeros(n, bool)) -> return LeadBounds(z, z, np.zeros(n, '
+    'bool), np.zeros(n, None))',
+], _WHY_DTYPE)
+_equivalent(_NLP, 'RowNLP.__init__', [
+    'return (ca.repmat(c0, 1, cols) * q[0:m2, :] + ca.repmat(c1, 1, cols) * q[1:m2 + 1, :] -> return '
+    '(ca.repmat(c0, 1, ) * q[0:m2, :] + ca.repmat(c1, 1, cols) * q[1:m2 + 1, :]',
+    'return (ca.repmat(c0, 1, cols) * q[0:m2, :] + ca.repmat(c1, 1, cols) * q[1:m2 + 1, :] -> return '
+    '(ca.repmat(c0, 1, cols) * q[0:m2, :] + ca.repmat(c1, 1, ) * q[1:m2 + 1, :]',
+], _WHY_REPMAT)
+_equivalent(_NLP, 'RowNLP.__init__', [
+    'self._grad_f = ca.Function("grad_f", [x, p], [scale * ca.sumsqr(r1), grad]) -> self._grad_f = None',
+], _WHY_GRADF)
+_equivalent(_NLP, 'RowNLP.__init__', [
+    'x = ca.MX.sym("x", 2 * n) -> x = ca.MX.sym("XXxXX", 2 * n)',
+], _WHY_NAME)
+_equivalent(_NLP, 'RowNLP._feasible_fallback', [
+    'if not (np.all(np.isfinite(cand)) and np.all(cand >= lbx - 1e-12) and np.all(cand <= ubx + 1e-12)): -> if '
+    'not (np.all(np.isfinite(cand)) and np.all(cand > lbx - 1e-12) and np.all(cand <= ubx + 1e-12)):',
+], _WHY_EQUALITY)
+_equivalent(_NLP, 'RowNLP._params', [
+    'np.asarray(bounds.floor, float).T.ravel(), np.asarray(bounds.ceiling, float).T.ravel()]) -> '
+    'np.asarray(bounds.floor, float).T.ravel(), np.asarray(bounds.ceiling, ).T.ravel()])',
+], _WHY_DTYPE)
+_equivalent(_NLP, 'RowNLP._solver', [
+    'J = ca.MX(0, 2 * n) -> J = ca.MX(0, None)',
+    'J = ca.MX(0, 2 * n) -> J = ca.MX(0, )',
+    'J = ca.MX(0, 2 * n) -> J = ca.MX(0, 3 * n)',
+    'g1 = ca.vertcat(*[grp[k] for grp, k in zip(self._g1, sel, strict=True)]) if m else ca.MX(0, 1) -> g1 = '
+    'ca.vertcat(*[grp[k] for grp, k in zip(self._g1, sel, strict=True)]) if m else ca.MX(1, 1)',
+], _WHY_NOROWS)
+_equivalent(_NLP, 'RowNLP._solver', [
+    'g1 = ca.vertcat(*[grp[k] for grp, k in zip(self._g1, sel, strict=True)]) if m else ca.MX(0, 1) -> g1 = '
+    'ca.vertcat(*[grp[k] for grp, k in zip(self._g1, sel, strict=None)]) if m else ca.MX(0, 1)',
+    'g1 = ca.vertcat(*[grp[k] for grp, k in zip(self._g1, sel, strict=True)]) if m else ca.MX(0, 1) -> g1 = '
+    'ca.vertcat(*[grp[k] for grp, k in zip(self._g1, sel, )]) if m else ca.MX(0, 1)',
+    'g1 = ca.vertcat(*[grp[k] for grp, k in zip(self._g1, sel, strict=True)]) if m else ca.MX(0, 1) -> g1 = '
+    'ca.vertcat(*[grp[k] for grp, k in zip(self._g1, sel, strict=False)]) if m else ca.MX(0, 1)',
+    'g = ca.vertcat(*[grp[k] for grp, k in zip(self._g_groups, sel, strict=True)]) if m else ca.MX(0, 1) -> g '
+    '= ca.vertcat(*[grp[k] for grp, k in zip(self._g_groups, sel, strict=None)]) if m else ca.MX(0, 1)',
+    'g = ca.vertcat(*[grp[k] for grp, k in zip(self._g_groups, sel, strict=True)]) if m else ca.MX(0, 1) -> g '
+    '= ca.vertcat(*[grp[k] for grp, k in zip(self._g_groups, sel, strict=False)]) if m else ca.MX(0, 1)',
+    'curv = [w + h for w, h in zip(blocks(wc), bc, strict=True)] -> curv = [w + h for w, h in zip(blocks(wc), '
+    'bc, )]',
+    'a, b, c = (p_ + q_ for p_, q_ in zip(blocks(wo), _psd_part(*curv), strict=True)) -> a, b, c = (p_ + q_ '
+    'for p_, q_ in zip(blocks(wo), _psd_part(*curv), strict=False))',
+], _WHY_STRICT)
+_equivalent(_NLP, 'RowNLP._solver', [
+    'jac_g = ca.Function("jac_g", [x, p], [g1, J]) -> jac_g = ca.Function("XXjac_gXX", [x, p], [g1, J])',
+    'lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", m) -> lam_f, lam_g = ca.MX.sym("LAM_F"), '
+    'ca.MX.sym("lam_g", m)',
+    'hess = ca.Function("hess_lag", [x, p, lam_f, lam_g], [H]) -> hess = ca.Function("XXhess_lagXX", [x, p, '
+    'lam_f, lam_g], [H])',
+], _WHY_NAME)
+_equivalent(_NLP, 'RowNLP._solver', [
+    'bc = [ca.MX.zeros(n, 1) for _ in range(3)] # curvature of the clearance rows, weighted -> bc = '
+    '[ca.MX.zeros(1) for _ in range(3)] # curvature of the clearance rows, weighted',
+], _WHY_BCZERO)
+_equivalent(_NLP, 'RowNLP._solver', [
+    'k = np.asarray(rows[gi], np.int64) -> k = np.asarray(rows[gi], None)',
+    'k = np.asarray(k, np.int64) -> k = np.asarray(k, None)',
+], _WHY_DTYPE)
+_equivalent(_NLP, 'RowNLP._solver', [
+    'if len(self._solvers) >= 16: -> if len(self._solvers) >= 17:',
+], _WHY_CACHE)
+_equivalent(_NLP, 'RowNLP.solve', [
+    'iters += int(st.get("iter_count", 0)) -> iters += int(st.get("iter_count", 1))',
+], _WHY_ITERCOUNT)
+_equivalent(_NLP, 'RowNLP.solve', [
+    'bad = ((g < lbg - 1e-9) | (g > ubg + 1e-9)) & ~keep & exists -> bad = ((g < lbg + 1e-9) | (g > ubg + '
+    '1e-9)) & ~keep & exists',
+    'keep |= (_dilate(bad, self.sizes, SCREEN_DILATE) | self._near(g, lbg, ubg)) & exists -> keep |= '
+    '(_dilate(bad, None, SCREEN_DILATE) | self._near(g, lbg, ubg)) & exists',
+], _WHY_SCREENROWS)
+
 # mutmut's exit codes; -9 is the SIGKILL its runner sends one second after the CPU limit's SIGXCPU (a
 # timeout that ignored SIGXCPU), -11 a crash of the test process: the tests did not pass either way
 STATUS = {1: "killed", 3: "killed", 0: "survived", 5: "no tests", 33: "no tests", 34: "skipped",
