@@ -288,3 +288,96 @@ def test_cli_predict(tmp_path, machine, capsys):
     assert np.max(np.abs(got["real_tilt"])) > 1e-4 and np.allclose(got["real_lead"], 10.0, atol=0.01)
     direct = predict_table(model, machine, {k: table[:, i] for i, k in enumerate(cols)})
     assert np.allclose(direct["real_delta_est"], 0.0, atol=0.1) and np.any(direct["real_delta_est"] != 0)
+
+
+# ----------------------------------------------------------------------------------------------
+# what the reports say (every field a user or the model file reads), against the simulated truth
+def _sv_check(rep):
+    sv = np.asarray(rep.singular_values)
+    assert np.all(np.diff(sv) <= 0) and sv[-1] > 0
+    assert rep.condition_number == pytest.approx(sv[0] / sv[-1], rel=1e-12)
+
+
+def test_probe_report_fields(probe_report, machine):
+    rep = probe_report
+    data = sim.simulate_probe(ErrorModel(dict(AXIS_ERRORS)), machine, noise=0.0005, seed=11)
+    assert rep.kind == "probe" and rep.n_observations == 3 * len(data.A)
+    # 20-45 um of axis errors before, the 0.5 um probing noise after (mm)
+    assert 0.005 < rep.rms_before < 0.2 and rep.rms_after == pytest.approx(0.0005, rel=0.3)
+    # the sphere's real centre, simulate_probe's sphere_error (mm), to a few noise levels
+    np.testing.assert_allclose(rep.details["sphere_centre"], [0.012, -0.008, 0.005], atol=0.002)
+    assert np.all(rep.details["sphere_centre_uncertainty"] < 0.001)
+    meta = rep.model.meta["probe"]
+    assert meta["poses"] == len(data.A) and meta["fitted"] == list(rep.parameters)
+    assert meta["unidentifiable"] == sorted(rep.unidentifiable) and meta["source"] == data.source
+    assert all("held at" in why for why in rep.unidentifiable.values())
+    assert rep.units == {k: GEOMETRIC_PARAMETERS[k][0] for k in rep.parameters}
+    _sv_check(rep)
+
+
+def test_spindle_report_fields(spindle_report):
+    rep = spindle_report
+    assert rep.kind == "spindle"
+    assert rep.units == {k: cal._SPINDLE_UNITS[k] for k in rep.parameters}
+    assert set(rep.details) == {"time_s", "nfev", "pso", "ls"}
+    assert set(rep.details["pso"]) == {"parameters", "rms", "time_s", "nfev"}
+    assert set(rep.details["pso"]["parameters"]) == set(rep.parameters)
+    assert rep.details["ls"]["rms"] == rep.rms_after and rep.details["ls"]["nfev"] == rep.details["nfev"]
+    meta = rep.model.meta["spindle"]
+    assert meta["fitted"] == list(rep.parameters) and meta["unidentifiable"] == sorted(rep.unidentifiable)
+    assert meta["samples"] * 3 == rep.n_observations  # three ball coordinates per sample
+    assert all("held at" in why for why in rep.unidentifiable.values())
+    assert rep.rms_after < rep.rms_before
+    _sv_check(rep)
+
+
+def test_ballbar_report_fields(ballbar):
+    rep, true, data = ballbar
+    assert rep.kind == "ballbar" and rep.details["trilateration_triples"] == 8
+    assert rep.rms_before > 3 * rep.rms_after  # the drift, not explained before the fit
+    err = np.abs(rep.details["elements"] - true)[1:]
+    sd = rep.details["element_uncertainty"][1:]
+    assert np.all(err < 5 * sd)
+    assert np.all(sd[:, :3] < 0.002) and np.all(sd[:, 3:] < 5e-6)  # um and urad scale, not mm and rad
+    for k, d in THERMAL.items():
+        assert rep.uncertainties[f"{k}.tau"] < 0.5 * d["tau"], k
+        assert rep.uncertainties[f"{k}.gain"] < 0.5 * abs(d["gain"]), k
+    assert "setup" in rep.details and rep.model.meta["ballbar"]["sets"] == len(rep.details["times"])
+    _sv_check(rep)
+
+
+def test_pso_on_known_minima():
+    """A shifted quadratic (interior minimum) and a minimum on a bound of a clipped dimension beside a
+    periodic one whose minimum is across the wrap: the swarm reaches each to 1e-6."""
+    c = np.array([1.2, -3.4, 0.5])
+    x, cost, nfev = cal.pso(lambda X: np.sum((X - c) ** 2, axis=1), -5 * np.ones(3), 5 * np.ones(3))
+    np.testing.assert_allclose(x, c, atol=1e-6)
+    assert cost < 1e-10 and nfev == 40 * 601
+
+    def f(X):
+        return 1.0 - np.cos(X[:, 0] - 3.1) + (X[:, 1] - 6.0) ** 2
+
+    x, cost, _ = cal.pso(f, np.array([-np.pi, -5.0]), np.array([np.pi, 5.0]), periodic=np.array([True, False]))
+    assert x[1] == 5.0  # clipped onto the bound, not wrapped
+    assert abs(np.angle(np.exp(1j * (x[0] - 3.1)))) < 1e-4 and -np.pi <= x[0] < np.pi
+
+
+def test_fit_thermal_response_recovers_gain_and_tau_or_says_why_not():
+    """Noise-free per-set values of a first-order response: gain and tau recovered; a drift at 3.5
+    standard uncertainties is fitted, one at 2.5 holds tau at tau0 and says so."""
+    from camsmooth.machine.model import first_order_response
+
+    t = np.arange(0.0, 4 * 3600 + 1, 900.0)
+    rpm = np.where(t < 7200, 6000.0, 0.0)
+    resp = first_order_response(t, rpm / 1000.0, 1.0, 1300.0)
+    values = 0.004 * resp
+    g, tau, ug, utau, why = cal.fit_thermal_response(t, rpm, values, np.eye(len(t) - 1) * 1e-8)
+    assert why is None and g == pytest.approx(0.004, rel=1e-6) and tau == pytest.approx(1300.0, rel=1e-6)
+    assert 0 < ug < 1e-4 and 0 < utau < 10
+    size = 0.004 * np.linalg.norm(resp[1:])
+    for sigmas, fitted in ((3.5, True), (2.5, False)):
+        cov = np.eye(len(t) - 1) * (size / sigmas) ** 2
+        g, tau, ug, utau, why = cal.fit_thermal_response(t, rpm, values, cov, tau0=1800.0)
+        assert (why is None) == fitted, sigmas
+        if not fitted:
+            assert tau == 1800.0 and utau == np.inf and "no significant drift" in why
