@@ -607,6 +607,387 @@ _equivalent(_NLP, 'RowNLP.solve', [
     '(_dilate(bad, None, SCREEN_DILATE) | self._near(g, lbg, ubg)) & exists',
 ], _WHY_SCREENROWS)
 
+_CLR = "camsmooth/geometry/clearance.py"
+_WHY_DTYPE = ("the values are cast or combined with float / integer arrays before anything reads them (or have "
+              "that dtype already; intp is int64 here): the same numbers with or without the explicit dtype")
+_WHY_EINSUM = "einsum labels are arbitrary letters: the same contraction"
+_WHY_MORTON = ("_morton_order only chooses the order in which the kernel visits the poses (cache locality): every "
+               "variant still returns a permutation (argsort / arange), and the answers are written back through "
+               "the same permutation")
+_WHY_CSR0 = ("the total == 0 shortcut is unreachable: _drop_chunk calls _csr_expand only for vertices that passed "
+             "its test (np.any(m)), and every vertex of a MeshIndex belongs to a face (unused ones are dropped), "
+             "so total >= 1")
+_WHY_GUARD = ("the inner where only avoids a division by zero where an outer where or mask discards the quotient "
+              "anyway (the discarded entries differ, the result does not)")
+_WHY_GOLDEN = ("the edge test maximises a smooth concave s(t) and also evaluates the bracket's ends exactly: ties "
+               "between the two interior points (exact equality) keep a bracket holding the optimum either way, "
+               "and fewer iterations (at least 40: a bracket below 4e-9 of the edge) move the argmax by dt but the "
+               "drop value by O(dt^2), below rounding")
+_WHY_BASIS = ("any unit e1 orthogonal to the axis gives an orthonormal basis of the plane across it, with the same "
+              "cKDTree distances; a basis scaled by |cross| <= 1 shrinks the projected distances, so the query "
+              "returns a superset of the candidate pairs, which _drop_chunk filters exactly (rho <= Rc + l_v)")
+_WHY_CACHE = ("the projected-tree cache only saves rebuilding a tree that is a function of the axis: a miss, a finer "
+              "key or another size limit rebuilds the same tree")
+_WHY_SUBDIV = ("subdivision (max_edge) is for speed only: the clearance and the drop are exact on any triangulation "
+               "of the same surface, and subdivide_to_size stops once every edge is short enough; these mutants "
+               "change how many passes it may take, not the surface")
+_WHY_CROSS = "(b - a) x (c - b) = (b - a) x (c - a): the same normal"
+_WHY_ELEN = "the longest edge of a face is the largest of its three edges in any cyclic order"
+_WHY_PLANE = "the facet's plane passes through each of its vertices: n . (p - a) = n . (p - b)"
+_WHY_DIVFLOOR = ("the keys are non-negative integers below 2**53: float division then truncation to intp equals floor "
+                 "division")
+_WHY_FIXED = ("the fixed-axis flag only picks the faster candidate search (a cached projected 2-D tree); with one "
+              "axis broadcast to every point the per-point search finds the same pairs")
+_WHY_INIT = ("S and C are overwritten for every point by _drop_chunk's answer for its chunk: the initial values are "
+             "never read")
+_WHY_HITMASK = "the value only fills rows that np.where(hit, ...) replaces by NaN (misses)"
+_WHY_CAPPED = ("a capped pose has its whole witness row NaN (the kernel writes NaN to all three coordinates), so "
+               "column 0 and column 1 give the same flags")
+_WHY_EQUALITY = ("the comparison changes only at exact equality of floating-point values (a boundary of measure zero: "
+                 "a line touching the box, a tie between candidates, a contact exactly on a triangle's edge)")
+_WHY_BARY = ("a facet contact within 1e-12 of a triangle's edge (or one now refused on its boundary) is found by the "
+             "edge test of that edge, which sees the whole edge: the facet test's tolerance decides which test "
+             "reports the contact, not the drop value (to ~1e-12 mm)")
+_WHY_STABLE = ("the vertex -> faces table lists each vertex's faces in any order (a stable sort only fixes the "
+               "order within a vertex); _unique_pairs sorts the expanded pairs anyway")
+_equivalent(_CLR, '_dot', [
+    'return np.einsum("...i,...i->...", a, b) -> return np.einsum("...I,...I->...", a, b)',
+], _WHY_EINSUM)
+_equivalent(_CLR, '_csr_expand', [
+    'if total == 0: -> if total == 1:',
+    'return np.empty(0, np.intp), np.empty(0, np.intp) -> return np.empty(None, np.intp), np.empty(0, np.intp)',
+    'return np.empty(0, np.intp), np.empty(0, np.intp) -> return np.empty(0, None), np.empty(0, np.intp)',
+    'return np.empty(0, np.intp), np.empty(0, np.intp) -> return np.empty(np.intp), np.empty(0, np.intp)',
+    'return np.empty(0, np.intp), np.empty(0, np.intp) -> return np.empty(0, ), np.empty(0, np.intp)',
+    'return np.empty(0, np.intp), np.empty(0, np.intp) -> return np.empty(1, np.intp), np.empty(0, np.intp)',
+    'return np.empty(0, np.intp), np.empty(0, np.intp) -> return np.empty(0, np.intp), np.empty(None, np.intp)',
+    'return np.empty(0, np.intp), np.empty(0, np.intp) -> return np.empty(0, np.intp), np.empty(0, None)',
+    'return np.empty(0, np.intp), np.empty(0, np.intp) -> return np.empty(0, np.intp), np.empty(np.intp)',
+    'return np.empty(0, np.intp), np.empty(0, np.intp) -> return np.empty(0, np.intp), np.empty(0, )',
+    'return np.empty(0, np.intp), np.empty(0, np.intp) -> return np.empty(0, np.intp), np.empty(1, np.intp)',
+], _WHY_CSR0)
+_equivalent(_CLR, '_unique_pairs', [
+    'key = np.unique(owner.astype(np.int64) * n_items + item) -> key = np.unique(owner.astype(None) * n_items '
+    '+ item)',
+], _WHY_DTYPE)
+_equivalent(_CLR, '_unique_pairs', [
+    'return (key // n_items).astype(np.intp), (key % n_items).astype(np.intp) -> return (key / '
+    'n_items).astype(np.intp), (key % n_items).astype(np.intp)',
+], _WHY_DIVFLOOR)
+_equivalent(_CLR, '_inside_triangle', [
+    'den = np.where(den > 0.0, den, 1.0) -> den = np.where(den > 0.0, den, None)',
+    'den = np.where(den > 0.0, den, 1.0) -> den = np.where(den > 0.0, den, 2.0)',
+], _WHY_GUARD)
+_equivalent(_CLR, '_inside_triangle', [
+    'den = np.where(den > 0.0, den, 1.0) -> den = np.where(den >= 0.0, den, 1.0)',
+], _WHY_EQUALITY)
+_equivalent(_CLR, '_inside_triangle', [
+    'return (v >= -tol) & (w >= -tol) & (1.0 - v - w >= -tol) -> return (v > -tol) & (w >= -tol) & (1.0 - v - '
+    'w >= -tol)',
+    'return (v >= -tol) & (w >= -tol) & (1.0 - v - w >= -tol) -> return (v >= +tol) & (w >= -tol) & (1.0 - v - '
+    'w >= -tol)',
+    'return (v >= -tol) & (w >= -tol) & (1.0 - v - w >= -tol) -> return (v >= -tol) & (w > -tol) & (1.0 - v - '
+    'w >= -tol)',
+    'return (v >= -tol) & (w >= -tol) & (1.0 - v - w >= -tol) -> return (v >= -tol) & (w >= +tol) & (1.0 - v - '
+    'w >= -tol)',
+    'return (v >= -tol) & (w >= -tol) & (1.0 - v - w >= -tol) -> return (v >= -tol) & (w >= -tol) & (1.0 - v - '
+    'w > -tol)',
+    'return (v >= -tol) & (w >= -tol) & (1.0 - v - w >= -tol) -> return (v >= -tol) & (w >= -tol) & (1.0 - v - '
+    'w >= +tol)',
+], _WHY_BARY)
+_equivalent(_CLR, '_golden_min', [
+    'a, b = lo.astype(float), hi.astype(float) -> a, b = lo.astype(None), hi.astype(float)',
+    'a, b = lo.astype(float), hi.astype(float) -> a, b = lo.astype(float), hi.astype(None)',
+], _WHY_DTYPE)
+_equivalent(_CLR, '_golden_min', [
+    'left = fc <= fd -> left = fc < fd',
+    'better = fc <= fd -> better = None',
+    'better = fc <= fd -> better = fc < fd',
+    'return np.where(better, c, d), np.where(better, fc, fd) -> return np.where(None, c, d), np.where(better, '
+    'fc, fd)',
+    'return np.where(better, c, d), np.where(better, fc, fd) -> return np.where(better, c, d), np.where(None, '
+    'fc, fd)',
+], _WHY_GOLDEN)
+_equivalent(_CLR, '_golden_iters', [
+    'if not length > 1e-10: -> if length > 1e-10:',
+    'if not length > 1e-10: -> if not length >= 1e-10:',
+    'if not length > 1e-10: -> if not length > 1.0000000001:',
+    'return 40 -> return 41',
+    'return int(min(90, max(40, math.ceil(math.log(length / 1e-10) / -math.log(_INVPHI))))) -> return '
+    'int(min(91, max(40, math.ceil(math.log(length / 1e-10) / -math.log(_INVPHI)))))',
+    'return int(min(90, max(40, math.ceil(math.log(length / 1e-10) / -math.log(_INVPHI))))) -> return '
+    'int(min(90, max(41, math.ceil(math.log(length / 1e-10) / -math.log(_INVPHI)))))',
+    'return int(min(90, max(40, math.ceil(math.log(length / 1e-10) / -math.log(_INVPHI))))) -> return '
+    'int(min(90, max(40, math.ceil(math.log(length / 1e-10) * -math.log(_INVPHI)))))',
+    'return int(min(90, max(40, math.ceil(math.log(length / 1e-10) / -math.log(_INVPHI))))) -> return '
+    'int(min(90, max(40, math.ceil(math.log(length * 1e-10) / -math.log(_INVPHI)))))',
+    'return int(min(90, max(40, math.ceil(math.log(length / 1e-10) / -math.log(_INVPHI))))) -> return '
+    'int(min(90, max(40, math.ceil(math.log(length / 1.0000000001) / -math.log(_INVPHI)))))',
+    'return int(min(90, max(40, math.ceil(math.log(length / 1e-10) / -math.log(_INVPHI))))) -> return '
+    'int(min(90, max(40, math.ceil(math.log(length / 1e-10) / +math.log(_INVPHI)))))',
+], _WHY_GOLDEN)
+_equivalent(_CLR, 'MeshIndex.__init__', [
+    'V = np.asarray(mesh.vertices, dtype=float) -> V = np.asarray(mesh.vertices, dtype=None)',
+    'V = np.asarray(mesh.vertices, dtype=float) -> V = np.asarray(mesh.vertices, )',
+    'F = np.asarray(mesh.faces, dtype=np.intp) -> F = np.asarray(mesh.faces, dtype=None)',
+    'F = np.asarray(mesh.faces, dtype=np.intp) -> F = np.asarray(mesh.faces, )',
+    'V = np.asarray(V, dtype=float) -> V = np.asarray(V, dtype=None)',
+    'V = np.asarray(V, dtype=float) -> V = np.asarray(V, )',
+    'F = np.asarray(F, dtype=np.intp) -> F = np.asarray(F, dtype=None)',
+    'F = np.asarray(F, dtype=np.intp) -> F = np.asarray(F, )',
+    'V = np.ascontiguousarray(V, dtype=float) -> V = np.ascontiguousarray(V, dtype=None)',
+    'V = np.ascontiguousarray(V, dtype=float) -> V = np.ascontiguousarray(V, )',
+    'key = raw[..., 0].astype(np.int64) * nv + raw[..., 1] -> key = raw[..., 0].astype(None) * nv + raw[..., 1]',
+    'self.vf_faces = (order // 3).astype(np.intp) -> self.vf_faces = (order // 3).astype(None)',
+    'self.bvh_nodes = np.ascontiguousarray(np.column_stack([box, left, start, count]), dtype=float) -> '
+    'self.bvh_nodes = np.ascontiguousarray(np.column_stack([box, left, start, count]), dtype=None)',
+    'self.bvh_nodes = np.ascontiguousarray(np.column_stack([box, left, start, count]), dtype=float) -> '
+    'self.bvh_nodes = np.ascontiguousarray(np.column_stack([box, left, start, count]), )',
+    'self._bvh_ti = np.ascontiguousarray(Fp, dtype=np.int64) -> self._bvh_ti = np.ascontiguousarray(Fp, '
+    'dtype=None)',
+    'self._bvh_ti = np.ascontiguousarray(Fp, dtype=np.int64) -> self._bvh_ti = np.ascontiguousarray(Fp, )',
+    '[self.face_normals[perm], V[Fp].mean(axis=1), self.face_valid[perm], V[Fp].reshape(-1, 9)]), dtype=float) '
+    '-> [self.face_normals[perm], V[Fp].mean(axis=1), self.face_valid[perm], V[Fp].reshape(-1, 9)]), '
+    'dtype=None)',
+    '[self.face_normals[perm], V[Fp].mean(axis=1), self.face_valid[perm], V[Fp].reshape(-1, 9)]), dtype=float) '
+    '-> [self.face_normals[perm], V[Fp].mean(axis=1), self.face_valid[perm], V[Fp].reshape(-1, 9)]), )',
+], _WHY_DTYPE)
+_equivalent(_CLR, 'MeshIndex.__init__', [
+    'longest = float(np.max(np.linalg.norm(V[F] - V[np.roll(F, 1, axis=1)], axis=-1))) -> longest = '
+    'float(np.max(np.linalg.norm(V[F] - V[np.roll(F, 1, axis=1)], axis=None)))',
+    'longest = float(np.max(np.linalg.norm(V[F] - V[np.roll(F, 1, axis=1)], axis=-1))) -> longest = '
+    'float(np.max(np.linalg.norm(V[F] - V[np.roll(F, 1, axis=1)], )))',
+    'longest = float(np.max(np.linalg.norm(V[F] - V[np.roll(F, 1, axis=1)], axis=-1))) -> longest = '
+    'float(np.max(np.linalg.norm(V[F] + V[np.roll(F, 1, axis=1)], axis=-1)))',
+    'longest = float(np.max(np.linalg.norm(V[F] - V[np.roll(F, 1, axis=1)], axis=-1))) -> longest = '
+    'float(np.max(np.linalg.norm(V[F] - V[np.roll(F, 1, axis=None)], axis=-1)))',
+    'longest = float(np.max(np.linalg.norm(V[F] - V[np.roll(F, 1, axis=1)], axis=-1))) -> longest = '
+    'float(np.max(np.linalg.norm(V[F] - V[np.roll(F, 1, )], axis=-1)))',
+    'longest = float(np.max(np.linalg.norm(V[F] - V[np.roll(F, 1, axis=1)], axis=-1))) -> longest = '
+    'float(np.max(np.linalg.norm(V[F] - V[np.roll(F, 2, axis=1)], axis=-1)))',
+    'longest = float(np.max(np.linalg.norm(V[F] - V[np.roll(F, 1, axis=1)], axis=-1))) -> longest = '
+    'float(np.max(np.linalg.norm(V[F] - V[np.roll(F, 1, axis=1)], axis=+1)))',
+    'longest = float(np.max(np.linalg.norm(V[F] - V[np.roll(F, 1, axis=1)], axis=-1))) -> longest = '
+    'float(np.max(np.linalg.norm(V[F] - V[np.roll(F, 1, axis=1)], axis=-2)))',
+    'iters = max(10, math.ceil(math.log2(max(longest / max_edge, 1.0))) + 3) -> iters = max(11, '
+    'math.ceil(math.log2(max(longest / max_edge, 1.0))) + 3)',
+    'iters = max(10, math.ceil(math.log2(max(longest / max_edge, 1.0))) + 3) -> iters = max(10, '
+    'math.ceil(math.log2(max(longest / max_edge, 1.0))) - 3)',
+    'iters = max(10, math.ceil(math.log2(max(longest / max_edge, 1.0))) + 3) -> iters = max(10, '
+    'math.ceil(math.log2(max(longest * max_edge, 1.0))) + 3)',
+    'iters = max(10, math.ceil(math.log2(max(longest / max_edge, 1.0))) + 3) -> iters = max(10, '
+    'math.ceil(math.log2(max(longest / max_edge, 2.0))) + 3)',
+    'iters = max(10, math.ceil(math.log2(max(longest / max_edge, 1.0))) + 3) -> iters = max(10, '
+    'math.ceil(math.log2(max(longest / max_edge, 1.0))) + 4)',
+    'V, F = trimesh.remesh.subdivide_to_size(V, F, max_edge=max_edge, max_iter=iters) -> V, F = '
+    'trimesh.remesh.subdivide_to_size(V, F, max_edge=max_edge, )',
+], _WHY_SUBDIV)
+_equivalent(_CLR, 'MeshIndex.__init__', [
+    'self.edges = np.stack([ukey // nv, ukey % nv], axis=1).astype(np.intp) -> self.edges = np.stack([ukey / '
+    'nv, ukey % nv], axis=1).astype(np.intp)',
+    'self.vf_faces = (order // 3).astype(np.intp) -> self.vf_faces = (order / 3).astype(np.intp)',
+], _WHY_DIVFLOOR)
+_equivalent(_CLR, 'MeshIndex.__init__', [
+    'cr = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]) -> cr = np.cross(tri[:, 1] - tri[:, 0], '
+    'tri[:, 2] - tri[:, 1])',
+], _WHY_CROSS)
+_equivalent(_CLR, 'MeshIndex.__init__', [
+    'elen = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=-1) -> elen = np.linalg.norm(tri - np.roll(tri, '
+    '2, axis=1), axis=-1)',
+], _WHY_ELEN)
+_equivalent(_CLR, 'MeshIndex.__init__', [
+    'self.face_valid = area2 > 1e-12 * np.maximum(self.face_long, 1e-300) ** 2 -> self.face_valid = area2 >= '
+    '1e-12 * np.maximum(self.face_long, 1e-300) ** 2',
+], _WHY_EQUALITY)
+_equivalent(_CLR, 'MeshIndex.__init__', [
+    'cr / np.where(area2 > 0, area2, 1.0)[:, None], 0.0) -> cr / np.where(area2 >= 0, area2, 1.0)[:, None], '
+    '0.0)',
+    'cr / np.where(area2 > 0, area2, 1.0)[:, None], 0.0) -> cr / np.where(area2 > 0, area2, 2.0)[:, None], 0.0)',
+    'cr / np.where(area2 > 0, area2, 1.0)[:, None], 0.0) -> cr / np.where(area2 > 0, area2, 1.0)[:, None], 1.0)',
+], _WHY_GUARD)
+_equivalent(_CLR, 'MeshIndex.__init__', [
+    'order = np.argsort(F.ravel(), kind="stable") -> order = np.argsort(F.ravel(), kind=None)',
+    'order = np.argsort(F.ravel(), kind="stable") -> order = np.argsort(F.ravel(), )',
+    'order = np.argsort(F.ravel(), kind="stable") -> order = np.argsort(F.ravel(), kind="STABLE")',
+], _WHY_STABLE)
+_equivalent(_CLR, 'MeshIndex._projected_tree', [
+    'key = np.round(axis, 14).tobytes() -> key = np.round(axis, 15).tobytes()',
+    'hit = self._proj_cache.get(key) -> hit = None',
+    'hit = self._proj_cache.get(key) -> hit = self._proj_cache.get(None)',
+    'if len(self._proj_cache) >= 8: -> if len(self._proj_cache) > 8:',
+    'if len(self._proj_cache) >= 8: -> if len(self._proj_cache) >= 9:',
+    'self._proj_cache[key] = hit -> self._proj_cache[key] = None',
+], _WHY_CACHE)
+_equivalent(_CLR, 'MeshIndex._projected_tree', [
+    'e1 = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0]) -> e1 = np.cross(axis, '
+    '[1.0, 0.0, 0.0] if (abs(axis[0]) < 0.9) and False else [0.0, 1.0, 0.0])',
+    'e1 = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0]) -> e1 = np.cross(axis, '
+    '[1.0, 0.0, 0.0] if (abs(axis[0]) < 0.9) or True else [0.0, 1.0, 0.0])',
+    'e1 = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0]) -> e1 = np.cross(axis, '
+    '[2.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])',
+    'e1 = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0]) -> e1 = np.cross(axis, '
+    '[1.0, 1.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])',
+    'e1 = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0]) -> e1 = np.cross(axis, '
+    '[1.0, 0.0, 1.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])',
+    'e1 = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0]) -> e1 = np.cross(axis, '
+    '[1.0, 0.0, 0.0] if abs(axis[1]) < 0.9 else [0.0, 1.0, 0.0])',
+    'e1 = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0]) -> e1 = np.cross(axis, '
+    '[1.0, 0.0, 0.0] if abs(axis[0]) <= 0.9 else [0.0, 1.0, 0.0])',
+    'e1 = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0]) -> e1 = np.cross(axis, '
+    '[1.0, 0.0, 0.0] if abs(axis[0]) < 1.9 else [0.0, 1.0, 0.0])',
+    'e1 = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0]) -> e1 = np.cross(axis, '
+    '[1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [1.0, 1.0, 0.0])',
+    'e1 = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0]) -> e1 = np.cross(axis, '
+    '[1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 2.0, 0.0])',
+    'e1 = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0]) -> e1 = np.cross(axis, '
+    '[1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 1.0])',
+    'e1 /= np.linalg.norm(e1) -> e1 *= np.linalg.norm(e1)',
+], _WHY_BASIS)
+_equivalent(_CLR, '_poses', [
+    'p = np.asarray(points, dtype=float) -> p = np.asarray(points, dtype=None)',
+    'p = np.asarray(points, dtype=float) -> p = np.asarray(points, )',
+    'a = np.asarray(axes, dtype=float) -> a = np.asarray(axes, dtype=None)',
+    'a = np.asarray(axes, dtype=float) -> a = np.asarray(axes, )',
+], _WHY_DTYPE)
+_equivalent(_CLR, '_poses', [
+    'if np.any(nrm < 1e-12): -> if np.any(nrm <= 1e-12):',
+], _WHY_EQUALITY)
+_equivalent(_CLR, '_morton_order', [
+    'def _morton_order(points: np.ndarray, bits: int = 10) -> np.ndarray: -> def _morton_order(points: '
+    'np.ndarray, bits: int = 11) -> np.ndarray:',
+    'if len(points) < 2: -> if len(points) <= 2:',
+    'if len(points) < 2: -> if len(points) < 3:',
+    'lo, hi = points.min(axis=0), points.max(axis=0) -> lo, hi = points.min(axis=None), points.max(axis=0)',
+    'lo, hi = points.min(axis=0), points.max(axis=0) -> lo, hi = points.min(axis=0), points.max(axis=None)',
+    'q = ((points - lo) / np.where(hi > lo, hi - lo, 1.0) * ((1 << bits) - 1)).astype(np.int64) -> q = '
+    '((points - lo) / np.where(hi > lo, hi - lo, 1.0) / ((1 << bits) - 1)).astype(np.int64)',
+    'q = ((points - lo) / np.where(hi > lo, hi - lo, 1.0) * ((1 << bits) - 1)).astype(np.int64) -> q = '
+    '((points - lo) * np.where(hi > lo, hi - lo, 1.0) * ((1 << bits) - 1)).astype(np.int64)',
+    'q = ((points - lo) / np.where(hi > lo, hi - lo, 1.0) * ((1 << bits) - 1)).astype(np.int64) -> q = '
+    '((points + lo) / np.where(hi > lo, hi - lo, 1.0) * ((1 << bits) - 1)).astype(np.int64)',
+    'q = ((points - lo) / np.where(hi > lo, hi - lo, 1.0) * ((1 << bits) - 1)).astype(np.int64) -> q = '
+    '((points - lo) / np.where(None, hi - lo, 1.0) * ((1 << bits) - 1)).astype(np.int64)',
+    'q = ((points - lo) / np.where(hi > lo, hi - lo, 1.0) * ((1 << bits) - 1)).astype(np.int64) -> q = '
+    '((points - lo) / np.where(hi >= lo, hi - lo, 1.0) * ((1 << bits) - 1)).astype(np.int64)',
+    'q = ((points - lo) / np.where(hi > lo, hi - lo, 1.0) * ((1 << bits) - 1)).astype(np.int64) -> q = '
+    '((points - lo) / np.where(hi > lo, hi + lo, 1.0) * ((1 << bits) - 1)).astype(np.int64)',
+    'q = ((points - lo) / np.where(hi > lo, hi - lo, 1.0) * ((1 << bits) - 1)).astype(np.int64) -> q = '
+    '((points - lo) / np.where(hi > lo, hi - lo, 2.0) * ((1 << bits) - 1)).astype(np.int64)',
+    'q = ((points - lo) / np.where(hi > lo, hi - lo, 1.0) * ((1 << bits) - 1)).astype(np.int64) -> q = '
+    '((points - lo) / np.where(hi > lo, hi - lo, 1.0) * ((1 << bits) + 1)).astype(np.int64)',
+    'q = ((points - lo) / np.where(hi > lo, hi - lo, 1.0) * ((1 << bits) - 1)).astype(np.int64) -> q = '
+    '((points - lo) / np.where(hi > lo, hi - lo, 1.0) * ((1 >> bits) - 1)).astype(np.int64)',
+    'q = ((points - lo) / np.where(hi > lo, hi - lo, 1.0) * ((1 << bits) - 1)).astype(np.int64) -> q = '
+    '((points - lo) / np.where(hi > lo, hi - lo, 1.0) * ((2 << bits) - 1)).astype(np.int64)',
+    'q = ((points - lo) / np.where(hi > lo, hi - lo, 1.0) * ((1 << bits) - 1)).astype(np.int64) -> q = '
+    '((points - lo) / np.where(hi > lo, hi - lo, 1.0) * ((1 << bits) - 2)).astype(np.int64)',
+    'code |= ((q[:, k] >> b) & 1) << (3 * b + k) -> code = ((q[:, k] >> b) & 1) << (3 * b + k)',
+    'code |= ((q[:, k] >> b) & 1) << (3 * b + k) -> code &= ((q[:, k] >> b) & 1) << (3 * b + k)',
+    'code |= ((q[:, k] >> b) & 1) << (3 * b + k) -> code |= ((q[:, k] >> b) & 1) >> (3 * b + k)',
+    'code |= ((q[:, k] >> b) & 1) << (3 * b + k) -> code |= ((q[:, k] >> b) | 1) << (3 * b + k)',
+    'code |= ((q[:, k] >> b) & 1) << (3 * b + k) -> code |= ((q[:, k] << b) & 1) << (3 * b + k)',
+    'code |= ((q[:, k] >> b) & 1) << (3 * b + k) -> code |= ((q[:, k] >> b) & 2) << (3 * b + k)',
+    'code |= ((q[:, k] >> b) & 1) << (3 * b + k) -> code |= ((q[:, k] >> b) & 1) << (3 * b - k)',
+    'code |= ((q[:, k] >> b) & 1) << (3 * b + k) -> code |= ((q[:, k] >> b) & 1) << (4 * b + k)',
+    'return np.argsort(code, kind="stable") -> return np.argsort(code, kind=None)',
+    'return np.argsort(code, kind="stable") -> return np.argsort(code, )',
+    'return np.argsort(code, kind="stable") -> return np.argsort(code, kind="STABLE")',
+], _WHY_MORTON)
+_equivalent(_CLR, 'clearance', [
+    'np.ascontiguousarray(tips[order]), np.ascontiguousarray(axes[order]), np.array(bodies, dtype=float), -> '
+    'np.ascontiguousarray(tips[order]), np.ascontiguousarray(axes[order]), np.array(bodies, dtype=None),',
+    'np.ascontiguousarray(tips[order]), np.ascontiguousarray(axes[order]), np.array(bodies, dtype=float), -> '
+    'np.ascontiguousarray(tips[order]), np.ascontiguousarray(axes[order]), np.array(bodies, ),',
+], _WHY_DTYPE)
+_equivalent(_CLR, 'clearance', [
+    'capped = np.isnan(witness[:, 0]) -> capped = np.isnan(witness[:, 1])',
+], _WHY_CAPPED)
+_equivalent(_CLR, '_drop_candidates', [
+    'par = np.abs(ak) < 1e-12 -> par = np.abs(ak) <= 1e-12',
+    'inside = (p[:, k] >= lo[k]) & (p[:, k] <= hi[k]) -> inside = (p[:, k] > lo[k]) & (p[:, k] <= hi[k])',
+    'inside = (p[:, k] >= lo[k]) & (p[:, k] <= hi[k]) -> inside = (p[:, k] >= lo[k]) & (p[:, k] < hi[k])',
+    'ok = t1 >= t0 -> ok = t1 > t0',
+    'near = np.clip(np.floor((tv - t0[pid]) / np.where(spacing[pid] > 0, spacing[pid], 1.0) + 0.5), -> near = '
+    'np.clip(np.floor((tv - t0[pid]) / np.where(spacing[pid] >= 0, spacing[pid], 1.0) + 0.5),',
+], _WHY_EQUALITY)
+_equivalent(_CLR, '_drop_candidates', [
+    'ta = (lo[k] - p[:, k]) / np.where(par, 1.0, ak) -> ta = (lo[k] - p[:, k]) / np.where(par, 2.0, ak)',
+    'tb = (hi[k] - p[:, k]) / np.where(par, 1.0, ak) -> tb = (hi[k] - p[:, k]) / np.where(par, 2.0, ak)',
+    'near = np.clip(np.floor((tv - t0[pid]) / np.where(spacing[pid] > 0, spacing[pid], 1.0) + 0.5), -> near = '
+    'np.clip(np.floor((tv - t0[pid]) / np.where(spacing[pid] > 0, spacing[pid], None) + 0.5),',
+    'near = np.clip(np.floor((tv - t0[pid]) / np.where(spacing[pid] > 0, spacing[pid], 1.0) + 0.5), -> near = '
+    'np.clip(np.floor((tv - t0[pid]) / np.where(spacing[pid] > 0, spacing[pid], 2.0) + 0.5),',
+], _WHY_GUARD)
+_equivalent(_CLR, '_drop_chunk', [
+    'C = np.full((N, 3), np.nan) -> C = np.full((N, 3), None)',
+], _WHY_INIT)
+_equivalent(_CLR, '_drop_chunk', [
+    'pid, vid = _drop_candidates(index, p, A, fixed, Rc + index.long_max) -> pid, vid = '
+    '_drop_candidates(index, p, A, None, Rc + index.long_max)',
+], _WHY_FIXED)
+_equivalent(_CLR, '_drop_chunk', [
+    'keep = rho <= Rc + index.vertex_long[vid] -> keep = rho < Rc + index.vertex_long[vid]',
+    'inn = rho <= Rc -> inn = rho < Rc',
+    'm = (shrunk <= Rc) & (h > S[pid] + _zlow(cutter, np.minimum(shrunk, Rc)) + _PRUNE_TOL) -> m = (shrunk < '
+    'Rc) & (h > S[pid] + _zlow(cutter, np.minimum(shrunk, Rc)) + _PRUNE_TOL)',
+    'm = (shrunk <= Rc) & (h > S[pid] + _zlow(cutter, np.minimum(shrunk, Rc)) + _PRUNE_TOL) -> m = (shrunk <= '
+    'Rc) & (h >= S[pid] + _zlow(cutter, np.minimum(shrunk, Rc)) + _PRUNE_TOL)',
+    'ubf = np.where(rlb <= Rc, ht.max(axis=1) - _zlow(cutter, np.minimum(rlb, Rc)), -np.inf) -> ubf = '
+    'np.where(rlb < Rc, ht.max(axis=1) - _zlow(cutter, np.minimum(rlb, Rc)), -np.inf)',
+    'strict = xin < r * (1.0 - 1e-9) -> strict = xin <= r * (1.0 - 1e-9)',
+    'tang_ub = np.where(strict & (rt <= Rc), tang.max(axis=2), np.inf).min(axis=1) -> tang_ub = '
+    'np.where(strict & (rt < Rc), tang.max(axis=2), np.inf).min(axis=1)',
+    'k = ubf > S[fp] + _PRUNE_TOL -> k = ubf >= S[fp] + _PRUNE_TOL',
+    'n = np.where((na < 0.0)[:, None], -n, n) -> n = np.where((na <= 0.0)[:, None], -n, n)',
+    'ok = index.face_valid[ff] & (na > 1e-12) -> ok = index.face_valid[ff] & (na >= 1e-12)',
+    'u = wn / np.where(wl > 1e-12, wl, np.inf)[:, None] -> u = wn / np.where(wl >= 1e-12, wl, np.inf)[:, None]',
+    'feas = (qa > 0.0) & (disc >= 0.0) -> feas = (qa > 0.0) & (disc > 0.0)',
+    'den = np.where(qa > 0.0, 2.0 * qa, 1.0) -> den = np.where(qa >= 0.0, 2.0 * qa, 1.0)',
+    'feas &= t0 <= t1 -> feas &= t0 < t1',
+    'k = feas & (ube > S[ep] + _PRUNE_TOL) -> k = feas & (ube >= S[ep] + _PRUNE_TOL)',
+    'better = vv < val -> better = vv <= val',
+], _WHY_EQUALITY)
+_equivalent(_CLR, '_drop_chunk', [
+    'slope = xin / np.sqrt(np.where(strict, r * r - xin * xin, 1.0)) -> slope = xin / np.sqrt(np.where(strict, '
+    'r * r - xin * xin, 2.0))',
+    'e_r = wt / np.where(rt > 0.0, rt, 1.0)[..., None] -> e_r = wt / np.where(rt > 0.0, rt, None)[..., None]',
+    'e_r = wt / np.where(rt > 0.0, rt, 1.0)[..., None] -> e_r = wt / np.where(rt > 0.0, rt, 2.0)[..., None]',
+    'u = wn / np.where(wl > 1e-12, wl, np.inf)[:, None] -> u = wn / np.where(wl > 1e-12, wl, None)[:, None]',
+    's_f = (r + R * wl - r * na - _dot(n, pp - tri[:, 0])) / np.where(ok, na, 1.0) -> s_f = (r + R * wl - r * '
+    'na - _dot(n, pp - tri[:, 0])) / np.where(ok, na, None)',
+], _WHY_GUARD)
+_equivalent(_CLR, '_drop_chunk', [
+    'tang = sv[:, :, None] + np.einsum("mik,mijk->mij", grad, tri[:, None, :, :] - tri[:, :, None, :]) -> tang '
+    '= sv[:, :, None] + np.einsum("MIK,MIJK->MIJ", grad, tri[:, None, :, :] - tri[:, :, None, :])',
+], _WHY_EINSUM)
+_equivalent(_CLR, '_drop_chunk', [
+    's_f = (r + R * wl - r * na - _dot(n, pp - tri[:, 0])) / np.where(ok, na, 1.0) -> s_f = (r + R * wl - r * '
+    'na - _dot(n, pp - tri[:, 1])) / np.where(ok, na, 1.0)',
+], _WHY_PLANE)
+_equivalent(_CLR, 'axial_drop', [
+    'ax = np.asarray(axis, dtype=float) -> ax = np.asarray(axis, dtype=None)',
+    'ax = np.asarray(axis, dtype=float) -> ax = np.asarray(axis, )',
+], _WHY_DTYPE)
+_equivalent(_CLR, 'axial_drop', [
+    'fixed = ax.shape == (3,) -> fixed = None',
+    'fixed = ax.shape == (3,) -> fixed = ax.shape == (4,)',
+    'S[sl], C[sl] = _drop_chunk(idx, cutter, p[sl], A[sl], fixed) -> S[sl], C[sl] = _drop_chunk(idx, cutter, '
+    'p[sl], A[sl], None)',
+], _WHY_FIXED)
+_equivalent(_CLR, 'axial_drop', [
+    'S = np.full(N, -np.inf) -> S = np.full(N, +np.inf)',
+], _WHY_INIT)
+_equivalent(_CLR, 'axial_drop', [
+    'cl = np.where(hit[:, None], p + np.where(hit, S, 0.0)[:, None] * A, np.nan) -> cl = np.where(hit[:, '
+    'None], p + np.where(hit, S, 1.0)[:, None] * A, np.nan)',
+], _WHY_HITMASK)
+_equivalent(_CLR, 'axial_drop', [
+    'core = cl + cutter.r * A + (np.minimum(rq, cutter.R) / np.where(rq > 0.0, rq, 1.0))[:, None] * wq -> core '
+    '= cl + cutter.r * A + (np.minimum(rq, cutter.R) / np.where(rq > 0.0, rq, 2.0))[:, None] * wq',
+    'normal = np.where(hit[:, None], nrm / np.where(ln > 0.0, ln, 1.0)[:, None], np.nan) -> normal = '
+    'np.where(hit[:, None], nrm / np.where(ln > 0.0, ln, 2.0)[:, None], np.nan)',
+], _WHY_GUARD)
+
 # mutmut's exit codes; -9 is the SIGKILL its runner sends one second after the CPU limit's SIGXCPU (a
 # timeout that ignored SIGXCPU), -11 a crash of the test process: the tests did not pass either way
 STATUS = {1: "killed", 3: "killed", 0: "survived", 5: "no tests", 33: "no tests", 34: "skipped",
