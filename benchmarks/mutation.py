@@ -81,6 +81,9 @@ class Target:
     #: remove the ``@njit`` decorators of the target files in the copy (numba kernels; run with
     #: NUMBA_DISABLE_JIT=1 as plain Python, which mutmut can mutate)
     strip_njit: bool = False
+    #: turn module-scoped fixtures of the test files into function-scoped ones in the copy: mutmut maps a
+    #: function to the tests that call it, and a module fixture's calls are charged to the first test only
+    fresh_fixtures: bool = False
     #: when > 0, only a random sample of this many of the module's mutants is run (seeded; see the
     #: module docstring), the score is the sample's, with its 95% Wilson interval
     sample: int = 0
@@ -141,7 +144,8 @@ TARGETS: dict[str, Target] = {
                                      "_max_gap", "_scale")),
     # the fitting drivers left out above, on a random sample of their mutants (each reruns Levenberg-Marquardt
     # or particle-swarm fits: the whole ~2000 would take hours), against the recovery tests
-    "calibration-fit": Target(("camsmooth/machine/calibration.py",), ("tests/test_calibration.py",),
+    "calibration-fit": Target(
+        ("camsmooth/machine/calibration.py",), ("tests/test_calibration.py",), fresh_fixtures=True,
         functions=("calibrate_probe", "calibrate_spindle", "calibrate_ballbar", "_ballbar_lsq", "_spindle_pso", "pso",
                    "_lsq", "_central_jacobian", "probe_offsets", "_probe_residual", "_spindle_model",
                    "_spindle_params", "_polar_report", "fit_thermal_response"), sample=250),
@@ -1179,6 +1183,11 @@ def run_module(module: str, max_children: int, keep: bool, seed: int = 1) -> Mod
         _configure(work, target)
         if target.functions:
             _restrict(work, target)
+        if target.fresh_fixtures:
+            for test in target.tests:
+                path = work / test
+                if test.endswith(".py") and path.exists():
+                    path.write_text(path.read_text().replace('@pytest.fixture(scope="module")', "@pytest.fixture"))
         if target.strip_njit:
             for pattern in target.paths:
                 for path in work.glob(pattern):
