@@ -430,6 +430,12 @@ def test_binding_threshold():
     assert not Binding("B travel", 3, -29.0, -30.0, "deg", lower=True).binds
     assert Binding("A travel", 3, -2.0, -3.0, "deg").binds  # a negative max
     assert not Binding("A travel", 3, -3.0, -3.0, "deg").binds
+    # past the limit the NLP enforces (backed off), inside the machine's
+    near = Binding("B travel", 3, 29.99, 30.0, "deg", enforced=29.97)
+    assert near.binds and not near.past_machine_limit
+    low = Binding("B travel", 3, -29.99, -30.0, "deg", lower=True, enforced=-29.97)
+    assert low.binds and not low.past_machine_limit
+    assert Binding("B velocity", 3, 61.0, 60.0, "deg/s", enforced=59.88).past_machine_limit
 
 
 def test_dilate_stays_inside_each_group():

@@ -146,8 +146,15 @@ def test_travel_too_tight_is_named_as_travel(wavy):
     one = CCPath(path.points[path.rows == 0], path.normals[path.rows == 0], path.rows[path.rows == 0],
                  path.feed_dirs[path.rows == 0], path.feed[path.rows == 0], "one row")
     with pytest.raises(InfeasibleError,
-                       match=r"one row: row id 0: .*binding constraint: B travel -2\.\.\.2 deg.*need B = "):
+                       match=r"one row: row id 0: .*binding constraint: B travel -2\.\.\.2 deg.*need B = "
+                             r"1\.99\d+ deg near point \d+ \(inside the machine's limit, but past the margin the "
+                             r"optimiser keeps from it: 0\.1% of the span at each end\)"):
         smooth(one, surf, machine, CUTTER, lead_range=(np.radians(2.0), np.radians(4.0)),
+               tilt_range=(np.radians(-1.0), np.radians(1.0)), method="nlp")
+    # half that travel: the need is past the machine's own limit, no margin is mentioned
+    data["axis"]["B"]["min"], data["axis"]["B"]["max"] = -1.0, 1.0
+    with pytest.raises(InfeasibleError, match=r"B travel -1\.\.\.1 deg.*need B = 1\.99\d+ deg near point \d+$"):
+        smooth(one, surf, machine_from_dict(data), CUTTER, lead_range=(np.radians(2.0), np.radians(4.0)),
                tilt_range=(np.radians(-1.0), np.radians(1.0)), method="nlp")
 
 

@@ -34,7 +34,7 @@ from scipy.interpolate import CubicSpline
 from scipy.ndimage import binary_dilation
 
 from camsmooth.errors import InfeasibleError
-from camsmooth.machine.kinematics import Machine
+from camsmooth.machine.kinematics import AxisLimits, Machine
 
 # Limits are tightened by this fraction inside the NLP so that IPOPT's tolerance never shows
 # as a violation when the result is checked against the true limits.
@@ -666,10 +666,11 @@ class RowNLP:
 @dataclass(frozen=True)
 class Binding:
     """What an elastic re-solve found binds on a row: the constraint ('A travel', 'B velocity',
-    ...), the point index, the value the windows need there and the machine's limit, in ``unit``
-    (deg, deg/s or deg/s^2; travel angles in the machine's sign convention); ``lower`` when the
-    limit is a lower bound (the travel's min). ``binds`` says whether the need is past the limit
-    (by more than 1e-6 of it)."""
+    ...), the point index, the value the windows need there, the machine's limit and the limit the
+    NLP enforces (the machine's backed off by ``backoff``, RowNLP.bounds), in ``unit`` (deg, deg/s
+    or deg/s^2; travel angles in the machine's sign convention); ``lower`` when the limit is a
+    lower bound (the travel's min). ``binds`` says whether the need is past the enforced limit (by
+    more than 1e-6 of it); ``past_machine_limit`` whether it is past the machine's own."""
 
     constraint: str
     point: int
@@ -677,22 +678,42 @@ class Binding:
     limit: float
     unit: str
     lower: bool = False
+    enforced: float | None = None
+
+    def _past(self, bound: float) -> bool:
+        tol = 1e-6 * abs(bound)
+        return self.need < bound - tol if self.lower else self.need > bound + tol
 
     @property
     def binds(self) -> bool:
-        tol = 1e-6 * abs(self.limit)
-        return self.need < self.limit - tol if self.lower else self.need > self.limit + tol
+        return self._past(self.limit if self.enforced is None else self.enforced)
+
+    @property
+    def past_machine_limit(self) -> bool:
+        return self._past(self.limit)
 
 
 def elastic_diagnosis(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_window: np.ndarray,
-                      tilt_window: np.ndarray, A0: np.ndarray, B0: np.ndarray) -> Binding:
+                      tilt_window: np.ndarray, A0: np.ndarray, B0: np.ndarray, backoff: float = BACKOFF) -> Binding:
     """Name the binding constraint of an infeasible row: re-solve with every limit group made
     elastic (non-negative slacks on the travel of A and B, as a fraction of their span, and on the
     velocity and acceleration limits, as a fraction of the limit) and minimise the sum of slacks;
-    the largest slack names the constraint, the point and what it would need."""
+    the largest slack names the constraint, the point and what it would need. The limits and
+    windows are the ones RowNLP enforces (backed off by ``backoff`` and WINDOW_BACKOFF), so a row
+    that fits the machine only without that margin is named too. Angles rad, times s."""
     n = len(t)
     D1, D2 = fd_operators(t)
-    lim = machine.limits
+    lim = {}
+    for name in "AB":  # the NLP's limits (RowNLP.bounds)
+        L = machine.limits[name]
+        w = (L.max - L.min) * backoff * 0.5
+        lim[name] = AxisLimits(L.min + w, L.max - w, L.vmax * (1 - backoff), L.amax * (1 - backoff))
+    mid = lead_window.mean(axis=1)
+    lead_window = np.column_stack([np.minimum(lead_window[:, 0] + WINDOW_BACKOFF, mid),
+                                   np.maximum(lead_window[:, 1] - WINDOW_BACKOFF, mid)])
+    mid = tilt_window.mean(axis=1)
+    tilt_window = np.column_stack([np.minimum(tilt_window[:, 0] + WINDOW_BACKOFF, mid),
+                                   np.maximum(tilt_window[:, 1] - WINDOW_BACKOFF, mid)])
     x = ca.SX.sym("x", 2 * n)
     A, B = x[0::2], x[1::2]
     Tx, Ty, Tz = machine.tool_axis(A, B)
@@ -732,14 +753,14 @@ def elastic_diagnosis(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_
     names = ("A velocity", "B velocity", "A acceleration", "B acceleration", "A travel", "B travel")
     axis = names[k][0]
     q = Aopt if axis == "A" else Bopt
-    L = lim[axis]
+    L, M = lim[axis], machine.limits[axis]
     if k >= 4:  # travel: the point furthest outside, and the angle it needs
         over = np.maximum(q - L.max, L.min - q)
         i = int(np.argmax(over))
         lower = bool(q[i] < L.min)
-        return Binding(names[k], i, float(np.degrees(q[i])), float(np.degrees(L.min if lower else L.max)), "deg",
-                       lower=lower)
+        return Binding(names[k], i, float(np.degrees(q[i])), float(np.degrees(M.min if lower else M.max)), "deg",
+                       lower=lower, enforced=float(np.degrees(L.min if lower else L.max)))
     vals = np.abs(D1 @ q) if k < 2 else np.abs(D2 @ q)
     i = int(np.argmax(vals)) + (0 if k < 2 else 1)
-    return Binding(names[k], i, float(np.degrees(vals.max())), float(np.degrees(L.vmax if k < 2 else L.amax)),
-                   "deg/s" if k < 2 else "deg/s^2")
+    return Binding(names[k], i, float(np.degrees(vals.max())), float(np.degrees(M.vmax if k < 2 else M.amax)),
+                   "deg/s" if k < 2 else "deg/s^2", enforced=float(np.degrees(L.vmax if k < 2 else L.amax)))

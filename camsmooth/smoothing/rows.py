@@ -481,16 +481,20 @@ def _raise_infeasible(ctx: RowContext, task: RowTask, nlp: RowNLP, lw: np.ndarra
     binds, say that the solver failed."""
     machine = ctx.machines[task.machine]
     where = f"{ctx.source}: " if ctx.source else ""
-    b = elastic_diagnosis(machine, task.t, task.frames, lw, tw, task.A0, task.B0)
+    b = elastic_diagnosis(machine, task.t, task.frames, lw, tw, task.A0, task.B0, backoff=nlp.backoff)
     i = min(b.point, len(task.t) - 1)
+    margin = "" if b.past_machine_limit else (
+        " (inside the machine's limit, but past the margin the optimiser keeps from it: "
+        + (f"{50 * nlp.backoff:g}% of the span at each end)" if b.constraint.endswith("travel")
+           else f"{100 * nlp.backoff:g}% of the limit)"))
     windows = "lead/tilt windows" + (" and the clear regions of the accessibility map" if with_map else "")
     if b.constraint.endswith("travel"):
         detail = (f"{b.constraint} {np.degrees(machine.limits[b.constraint[0]].min):g}..."
                   f"{np.degrees(machine.limits[b.constraint[0]].max):g} deg: the {windows} need "
-                  f"{b.constraint[0]} = {b.need:.4g} deg near point {i}")
+                  f"{b.constraint[0]} = {b.need:.6g} deg near point {i}{margin}")
     else:
         detail = (f"{b.constraint} limit {b.limit:g} {b.unit} near point {i} (t = {task.t[i]:.3f} s): the {windows} "
-                  f"need at least {b.need:.4g} {b.unit} there")
+                  f"need at least {b.need:.4g} {b.unit} there{margin}")
     if b.binds:
         raise InfeasibleError(f"{where}row id {task.row}: no program meets the limits; binding constraint: {detail}")
     raise InfeasibleError(f"{where}row id {task.row}: the NLP solver failed ({status}) although no limit binds (the "
