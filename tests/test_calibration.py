@@ -325,6 +325,7 @@ def test_spindle_report_fields(spindle_report):
     assert set(rep.details["pso"]["parameters"]) == set(rep.parameters)
     assert rep.details["ls"]["rms"] == rep.rms_after and rep.details["ls"]["nfev"] == rep.details["nfev"]
     meta = rep.model.meta["spindle"]
+    assert set(meta) == {"source", "samples", "fitted", "unidentifiable"}
     assert meta["fitted"] == list(rep.parameters) and meta["unidentifiable"] == sorted(rep.unidentifiable)
     assert meta["samples"] * 3 == rep.n_observations  # three ball coordinates per sample
     assert all("held at" in why for why in rep.unidentifiable.values())
