@@ -992,6 +992,63 @@ _equivalent(_CLR, 'axial_drop', [
     'np.where(hit[:, None], nrm / np.where(ln > 0.0, ln, 2.0)[:, None], np.nan)',
 ], _WHY_GUARD)
 
+_CAL = "camsmooth/machine/calibration.py"
+_WHY_DTYPE = ("the probe and spindle tables are float arrays already (validated when read or simulated): the same "
+              "values with or without the explicit dtype")
+_WHY_START = ("probe_offsets only gives the starting point of the sphere centre (c0), which enters the probe "
+              "residual linearly: the least-squares fit ends at the same centre and parameters from any start")
+_WHY_PERIODIC = ("without periodic dimensions np.asarray(None, bool) is a scalar False and zeros(n, None) float "
+                 "zeros, both falsy in np.where: the same clipping")
+_WHY_EXTRA = ("the swarm's cost writes r / theta columns into the parameter dict as extra keys that _spindle_model "
+              "never reads (it reads a1, b1, a2, b2 from r and theta): the same cost")
+_equivalent(_CAL, '_probe_residual', [
+    'geo.update({p: float(v) for p, v in zip(names, x[:-3] * scales, strict=True)}) -> geo.update({p: float(v) '
+    'for p, v in zip(names, x[:-3] * scales, strict=False)})',
+], _WHY_STRICT)
+_equivalent(_CAL, '_spindle_pso', [
+    'if k not in ("r1", "r2", "theta1", "theta2"): -> if k not in ("R1", "r2", "theta1", "theta2"):',
+    'if k not in ("r1", "r2", "theta1", "theta2"): -> if k not in ("r1", "R2", "theta1", "theta2"):',
+    'if k not in ("r1", "r2", "theta1", "theta2"): -> if k not in ("r1", "r2", "THETA1", "theta2"):',
+    'if k not in ("r1", "r2", "theta1", "theta2"): -> if k not in ("r1", "r2", "theta1", "THETA2"):',
+], _WHY_EXTRA)
+_equivalent(_CAL, 'calibrate_probe', [
+    'c0 = np.mean(data.centre + probe_offsets(base, machine, data), axis=0) -> c0 = np.mean(data.centre - '
+    'probe_offsets(base, machine, data), axis=0)',
+    'x0 = np.concatenate([x_base, c0 * 1e3]) -> x0 = np.concatenate([x_base, c0 / 1e3])',
+], _WHY_START)
+_equivalent(_CAL, 'calibrate_probe', [
+    'params = {p: float(v) for p, v in zip(fit_names, fit.x[:-3] * fit_scales, strict=True)} -> params = {p: '
+    'float(v) for p, v in zip(fit_names, fit.x[:-3] * fit_scales, strict=False)}',
+], _WHY_STRICT)
+_equivalent(_CAL, 'calibrate_spindle', [
+    'theta, ext, ball = data.theta, np.asarray(data.ext, float), np.asarray(data.ball, float) -> theta, ext, '
+    'ball = data.theta, np.asarray(data.ext, ), np.asarray(data.ball, float)',
+], _WHY_DTYPE)
+_equivalent(_CAL, 'calibrate_spindle', [
+    'p.update({k: float(v) * _SPINDLE_SCALE[k] for k, v in zip(fit, x, strict=True)}) -> p.update({k: float(v) '
+    '* _SPINDLE_SCALE[k] for k, v in zip(fit, x, )})',
+], _WHY_STRICT)
+_equivalent(_CAL, 'probe_offsets', [
+    'q = {"A": np.asarray(data.A, float), "B": np.asarray(data.B, float), "X": np.asarray(data.X, float), -> q '
+    '= {"A": np.asarray(data.A, float), "B": np.asarray(data.B, ), "X": np.asarray(data.X, float),',
+    'q = {"A": np.asarray(data.A, float), "B": np.asarray(data.B, float), "X": np.asarray(data.X, float), -> q '
+    '= {"A": np.asarray(data.A, float), "B": np.asarray(data.B, float), "X": np.asarray(data.X, None),',
+], _WHY_DTYPE)
+_equivalent(_CAL, 'probe_offsets', [
+    'q = {"A": np.asarray(data.A, float), "B": np.asarray(data.B, float), "X": np.asarray(data.X, float), -> q '
+    '= {"A": np.asarray(data.A, float), "B": np.asarray(data.B, float), "x": np.asarray(data.X, float),',
+    '"Y": np.asarray(data.Y, float), "Z": np.asarray(data.Z, float)} -> "Y": np.asarray(data.Y, float), '
+    '"XXZXX": np.asarray(data.Z, float)}',
+    'nominal = machine.tool_pose_np(data.A, data.B, data.X, data.Y, data.Z)[0] -> nominal = '
+    'machine.tool_pose_np(data.A, data.B, data.X, data.Y, data.Z)[1]',
+], _WHY_START)
+_equivalent(_CAL, 'pso', [
+    'periodic = np.zeros(len(lower), bool) if periodic is None else np.asarray(periodic, bool) -> periodic = '
+    'np.zeros(len(lower), bool) if (periodic is None) and False else np.asarray(periodic, bool)',
+    'periodic = np.zeros(len(lower), bool) if periodic is None else np.asarray(periodic, bool) -> periodic = '
+    'np.zeros(len(lower), None) if periodic is None else np.asarray(periodic, bool)',
+], _WHY_PERIODIC)
+
 # mutmut's exit codes; -9 is the SIGKILL its runner sends one second after the CPU limit's SIGXCPU (a
 # timeout that ignored SIGXCPU), -11 a crash of the test process: the tests did not pass either way
 STATUS = {1: "killed", 3: "killed", 0: "survived", 5: "no tests", 33: "no tests", 34: "skipped",
