@@ -42,6 +42,26 @@ BACKOFF = 2e-3
 WINDOW_BACKOFF = 2e-6  # rad (0.4 arc-seconds): far below any machine error a model describes
 
 
+def enforced_limits(machine: Machine, backoff: float = BACKOFF) -> dict[str, AxisLimits]:
+    """The A and B limits the NLP enforces (rad, rad/s, rad/s^2): the machine's travel shrunk by
+    backoff / 2 of its span at each end, velocity and acceleration limits by the fraction backoff."""
+    out = {}
+    for name in "AB":
+        L = machine.limits[name]
+        w = (L.max - L.min) * backoff * 0.5
+        out[name] = AxisLimits(L.min + w, L.max - w, L.vmax * (1 - backoff), L.amax * (1 - backoff))
+    return out
+
+
+def narrowed(window: np.ndarray) -> np.ndarray:
+    """Per-point (lo, hi) windows (N, 2), rad, moved WINDOW_BACKOFF inward at each side (never past
+    their middle): the lead and tilt windows the NLP enforces."""
+    window = np.asarray(window, float)
+    mid = window.mean(axis=1)
+    return np.column_stack([np.minimum(window[:, 0] + WINDOW_BACKOFF, mid),
+                            np.maximum(window[:, 1] - WINDOW_BACKOFF, mid)])
+
+
 def fd_operators(t: np.ndarray) -> tuple[sp.csr_matrix, sp.csr_matrix]:
     """Sparse first-difference (N-1, N) and second-difference (N-2, N) operators for time
     stamps t (s, strictly increasing); see the module docstring."""
@@ -493,9 +513,8 @@ class RowNLP:
         h = np.diff(t)
         hl, hr = h[:-1], h[1:]
         X, Y, Z = frames[:, :, 0], frames[:, :, 1], frames[:, :, 2]
-        mid = 0.5 * (tilt_window[:, 0:1] + tilt_window[:, 1:2])
-        tmin = np.minimum(tilt_window[:, 0:1] + WINDOW_BACKOFF, mid)
-        tmax = np.maximum(tilt_window[:, 1:2] - WINDOW_BACKOFF, mid)
+        tw = narrowed(tilt_window)
+        tmin, tmax = tw[:, 0:1], tw[:, 1:2]
         cmin = Y * np.cos(tmin) - X * np.sin(tmin)
         cmax = X * np.sin(tmax) - Y * np.cos(tmax)
         return np.concatenate([1 / h, 2 / (hl * (hl + hr)), -2 / (hl * hr), 2 / (hr * (hl + hr)),
@@ -503,28 +522,19 @@ class RowNLP:
                                np.asarray(bounds.floor, float).T.ravel(), np.asarray(bounds.ceiling, float).T.ravel()])
 
     def bounds(self, lead_window: np.ndarray) -> tuple[np.ndarray, ...]:
-        """lbx, ubx, lbg, ubg (every row of GROUPS) for the current windows (limits backed off
-        by the fraction ``backoff``, BACKOFF by default; windows by WINDOW_BACKOFF)."""
-        n, lim = self.n, self.machine.limits
-        la, lb = lim["A"], lim["B"]
-
-        def band(lo: float, hi: float) -> tuple[float, float]:
-            w = (hi - lo) * self.backoff * 0.5
-            return lo + w, hi - w
-
-        a_lo, a_hi = band(la.min, la.max)
-        b_lo, b_hi = band(lb.min, lb.max)
+        """lbx, ubx, lbg, ubg (every row of GROUPS) for the current windows: ``enforced_limits``
+        with the fraction ``backoff`` (BACKOFF by default) and the ``narrowed`` windows."""
+        n = self.n
+        la, lb = (enforced_limits(self.machine, self.backoff)[k] for k in "AB")
         lbx = np.empty(2 * n)
         ubx = np.empty(2 * n)
-        lbx[0::2], ubx[0::2], lbx[1::2], ubx[1::2] = a_lo, a_hi, b_lo, b_hi
-        f = 1.0 - self.backoff
-        lo_l = np.minimum(lead_window[:, 0] + WINDOW_BACKOFF, lead_window.mean(axis=1))
-        hi_l = np.maximum(lead_window[:, 1] - WINDOW_BACKOFF, lead_window.mean(axis=1))
-        lbg = np.concatenate([np.full(n - 1, -la.vmax * f), np.full(n - 1, -lb.vmax * f),
-                              np.full(n - 2, -la.amax * f), np.full(n - 2, -lb.amax * f),
+        lbx[0::2], ubx[0::2], lbx[1::2], ubx[1::2] = la.min, la.max, lb.min, lb.max
+        lo_l, hi_l = narrowed(lead_window).T
+        lbg = np.concatenate([np.full(n - 1, -la.vmax), np.full(n - 1, -lb.vmax),
+                              np.full(n - 2, -la.amax), np.full(n - 2, -lb.amax),
                               np.cos(hi_l), np.zeros(n), np.zeros(n), np.full(n, WINDOW_BACKOFF), np.full(n, -np.inf)])
-        ubg = np.concatenate([np.full(n - 1, la.vmax * f), np.full(n - 1, lb.vmax * f),
-                              np.full(n - 2, la.amax * f), np.full(n - 2, lb.amax * f),
+        ubg = np.concatenate([np.full(n - 1, la.vmax), np.full(n - 1, lb.vmax),
+                              np.full(n - 2, la.amax), np.full(n - 2, lb.amax),
                               np.cos(lo_l), np.full(n, np.inf), np.full(n, np.inf), np.full(n, np.inf),
                               np.full(n, -WINDOW_BACKOFF)])
         return lbx, ubx, lbg, ubg
@@ -703,17 +713,8 @@ def elastic_diagnosis(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_
     that fits the machine only without that margin is named too. Angles rad, times s."""
     n = len(t)
     D1, D2 = fd_operators(t)
-    lim = {}
-    for name in "AB":  # the NLP's limits (RowNLP.bounds)
-        L = machine.limits[name]
-        w = (L.max - L.min) * backoff * 0.5
-        lim[name] = AxisLimits(L.min + w, L.max - w, L.vmax * (1 - backoff), L.amax * (1 - backoff))
-    mid = lead_window.mean(axis=1)
-    lead_window = np.column_stack([np.minimum(lead_window[:, 0] + WINDOW_BACKOFF, mid),
-                                   np.maximum(lead_window[:, 1] - WINDOW_BACKOFF, mid)])
-    mid = tilt_window.mean(axis=1)
-    tilt_window = np.column_stack([np.minimum(tilt_window[:, 0] + WINDOW_BACKOFF, mid),
-                                   np.maximum(tilt_window[:, 1] - WINDOW_BACKOFF, mid)])
+    lim = enforced_limits(machine, backoff)
+    lead_window, tilt_window = narrowed(lead_window), narrowed(tilt_window)
     x = ca.SX.sym("x", 2 * n)
     A, B = x[0::2], x[1::2]
     Tx, Ty, Tz = machine.tool_axis(A, B)
