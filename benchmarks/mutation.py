@@ -113,9 +113,11 @@ TARGETS: dict[str, Target] = {
                   ("tests/test_nlp.py", "tests/test_smoothing.py", "tests/test_oracles.py"), sample=400),
     # the compiled clearance kernels, run as plain Python (decorators removed in the copy, NUMBA_DISABLE_JIT=1)
     # against the closed-form clearance tests small enough to run interpreted (seconds each instead of
-    # milliseconds): a sample of their mutants
+    # milliseconds) and the brute-force comparison of deep penetration (two triangles: 6 s interpreted):
+    # a sample of their mutants
     "kernels": Target(("camsmooth/geometry/_kernels.py",), (
-        "tests/test_interference.py", "-k", "not brute_force and not axial_drop and not subdivision"),
+        "tests/test_interference.py", "-k",
+        "(not brute_force and not axial_drop and not subdivision) or deep_penetration"),
         env={"NUMBA_DISABLE_JIT": "1"}, strip_njit=True, sample=150),
     # the three brute-force comparisons of test_interference.py (25 s, 7 s, 6 s) are left out: every
     # surviving mutant would rerun them; the closed-form and agreement tests of the file stay in
