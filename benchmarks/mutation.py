@@ -1051,6 +1051,61 @@ _equivalent(_CAL, 'pso', [
     'np.zeros(len(lower), None) if periodic is None else np.asarray(periodic, bool)',
 ], _WHY_PERIODIC)
 
+_KER = "camsmooth/geometry/_kernels.py"
+_WHY_BOX = ("_box only chooses the oriented box's axes and centre (for tight boxes, i.e. speed): the axes are "
+            "made orthonormal (Gram-Schmidt, cross product; (0, 0, 1) when the normals vanish) and the extents "
+            "are the largest projections of the triangles' vertices about the final centre, so the box contains "
+            "its triangles whatever the axes and centre, and the pruning bounds stay rigorous")
+_WHY_CAP = "the node arrays get one spare row; build_bvh returns them cut to the nodes it made"
+_WHY_ITERS = ("the edge minimisation ends on its certificate long before 300 iterations (the bisection safeguard "
+              "halves the bracket: ~60 halvings reach rounding)")
+_WHY_CACHE = ("the per-pose edge cache only avoids minimising an edge twice: another hash, or entries that never "
+              "match, make it recompute an edge, with the same minimum")
+_WHY_SEED = ("the seed only pushes the previous pose's best leaf to search first; node 0 is the root, which is "
+             "searched anyway")
+_WHY_EVAB = "eva and evb are read only when an edge gave the minimum, and then they were set by that edge"
+_WHY_FALSY = "the flag is only tested for truth: False and None are both false"
+_equivalent(_KER, '_box', [
+    'mx, my, mz = mx / (3.0 * c), my / (3.0 * c), mz / (3.0 * c) -> mx, my, mz = mx / (3.0 / c), my / (3.0 * '
+    'c), mz / (3.0 * c)',
+    'm[0], m[1], m[2] = S[0, k], S[1, k], S[2, k] -> m[0], m[1], m[2] = S[1, k], S[1, k], S[2, k]',
+    'x0 = S[0, 0] * m[0] + S[0, 1] * m[1] + S[0, 2] * m[2] -> x0 = S[0, 0] / m[0] + S[0, 1] * m[1] + S[0, 2] * '
+    'm[2]',
+    'x0 = S[0, 0] * m[0] + S[0, 1] * m[1] + S[0, 2] * m[2] -> x0 = S[0, 0] * m[0] + S[0, 1] * m[1] + S[0, 2] / '
+    'm[2]',
+    'x2 = S[2, 0] * m[0] + S[2, 1] * m[1] + S[2, 2] * m[2] -> x2 = S[2, 0] * m[0] - S[2, 1] * m[1] + S[2, 2] * '
+    'm[2]',
+    'if not ln > 0.0: -> if ln > 0.0:',
+    'if not ln > 0.0: -> if not ln > 1.0:',
+    'if ln > 0.0: -> if ln > 1.0:',
+    'ux, uy, uz = vertices[p1, 0] - ox, vertices[p1, 1] - oy, vertices[p1, 2] - oz -> ux, uy, uz = '
+    'vertices[p1, 0] - ox, vertices[p1, 1] - oy, vertices[p1, 2] + oz',
+    'dx, dy, dz = vertices[v, 0] - mx, vertices[v, 1] - my, vertices[v, 2] - mz -> dx, dy, dz = vertices[v, 0] '
+    '+ mx, vertices[v, 1] - my, vertices[v, 2] - mz',
+    'cx += mid * a[k, 0] -> cx = mid * a[k, 0]',
+    'S[0, 1] += n0 * n1 / ln -> S[0, 1] += n0 * n1 * ln',
+], _WHY_BOX)
+_equivalent(_KER, '_edge_min', [
+    'for it in range(300): -> for it in range(301):',
+], _WHY_ITERS)
+_equivalent(_KER, 'build_bvh', [
+    'cap = 2 * F + 1 -> cap = 2 * F + 2',
+], _WHY_CAP)
+_equivalent(_KER, 'clearance_kernel', [
+    'if seed[body] >= 0: -> if seed[body] >= 1:',
+], _WHY_SEED)
+_equivalent(_KER, 'clearance_kernel', [
+    'j = ((i & 0x7FFFFFFF) * 2654435761 + (i >> 31)) & (HASH - 1) -> j = ((i & 0x7FFFFFFF) * 2654435761 + (i '
+    '>> 32)) & (HASH - 1)',
+    'et[j, 0], et[j, 1] = key, ek -> et[j, 1], et[j, 1] = key, ek',
+], _WHY_CACHE)
+_equivalent(_KER, 'clearance_kernel', [
+    'bx, by, bz, ax, ay, az, h, rad, off, U, False) -> bx, by, bz, ax, ay, az, h, rad, off, U, None)',
+], _WHY_FALSY)
+_equivalent(_KER, 'clearance_kernel', [
+    'eva = evb = 0 -> eva = evb = 1',
+], _WHY_EVAB)
+
 # mutmut's exit codes; -9 is the SIGKILL its runner sends one second after the CPU limit's SIGXCPU (a
 # timeout that ignored SIGXCPU), -11 a crash of the test process: the tests did not pass either way
 STATUS = {1: "killed", 3: "killed", 0: "survived", 5: "no tests", 33: "no tests", 34: "skipped",
