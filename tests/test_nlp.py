@@ -170,7 +170,7 @@ def test_each_limit_binds_and_the_result_is_a_reference_optimum(case, screening)
     A, B, st = row.solve(t, fr, A0, B0, lw, tw)
     assert st.success, st.status
     assert st.total_rows == 2 * (N - 1) + 2 * (N - 2) + 3 * N
-    assert (st.rows < st.total_rows) == screening or not screening
+    assert st.rows <= st.total_rows and (screening or st.rows == st.total_rows)
     assert binds(what, machine, t, fr, lw, tw, A, B), f"{what} does not bind: the case tests nothing"
     certify(machine, t, fr, lw, tw, A, B)
     assert row.constraint_report(t, A, B) == []
