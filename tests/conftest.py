@@ -36,3 +36,19 @@ def snapshot(folder: Path) -> dict[str, tuple]:
             out[os.path.relpath(p, folder)] = (st.st_size, st.st_mtime_ns,
                                               hashlib.sha1(Path(p).read_bytes()).hexdigest())
     return out
+
+
+def user_workspace(inputs: Path, folder: Path) -> Path:
+    """Fill ``folder`` as a user's working folder for the CLI fault tests: the input files and the
+    ``samples`` folder of ``inputs``, plus a file (user.txt) and a folder (keep/notes.txt) of the
+    user's own that no failure may touch."""
+    import shutil
+
+    for f in inputs.iterdir():
+        if f.is_file():
+            shutil.copy(f, folder / f.name)
+    shutil.copytree(inputs / "samples", folder / "samples")
+    (folder / "user.txt").write_text("the user's own file\n")
+    (folder / "keep").mkdir()
+    (folder / "keep" / "notes.txt").write_text("keep me\n")
+    return folder

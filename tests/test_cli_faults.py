@@ -26,7 +26,7 @@ from camsmooth.cli.main import main
 from camsmooth.errors import InputError
 from camsmooth.geometry.paths import CCPath, check_contact_with_mesh, check_normals_against_mesh
 from camsmooth.io.ccpath import write_cc_csv
-from tests.conftest import ROOT, snapshot
+from tests.conftest import ROOT, snapshot, user_workspace
 
 NP_REPR = re.compile(r"np\.[a-z_]+\d*\(")
 
@@ -88,13 +88,7 @@ def data(tmp_path_factory) -> Path:
 @pytest.fixture
 def ws(data, tmp_path, monkeypatch) -> Path:
     """A working folder with the inputs, a user file and a user folder; the current folder."""
-    for f in data.iterdir():
-        if f.is_file():
-            shutil.copy(f, tmp_path / f.name)
-    shutil.copytree(data / "samples", tmp_path / "samples")
-    (tmp_path / "user.txt").write_text("the user's own file\n")
-    (tmp_path / "keep").mkdir()
-    (tmp_path / "keep" / "notes.txt").write_text("keep me\n")
+    user_workspace(data, tmp_path)
     (tmp_path / "adir").mkdir()
     monkeypatch.chdir(tmp_path)
     return tmp_path

@@ -40,7 +40,7 @@ import pytest
 
 from camsmooth.cli.main import main
 from camsmooth.io.ccpath import write_cc_csv
-from tests.conftest import ROOT, snapshot
+from tests.conftest import ROOT, snapshot, user_workspace
 from tests.test_cli_faults import one_message, plane_mesh, plane_path
 
 TAG = ".camsmooth-"
@@ -79,13 +79,7 @@ def inputs(tmp_path_factory) -> Path:
 @pytest.fixture
 def ws(inputs, tmp_path, monkeypatch) -> Path:
     """A working folder (the current folder) with the inputs and a user's own files."""
-    for f in inputs.iterdir():
-        if f.is_file():
-            shutil.copy(f, tmp_path / f.name)
-    shutil.copytree(inputs / "samples", tmp_path / "samples")
-    (tmp_path / "user.txt").write_text("the user's own file\n")
-    (tmp_path / "keep").mkdir()
-    (tmp_path / "keep" / "notes.txt").write_text("keep me\n")
+    user_workspace(inputs, tmp_path)
     monkeypatch.chdir(tmp_path)
     return tmp_path
 
