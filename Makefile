@@ -3,7 +3,7 @@ PYTHON ?= $(shell command -v python3.11 || command -v python3)
 VENV := .venv
 BIN := $(VENV)/bin
 
-.PHONY: demo test lint bench clean
+.PHONY: demo test lint bench clean linuxcnc
 
 $(BIN)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -14,7 +14,16 @@ $(BIN)/.installed: pyproject.toml
 demo: $(BIN)/.installed
 	$(BIN)/camsmooth demo --out demo_out
 
-test: $(BIN)/.installed
+# LinuxCNC (Debian linuxcnc-uspace) is the reference controller of the tests: installed where
+# apt-get runs as root; elsewhere its tests skip and say so.
+linuxcnc:
+	@if command -v rs274 >/dev/null 2>&1; then :; \
+	elif [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
+	    linuxcnc-uspace >/dev/null) || echo "camsmooth: apt-get could not install linuxcnc-uspace: LinuxCNC tests skip"; \
+	else echo "camsmooth: LinuxCNC not installed (apt-get install linuxcnc-uspace as root): LinuxCNC tests skip"; fi
+
+test: $(BIN)/.installed linuxcnc
 	$(BIN)/ruff check camsmooth tests examples benchmarks surfaces
 	$(BIN)/python -m pytest
 

@@ -159,9 +159,9 @@ def test_dialect_mode_rebuilds_tip_path_and_feed(tmp_path, dialect, mode):
     else:
         assert all(b["per_min"] for b in cut)
         np.testing.assert_allclose(F, feed, atol=0.05 + 1e-9)  # F written with one decimal
-        on = {"linuxcnc": "M429", "fanuc": "G43.4 H1", "siemens": "TRAORI",
+        on = {"linuxcnc": "M428", "fanuc": "G43.4 H1", "siemens": "TRAORI",
               "heidenhain": "FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS"}[dialect]
-        off = {"linuxcnc": "M428", "fanuc": "G49", "siemens": "TRAFOOF", "heidenhain": "FUNCTION RESET TCPM"}[dialect]
+        off = {"linuxcnc": "M429", "fanuc": "G49", "siemens": "TRAFOOF", "heidenhain": "FUNCTION RESET TCPM"}[dialect]
         bare = [re.sub(r"^\d+\s+", "", ln).strip() for ln in text.splitlines()]
         k_on = bare.index(on)
         k_off = len(bare) - 1 - bare[::-1].index(off)

@@ -31,7 +31,7 @@ def test_feed_directions_and_planned_time_law_are_written_after_the_fixed_column
     r.plan = _plan(n)
     back = read_result_csv(write_result_csv(tmp_path / "r.csv", res))
     header = (tmp_path / "r.csv").read_text().splitlines()[0].split(",")
-    assert tuple(header) == RESULT_CSV_COLUMNS + ("fx", "fy", "fz", "t_plan", "feed_plan")
+    assert tuple(header) == RESULT_CSV_COLUMNS + ("fx", "fy", "fz", "t_plan", "feed_plan", "t_opt", "feed_opt")
     np.testing.assert_array_equal(back["fx"], np.cos(ang))
     np.testing.assert_array_equal(back["fy"], np.sin(ang))
     np.testing.assert_array_equal(back["fz"], 0.0)

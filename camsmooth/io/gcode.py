@@ -22,11 +22,23 @@ Modes (``[post] mode``):
   feed (G94, mm/min): Fanuc ``G43.4 H<tool>`` ... ``G49`` (type 1: rotary axis positions);
   Siemens ``TRAORI`` ... ``TRAFOOF``; Heidenhain ``FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS``
   ... ``FUNCTION RESET TCPM`` (the successor of M128, which HEIDENHAIN recommends instead);
-  LinuxCNC has no standard G-code for TCP: it switches to a TCP kinematics (switchkins) by a
-  configuration-defined M-code; the writer uses M429 (TCP, type 1) / M428 (identity, type 0) as
-  in the LinuxCNC 5-axis simulation configurations (LinuxCNC commit 135b0ce, "switchable
-  kinematics"); set ``[post] tcp_on / tcp_off`` for another configuration. The generic dialect
-  has no TCP command and refuses tcp mode.
+  LinuxCNC has no standard G-code for TCP: it switches kinematics (switchkins) by M-codes that
+  the configuration remaps; the writer follows LinuxCNC's shipped five-axis configurations
+  (``xyzac-trt.ini``, ``xyzbc-trt.ini``: ``M428`` remaps to kinematics type 1, the five-axis
+  kinematics, and ``M429`` to type 0, identity), so TCP on is ``M428`` and off ``M429``; set
+  ``[post] tcp_on / tcp_off`` for another configuration. The generic dialect has no TCP command
+  and refuses tcp mode.
+
+Path tolerance (how far the controller may blend off the programmed path), set after the
+program start from the user's tolerance T (mm), by each controller manual's name for it:
+LinuxCNC "path blending" ``G64 P<s T> Q<s T>`` (P the blending tolerance, Q the naive-CAM
+detector's; s = camsmooth.controller.PATH_TOLERANCE_SHARE, the rest of T is spent on the longer
+blocks of camsmooth.controller.blocks);
+Heidenhain cycle 32 TOLERANCE (``CYCL DEF 32.0 TOLERANCE`` / ``32.1 T<T>`` / ``32.2 HSC-MODE:0``,
+finishing); Siemens high-speed settings ``CYCLE832(<T>, _FINISH, 1)``; Fanuc AI contour control
+``G05.1 Q1`` (look-ahead on; the Fanuc tolerance is a machine parameter, not a program word). A
+machine whose controller camsmooth models (camsmooth.controller: LinuxCNC) gets the blocks and the
+block times of its ``ControllerPlan``: G93 F = 1 / the plan's block time.
 
 A and B sign convention (METHODS section 1; RS274NGC / ISO 841, as LinuxCNC's G-code manual
 states under "Rotational axes"): A turns about +X, B about +Y, both by the right-hand rule, and
@@ -59,6 +71,7 @@ from typing import Any
 import numpy as np
 
 from camsmooth import __version__
+from camsmooth.controller import PATH_TOLERANCE_SHARE
 from camsmooth.errors import InfeasibleError, InputError
 from camsmooth.io.atomic import atomic_path
 from camsmooth.io.program import CLProgram, ToolPath
@@ -98,18 +111,22 @@ class Dialect:
     per_minute: str = "G94"
     klartext: bool = False
     percent: bool = False
+    path_tolerance: tuple[str, ...] | None = None  # lines setting the path tolerance ({tol}, {blend}: mm)
 
 
 DIALECTS: dict[str, Dialect] = {
     "generic": Dialect("generic", _paren, ("G21", "G90", "G17")),
     "linuxcnc": Dialect("linuxcnc", _paren, ("G21", "G90", "G17", "G40", "G49"), home=("G53 G00 Z0",),
-                        tcp_on="M429", tcp_off="M428"),
+                        tcp_on="M428", tcp_off="M429", path_tolerance=("G64 P{blend} Q{blend}",)),
     "fanuc": Dialect("fanuc", _paren, ("G21", "G90", "G17", "G40", "G49", "G80"), home=("G91 G28 Z0.", "G90"),
-                     tcp_on="G43.4 H{tool}", tcp_off="G49", percent=True),
-    "siemens": Dialect("siemens", _semicolon, ("G71", "G90", "G17", "G40"), tcp_on="TRAORI", tcp_off="TRAFOOF"),
+                     tcp_on="G43.4 H{tool}", tcp_off="G49", percent=True, path_tolerance=("G05.1 Q1",)),
+    "siemens": Dialect("siemens", _semicolon, ("G71", "G90", "G17", "G40"), tcp_on="TRAORI", tcp_off="TRAFOOF",
+                       path_tolerance=("CYCLE832({tol}, _FINISH, 1)",)),
     "heidenhain": Dialect("heidenhain", _semicolon, (), end=("M30",), home=("M140 MB MAX",),
                           tcp_on="FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS", tcp_off="FUNCTION RESET TCPM",
-                          inverse_time=None, per_minute="", klartext=True),
+                          inverse_time=None, per_minute="", klartext=True,
+                          path_tolerance=("CYCL DEF 32.0 TOLERANCE", "CYCL DEF 32.1 T{tol}",
+                                          "CYCL DEF 32.2 HSC-MODE:0")),
 }
 _POST_TAG = "camsmooth post:"
 
@@ -188,6 +205,7 @@ class _Moves:
     rapid: np.ndarray  # (M,) bool
     feed: np.ndarray  # (M,) mm/min (nan for rapids)
     row_start: list[tuple[int, int, int]] = field(default_factory=list)  # (move index, row id, points)
+    block_time: np.ndarray | None = None  # (M,) s commanded per block, nan where the feed decides
 
 
 def _check_travel(machine: Any, rows: np.ndarray, idx: np.ndarray, A: np.ndarray, B: np.ndarray, xyz: np.ndarray,
@@ -219,9 +237,10 @@ def _row_slices(rows: np.ndarray) -> list[slice]:
 
 
 def _moves(rows: np.ndarray, joints: np.ndarray, tips: np.ndarray, T: np.ndarray, feed: np.ndarray,
-           h: float) -> _Moves:
-    """Entry rapid, row points, exit rapid per row (loop over rows, not points)."""
-    J, P, R, F, starts = [], [], [], [], []
+           h: float, block_time: np.ndarray | None = None) -> _Moves:
+    """Entry rapid, row points, exit rapid per row (loop over rows, not points). block_time: (N,)
+    s per point, the commanded time of the block ending there (nan where the feed decides)."""
+    J, P, R, F, starts, BT = [], [], [], [], [], []
     up = np.zeros((1, 5))
     count = 0
     for sl in _row_slices(rows):
@@ -236,11 +255,15 @@ def _moves(rows: np.ndarray, joints: np.ndarray, tips: np.ndarray, T: np.ndarray
         P += [tips[first:first + 1] + h * T[first], tips[sl], tips[last:last + 1] + h * T[last]]
         R += [np.array([True]), np.zeros(n, bool), np.array([True])]
         F += [np.array([np.nan]), feed[sl], np.array([np.nan])]
+        bt = np.full(n, np.nan) if block_time is None else np.asarray(block_time[sl], float).copy()
+        bt[0] = np.nan  # the entry move runs at the programmed feed
+        BT += [np.array([np.nan]), bt, np.array([np.nan])]
         starts.append((count, int(rows[first]), n))
         count += n + 2
     if not J:
-        return _Moves(np.zeros((0, 5)), np.zeros((0, 3)), np.zeros(0, bool), np.zeros(0), [])
-    return _Moves(np.concatenate(J), np.concatenate(P), np.concatenate(R), np.concatenate(F), starts)
+        return _Moves(np.zeros((0, 5)), np.zeros((0, 3)), np.zeros(0, bool), np.zeros(0), [], np.zeros(0))
+    return _Moves(np.concatenate(J), np.concatenate(P), np.concatenate(R), np.concatenate(F), starts,
+                  np.concatenate(BT))
 
 
 def _block_feeds(machine: Any, mv: _Moves, mode: str) -> tuple[np.ndarray, int]:
@@ -251,6 +274,10 @@ def _block_feeds(machine: Any, mv: _Moves, mode: str) -> tuple[np.ndarray, int]:
     cut = np.flatnonzero(~mv.rapid)
     if mode == "tcp" or len(cut) == 0:
         F[cut] = mv.feed[cut]
+        if mv.block_time is not None and len(cut):
+            timed = cut[np.isfinite(mv.block_time[cut])]
+            chord = np.linalg.norm(mv.tips[timed] - mv.tips[timed - 1], axis=1)
+            F[timed] = np.round(60.0 * chord / np.maximum(mv.block_time[timed], 1e-6), 1)
         return F, 0
     q0 = mv.joints[cut - 1]  # a row always starts with its entry rapid, so cut - 1 >= 0
     q1 = mv.joints[cut]
@@ -266,6 +293,9 @@ def _block_feeds(machine: Any, mv: _Moves, mode: str) -> tuple[np.ndarray, int]:
                 rot = np.maximum(rot, np.abs(q1[still, k] - q0[still, k]) / lim.vmax / 60.0)
         t[still] = np.maximum(rot, 1e-6)
     F[cut] = 1.0 / t
+    if mv.block_time is not None:  # the controller plan's blocks: F = 1 / (its block time)
+        timed = cut[np.isfinite(mv.block_time[cut])]
+        F[timed] = 60.0 / np.maximum(mv.block_time[timed], 1e-6)
     return F, int(still.sum())
 
 
@@ -306,7 +336,7 @@ def _simple_items(inputs: dict[str, Any]) -> Iterable[tuple[str, Any]]:
 def write_gcode(path: str | os.PathLike, result: SmoothResult | MethodResult, machine: Any, cutter: Any,
                 feed_mm_min: float | np.ndarray, *, safe_height: float = DEFAULT_SAFE_HEIGHT_MM,
                 check_limits: bool = True, dialect: str | None = None, mode: str | None = None,
-                program_name: str = "CAMSMOOTH") -> Path:
+                program_name: str = "CAMSMOOTH", tolerance: float | None = None) -> Path:
     """Write a method's program as five-axis G-code to ``path`` atomically (module docstring).
 
     result: a SmoothResult (its primary method) or one MethodResult: rows, idx, cl (tool tip,
@@ -368,6 +398,15 @@ def write_gcode(path: str | os.PathLike, result: SmoothResult | MethodResult, ma
             k = int(np.argmax(bad))
             raise InputError(f"feed must be a finite number > 0 mm/min at row {int(rows[k])}, point {int(idx[k])}, "
                              f"got {float(feed[k])!r}", column="feed")
+    ctrl = getattr(r, "controller", None)
+    block_time = None
+    if ctrl is not None:  # the blocks the controller plan timed (camsmooth.controller.blocks)
+        sel = np.asarray(ctrl.keep, bool)
+        rows, idx, xyz, A, B, T, tip, feed = (v[sel] for v in (rows, idx, xyz, A, B, T, tip, feed))
+        block_time = np.asarray(ctrl.block_time, float)[sel]
+    if tolerance is None:
+        metrics = getattr(r, "metrics", None)
+        tolerance = getattr(metrics, "tolerance_mm", None)
     finite = (np.isfinite(xyz).all(axis=1) & np.isfinite(A) & np.isfinite(B) & np.isfinite(T).all(axis=1)
               & np.isfinite(tip).all(axis=1))
     if not finite.all():
@@ -378,14 +417,14 @@ def write_gcode(path: str | os.PathLike, result: SmoothResult | MethodResult, ma
         _check_travel(machine, rows, idx, A, B, xyz + h * T, f"retract ({h:g} mm along the tool axis)")
 
     joints = np.column_stack([xyz, A, B])
-    mv = _moves(rows, joints, tip, T, feed, h)
+    mv = _moves(rows, joints, tip, T, feed, h, block_time)
     # the controller runs the values as written (4 decimals, mm and degrees): time the blocks on those
     mv.joints[:, :3] = np.round(mv.joints[:, :3], 4)
     mv.joints[:, 3:] = np.radians(np.round(np.degrees(mv.joints[:, 3:]), 4))
     mv.tips = np.round(mv.tips, 4)
     F, still = _block_feeds(machine, mv, mode)
     lines = _program_open(d, program_name) + _header(d, mode, machine, cutter, method, inputs, n, h, still)
-    lines += _program_start(d, mode, tcp_on, tool_no)
+    lines += _program_start(d, mode, tcp_on, tool_no, tolerance)
     deg = np.degrees
     coords = np.column_stack([mv.joints[:, :3] if mode == "machine" else mv.tips, deg(mv.joints[:, 3:])])
     lines += _blocks(d, mode, mv, coords, F)
@@ -445,13 +484,17 @@ def _program_open(d: Dialect, name: str) -> list[str]:
     return []
 
 
-def _program_start(d: Dialect, mode: str, tcp_on: str | None, tool: int) -> list[str]:
+def _program_start(d: Dialect, mode: str, tcp_on: str | None, tool: int, tolerance: float | None = None) -> list[str]:
+    tol: list[str] = []
+    if tolerance is not None and d.path_tolerance is not None:
+        words = _fixed(np.array([tolerance, PATH_TOLERANCE_SHARE * tolerance]), 4)
+        tol = [ln.format(tol=words[0], blend=words[1]) for ln in d.path_tolerance]
     if d.klartext:
-        out = [f"TOOL CALL {tool} Z"]
+        out = [f"TOOL CALL {tool} Z"] + tol
         if mode == "tcp":
             out.append(tcp_on or "")
         return out
-    out = list(d.start)
+    out = list(d.start) + tol
     if mode == "machine":
         out.append(d.inverse_time or "")
     else:

@@ -71,8 +71,10 @@ def write_result_csv(path: str | os.PathLike, result: SmoothResult) -> Path:
     Columns: RESULT_CSV_COLUMNS = OUTPUT_COLUMNS (mm, s, degrees; see camsmooth.smoothing.result) then
     ``lift`` (mm, fallback lift along the normal, 0 where none) and ``status`` (see
     ``point_status``), then ``fx,fy,fz`` (unit feed direction, the local frame's X_L) when the
-    result carries them, then ``t_plan`` (s from the row's start under the planned feed) and
-    ``feed_plan`` (mm/min, the planned tool-tip feed) when it has a plan. Floats in their shortest
+    result carries them, then ``t_plan`` (s from the row's start) and ``feed_plan`` (mm/min,
+    tool-tip feed) as the machine's controller runs the program (camsmooth.controller, where
+    camsmooth models the controller; else the time-optimal law) and ``t_opt``, ``feed_opt``, the
+    time-optimal law (camsmooth.smoothing.feed), when it has a plan. Floats in their shortest
     exact round-trip form; ``row`` and ``idx`` as integers (camsmooth.io.table.write_table).
     """
     r = result.result
@@ -87,9 +89,13 @@ def write_result_csv(path: str | os.PathLike, result: SmoothResult) -> Path:
     if r.feed_dirs is not None:  # the local frame's X_L, so predict can re-evaluate lead/tilt exactly
         for k, name in enumerate(("fx", "fy", "fz")):
             columns[name] = r.feed_dirs[:, k]
-    if r.plan is not None:  # the planned time law (camsmooth.smoothing.feed)
-        columns["t_plan"] = r.plan.t_plan
-        columns["feed_plan"] = r.plan.feed_plan
+    if r.plan is not None:  # the controller's timing where camsmooth models it, else the time-optimal law
+        ctrl = getattr(r, "controller", None)
+        timing = ctrl if ctrl is not None else r.plan
+        columns["t_plan"] = timing.t_plan
+        columns["feed_plan"] = timing.feed_plan
+        columns["t_opt"] = r.plan.t_plan
+        columns["feed_opt"] = r.plan.feed_plan
     return write_table(path, columns)
 
 

@@ -362,8 +362,30 @@ class ProgramSmoother:
         plans = [x for part in self.pool.map(plan_chunk, parts) for x in part]
         r.plan = combine([int(p.path.rows[s.start]) for s in p.slices], plans)
         r.metrics.cycle_time_s = r.plan.cycle_time
+        r.metrics.cycle_time_optimal_s = r.plan.cycle_time
         r.metrics.limiting = r.plan.limiting
         r.metrics.row_cycle_time_s = r.plan.row_cycle_time.tolist()
+        r.controller = self.controller_plan(r, q, tip)
+        if r.controller is not None:
+            r.metrics.cycle_time_s = r.controller.cycle_time
+            r.metrics.row_cycle_time_s = r.controller.row_cycle_time.tolist()
+            r.metrics.controller = r.controller.controller
+            r.metrics.blocks = r.controller.blocks
+
+    def controller_plan(self, r: MethodResult, q: np.ndarray, tip: np.ndarray) -> Any:
+        """The blocks the program is written in and the machine's controller's timing of them
+        (camsmooth.controller), None when camsmooth has no model of the machine's controller."""
+        from camsmooth.controller import decimate, planner_for, predict
+        from camsmooth.io.gcode import DEFAULT_SAFE_HEIGHT_MM
+
+        planner = planner_for(self.nominal, self.tolerance)
+        if planner is None:
+            return None
+        p = self.program
+        keep = decimate(self.real, p.path.rows, q, tip, self.tolerance)
+        entry = np.asarray(p.feed, float)[[s.start for s in p.slices]]
+        return predict(planner, self.nominal, p.path.rows, q, tip, r.plan.t_plan, keep,
+                       entry_height=DEFAULT_SAFE_HEIGHT_MM, entry_feed=entry)
 
     def _point_names(self, i: int) -> str:
         return self.program.name(i)

@@ -37,7 +37,10 @@ class Metrics:
     axes, camsmooth.smoothing.nlp.limit_violations) and the user's windows, and 'interference'
     (points with delta < -tolerance_mm); min_delta (mm). Lifts along the normal (mm) and the rows
     that are not clean; unreachable: (row, idx) without inverse kinematics. Planned time law
-    (camsmooth.smoothing.feed): cycle_time_s, limiting, row_cycle_time_s. Row NLP work (nlp
+    (camsmooth.smoothing.feed): cycle_time_optimal_s, limiting; what the machine's controller
+    makes of the program (camsmooth.controller, where camsmooth has a model of it, else the
+    time-optimal figures): cycle_time_s, row_cycle_time_s, controller (its name, '' for none),
+    blocks (cut blocks written). Row NLP work (nlp
     methods): IPOPT iterations, rounds, points mapped, clearance evaluations, times (s), the
     points lifted because their whole window is blocked or the limits kept them out of their
     clear region. With an error model: the largest tip error (um) with and without compensation
@@ -56,6 +59,9 @@ class Metrics:
     tolerance_mm: float
     runtime_s: float
     cycle_time_s: float = float("nan")
+    cycle_time_optimal_s: float = float("nan")
+    controller: str = ""
+    blocks: int | None = None
     limiting: str = ""
     row_cycle_time_s: list[float] = field(default_factory=list)
     ipopt_iterations: int = 0
@@ -117,6 +123,7 @@ class MethodResult:
     metrics: Metrics | None = None
     feed_dirs: np.ndarray | None = None  # (N, 3) unit feed directions X_L used for lead/tilt
     plan: Any = None  # camsmooth.smoothing.feed.FeedPlan: the time-optimal time law of this program
+    controller: Any = None  # camsmooth.controller.ControllerPlan: the blocks and the controller's timing
     lead_clear: np.ndarray | None = None  # (N, 2) the accessibility map's lead floor, ceiling (rad; NaN: none)
 
     def __len__(self) -> int:

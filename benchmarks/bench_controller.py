@@ -1,0 +1,172 @@
+"""Programs on the real controller: camsmooth's G-code run by a headless LinuxCNC simulation.
+
+For each sample and method: smooth a few rows (the simulation runs in real time), write the
+LinuxCNC program (machine mode, G93, the blocks of camsmooth.controller.blocks), run it on
+LinuxCNC (camsmooth.controller.linuxcnc_sim.simulate: trivkins XYZAB, the machine file's limits,
+1 ms servo period) and print per row: the executed cut time (first to last servo sample of the
+row's cut blocks), camsmooth's prediction (camsmooth.controller.linuxcnc, the controller's
+t_plan), the time-optimal law (t_opt), and the tool tip's largest distance, over every servo
+sample of the row, from the path the method commands (the tips of the full-density program,
+each block's tip curve sampled at 16 steps), by the machine's forward kinematics of the
+recorded joints (the programmed path includes the entry feed move onto the row, which LinuxCNC
+blends into the row's first block).
+
+    .venv/bin/python benchmarks/bench_controller.py [--samples blade,wave] [--rows 3] [--methods none,spline,nlp]
+
+Needs linuxcnc-uspace (apt-get install linuxcnc-uspace); run as root it creates an unprivileged
+user for the simulation.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from camsmooth.controller.linuxcnc_sim import linuxcnc_missing, simulate  # noqa: E402
+from camsmooth.geometry.cutter import ToroidalCutter  # noqa: E402
+from camsmooth.geometry.paths import CCPath  # noqa: E402
+from camsmooth.geometry.surfaces import load_surface  # noqa: E402
+from camsmooth.io.ccpath import read_cc_csv  # noqa: E402
+from camsmooth.io.gcode import DEFAULT_SAFE_HEIGHT_MM, write_gcode  # noqa: E402
+from camsmooth.machine.kinematics import DEFAULT_MACHINE_TOML, machine_from_dict  # noqa: E402
+from camsmooth.smoothing.pipeline import smooth  # noqa: E402
+
+TOLERANCE = 0.005
+
+
+def linuxcnc_machine():
+    import tomllib
+
+    data = tomllib.loads(DEFAULT_MACHINE_TOML)
+    data["post"] = {"dialect": "linuxcnc", "mode": "machine"}
+    return machine_from_dict(data, "<bench machine>")
+
+
+def dense_curve(machine, q: np.ndarray, sub: int = 16) -> np.ndarray:
+    """The tip path of the full-density program: each block's joints interpolated linearly."""
+    s = np.linspace(0.0, 1.0, sub, endpoint=False)
+    qq = (q[:-1, None, :] + s[None, :, None] * np.diff(q, axis=0)[:, None, :]).reshape(-1, 5)
+    qq = np.vstack([qq, q[-1:]])
+    tip, _ = machine.tool_pose_np(qq[:, 3], qq[:, 4], qq[:, 0], qq[:, 1], qq[:, 2])
+    return tip
+
+
+def distance_to_polyline(p: np.ndarray, curve: np.ndarray, chunk: int = 2000) -> np.ndarray:
+    """Distance of each point to the polyline (brute force over its segments, in chunks)."""
+    from scipy.spatial import cKDTree
+
+    a, d = curve[:-1], np.diff(curve, axis=0)
+    tree = cKDTree(0.5 * (curve[:-1] + curve[1:]))
+    seg_len = np.linalg.norm(d, axis=1).max()
+    out = np.empty(len(p))
+    for i in range(0, len(p), chunk):
+        pp = p[i:i + chunk]
+        near = tree.query_ball_point(pp, r=seg_len + 0.05)
+        for j, idx in enumerate(near):
+            idx = np.asarray(idx if idx else [int(tree.query(pp[j])[1])])
+            rel = pp[j] - a[idx]
+            t = np.clip(np.einsum("ij,ij->i", rel, d[idx]) / np.maximum(np.einsum("ij,ij->i", d[idx], d[idx]),
+                                                                           1e-300), 0, 1)
+            out[i + j] = np.linalg.norm(rel - t[:, None] * d[idx], axis=1).min()
+    return out
+
+
+def run(sample: str, rows: int, methods: list[str], keep: Path | None) -> list[dict]:
+    machine = linuxcnc_machine()
+    surf = load_surface(ROOT / "surfaces" / f"{sample}.toml")
+    path = read_cc_csv(ROOT / "surfaces" / f"{sample}_path.csv")
+    ids = np.unique(path.rows)
+    mid = ids[len(ids) // 2 - rows // 2: len(ids) // 2 - rows // 2 + rows]  # rows from the middle
+    k = np.isin(path.rows, mid)
+    path = CCPath(points=path.points[k], normals=path.normals[k], rows=path.rows[k],
+                  feed_dirs=None if path.feed_dirs is None else path.feed_dirs[k],
+                  feed=None if path.feed is None else path.feed[k], source=path.source)
+    res = smooth(path, surf, machine, ToroidalCutter(R=4.0, r=1.0), feed=2000.0,
+                 lead_range=tuple(np.radians([2.0, 20.0])), tilt_range=tuple(np.radians([-15.0, 15.0])),
+                 method="nlp", tolerance=TOLERANCE)
+    out = []
+    for m in methods:
+        r = res.methods[m]
+        with tempfile.TemporaryDirectory() as tmp:
+            ngc = Path(tmp) / f"{sample}_{m}.ngc"
+            write_gcode(ngc, r, machine, res.cutter, 2000.0, tolerance=TOLERANCE)
+            t0 = time.time()
+            sim = simulate(ngc, machine, keep=(keep / f"{sample}_{m}") if keep else None)
+            wall = time.time() - t0
+            lines = ngc.read_text().split("\n")
+        # the program's cut blocks per row: G01 lines after a row comment, without the entry move
+        row_lines: dict[int, list[int]] = {}
+        row = None
+        for k, ln in enumerate(lines, start=1):
+            if ln.startswith("(row "):
+                row, entry = int(ln.split()[1].rstrip(":")), True
+            elif ln.startswith("G01") and row is not None:
+                if entry:
+                    entry = False
+                    continue
+                row_lines.setdefault(row, []).append(k)
+            elif ln.startswith("G00"):
+                row = None if row is not None and row in row_lines else row
+        joints = sim.joints
+        tip_sim, _ = machine.tool_pose_np(np.radians(joints[:, 3]), np.radians(joints[:, 4]), joints[:, 0],
+                                          joints[:, 1], joints[:, 2])
+        q = np.column_stack([r.xyz, r.A, r.B])
+        for rid, lns in row_lines.items():
+            on = np.isin(sim.line, lns)
+            k = np.flatnonzero(on)
+            executed = (k[-1] - k[0] + 1) * sim.servo_period
+            sel = r.rows == rid
+            predicted = r.controller.row_cycle_time[list(r.controller.row_ids).index(rid)]
+            optimal = r.plan.row_cycle_time[list(r.plan.row_ids).index(rid)]
+            # the programmed path: the entry feed move along the tool axis, then the row's blocks
+            first = np.flatnonzero(sel)[0]
+            entry = r.cl[first] + DEFAULT_SAFE_HEIGHT_MM * r.axis[first]
+            curve = np.vstack([entry[None, :], dense_curve(machine, q[sel])])
+            dev = distance_to_polyline(tip_sim[k[0]:k[-1] + 1], curve).max()
+            out.append(dict(sample=sample, method=m, row=int(rid), executed=executed, predicted=predicted,
+                            optimal=optimal, deviation_um=1e3 * dev, blocks=len(lns), points=int(sel.sum()),
+                            wall=wall))
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--samples", default="blade,wave", help="comma-separated samples in surfaces/")
+    ap.add_argument("--rows", type=int, default=3, help="rows per sample (from the middle of the path)")
+    ap.add_argument("--methods", default="none,spline,nlp", help="comma-separated methods")
+    ap.add_argument("--keep", type=Path, default=None, help="folder to keep the simulations' files in")
+    args = ap.parse_args()
+    missing = linuxcnc_missing()
+    if missing:
+        sys.exit(f"bench_controller: {missing}")
+    print(f"LinuxCNC simulation, tolerance {TOLERANCE} mm, servo period 1 ms")
+    print(f"{'sample':8s} {'method':7s} {'row':>4s} {'points':>6s} {'blocks':>6s} {'executed s':>10s} "
+          f"{'predicted s':>11s} {'pred/exec-1':>11s} {'optimal s':>9s} {'exec/opt':>8s} {'tip dev um':>10s}")
+    totals: dict[tuple[str, str], list[float]] = {}
+    for sample in args.samples.split(","):
+        for row in run(sample, args.rows, args.methods.split(","), args.keep):
+            print(f"{row['sample']:8s} {row['method']:7s} {row['row']:4d} {row['points']:6d} {row['blocks']:6d} "
+                  f"{row['executed']:10.3f} {row['predicted']:11.3f} {row['predicted'] / row['executed'] - 1:+11.2%} "
+                  f"{row['optimal']:9.3f} {row['executed'] / row['optimal']:8.2f} {row['deviation_um']:10.2f}")
+            t = totals.setdefault((row["sample"], row["method"]), [0.0, 0.0, 0.0, 0.0])
+            t[0] += row["executed"]
+            t[1] += row["predicted"]
+            t[2] += row["optimal"]
+            t[3] = max(t[3], row["deviation_um"])
+    print("\ntotals over the rows")
+    for (sample, m), (ex, pr, op, dev) in totals.items():
+        print(f"{sample:8s} {m:7s} executed {ex:8.3f} s  predicted {pr:8.3f} s ({pr / ex - 1:+.2%})  "
+              f"optimal {op:8.3f} s  executed/optimal {ex / op:.2f}  largest tip deviation {dev:.2f} um "
+              f"(tolerance {1e3 * TOLERANCE:g} um)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,341 @@
+"""LinuxCNC as the reference controller: its interpreter (``rs274``) and a headless simulation.
+
+Two tools for tests and benchmarks, both optional (they need the Debian package
+``linuxcnc-uspace``; ``linuxcnc_missing()`` says what is missing):
+
+- ``interpret(program)``: LinuxCNC's stand-alone RS274NGC interpreter reads a program and returns
+  its canonical motion calls (STRAIGHT_FEED / STRAIGHT_TRAVERSE with X Y Z A B, the inverse-time
+  feed of each block, the auxiliary outputs the switchkins M-codes set), so the positions and
+  block times of a written program can be compared with what camsmooth planned.
+- ``simulate(program, machine)``: a headless LinuxCNC (trivkins, ``coordinates=XYZAB``, the machine
+  file's axis limits, a 1 ms servo period, the motion-controller's position commands looped back)
+  runs the program; the ``sampler`` HAL component records the commanded joint positions and the
+  program line at every servo cycle. ``rtapi_app`` refuses to run as root, so the simulation runs
+  as an unprivileged user (``LINUXCNC_USER``, created when missing and we are root). The
+  simulation runs in real time: keep programs short.
+
+The configuration follows LinuxCNC's sample configurations (``core_sim.hal``); a ``[DISPLAY]``
+program in Python resets the e-stop, switches the machine on, homes (immediate homing: no
+search), runs the program in auto mode and waits for it.
+"""
+
+from __future__ import annotations
+
+import os
+import pwd
+import re
+import shutil
+import subprocess
+import tempfile
+import textwrap
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from camsmooth.machine.kinematics import Machine
+
+__all__ = ["linuxcnc_missing", "interpret", "Canon", "simulate", "SimRun", "LINUXCNC_USER"]
+
+#: the unprivileged user the simulation runs as when we are root
+LINUXCNC_USER = "camsmooth-lcnc"
+#: the servo period of the simulated machine (s), LinuxCNC's usual 1 ms
+SERVO_PERIOD_S = 0.001
+
+
+def linuxcnc_missing() -> str | None:
+    """None when ``rs274``, ``linuxcnc`` and ``halsampler`` are on the PATH, else what is missing
+    (with the install command)."""
+    missing = [p for p in ("rs274", "linuxcnc", "halsampler") if shutil.which(p) is None]
+    if missing:
+        return f"{', '.join(missing)} not found: apt-get install linuxcnc-uspace"
+    return None
+
+
+# ----------------------------------------------------------------------------------------------
+# the interpreter
+@dataclass(frozen=True, kw_only=True)
+class Canon:
+    """The canonical motion of a program as LinuxCNC's interpreter emits it.
+
+    joints: (M, 5) X Y Z (mm) A B (deg) at the end of each motion call; rapid: (M,) bool;
+    feed: (M,) the feed rate in force (SET_FEED_RATE; in inverse-time mode LinuxCNC reports the
+    block's F as given); inverse_time: (M,) bool, G93 in force; aux: list of (call index, output
+    index, value) from SET_AUX_OUTPUT_VALUE (M68), in program order (call index = number of motion
+    calls before it); comments: the program's comments in order.
+    """
+
+    joints: np.ndarray
+    rapid: np.ndarray
+    feed: np.ndarray
+    inverse_time: np.ndarray
+    aux: list[tuple[int, int, float]]
+    comments: list[str]
+
+
+_NUM = r"([-+]?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)"
+
+
+def interpret(program: Path | str, *, ini: Path | str | None = None, workdir: Path | str | None = None,
+              tool_table: str = "T1 P1 Z0 D10 ;\n") -> Canon:
+    """Run LinuxCNC's ``rs274`` on ``program`` (with ``ini``'s remaps when given) and parse its
+    canonical calls. RuntimeError with the interpreter's message when it stops on an error."""
+    with tempfile.TemporaryDirectory(dir=workdir) as tmp:
+        tbl = Path(tmp) / "tool.tbl"
+        tbl.write_text(tool_table)
+        out = Path(tmp) / "canon.txt"
+        cmd = ["rs274"]
+        if ini is not None:
+            cmd += ["-i", str(ini)]
+        cmd += ["-t", str(tbl), "-g", str(program), str(out)]
+        proc = subprocess.run(cmd, capture_output=True, text=True, stdin=subprocess.DEVNULL,
+                              cwd=Path(ini).parent if ini else tmp, timeout=600)
+        text = out.read_text() if out.exists() else ""
+        errors = [ln for ln in (proc.stdout + proc.stderr).splitlines()
+                  if ln.strip() and ln.strip() not in ("executing",) and "interp_init" not in ln]
+        if proc.returncode != 0 or any("error" in ln.lower() for ln in errors):
+            raise RuntimeError(f"rs274 failed on {program}: {' | '.join(errors) or proc.returncode}")
+    return parse_canon(text)
+
+
+def parse_canon(text: str) -> Canon:
+    """Parse the canonical-call text ``rs274 -g`` writes (trivkins order X Y Z A B C; one call
+    per line)."""
+    joints, rapid, feed, inv, aux, comments = [], [], [], [], [], []
+    f_now, inverse = float("nan"), False
+    for ln in text.splitlines():
+        m = re.search(r"N\.+\s+(\w+)\((.*)\)\s*$", ln)
+        if not m:
+            continue
+        name, args = m.group(1), m.group(2)
+        if name in ("STRAIGHT_FEED", "STRAIGHT_TRAVERSE"):
+            v = [float(x) for x in re.findall(_NUM, args)]
+            joints.append(v[:5])
+            rapid.append(name == "STRAIGHT_TRAVERSE")
+            feed.append(f_now)
+            inv.append(inverse)
+        elif name == "SET_FEED_RATE":
+            f_now = float(args)
+        elif name == "SET_FEED_MODE":
+            # SET_FEED_MODE(spindle, mode): 0 units/min, 1 inverse time in this build's numbering,
+            # told apart by the interpreter's comment that precedes it
+            pass
+        elif name == "COMMENT":
+            c = args.strip().strip('"')
+            comments.append(c)
+            if c.startswith("interpreter: feed mode set to"):
+                inverse = "inverse time" in c
+        elif name == "SET_AUX_OUTPUT_VALUE":
+            k, val = (float(x) for x in re.findall(_NUM, args)[:2])
+            aux.append((len(joints), int(k), val))
+    return Canon(joints=np.asarray(joints, float).reshape(-1, 5), rapid=np.asarray(rapid, bool),
+                 feed=np.asarray(feed, float), inverse_time=np.asarray(inv, bool), aux=aux, comments=comments)
+
+
+# ----------------------------------------------------------------------------------------------
+# the simulation
+@dataclass(frozen=True, kw_only=True)
+class SimRun:
+    """What the simulated controller commanded, one sample per servo cycle.
+
+    t: (K,) s from the first sample; joints: (K, 5) X Y Z (mm) A B (deg), the motion
+    controller's commanded joint positions; line: (K,) the program line being executed (0 when
+    none); servo_period: s.
+    """
+
+    t: np.ndarray
+    joints: np.ndarray
+    line: np.ndarray
+    servo_period: float
+
+    def line_times(self) -> dict[int, tuple[float, float]]:
+        """Per program line, the first and last sample time (s) it was the executing line."""
+        out: dict[int, tuple[float, float]] = {}
+        ln = self.line
+        change = np.flatnonzero(np.r_[True, ln[1:] != ln[:-1]])
+        for k, a in enumerate(change):
+            b = change[k + 1] - 1 if k + 1 < len(change) else len(ln) - 1
+            key = int(ln[a])
+            first = out.get(key, (self.t[a], self.t[b]))[0]
+            out[key] = (first, float(self.t[b]))
+        return out
+
+
+def _fmt(x: float) -> str:
+    return f"{x:.6g}" if np.isfinite(x) else "1e9"
+
+
+def _axis_limits_deg(machine: Machine) -> dict[str, tuple[float, float, float, float]]:
+    """(min, max, vmax, amax) per axis in the INI's units (mm, deg)."""
+    out = {}
+    for name in "XYZAB":
+        lim = machine.limits.get(name)
+        conv = np.degrees if name in "AB" else (lambda v: v)
+        if lim is None:
+            out[name] = (-1e4, 1e4, 1e3, 1e4)
+        else:
+            out[name] = tuple(float(conv(v)) for v in (lim.min, lim.max, lim.vmax, lim.amax))
+    return out
+
+
+_DRIVER = '''\
+#!/usr/bin/python3
+import subprocess, sys, time
+import linuxcnc
+program, samples, timeout = sys.argv[sys.argv.index("--run") + 1:][:3]
+s, c = linuxcnc.stat(), linuxcnc.command()
+def wait(cond, limit=30.0):
+    end = time.time() + limit
+    while time.time() < end:
+        s.poll()
+        if cond():
+            return True
+        time.sleep(0.01)
+    return False
+wait(lambda: s.task_state == linuxcnc.STATE_ESTOP)
+c.state(linuxcnc.STATE_ESTOP_RESET); c.wait_complete()
+c.state(linuxcnc.STATE_ON); c.wait_complete()
+c.mode(linuxcnc.MODE_MANUAL); c.wait_complete()
+c.home(-1); c.wait_complete()
+if not wait(lambda: all(s.homed[:5])):
+    sys.exit("homing did not finish")
+c.teleop_enable(1); c.wait_complete()
+rec = subprocess.Popen(["halsampler", "-t", samples])
+time.sleep(0.2)
+c.mode(linuxcnc.MODE_AUTO); c.wait_complete()
+c.program_open(program); c.wait_complete()
+c.auto(linuxcnc.AUTO_RUN, 0)
+wait(lambda: s.interp_state != linuxcnc.INTERP_IDLE, 5.0)
+ok = wait(lambda: s.interp_state == linuxcnc.INTERP_IDLE and s.queue == 0, float(timeout))
+time.sleep(0.3)
+subprocess.run(["halcmd", "setp", "sampler.0.enable", "0"])
+time.sleep(0.5)
+rec.terminate(); rec.wait()
+err = linuxcnc.error_channel().poll()
+if err:
+    print("linuxcnc error:", err[1], file=sys.stderr)
+c.state(linuxcnc.STATE_OFF)
+sys.exit(0 if ok and not err else "program did not finish: " + str(err))
+'''
+
+
+def _ini(machine: Machine, folder: Path, extra_traj: dict[str, str] | None) -> Path:
+    lims = _axis_limits_deg(machine)
+    lin = [lims[a] for a in "XYZ"]
+    rot = [lims[a] for a in "AB"]
+    traj = {
+        "COORDINATES": "XYZAB", "LINEAR_UNITS": "mm", "ANGULAR_UNITS": "degree",
+        "MAX_LINEAR_VELOCITY": _fmt(max(v[2] for v in lin)),
+        "MAX_LINEAR_ACCELERATION": _fmt(max(v[3] for v in lin)),
+        "MAX_ANGULAR_VELOCITY": _fmt(max(v[2] for v in rot)),
+        "MAX_ANGULAR_ACCELERATION": _fmt(max(v[3] for v in rot)),
+        "DEFAULT_LINEAR_VELOCITY": _fmt(max(v[2] for v in lin)),
+        "POSITION_FILE": "position.txt",
+    }
+    traj.update(extra_traj or {})
+    parts = [
+        "[EMC]\nVERSION = 1.1\nMACHINE = camsmooth-sim\n",
+        f"[DISPLAY]\nDISPLAY = {folder / 'driver.py'}\nCYCLE_TIME = 0.1\n",
+        "[KINS]\nKINEMATICS = trivkins coordinates=XYZAB\nJOINTS = 5\n",
+        "[RS274NGC]\nPARAMETER_FILE = sim.var\n",
+        f"[EMCMOT]\nEMCMOT = motmod\nCOMM_TIMEOUT = 1.0\nSERVO_PERIOD = {int(SERVO_PERIOD_S * 1e9)}\n",
+        "[TASK]\nTASK = milltask\nCYCLE_TIME = 0.001\n",
+        "[HAL]\nHALFILE = sim.hal\n",
+        "[TRAJ]\n" + "".join(f"{k} = {v}\n" for k, v in traj.items()),
+        "[EMCIO]\nEMCIO = io\nCYCLE_TIME = 0.100\nTOOL_TABLE = tool.tbl\n",
+    ]
+    for j, name in enumerate("XYZAB"):
+        lo, hi, v, a = lims[name]
+        body = (f"MIN_LIMIT = {_fmt(lo - 1.0)}\nMAX_LIMIT = {_fmt(hi + 1.0)}\nMAX_VELOCITY = {_fmt(v)}\n"
+                f"MAX_ACCELERATION = {_fmt(a)}\n")
+        parts.append(f"[AXIS_{name}]\n{body}")
+        kind = "ANGULAR" if name in "AB" else "LINEAR"
+        parts.append(f"[JOINT_{j}]\nTYPE = {kind}\nHOME = 0\nHOME_SEARCH_VEL = 0\nHOME_SEQUENCE = 0\n"
+                     f"FERROR = 1e9\nMIN_FERROR = 1e9\n{body}")
+    ini = folder / "sim.ini"
+    ini.write_text("\n".join(parts))
+    return ini
+
+
+_HAL = """\
+loadrt [KINS]KINEMATICS
+loadrt [EMCMOT]EMCMOT servo_period_nsec=[EMCMOT]SERVO_PERIOD num_joints=[KINS]JOINTS
+loadrt sampler depth=200000 cfg=fffffs
+addf motion-command-handler servo-thread
+addf motion-controller servo-thread
+addf sampler.0 servo-thread
+net j0 joint.0.motor-pos-cmd => joint.0.motor-pos-fb sampler.0.pin.0
+net j1 joint.1.motor-pos-cmd => joint.1.motor-pos-fb sampler.0.pin.1
+net j2 joint.2.motor-pos-cmd => joint.2.motor-pos-fb sampler.0.pin.2
+net j3 joint.3.motor-pos-cmd => joint.3.motor-pos-fb sampler.0.pin.3
+net j4 joint.4.motor-pos-cmd => joint.4.motor-pos-fb sampler.0.pin.4
+net line motion.program-line => sampler.0.pin.5
+net estop-loop iocontrol.0.user-enable-out iocontrol.0.emc-enable-in
+net tool-prep-loop iocontrol.0.tool-prepare iocontrol.0.tool-prepared
+net tool-change-loop iocontrol.0.tool-change iocontrol.0.tool-changed
+"""
+
+
+def _user() -> tuple[int, int] | None:
+    """(uid, gid) to run the simulation as: None when we are not root; the LINUXCNC_USER
+    (created with useradd when missing) when we are."""
+    if os.geteuid() != 0:
+        return None
+    try:
+        pw = pwd.getpwnam(LINUXCNC_USER)
+    except KeyError:
+        subprocess.run(["useradd", "--system", "--no-create-home", LINUXCNC_USER], check=True)
+        pw = pwd.getpwnam(LINUXCNC_USER)
+    return pw.pw_uid, pw.pw_gid
+
+
+def simulate(program: Path | str, machine: Machine, *, timeout: float = 600.0,
+             traj: dict[str, str] | None = None, keep: Path | None = None) -> SimRun:
+    """Run ``program`` on a headless LinuxCNC simulation of ``machine`` (module docstring) and
+    return the commanded joints per servo cycle. traj: extra ``[TRAJ]`` settings (e.g.
+    ``ARC_BLEND_ENABLE``). keep: a folder to leave the configuration and logs in. RuntimeError
+    naming LinuxCNC's message when the run fails."""
+    missing = linuxcnc_missing()
+    if missing:
+        raise RuntimeError(missing)
+    folder = Path(keep) if keep is not None else Path(tempfile.mkdtemp(prefix="camsmooth-lcnc-"))
+    folder.mkdir(parents=True, exist_ok=True)
+    try:
+        ini = _ini(machine, folder, traj)
+        (folder / "sim.hal").write_text(_HAL)
+        (folder / "driver.py").write_text(_DRIVER)
+        os.chmod(folder / "driver.py", 0o755)
+        (folder / "tool.tbl").write_text("T1 P1 Z0 D10 ;\n")
+        shutil.copy(program, folder / "program.ngc")
+        user = _user()
+        env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTHON", "VIRTUAL_ENV"))}
+        env["PATH"] = "/usr/bin:/bin:/usr/sbin:/sbin"
+        if user is not None:
+            os.chmod(folder, 0o777)
+            for p in folder.iterdir():
+                os.chown(p, *user)
+            os.chown(folder, *user)
+            env["HOME"] = str(folder)
+        samples = folder / "samples.txt"
+        cmd = ["linuxcnc", str(ini), "--run", str(folder / "program.ngc"), str(samples), str(timeout)]
+        for _attempt in range(2):  # a start right after another LinuxCNC's shutdown can fail at once: retry once
+            # linuxcnc passes the extra arguments after the INI to the DISPLAY program
+            proc = subprocess.run(cmd, cwd=folder, env=env, capture_output=True, text=True, timeout=timeout + 120,
+                                  stdin=subprocess.DEVNULL, user=user[0] if user else None,
+                                  group=user[1] if user else None)
+            if samples.exists() and samples.stat().st_size > 0:
+                break
+        (folder / "linuxcnc.log").write_text(proc.stdout + "\n--- stderr ---\n" + proc.stderr)
+        if not samples.exists() or samples.stat().st_size == 0:
+            raise RuntimeError(f"LinuxCNC simulation recorded nothing (exit {proc.returncode}): "
+                               f"{textwrap.shorten(proc.stderr, 400)}")
+        data = np.loadtxt(samples, ndmin=2)
+        if proc.returncode != 0 or "program did not finish" in proc.stderr:
+            raise RuntimeError(f"LinuxCNC simulation failed (exit {proc.returncode}): "
+                               f"{textwrap.shorten(proc.stderr, 600)}")
+        n = data[:, 0]
+        return SimRun(t=(n - n[0]) * SERVO_PERIOD_S, joints=data[:, 1:6], line=data[:, 6].astype(np.int64),
+                      servo_period=SERVO_PERIOD_S)
+    finally:
+        if keep is None:
+            shutil.rmtree(folder, ignore_errors=True)

@@ -1,0 +1,238 @@
+"""The controller in the loop (camsmooth.controller): LinuxCNC's own interpreter reads every
+program of the linuxcnc dialect, the TCP M-codes follow LinuxCNC's shipped switchkins
+configurations, the block structure keeps the tips within its share of the tolerance, and the
+planner model agrees with a headless LinuxCNC simulation.
+
+The LinuxCNC tests need the Debian package linuxcnc-uspace (``make test`` installs it where
+apt-get runs as root); without it they skip and say so.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from camsmooth.controller import LinuxCNCPlanner, decimate, planner_for
+from camsmooth.controller.blocks import BLOCK_TOLERANCE_SHARE
+from camsmooth.controller.linuxcnc_sim import interpret, linuxcnc_missing, simulate
+from camsmooth.geometry.cutter import ToroidalCutter
+from camsmooth.geometry.paths import CCPath
+from camsmooth.io.gcode import write_gcode
+from camsmooth.machine.kinematics import DEFAULT_MACHINE_TOML, machine_from_dict
+
+MISSING = linuxcnc_missing()
+needs_linuxcnc = pytest.mark.skipif(MISSING is not None, reason=f"LinuxCNC not installed: {MISSING}")
+TRT = Path("/usr/share/doc/linuxcnc/examples/sample-configs/sim/axis/vismach/5axis/table-rotary-tilting")
+
+
+def _machine(mode: str = "machine"):
+    import tomllib
+
+    data = tomllib.loads(DEFAULT_MACHINE_TOML)
+    data["post"] = {"dialect": "linuxcnc", "mode": mode}
+    return machine_from_dict(data, "<test machine>")
+
+
+@pytest.fixture(scope="module")
+def blade_rows():
+    """Three rows of the shipped blade, smoothed (nlp) for a LinuxCNC machine."""
+    from camsmooth.geometry.surfaces import load_surface
+    from camsmooth.io.ccpath import read_cc_csv
+    from camsmooth.smoothing.pipeline import smooth
+
+    root = Path(__file__).resolve().parent.parent / "surfaces"
+    path = read_cc_csv(root / "blade_path.csv")
+    k = np.isin(path.rows, np.unique(path.rows)[10:13])
+    path = CCPath(points=path.points[k], normals=path.normals[k], rows=path.rows[k], source=path.source)
+    res = smooth(path, load_surface(root / "blade.toml"), _machine(), ToroidalCutter(R=4.0, r=1.0), feed=2000.0,
+                 method="nlp", tolerance=0.005)
+    return res
+
+
+def _trt_config(tmp_path: Path) -> Path:
+    """An interpreter configuration with the M428/M429 remaps of LinuxCNC's shipped trt
+    switchkins configuration (xyzac-trt.ini): the shipped remap subroutines, less their checks
+    of the running HAL (the stand-alone interpreter has none: they would end the program), and
+    the REMAP lines of the shipped INI."""
+    cfg = tmp_path / "trt"
+    if not cfg.exists():
+        (cfg / "remap_subs").mkdir(parents=True)
+        for code in ("428", "429"):
+            sub = (TRT / "remap_subs" / f"{code}remap.ngc").read_text()
+            sub = re.sub(r"\n\s*o(\d) if.*?o\1 endif", "", sub, flags=re.S)
+            (cfg / "remap_subs" / f"{code}remap.ngc").write_text(sub)
+        remaps = [ln.strip() for ln in (TRT / "xyzac-trt.ini").read_text().splitlines()
+                  if ln.strip().startswith("REMAP") and ("M428" in ln or "M429" in ln)]
+        (cfg / "xyzac-trt.ini").write_text("[RS274NGC]\nSUBROUTINE_PATH = ./remap_subs\n" + "\n".join(remaps) + "\n")
+    return cfg
+
+
+def _blocks(text: str) -> list[str]:
+    return [ln for ln in text.split("\n") if re.match(r"(G53 )?G0[01]", ln)]
+
+
+def test_decimated_blocks_keep_every_dropped_tip_within_their_share(blade_rows):
+    """Independent check: each written block's tip curve (forward kinematics of the linearly
+    interpolated joints, 200 steps) passes every dropped point's tip within the block share of
+    the tolerance; fewer blocks than points."""
+    r = blade_rows.methods["nlp"]
+    m = blade_rows.machine
+    q = np.column_stack([r.xyz, r.A, r.B])
+    keep = r.controller.keep
+    assert keep.sum() < 0.9 * len(keep)
+    k = np.flatnonzero(keep)
+    s = np.linspace(0, 1, 201)
+    worst = 0.0
+    for a, b in zip(k[:-1], k[1:], strict=True):
+        if r.rows[a] != r.rows[b] or b == a + 1:
+            continue
+        qq = q[a] + s[:, None] * (q[b] - q[a])
+        curve, _ = m.tool_pose_np(qq[:, 3], qq[:, 4], qq[:, 0], qq[:, 1], qq[:, 2])
+        d = np.diff(curve, axis=0)
+        for j in range(a + 1, b):  # projection on every chord of the 200-step curve
+            rel = r.cl[j] - curve[:-1]
+            t = np.clip((rel * d).sum(axis=1) / (d * d).sum(axis=1), 0.0, 1.0)
+            worst = max(worst, np.linalg.norm(rel - t[:, None] * d, axis=1).min())
+    assert worst <= BLOCK_TOLERANCE_SHARE * 0.005 + 1e-7
+
+
+def test_decimate_keeps_every_point_of_a_sharply_curved_path():
+    """A tip path that turns by 10 degrees per point cannot lose a point within 5 um."""
+    m = _machine()
+    th = np.radians(np.arange(8) * 10.0)
+    tip = np.column_stack([5.0 * np.cos(th), 5.0 * np.sin(th), np.zeros(8)])
+    q = np.column_stack([tip + [0, 0, m.pivot], np.zeros(8), np.zeros(8)])
+    assert decimate(m, np.zeros(8, int), q, tip, 0.005).all()
+
+
+def test_decimate_merges_a_straight_row_and_keeps_row_ends():
+    m = _machine()
+    x = np.linspace(0, 10, 41)
+    tip = np.column_stack([x, np.zeros(41), np.zeros(41)])
+    q = np.column_stack([tip + [0, 0, m.pivot], np.zeros(41), np.zeros(41)])
+    rows = np.repeat([0, 1], [20, 21])
+    keep = decimate(m, rows, q, tip, 0.005)
+    assert keep[[0, 19, 20, 40]].all()
+    assert keep.sum() < 10
+
+
+def test_planner_for_follows_the_post():
+    assert isinstance(planner_for(_machine(), 0.005), LinuxCNCPlanner)
+    import tomllib
+
+    data = tomllib.loads(DEFAULT_MACHINE_TOML)
+    assert planner_for(machine_from_dict(data, "<m>"), 0.005) is None
+
+
+def test_model_of_a_long_straight_move_is_the_trapezoid():
+    """One 100 mm X move from rest to rest at 50 mm/s, 3000 mm/s^2: LinuxCNC's trapezoid
+    (the segment is the last, so it has its full acceleration) takes L/v + v/a."""
+    m = _machine()
+    p = LinuxCNCPlanner()
+    seg = p.segments(m, np.zeros(5), np.array([[100.0, 0, 0, 0, 0]]), np.array([False]), np.array([3000.0]),
+                     np.array([False]))
+    t = p.run(seg).end[0]
+    assert t == pytest.approx(100 / 50 + 50 / 3000, abs=2e-3)
+
+
+def test_model_of_short_rotary_blocks_is_limited_by_half_the_acceleration():
+    """Parabolic blends: 0.5 mm blocks that turn B run at about sqrt(a/2 L), not at their feed."""
+    m = _machine()
+    n = 200
+    x = 0.5 * np.arange(1, n + 1)
+    joints = np.column_stack([x, np.zeros(n), np.zeros(n), np.zeros(n), 0.01 * np.arange(1, n + 1)])
+    p = LinuxCNCPlanner()
+    seg = p.segments(m, np.zeros(5), joints, np.zeros(n, bool), np.full(n, 60 / 0.005), np.ones(n, bool))
+    t = p.run(seg).end[-1]
+    v = np.sqrt(seg.acc[0] / 2 * 0.5)
+    assert seg.reqvel[0] == pytest.approx(100.0)
+    assert t == pytest.approx(n * 0.5 / v, rel=0.03)
+
+
+@needs_linuxcnc
+@pytest.mark.parametrize("mode", ["machine", "tcp"])
+def test_linuxcnc_interpreter_reads_the_program_and_its_positions_and_times(blade_rows, tmp_path, mode):
+    """rs274 reads every block; its canonical X Y Z A B equal the written blocks' joints (machine
+    mode) or tips (tcp mode) to the written precision, and in machine mode its inverse-time feed
+    gives each cut block the controller plan's block time."""
+    m = _machine(mode)
+    r = blade_rows.methods["nlp"]
+    ngc = tmp_path / f"p_{mode}.ngc"
+    write_gcode(ngc, r, m, blade_rows.cutter, 2000.0)
+    if mode == "tcp" and not TRT.is_dir():
+        pytest.skip("TCP mode needs the M428/M429 remaps of LinuxCNC's sample configurations")
+    canon = interpret(ngc, ini=_trt_config(tmp_path) / "xyzac-trt.ini" if mode == "tcp" else None)
+    keep = r.controller.keep
+    pts = np.column_stack([r.xyz if mode == "machine" else r.cl, np.degrees(r.A), np.degrees(r.B)])[keep]
+    cut = ~canon.rapid
+    cut &= np.abs(canon.joints[:, 2]) < 1e3  # not the final G53 retract
+    # each row: the entry feed move (onto the first point) and the row's blocks
+    got = canon.joints[cut]
+    assert len(got) == len(pts)
+    assert np.abs(got - pts).max() < 1e-4 + 1e-9
+    if mode == "machine":
+        text = ngc.read_text()
+        fw = np.array([float(re.search(r"F([\d.]+)", ln).group(1)) for ln in _blocks(text) if ln.startswith("G01")])
+        bt = r.controller.block_time[keep]
+        first = np.r_[True, r.rows[keep][1:] != r.rows[keep][:-1]]
+        assert np.allclose(60.0 / fw[~first], bt[~first], rtol=1e-6, atol=1e-7)
+        assert canon.inverse_time[cut].all()
+        assert "G64 P0.0025 Q0.0025" in text
+
+
+@needs_linuxcnc
+@pytest.mark.skipif(not TRT.is_dir(), reason="LinuxCNC's sample configurations are not installed")
+def test_tcp_codes_switch_to_the_five_axis_kinematics_of_the_shipped_configs(blade_rows, tmp_path):
+    """With the remaps of LinuxCNC's own xyzac-trt configuration, the writer's TCP-on code sets
+    the switchkins type to the five-axis kinematics (the value the configuration's M428 remap
+    writes) and its TCP-off code back to identity (M429's): swapped codes fail."""
+    cfg = _trt_config(tmp_path)
+    kins = {}
+    for code in ("428", "429"):
+        sub = (cfg / "remap_subs" / f"{code}remap.ngc").read_text()
+        kins[f"M{code}"] = float(re.search(r"#<kinstype>\s*=\s*(\d+)", sub).group(1))
+    assert kins["M428"] != kins["M429"]
+    five_axis = 1.0  # the remap comments: "kinstype==1 (xyzac,xyzbc)"; 0 is identity
+    m = _machine("tcp")
+    r = blade_rows.methods["nlp"]
+    ngc = tmp_path / "tcp.ngc"
+    write_gcode(ngc, r, m, blade_rows.cutter, 2000.0)
+    canon = interpret(ngc, ini=cfg / "xyzac-trt.ini")
+    values = [v for _, k, v in canon.aux if k == 3]  # SWITCHKINS_PIN = 3 in the remaps
+    assert values, "the TCP codes did not run the configuration's switchkins remaps"
+    assert values[0] == five_axis  # TCP on before the first move
+    assert values[-1] == kins["M429"] != five_axis  # identity at the end
+    first_motion = min(i for i, _, _ in canon.aux)
+    assert first_motion == 0
+
+
+@needs_linuxcnc
+@pytest.mark.skipif(os.geteuid() != 0 and shutil.which("sudo") is None, reason="the simulation needs a user to run as")
+def test_planner_model_predicts_the_linuxcnc_simulation(tmp_path):
+    """A short five-axis program of 120 blocks (0.4 mm, B turning, G93) on the headless LinuxCNC
+    simulation: the model's time of the cut blocks is within 2% of the executed one."""
+    m = _machine()
+    n = 120
+    x = 0.4 * np.arange(n + 1)
+    b = 5.0 * np.sin(np.linspace(0, 3, n + 1))
+    lines = ["G21 G90 G17 G40 G49", "G64 P0.0025 Q0.0025", "G00 X0 Y0 Z150 A0 B0", "G93"]
+    lines += [f"G01 X{x[i]:.4f} Y0 Z150 A0 B{b[i]:.4f} F{60 / 0.012:.3f}" for i in range(1, n + 1)]
+    lines += ["G94", "G00 Z160", "M30"]
+    prog = tmp_path / "short.ngc"
+    prog.write_text("\n".join(lines) + "\n")
+    run = simulate(prog, m, timeout=60)
+    cut = np.flatnonzero((run.line >= 5) & (run.line <= 4 + n))
+    executed = (cut[-1] - cut[0] + 1) * run.servo_period
+    planner = LinuxCNCPlanner(tolerance=0.0025)
+    joints = np.column_stack([x[1:], np.zeros(n), np.full(n, 150.0), np.zeros(n), b[1:]])
+    seg = planner.segments(m, np.array([0, 0, 150.0, 0, 0]), joints, np.zeros(n, bool), np.full(n, 60 / 0.012),
+                           np.ones(n, bool))
+    bt = planner.run(seg)
+    predicted = bt.end[-1] - bt.start[0]
+    assert predicted == pytest.approx(executed, rel=0.02)
+    assert executed > 1.5 * n * 0.012  # the short blocks really are slower than their feed
