@@ -530,6 +530,9 @@ AXES = ("[axis.A]\nmin = -100.0\nmax = 100.0\nvmax = 60.0\namax = 300.0\n"
     (TOML_HEAD.replace("pivot = 150.0", "name = [1]\npivot = 150.0") + AXES, ("m.toml", "name", "string")),
     (TOML_HEAD + AXES + "[axis.X]\nmin = 10\nmax = -10\n", ("m.toml", "[axis.X] min")),
     ("[machine\nkind=", ("m.toml", "not valid TOML")),
+    (TOML_HEAD + AXES + "[posts]\ndialect = \"fanuc\"\n", ("m.toml", "unknown table(s) [posts]", "[post]")),
+    (TOML_HEAD.replace("[machine]", "[machin]") + AXES, ("m.toml", "[machin]", "known: [machine]")),
+    (TOML_HEAD + AXES + "[axis.Q]\nmin = 0\n", ("m.toml", "axis table(s) Q", "A, B, X, Y, Z")),
 ])
 def test_machine_toml_with_wrong_types(capsys, ws, text, needles):
     (ws / "m.toml").write_text(text)
