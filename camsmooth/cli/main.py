@@ -393,7 +393,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="preferred lead (deg, inside the lead window; default its middle)")
     p.add_argument("--prefer-tilt", type=number(gt=-90, lt=90, unit="deg"), default=None, metavar="DEG",
                    help="preferred tilt (deg, inside the tilt window; default its middle)")
-    p.add_argument("--method", choices=("nlp", "spline", "none"), default="nlp")
+    p.add_argument("--method", choices=("nlp", "spline", "none"), default="nlp",
+                   help="the method whose axes are written (default nlp): none the initial lead/tilt axes, spline "
+                   "the published cubic-spline smoothing, nlp the optimisation; the methods before it are computed "
+                   "too and compared in the summary and report")
     p.add_argument("--tolerance", type=_POSITIVE_MM, default=DEFAULT_TOLERANCE_MM, metavar="MM",
                    help=f"the part's allowed deviation (mm, default {DEFAULT_TOLERANCE_MM:g}): a clearance below "
                    "-MM is a gouge, for every clearance decision")
@@ -431,7 +434,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--feed", type=number(gt=0, unit="mm/min"), default=None, metavar="F",
                    help="write this feed (mm/min, > 0) into the CSV")
     p.add_argument("-o", "--output", required=True, help="CC path CSV to write")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--quiet", action="store_true", help="no summary on stdout")
     p.set_defaults(func=run_path)
 
     p = sub.add_parser("analyze", help="analyse a program as it is: axes, limits, Gamma, cycle time, clearance")
@@ -452,7 +455,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", default=None, metavar="OUT.json", help="write the analysis as JSON (units mm, deg)")
     p.add_argument("--report", default=None, metavar="DIR", help="also write a report into the folder DIR")
     p.add_argument("--force", action="store_true", help="with --report: replace the folder DIR whole")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--quiet", action="store_true", help="no summary on stdout")
     p.set_defaults(func=run_analyze)
 
     p = sub.add_parser("demo", help="smooth a shipped sample and write the CSV, G-code and report")
@@ -460,7 +463,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sample", default="blade", help="sample name in surfaces/ (blade, saddle, mould, wave)")
     p.add_argument("--samples", default=None, help="folder of the samples (default: the repository's surfaces/)")
     p.add_argument("--force", action="store_true", help="replace the folder OUT/report whole")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=run_demo)
 
     from camsmooth.cli import diagnose, model
