@@ -192,8 +192,8 @@ def test_demo_writes_its_outputs_and_meets_its_limits(tmp_path, capsys, monkeypa
     code, out, err = run(capsys, ["demo", "--samples", samples, "--sample", "blade", "--out", "demo"])
     assert code == 0, err
     demo = tmp_path / "demo"
-    assert {p.name for p in demo.iterdir()} == {"blade_smoothed.csv", "blade_smoothed.nc", "report"}
-    assert (demo / "report" / "report.html").stat().st_size > 0
+    assert {p.name for p in demo.iterdir()} == {"blade_smoothed.csv", "blade_smoothed.nc", "blade_report"}
+    assert (demo / "blade_report" / "report.html").stat().st_size > 0
     assert "blade_smoothed.csv" in out
     res = read_csv(demo / "blade_smoothed.csv")
     inp = read_csv(samples / "blade_path.csv")

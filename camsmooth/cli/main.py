@@ -332,6 +332,14 @@ def run_analyze(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def demo_outputs(out: str | Path, sample: str) -> tuple[Path, Path, Path]:
+    """The files ``camsmooth demo --out OUT --sample SAMPLE`` writes: the result CSV, the G-code and
+    the report folder, each carrying the sample's name so that one sample's demo never replaces
+    another's (README: ``make demo`` writes these for the blade into demo_out/)."""
+    out = Path(out)
+    return out / f"{sample}_smoothed.csv", out / f"{sample}_smoothed.nc", out / f"{sample}_report"
+
+
 def run_demo(args: argparse.Namespace) -> int:
     from camsmooth.geometry.cutter import ToroidalCutter
     from camsmooth.smoothing.pipeline import SmoothOptions, smooth
@@ -344,7 +352,7 @@ def run_demo(args: argparse.Namespace) -> int:
         raise InputError(f"sample {name!r} not found in {samples} (expected {path.name} and {name}.ply or "
                          f"{name}.stl)")
     out = Path(args.out)
-    csv, nc, rep = out / f"{name}_smoothed.csv", out / f"{name}_smoothed.nc", out / "report"
+    csv, nc, rep = demo_outputs(out, name)
     cutter = ToroidalCutter(R=4.0, r=1.0)
     with output_transaction() as tx:
         tmp_csv, tmp_nc = tx.file(csv), tx.file(nc)
@@ -459,10 +467,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=run_analyze)
 
     p = sub.add_parser("demo", help="smooth a shipped sample and write the CSV, G-code and report")
-    p.add_argument("--out", default="demo_out", help="output folder (default demo_out); the report goes to OUT/report")
+    p.add_argument("--out", default="demo_out", help="output folder (default demo_out): OUT/SAMPLE_smoothed.csv, "
+                   "OUT/SAMPLE_smoothed.nc and the report in OUT/SAMPLE_report, so samples do not replace each other")
     p.add_argument("--sample", default="blade", help="sample name in surfaces/ (blade, saddle, mould, wave)")
     p.add_argument("--samples", default=None, help="folder of the samples (default: the repository's surfaces/)")
-    p.add_argument("--force", action="store_true", help="replace the folder OUT/report whole")
+    p.add_argument("--force", action="store_true", help="replace the folder OUT/SAMPLE_report whole")
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=run_demo)
 
