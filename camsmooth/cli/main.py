@@ -29,10 +29,10 @@ from typing import Any
 import numpy as np
 
 from camsmooth.cli.options import CliParser, angle_range, number, vector3
+from camsmooth.constants import DEFAULT_TOLERANCE_MM
 from camsmooth.errors import CamsmoothError, InputError
 from camsmooth.io.atomic import Terminated, output_transaction, raise_terminated
 
-DEFAULT_TOLERANCE_MM = 0.005  # camsmooth.smoothing.pipeline.DEFAULT_TOLERANCE (not imported: keep --help light)
 SAMPLES_DIR = Path(__file__).resolve().parents[2] / "surfaces"
 
 EXIT_OK, EXIT_STRICT, EXIT_INPUT, EXIT_BUG, EXIT_SIGINT, EXIT_SIGTERM = 0, 1, 2, 70, 130, 143
@@ -162,12 +162,12 @@ def _strict_failure(result: Any) -> str | None:
     beyond the tolerance (count, largest lift mm, where), gouges beyond it (count, deepest
     clearance mm, where) and unreachable points; None when there is none."""
     from camsmooth.io.output import point_status
+    from camsmooth.smoothing.result import interferes
 
     r = result.result
     tol = float(result.inputs["tolerance"])
     lifted = r.lift > tol
-    with np.errstate(invalid="ignore"):
-        gouge = r.delta < -tol
+    gouge = interferes(r.delta, tol)
     unreachable = point_status(r) == "unreachable"
     parts = []
     bad_rows = np.unique(r.rows[lifted | gouge | unreachable])
