@@ -134,7 +134,8 @@ def _toolpath(name: str, tool: Tool | None, machine: Machine, tip: np.ndarray, a
         clear = {"min_mm": float(d.min()), "gouges": int(np.sum(interferes(d, tolerance))),
                  "air": int(np.sum(d > tolerance)), "tolerance_mm": float(tolerance)}
     plan = plan_program(machine, rows, np.column_stack([xyz, A, B]), tip, feed)
-    branch = ("B in [-90, 90] deg (the first branch of METHODS section 1)" if np.all(np.abs(B) <= np.pi / 2 + 1e-12)
+    branch = ("B in [-90, 90] deg (the first branch of docs/METHODS.md section 1.4)"
+              if np.all(np.abs(B) <= np.pi / 2 + 1e-12)
               else f"B beyond +-90 deg at {int(np.sum(np.abs(B) > np.pi / 2))} points (the second branch)")
     deg = np.degrees
     return ToolpathAnalysis(name=name, tool=_tool_json(tool), points=len(tip),
