@@ -429,17 +429,11 @@ _OUT = "camsmooth/io/output.py"
 _equivalent(_OUT, "point_status", [
     "lift = np.asarray(result.lift, dtype=float) -> lift = np.asarray(result.lift, dtype=None)",
     "lift = np.asarray(result.lift, dtype=float) -> lift = np.asarray(result.lift, )",
-    "delta = np.asarray(result.delta, dtype=float) -> delta = np.asarray(result.delta, dtype=None)",
-    "delta = np.asarray(result.delta, dtype=float) -> delta = np.asarray(result.delta, )",
-], "MethodResult.lift / .delta are float arrays (camsmooth.smoothing.result); without dtype=float asarray "
-   "returns the same array, and nan_to_num / '>' / '<' give the same booleans for any numeric dtype")
+], "MethodResult.lift is a float array (camsmooth.smoothing.result); without dtype=float asarray "
+   "returns the same array, and nan_to_num / '>' give the same booleans for any numeric dtype")
 _equivalent(_OUT, "point_status", [
     'status[np.nan_to_num(lift, nan=0.0) > 0.0] = "lifted" -> status[np.nan_to_num(lift, ) > 0.0] = "lifted"',
 ], "nan=0.0 is numpy's default for nan_to_num (a NaN lift is still mapped to 0: tested)")
-_equivalent(_OUT, "point_status", [
-    'with np.errstate(invalid="ignore"): -> with np.errstate(invalid=None):',
-], "numpy comparisons with NaN set no floating-point 'invalid' flag (checked under errstate(all='raise')), "
-   "so the errstate is a guard only; None keeps the current setting")
 _equivalent(_OUT, "point_status", [
     "pairs = np.asarray(unreachable, dtype=np.int64).reshape(-1, 2) -> "
     "pairs = np.asarray(unreachable, dtype=None).reshape(-1, 2)",

@@ -1,7 +1,8 @@
 """Diagnose the University of Michigan CNC-mill recordings: fit on some files, validate on others.
 
 Each experiment file holds the controller's command and actual position of X, Y, Z every 100 ms
-(../shared/data/umich-cnc-mill, stored to about 3 significant figures). The simulation says
+(stored to about 3 significant figures). The recordings are not shipped: `--data DIR` or
+$CAMSMOOTH_UMICH names their folder (default: shared/data/umich-cnc-mill beside the repository). The simulation says
 actual == command; `camsmooth diagnose` is asked what is missing. We fit on experiments 01-06
 (joined, kept apart in time) and predict 07-12 with the fitted model without refitting.
 

@@ -207,12 +207,33 @@ def test_diagnose_force_refuses_the_current_folder(capsys, ws):
 
 
 def test_demo_keeps_the_users_files_in_out_and_report(capsys, ws, no_render):
-    (ws / "keep" / "report").mkdir()
-    (ws / "keep" / "report" / "mine.txt").write_text("mine\n")
+    (ws / "keep" / "tiny_report").mkdir()
+    (ws / "keep" / "tiny_report" / "mine.txt").write_text("mine\n")
     rc, _, err = run(capsys, ["demo", "--samples", "samples", "--sample", "tiny", "--out", "keep", "--quiet"])
     assert rc == 0, err
-    assert (ws / "keep" / "notes.txt").exists() and (ws / "keep" / "report" / "mine.txt").exists()
+    assert (ws / "keep" / "notes.txt").exists() and (ws / "keep" / "tiny_report" / "mine.txt").exists()
     assert {"tiny_smoothed.csv", "tiny_smoothed.nc"} <= {p.name for p in (ws / "keep").iterdir()}
+
+
+def test_demo_of_one_sample_leaves_another_samples_outputs_alone(capsys, ws, no_render):
+    """Issue 19: `demo --sample X` once replaced the report of the sample run before it in OUT."""
+    shutil.copy(ws / "samples" / "tiny_path.csv", ws / "samples" / "other_path.csv")
+    shutil.copy(ws / "samples" / "tiny.ply", ws / "samples" / "other.ply")
+    demo = ["demo", "--samples", "samples", "--out", "d", "--quiet"]
+    for sample in ("tiny", "other"):
+        rc, _, err = run(capsys, demo + ["--sample", sample])
+        assert rc == 0, err
+        if sample == "tiny":
+            first = snapshot(ws / "d")
+    names = {p.name for p in (ws / "d").iterdir()}
+    assert names == {f"{s}_{kind}" for s in ("tiny", "other") for kind in ("smoothed.csv", "smoothed.nc", "report")}
+    assert (ws / "d" / "other_report" / "report.html").is_file()
+    after = snapshot(ws / "d")
+    assert {k: v for k, v in after.items() if not str(k).startswith("other")} == first   # tiny's files untouched
+    # --force replaces only the sample's own report folder
+    rc, _, err = run(capsys, demo + ["--sample", "other", "--force"])
+    assert rc == 0, err
+    assert {k: v for k, v in snapshot(ws / "d").items() if not str(k).startswith("other")} == first
 
 
 def test_demo_out_on_a_file_is_refused(capsys, ws):
@@ -530,6 +551,9 @@ AXES = ("[axis.A]\nmin = -100.0\nmax = 100.0\nvmax = 60.0\namax = 300.0\n"
     (TOML_HEAD.replace("pivot = 150.0", "name = [1]\npivot = 150.0") + AXES, ("m.toml", "name", "string")),
     (TOML_HEAD + AXES + "[axis.X]\nmin = 10\nmax = -10\n", ("m.toml", "[axis.X] min")),
     ("[machine\nkind=", ("m.toml", "not valid TOML")),
+    (TOML_HEAD + AXES + "[posts]\ndialect = \"fanuc\"\n", ("m.toml", "unknown table(s) [posts]", "[post]")),
+    (TOML_HEAD.replace("[machine]", "[machin]") + AXES, ("m.toml", "[machin]", "known: [machine]")),
+    (TOML_HEAD + AXES + "[axis.Q]\nmin = 0\n", ("m.toml", "axis table(s) Q", "A, B, X, Y, Z")),
 ])
 def test_machine_toml_with_wrong_types(capsys, ws, text, needles):
     (ws / "m.toml").write_text(text)

@@ -192,8 +192,8 @@ def test_demo_writes_its_outputs_and_meets_its_limits(tmp_path, capsys, monkeypa
     code, out, err = run(capsys, ["demo", "--samples", samples, "--sample", "blade", "--out", "demo"])
     assert code == 0, err
     demo = tmp_path / "demo"
-    assert {p.name for p in demo.iterdir()} == {"blade_smoothed.csv", "blade_smoothed.nc", "report"}
-    assert (demo / "report" / "report.html").stat().st_size > 0
+    assert {p.name for p in demo.iterdir()} == {"blade_smoothed.csv", "blade_smoothed.nc", "blade_report"}
+    assert (demo / "blade_report" / "report.html").stat().st_size > 0
     assert "blade_smoothed.csv" in out
     res = read_csv(demo / "blade_smoothed.csv")
     inp = read_csv(samples / "blade_path.csv")
@@ -347,3 +347,33 @@ def test_raster_path_on_a_mesh_touches_it_from_a_grid_of_tool_positions(wave, tm
     gaps = np.diff(np.unique(np.round(line_y, 6))) / stepover
     np.testing.assert_allclose(gaps, np.round(gaps), atol=1e-6)
     assert np.min(np.round(gaps)) == 1
+
+
+def _all_parsers(parser, prog: str = "camsmooth"):
+    """(prog, parser) for the top-level parser and every subparser under it, depth first."""
+    import argparse
+
+    yield prog, parser
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                yield from _all_parsers(sub, f"{prog} {name}")
+
+
+def test_every_option_of_every_verb_has_help_text():
+    """README: 'Every verb has --help'; an option without help text shows in it as a bare flag."""
+    import argparse
+
+    from camsmooth.cli.main import build_parser
+
+    bare = []
+    verbs = 0
+    for prog, parser in _all_parsers(build_parser()):
+        verbs += 1
+        for action in parser._actions:
+            if isinstance(action, (argparse._HelpAction, argparse._SubParsersAction)):
+                continue
+            if not (action.help or "").strip() or action.help == argparse.SUPPRESS:
+                bare.append(f"{prog} {'/'.join(action.option_strings) or action.dest}")
+    assert verbs >= 12   # camsmooth, smooth, path, analyze, demo, calibrate x3, simulate x4, predict, diagnose
+    assert not bare, "options without help text: " + ", ".join(bare)

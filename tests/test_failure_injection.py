@@ -109,7 +109,7 @@ VERBS = {
     "diagnose": (DIAGNOSE + ["--out", "f.json", "--model-out", "m.json", "--report", "rep"],
                  ["f.json", "m.json", "rep"]),
     "demo": (["demo", "--samples", "samples", "--sample", "tiny", "--out", "demo", "--quiet"],
-             ["demo/tiny_smoothed.csv", "demo/tiny_smoothed.nc", "demo/report"]),
+             ["demo/tiny_smoothed.csv", "demo/tiny_smoothed.nc", "demo/tiny_report"]),
     "analyze": (["analyze", "p.csv", "--surface", "plane.ply", "--cutter-radius", "4", "--corner-radius", "1",
                  "--feed", "1000", "--json", "a.json", "--report", "rep", "--quiet"], ["a.json", "rep"]),
 }

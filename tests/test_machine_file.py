@@ -100,6 +100,12 @@ def test_post_table_values_and_defaults():
     ("axis.Y", {"min": 0.0, "max": 1.0, "vmax": -2.0}, "[axis.Y] vmax must be > 0, got -2"),
     ("axis.Y", {"min": 0.0, "max": 1.0, "accel": 2.0},
      "unknown key(s) accel in [axis.Y] (known: min, max, vmax, amax, jmax)"),
+    ("posts", {"dialect": "fanuc"}, "unknown table(s) [posts] (known: [machine], [axis], [post])"),
+    ("machin", {"kind": "AB-head"}, "unknown table(s) [machin] (known: [machine], [axis], [post])"),
+    ("pivot", 150.0, "unknown table(s) pivot = 150.0 (known: [machine], [axis], [post])"),
+    ("machine.pivto", 150.0, "unknown key(s) pivto in [machine] (known: name, kind, pivot)"),
+    ("machine.post", {"dialect": "fanuc"}, "unknown key(s) post in [machine] (known: name, kind, pivot)"),
+    ("axis.Q", {"min": 0.0}, "unknown axis table(s) Q (an AB head has A, B, X, Y, Z)"),
     ("post", "fanuc", "[post] must be a table"),
     ("post", {"dialect": "fanuc", "colour": 1, "brand": 2},
      "unknown key(s) ['brand', 'colour'] in [post] (known: dialect, mode, tool, tcp_on, tcp_off)"),
@@ -174,3 +180,16 @@ def test_machine_file_on_disk(tmp_path):
     with pytest.raises(InputError) as exc:
         load_machine(str(wrong))
     assert exc.value.file == str(wrong) and "AC-table" in exc.value.message
+
+
+@pytest.mark.parametrize("table", ["[posts]", "[machin]", "[axis.Q]"])
+def test_unknown_table_in_a_file_is_named_with_the_file(tmp_path, table):
+    """A misspelt table would otherwise be ignored (its settings silently replaced by the defaults)."""
+    path = tmp_path / "mill.toml"
+    path.write_text(DEFAULT_MACHINE_TOML + f"\n{table}\ndialect = \"fanuc\"\n")
+    with pytest.raises(InputError) as exc:
+        load_machine(str(path))
+    assert exc.value.file == str(path)
+    name = table.strip("[]").split(".")[-1]
+    assert name in exc.value.message and ("known" in exc.value.message or "A, B, X, Y, Z" in exc.value.message)
+

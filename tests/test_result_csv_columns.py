@@ -7,8 +7,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from camsmooth.constants import DEFAULT_TOLERANCE_MM
 from camsmooth.errors import InputError
-from camsmooth.io.output import INTERFERENCE_TOL_MM, RESULT_CSV_COLUMNS, point_status, read_result_csv, write_result_csv
+from camsmooth.io.output import RESULT_CSV_COLUMNS, point_status, read_result_csv, write_result_csv
 from camsmooth.smoothing.feed import FeedPlan
 from camsmooth.smoothing.result import OUTPUT_COLUMNS, SmoothResult
 from tests.test_output import make_method, make_result
@@ -41,13 +42,46 @@ def test_feed_directions_and_planned_time_law_are_written_after_the_fixed_column
 
 def test_status_boundaries_tolerance_and_unknown_lift():
     m = make_method("nlp", n_rows=1, n_pts=6)
+    tol = m.metrics.tolerance_mm
     m.delta[:] = 0.1
-    m.delta[1] = INTERFERENCE_TOL_MM          # exactly at the gouge tolerance: not interference ("delta < tol")
-    m.delta[2] = INTERFERENCE_TOL_MM - 1e-9   # just below: interference
-    m.lift[3] = np.nan                        # unknown lift is not a lift
-    m.lift[4] = 1e-6                          # any positive lift is
+    m.delta[1] = -tol          # exactly at the gouge tolerance: not interference ("delta < -tolerance")
+    m.delta[2] = -tol - 1e-9   # just below: interference
+    m.lift[3] = np.nan         # unknown lift is not a lift
+    m.lift[4] = 1e-6           # any positive lift is
     assert point_status(m).tolist() == ["ok", "ok", "interference", "ok", "lifted", "ok"]
-    assert point_status(m, tol=0.2).tolist() == ["interference"] * 6
+    assert point_status(m, tolerance=-0.2).tolist() == ["interference"] * 6
+    assert point_status(m, tolerance=2 * tol).tolist() == ["ok", "ok", "ok", "ok", "lifted", "ok"]
+    m.metrics = None           # no metrics: the package's default tolerance
+    m.delta[1], m.delta[2] = -DEFAULT_TOLERANCE_MM, -DEFAULT_TOLERANCE_MM - 1e-9
+    assert point_status(m).tolist() == ["ok", "ok", "interference", "ok", "lifted", "ok"]
+
+
+def test_status_uses_the_users_tolerance_like_the_metrics(tmp_path):
+    """Issue 19: the CSV's status called a pose 'interference' at a fixed -1e-3 mm while the
+    metrics counted with the user's tolerance. A straight row on the plane z = 0 with three CC
+    points pushed into it (a toroidal cutter touching a plane at its CC point, the lowest point
+    of the tool: delta = the CC point's z), smoothed with --tolerance 0.01 mm."""
+    import trimesh
+
+    from camsmooth.geometry.cutter import ToroidalCutter
+    from camsmooth.geometry.paths import CCPath
+    from camsmooth.geometry.surfaces import Surface
+    from camsmooth.smoothing.pipeline import smooth
+
+    V = np.array([[-20.0, -20.0, 0.0], [80.0, -20.0, 0.0], [80.0, 40.0, 0.0], [-20.0, 40.0, 0.0]])
+    plane = Surface(trimesh.Trimesh(vertices=V, faces=[[0, 1, 2], [0, 2, 3]], process=False), None, "plane")
+    n = 21
+    z = np.zeros(n)
+    z[[5, 10, 15]] = [-0.005, -0.02, -0.012]   # within the tolerance, beyond it, beyond it
+    path = CCPath(points=np.column_stack([np.linspace(0.0, 40.0, n), np.full(n, 10.0), z]),
+                  normals=np.tile([0.0, 0.0, 1.0], (n, 1)), rows=np.zeros(n, dtype=int), feed=np.full(n, 1000.0))
+    res = smooth(path, plane, None, ToroidalCutter(R=4.0, r=1.0), lead_range=tuple(np.radians([2.0, 20.0])),
+                 tilt_range=tuple(np.radians([-15.0, 15.0])), method="none", tolerance=0.01)
+    np.testing.assert_allclose(res.result.delta[[5, 10, 15]], [-0.005, -0.02, -0.012], atol=1e-9)
+    status = read_result_csv(write_result_csv(tmp_path / "r.csv", res))["status"]
+    assert status[5] == "ok" and status[10] == "interference" and status[15] == "interference"
+    assert set(np.delete(status, [10, 15])) == {"ok"}
+    assert np.sum(status == "interference") == res.result.metrics.violations["interference"] == 2
 
 
 def test_header_spelled_in_other_case_reads_under_the_declared_names(tmp_path):
@@ -81,3 +115,27 @@ def test_table_with_a_wrong_column_count_is_refused_before_writing(tmp_path):
     with pytest.raises(ValueError, match=f"has {len(OUTPUT_COLUMNS) + 1} columns, expected {len(OUTPUT_COLUMNS)}"):
         write_result_csv(tmp_path / "r.csv", bad)
     assert not (tmp_path / "r.csv").exists()
+
+
+def test_the_default_tolerance_has_one_home():
+    """camsmooth.constants.DEFAULT_TOLERANCE_MM is the default of smooth, analyze_program and the
+    command line's --tolerance; no other module writes the number."""
+    import inspect
+    import re
+
+    from camsmooth.cli.main import build_parser
+    from camsmooth.smoothing.analysis import analyze_program
+    from camsmooth.smoothing.pipeline import smooth
+    from tests.conftest import ROOT
+
+    assert DEFAULT_TOLERANCE_MM == 0.005   # README: "--tolerance (default 0.005 mm)"
+    for f in (smooth, analyze_program):
+        assert inspect.signature(f).parameters["tolerance"].default is DEFAULT_TOLERANCE_MM
+    parser = build_parser()
+    smooth_args = parser.parse_args(["smooth", "p.csv", "--surface", "s.stl", "--lead", "2:20", "--tilt", "0:0",
+                                     "-o", "o.csv"])
+    assert smooth_args.tolerance is DEFAULT_TOLERANCE_MM
+    assert parser.parse_args(["analyze", "p.csv"]).tolerance is DEFAULT_TOLERANCE_MM
+    homes = [p.relative_to(ROOT).as_posix() for p in sorted((ROOT / "camsmooth").rglob("*.py"))
+             if re.search(r"(?i)tol\w*\s*[:=][^\n]*\b0\.005\b", p.read_text(encoding="utf-8"))]
+    assert homes == ["camsmooth/constants.py"]

@@ -49,7 +49,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--max-fit-samples", type=number(ge=100, integer=True), default=None, metavar="N",
                    help="fit on at most N samples (an even random subset; N >= 100, default 60000)")
     p.add_argument("--candidates", help="comma list restricting the candidate library")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--quiet", action="store_true", help="no summary of the findings on stdout")
     p.set_defaults(func=run_diagnose)
 
 

@@ -29,10 +29,10 @@ from typing import Any
 import numpy as np
 
 from camsmooth.cli.options import CliParser, angle_range, number, vector3
+from camsmooth.constants import DEFAULT_TOLERANCE_MM
 from camsmooth.errors import CamsmoothError, InputError
 from camsmooth.io.atomic import Terminated, output_transaction, raise_terminated
 
-DEFAULT_TOLERANCE_MM = 0.005  # camsmooth.smoothing.pipeline.DEFAULT_TOLERANCE (not imported: keep --help light)
 SAMPLES_DIR = Path(__file__).resolve().parents[2] / "surfaces"
 
 EXIT_OK, EXIT_STRICT, EXIT_INPUT, EXIT_BUG, EXIT_SIGINT, EXIT_SIGTERM = 0, 1, 2, 70, 130, 143
@@ -162,12 +162,12 @@ def _strict_failure(result: Any) -> str | None:
     beyond the tolerance (count, largest lift mm, where), gouges beyond it (count, deepest
     clearance mm, where) and unreachable points; None when there is none."""
     from camsmooth.io.output import point_status
+    from camsmooth.smoothing.result import interferes
 
     r = result.result
     tol = float(result.inputs["tolerance"])
     lifted = r.lift > tol
-    with np.errstate(invalid="ignore"):
-        gouge = r.delta < -tol
+    gouge = interferes(r.delta, tol)
     unreachable = point_status(r) == "unreachable"
     parts = []
     bad_rows = np.unique(r.rows[lifted | gouge | unreachable])
@@ -337,6 +337,14 @@ def run_analyze(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def demo_outputs(out: str | Path, sample: str) -> tuple[Path, Path, Path]:
+    """The files ``camsmooth demo --out OUT --sample SAMPLE`` writes: the result CSV, the G-code and
+    the report folder, each carrying the sample's name so that one sample's demo never replaces
+    another's (README: ``make demo`` writes these for the blade into demo_out/)."""
+    out = Path(out)
+    return out / f"{sample}_smoothed.csv", out / f"{sample}_smoothed.nc", out / f"{sample}_report"
+
+
 def run_demo(args: argparse.Namespace) -> int:
     from camsmooth.geometry.cutter import ToroidalCutter
     from camsmooth.smoothing.pipeline import SmoothOptions, smooth
@@ -349,7 +357,7 @@ def run_demo(args: argparse.Namespace) -> int:
         raise InputError(f"sample {name!r} not found in {samples} (expected {path.name} and {name}.ply or "
                          f"{name}.stl)")
     out = Path(args.out)
-    csv, nc, rep = out / f"{name}_smoothed.csv", out / f"{name}_smoothed.nc", out / "report"
+    csv, nc, rep = demo_outputs(out, name)
     cutter = ToroidalCutter(R=4.0, r=1.0)
     with output_transaction() as tx:
         tmp_csv, tmp_nc = tx.file(csv), tx.file(nc)
@@ -398,7 +406,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="preferred lead (deg, inside the lead window; default its middle)")
     p.add_argument("--prefer-tilt", type=number(gt=-90, lt=90, unit="deg"), default=None, metavar="DEG",
                    help="preferred tilt (deg, inside the tilt window; default its middle)")
-    p.add_argument("--method", choices=("nlp", "spline", "none"), default="nlp")
+    p.add_argument("--method", choices=("nlp", "spline", "none"), default="nlp",
+                   help="the method whose axes are written (default nlp): none the initial lead/tilt axes, spline "
+                   "the published cubic-spline smoothing, nlp the optimisation; the methods before it are computed "
+                   "too and compared in the summary and report")
     p.add_argument("--tolerance", type=_POSITIVE_MM, default=DEFAULT_TOLERANCE_MM, metavar="MM",
                    help=f"the part's allowed deviation (mm, default {DEFAULT_TOLERANCE_MM:g}): a clearance below "
                    "-MM is a gouge, for every clearance decision")
@@ -436,7 +447,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--feed", type=number(gt=0, unit="mm/min"), default=None, metavar="F",
                    help="write this feed (mm/min, > 0) into the CSV")
     p.add_argument("-o", "--output", required=True, help="CC path CSV to write")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--quiet", action="store_true", help="no summary on stdout")
     p.set_defaults(func=run_path)
 
     p = sub.add_parser("analyze", help="analyse a program as it is: axes, limits, Gamma, cycle time, clearance")
@@ -457,15 +468,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", default=None, metavar="OUT.json", help="write the analysis as JSON (units mm, deg)")
     p.add_argument("--report", default=None, metavar="DIR", help="also write a report into the folder DIR")
     p.add_argument("--force", action="store_true", help="with --report: replace the folder DIR whole")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--quiet", action="store_true", help="no summary on stdout")
     p.set_defaults(func=run_analyze)
 
     p = sub.add_parser("demo", help="smooth a shipped sample and write the CSV, G-code and report")
-    p.add_argument("--out", default="demo_out", help="output folder (default demo_out); the report goes to OUT/report")
+    p.add_argument("--out", default="demo_out", help="output folder (default demo_out): OUT/SAMPLE_smoothed.csv, "
+                   "OUT/SAMPLE_smoothed.nc and the report in OUT/SAMPLE_report, so samples do not replace each other")
     p.add_argument("--sample", default="blade", help="sample name in surfaces/ (blade, saddle, mould, wave)")
     p.add_argument("--samples", default=None, help="folder of the samples (default: the repository's surfaces/)")
-    p.add_argument("--force", action="store_true", help="replace the folder OUT/report whole")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--force", action="store_true", help="replace the folder OUT/SAMPLE_report whole")
+    p.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=run_demo)
 
     from camsmooth.cli import diagnose, model

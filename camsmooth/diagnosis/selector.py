@@ -548,7 +548,7 @@ class Selector:
         return {"chosen": best, "alternative": other, "round": rnd, "verdict": "cannot tell apart",
                 "heldout_rms_chosen": pooled(trials[best]), "heldout_rms_alternative": pooled(trials[other]),
                 "chosen_because": "equal within the noise; named first as the more common cause "
-                                  "(METHODS.md section 6 order)",
+                                  "(docs/METHODS.md section 6 order)",
                 "separating_measurement": separating_measurement(best, other)}
 
     def _backward(self, active: list[str], current: Fit, rejected: dict[str, dict[str, Any]]

@@ -13,19 +13,18 @@ from pathlib import Path
 
 import numpy as np
 
+from camsmooth.constants import DEFAULT_TOLERANCE_MM
 from camsmooth.io.gcode import DEFAULT_SAFE_HEIGHT_MM, write_gcode
 from camsmooth.io.table import read_table, write_table
-from camsmooth.smoothing.result import OUTPUT_COLUMNS, MethodResult, SmoothResult
+from camsmooth.smoothing.result import OUTPUT_COLUMNS, MethodResult, SmoothResult, interferes
 
-__all__ = ["RESULT_CSV_COLUMNS", "STATUSES", "INTERFERENCE_TOL_MM", "DEFAULT_SAFE_HEIGHT_MM", "point_status",
+__all__ = ["RESULT_CSV_COLUMNS", "STATUSES", "DEFAULT_SAFE_HEIGHT_MM", "point_status",
            "write_result_csv", "read_result_csv", "write_gcode"]
 
 #: Columns of the result CSV: OUTPUT_COLUMNS, then ``lift`` (mm) and ``status``.
 RESULT_CSV_COLUMNS: tuple[str, ...] = OUTPUT_COLUMNS + ("lift", "status")
 #: Per-point status values, least to most severe; a point gets the most severe that applies.
 STATUSES: tuple[str, ...] = ("ok", "lifted", "interference", "unreachable")
-#: Clearance below which a point counts as interfering (mm): gouge tolerance of the pipeline.
-INTERFERENCE_TOL_MM = -1e-3
 
 _INT_COLUMNS = ("row", "idx")
 _STR_COLUMNS = ("status",)
@@ -33,21 +32,24 @@ _STR_COLUMNS = ("status",)
 
 # ----------------------------------------------------------------------------------------------
 # per-point status
-def point_status(result: MethodResult, tol: float = INTERFERENCE_TOL_MM) -> np.ndarray:
+def point_status(result: MethodResult, tolerance: float | None = None) -> np.ndarray:
     """Status string per point of one method (array of str, values in STATUSES).
 
     'unreachable': (row, idx) is listed in ``metrics.unreachable`` (no inverse-kinematics
-    solution within the travel limits); else 'interference': clearance ``delta`` < ``tol`` mm
-    (gouge left after smoothing and any lift); else 'lifted': the fallback lift along the normal
-    was applied (``lift`` > 0); else 'ok'. A NaN delta is not counted as interference.
+    solution within the travel limits); else 'interference': clearance ``delta`` < -``tolerance``
+    mm (gouge left after smoothing and any lift; camsmooth.smoothing.result.interferes, the rule
+    the metrics count with); else 'lifted': the fallback lift along the normal was applied
+    (``lift`` > 0); else 'ok'. A NaN delta is not counted as interference. ``tolerance`` (mm,
+    the part's allowed deviation) defaults to the one the method's metrics were computed with
+    (``metrics.tolerance_mm``, the user's ``--tolerance``), else DEFAULT_TOLERANCE_MM.
     """
+    if tolerance is None:
+        tolerance = result.metrics.tolerance_mm if result.metrics is not None else DEFAULT_TOLERANCE_MM
     n = len(result)
     status = np.full(n, "ok", dtype=object)
     lift = np.asarray(result.lift, dtype=float)
     status[np.nan_to_num(lift, nan=0.0) > 0.0] = "lifted"
-    delta = np.asarray(result.delta, dtype=float)
-    with np.errstate(invalid="ignore"):
-        status[delta < tol] = "interference"
+    status[interferes(result.delta, tolerance)] = "interference"
     unreachable = result.metrics.unreachable if result.metrics is not None else []
     if len(unreachable):
         pairs = np.asarray(unreachable, dtype=np.int64).reshape(-1, 2)

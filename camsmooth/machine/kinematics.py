@@ -487,13 +487,19 @@ def machine_from_dict(data: Mapping[str, Any], source: str = "<machine>") -> Mac
 
     InputError naming ``source`` and the key for: a missing or wrongly typed table or key (a value
     where a table belongs, a string or boolean where a number belongs), non-finite numbers, an
-    unsupported kind, pivot < 0, min >= max, vmax, amax or jmax <= 0, unknown axis tables or keys.
+    unsupported kind, pivot < 0, min >= max, vmax, amax or jmax <= 0, unknown tables (top level or axis)
+    or keys.
     X, Y, Z: vmax, amax, jmax default to LINEAR_DEFAULTS and a missing table to unlimited travel
     with those dynamics; A, B: jmax defaults to ROTARY_JMAX_DEFAULT.
     """
     from camsmooth.errors import InputError
 
+    _known_tables(data, source)
     m = _table(data, "machine", "machine", source)
+    unknown = sorted(set(m) - set(_MACHINE_KEYS))
+    if unknown:
+        raise InputError(f"unknown key(s) {', '.join(unknown)} in [machine] (known: {', '.join(_MACHINE_KEYS)})",
+                         file=source)
     kind = m.get("kind")
     if kind != "AB-head":
         shown = _toml_repr(kind) if kind is not None else "missing"
@@ -536,6 +542,21 @@ def machine_from_dict(data: Mapping[str, Any], source: str = "<machine>") -> Mac
 
 
 _AXIS_KEYS = ("min", "max", "vmax", "amax", "jmax")
+_TOP_TABLES = ("machine", "axis", "post")
+_MACHINE_KEYS = ("name", "kind", "pivot")
+
+
+def _known_tables(data: Mapping[str, Any], source: str) -> None:
+    """InputError for a top-level table or key the machine file does not know (a misspelt ``[post]``
+    would otherwise be ignored and its settings silently replaced by the defaults)."""
+    from camsmooth.errors import InputError
+
+    unknown = sorted(set(data) - set(_TOP_TABLES))
+    if unknown:
+        spelled = ", ".join(f"[{k}]" if isinstance(data[k], Mapping) else f"{k} = {_toml_repr(data[k])}"
+                            for k in unknown)
+        raise InputError(f"unknown table(s) {spelled} (known: {', '.join(f'[{k}]' for k in _TOP_TABLES)})",
+                         file=source)
 
 
 def _known_keys(table: Mapping[str, Any], ax: str, source: str) -> None:

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from camsmooth.constants import DEFAULT_TOLERANCE_MM
 from camsmooth.geometry.clearance import MeshIndex, clearance
 from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl
 from camsmooth.geometry.frames import axis_from_lead_tilt, local_frames
@@ -27,6 +28,7 @@ from camsmooth.io.program import CLProgram, Tool
 from camsmooth.machine.kinematics import Machine
 from camsmooth.smoothing.feed import plan_program
 from camsmooth.smoothing.nlp import limit_violations, program_rates
+from camsmooth.smoothing.result import interferes
 
 __all__ = ["SINGULAR_DEG", "ProgramAnalysis", "ToolpathAnalysis", "analyze_program"]
 
@@ -129,10 +131,11 @@ def _toolpath(name: str, tool: Tool | None, machine: Machine, tip: np.ndarray, a
     clear = None
     if index is not None and cutter is not None:
         d = clearance(index, cutter, tip, T).delta
-        clear = {"min_mm": float(d.min()), "gouges": int(np.sum(d < -tolerance)), "air": int(np.sum(d > tolerance)),
-                 "tolerance_mm": float(tolerance)}
+        clear = {"min_mm": float(d.min()), "gouges": int(np.sum(interferes(d, tolerance))),
+                 "air": int(np.sum(d > tolerance)), "tolerance_mm": float(tolerance)}
     plan = plan_program(machine, rows, np.column_stack([xyz, A, B]), tip, feed)
-    branch = ("B in [-90, 90] deg (the first branch of METHODS section 1)" if np.all(np.abs(B) <= np.pi / 2 + 1e-12)
+    branch = ("B in [-90, 90] deg (the first branch of docs/METHODS.md section 1.4)"
+              if np.all(np.abs(B) <= np.pi / 2 + 1e-12)
               else f"B beyond +-90 deg at {int(np.sum(np.abs(B) > np.pi / 2))} points (the second branch)")
     deg = np.degrees
     return ToolpathAnalysis(name=name, tool=_tool_json(tool), points=len(tip),
@@ -144,8 +147,8 @@ def _toolpath(name: str, tool: Tool | None, machine: Machine, tip: np.ndarray, a
 
 
 def analyze_program(program: CLProgram | CCPath, machine: Machine, *, index: MeshIndex | None = None,
-                    cutter: ToroidalCutter | None = None, tolerance: float = 0.005, feed: float | None = None,
-                    lead: float = np.radians(11.0), tilt: float = 0.0) -> ProgramAnalysis:
+                    cutter: ToroidalCutter | None = None, tolerance: float = DEFAULT_TOLERANCE_MM,
+                    feed: float | None = None, lead: float = np.radians(11.0), tilt: float = 0.0) -> ProgramAnalysis:
     """The program as it is (module docstring). machine: the AB head; index, cutter: the mesh and
     the tool for the clearance (optional); tolerance (mm); feed (mm/min) where the program gives
     none; lead, tilt (rad, local frame of METHODS section 1): the constant orientation a CC path

@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from camsmooth.constants import DEFAULT_TOLERANCE_MM
 from camsmooth.errors import InputError
 from camsmooth.geometry.clearance import MeshIndex
 from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl
@@ -44,7 +45,7 @@ from camsmooth.smoothing.orientation import (
     surface_curvature_tensors,
 )
 from camsmooth.smoothing.parallel import RowPool, default_workers
-from camsmooth.smoothing.result import MethodResult, Metrics, PointNote, SmoothResult
+from camsmooth.smoothing.result import MethodResult, Metrics, PointNote, SmoothResult, interferes
 from camsmooth.smoothing.rows import (
     RowContext,
     RowOptions,
@@ -57,11 +58,10 @@ from camsmooth.smoothing.rows import (
     solve_row,
 )
 
-__all__ = ["DEFAULT_TOLERANCE", "METHODS", "Program", "ProgramSmoother", "SmoothOptions", "prepare", "row_times",
+__all__ = ["DEFAULT_TOLERANCE_MM", "METHODS", "Program", "ProgramSmoother", "SmoothOptions", "prepare", "row_times",
            "smooth"]
 
 METHODS = ("none", "spline", "nlp")
-DEFAULT_TOLERANCE = 0.005  # mm: a finishing tolerance; the user's --tolerance replaces it
 PARALLEL_MIN_POINTS = 5000  # below this a program runs serially by default (worker start-up ~1-2 s)
 CHUNK = 20000  # poses per task of a whole-program clearance pass
 
@@ -141,7 +141,7 @@ def smooth(path: CCPath | CamProgram, surface: Surface, machine: Machine | None 
            lead_range: tuple[float, float] = (np.radians(2.0), np.radians(20.0)),
            tilt_range: tuple[float, float] = (np.radians(-15.0), np.radians(15.0)),
            method: str = "nlp", prefer_lead: float | None = None, prefer_tilt: float | None = None,
-           model: Any = None, compensate: bool = False, tolerance: float = DEFAULT_TOLERANCE,
+           model: Any = None, compensate: bool = False, tolerance: float = DEFAULT_TOLERANCE_MM,
            options: SmoothOptions | None = None, progress: bool = False) -> SmoothResult:
     """Smooth a CC path on a surface (the whole pipeline; see the module docstring).
 
@@ -446,9 +446,10 @@ class ProgramSmoother:
         tol = 1e-6
         viol["lead window"] = int(np.sum((r.lead < r.lead_window[:, 0] - tol) | (r.lead > r.lead_window[:, 1] + tol)))
         viol["tilt window"] = int(np.sum((r.tilt < r.tilt_window[:, 0] - tol) | (r.tilt > r.tilt_window[:, 1] + tol)))
-        viol["interference"] = int(np.sum(r.delta < -self.tolerance))
+        gouge = interferes(r.delta, self.tolerance)
+        viol["interference"] = int(np.sum(gouge))
         lifted = r.lift > 0
-        unclean = sorted({int(x) for x in r.rows[(r.delta < -self.tolerance) | lifted]})
+        unclean = sorted({int(x) for x in r.rows[gouge | lifted]})
         return Metrics(gamma=g, peak_A_acc=float(np.degrees(np.max(np.abs(r.A_acc)))),
                        peak_B_acc=float(np.degrees(np.max(np.abs(r.B_acc)))), min_delta=float(np.min(r.delta)),
                        violations=viol, lifted_points=int(np.sum(lifted)),

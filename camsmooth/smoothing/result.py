@@ -11,6 +11,16 @@ from typing import Any
 
 import numpy as np
 
+
+def interferes(delta: np.ndarray, tolerance: float) -> np.ndarray:
+    """Where a pose interferes: its signed clearance ``delta`` (mm, negative = gouge) is below
+    ``-tolerance`` (mm, the part's allowed deviation, camsmooth.constants.DEFAULT_TOLERANCE_MM by
+    default). A NaN clearance (unknown) does not interfere. The one rule for the metrics'
+    'interference' count, the result CSV's status and ``--strict``."""
+    with np.errstate(invalid="ignore"):
+        return np.asarray(delta, dtype=float) < -float(tolerance)
+
+
 OUTPUT_COLUMNS = ("row", "idx", "t", "x", "y", "z", "nx", "ny", "nz", "clx", "cly", "clz", "i", "j", "k",
                   "lead", "tilt", "A", "B", "X", "Y", "Z", "delta")
 
