@@ -304,7 +304,7 @@ def test_fusion_movarc_bad_input(tmp_path, arc, needle):
     ("GOTO/0,0,0,0,0,2\n", "tool axis (i, j, k) (0, 0, 2) is not a unit vector", 2),
     ("UNITS/FEET\nGOTO/0,0,0\n", "unknown units 'FEET'", 2),
     ("GOTO/0,0,0\nCIRCLE/0,0,0,0,0,1,5,0.01,0.5,6,1\nEND-OF-PATH\n", "not followed by a GOTO", 3),
-    ("GOTO/5,0,0\nCIRCLE/0,0,0,0,0,1,5,0.01,0.5,6,1,TIMES,2\nGOTO/5,0,0\n", "TIMES", 3),
+    ("GOTO/5,0,0\nCIRCLE/0,0,0,0,0,1,5,0.01,0.5,6,1,TIMES,two\nGOTO/5,0,0\n", "TIMES must be followed", 3),
     ("GOTO/7,0,0\nCIRCLE/0,0,0,0,0,1,5,0.01,0.5,6,1\nGOTO/0,5,0\n", "start point is 7 mm from the axis", 3),
     ("MSYS/0,0,0,1,0,0,1,0,0\nGOTO/0,0,0\n", "not perpendicular", 2),
     ("FEDRAT/XPM,5\nGOTO/0,0,0\n", "malformed FEDRAT", 2),

@@ -31,8 +31,15 @@ Records read (one per line; ``MAJOR/arg,arg,...`` or a bare major word):
   (i, j, k) of radius r, starting at the current point; NX gives the axis "assuming a clockwise
   direction", i.e. the tool moves clockwise about (i, j, k) (counter-clockwise about -(i, j, k)).
   The arc (a helix when start and end differ along the axis) is replaced by chords whose
-  deviation from it is at most ``chord_tol`` mm. A full circle when start = end. ``TIMES,n``
-  (multi-turn helix) is refused.
+  deviation from it is at most ``chord_tol`` mm. A full circle when start = end.
+- ``CIRCLE/xc,yc,zc,i,j,k,r,t,f,d,e,TIMES,n``: a helix about the same axis, in the same sense, of n
+  full turns plus the angle from the start to the following GOTO (in [0, 360) deg; an end within
+  the tolerance of the start angle ends after exactly n turns). The rise along the axis from the
+  start to that GOTO is spread evenly over the whole angle (pitch = rise / turns made); the GOTO
+  must lie at the radius (within max(10 chord_tol, 1e-3 r, 1e-4 mm)), else an InputError naming
+  the CIRCLE line. Points within ``chord_tol`` of the helix as for the arc. NX's own example of a
+  helix record (the forum thread below) gives the centre at the height of the end point; only
+  the projection of the centre on the plane normal to the axis is used, so either is read.
 - ``MOVARC/xc,yc,zc,i,j,k,r,ANGLE,s`` (ISO 4343, Fusion / HSM): the next GOTO ends an arc about
   the centre c of radius r, counter-clockwise about (i, j, k) (right-hand rule; the post flips the
   normal for a clockwise arc), sweeping s degrees (0 < s <= 360; 360 with start = end is a full
@@ -44,11 +51,16 @@ Records read (one per line; ``MAJOR/arg,arg,...`` or a bare major word):
   not applied).
 
 Sources for the record formats: Siemens NX documentation, "User Defined Operations and CLSF ->
-CLSF Manager" (CIRCLE/ argument list, quoted on the Siemens PLM community forum thread "Circle
-record explanation"); the MSYS/ and TLDATA/MILL argument lists as documented in STEP Tools'
-APT-to-STEP-NC converter (apt2step, Apache-2.0) and the PTC Creo "CLDATA output for circular
-interpolation" page (CIRCLE/x,y,z,i,j,k,r after the start GOTO, end GOTO after it); the APT
-``$`` continuation and ``$$`` comment syntax and the non-modal RAPID as in that converter;
+CLSF Manager" (CIRCLE/ argument list ``CIRCLE/x,y,z,i,j,k,r,t,f,d,e,[TIMES,n]``: centre and axis
+"of the curve or helix in MCS", the axis "assuming a clockwise direction", r the radius, t the
+total tolerance INTOL + OUTTOL, f = INTOL / t, d the tool diameter, e its corner radius; quoted on
+the Siemens PLM community forum thread "Circle record explanation", whose helix example is a
+TIMES,2 record followed by its end GOTO; the documentation quoted there does not spell out n, read
+here as the full turns made before the final part turn); the MSYS/ and TLDATA/MILL argument
+lists as documented in STEP Tools' APT-to-STEP-NC converter (apt2step, Apache-2.0) and the PTC
+Creo "CLDATA output for circular interpolation" page (CIRCLE/x,y,z,i,j,k,r after the start GOTO,
+end GOTO after it); the APT ``$`` continuation and ``$$`` comment syntax and the non-modal RAPID
+as in that converter;
 CUTTER/, MOVARC/, MULTAX/, LOADTL/ as written by Autodesk's "Common ISO 4343 APT" post (apt.cps).
 """
 
@@ -71,6 +83,10 @@ __all__ = ["read_apt", "INCH_MM", "DEFAULT_CHORD_TOL"]
 INCH_MM = 25.4
 #: default chordal tolerance of the arc interpolation (mm)
 DEFAULT_CHORD_TOL = 1e-3
+#: the most points one arc or helix is interpolated with (a larger need is an InputError)
+MAX_ARC_POINTS = 1_000_000
+#: the most full turns a CIRCLE ... TIMES,n helix may make
+MAX_TURNS = 100_000
 _SKIPPED = {"PAINT", "PPRINT", "PARTNO", "COOLNT", "SELECT", "INSERT", "DISPLY", "OPSKIP", "OPSTOP", "STOP",
             "END", "FINI", "SET", "MACHIN", "MODE", "MULTAX", "DELAY", "CLRSRF", "REMARK", "PPFUN"}
 _UNIT_WORDS = {"MM": "mm", "MILLIMETERS": "mm", "INCHES": "inch", "INCH": "inch", "IN": "inch"}
@@ -223,6 +239,7 @@ class _Arc:
     line: int
     record: str  # CIRCLE or MOVARC, for messages
     sweep: float | None = None  # rad, when the record gives it (MOVARC ANGLE)
+    turns: int = 0  # CIRCLE ... TIMES,n: full turns before the angle to the end point (helix)
 
 
 @dataclass
@@ -315,20 +332,30 @@ def _bulk_goto(run: list[str], scale: float, axis: tuple) -> tuple[np.ndarray, n
 def _arc_points(p0: np.ndarray, p1: np.ndarray, arc: _Arc, tol: float, file: str) -> np.ndarray:
     """Intermediate points (k-1, 3) of the arc from p0 to p1 (both excluded), chordal deviation <= tol.
 
-    Rotation: by the right-hand rule about arc.normal; the height along it and the radius vary
-    linearly with the angle (helix)."""
+    Rotation: by the right-hand rule about arc.normal, through ``arc.turns`` full turns plus the
+    angle from p0 to p1; the height along the normal and the radius vary linearly with the angle
+    (a helix whose pitch is the rise from p0 to p1 over the turns made)."""
     n = arc.normal
     v0, v1 = p0 - arc.centre, p1 - arc.centre
     h0, h1 = float(v0 @ n), float(v1 @ n)
     u0, u1 = v0 - h0 * n, v1 - h1 * n
     r0, r1 = float(np.linalg.norm(u0)), float(np.linalg.norm(u1))
     slack = max(10 * tol, 1e-3 * arc.radius, 1e-4)
+    what = f"{arc.record} TIMES,{arc.turns}" if arc.turns else arc.record
     for r, which in ((r0, "start"), (r1, "end")):
         if abs(r - arc.radius) > slack:
-            raise InputError(f"{arc.record}: the arc's {which} point is {r:.6g} mm from the axis, the radius is "
+            raise InputError(f"{what}: the arc's {which} point is {r:.6g} mm from the axis, the radius is "
                              f"{arc.radius:.6g} mm", file=file, line=arc.line)
     phi = math.atan2(float(np.cross(u0, u1) @ n), float(u0 @ u1))
-    if phi <= 1e-12:
+    if arc.turns:
+        # n full turns plus the angle to the end point in [0, 2 pi); an end point within the
+        # tolerance of the start angle ends after exactly n turns
+        if phi < 0:
+            phi += 2.0 * math.pi
+        if min(phi, 2.0 * math.pi - phi) * arc.radius <= slack:
+            phi = 0.0
+        phi += 2.0 * math.pi * arc.turns
+    elif phi <= 1e-12:
         phi += 2.0 * math.pi  # the sweep is in (0, 2 pi]; start = end is a full circle
     if arc.sweep is not None:
         # the points decide below 2 pi; the record's sweep must agree (a wrong sign or normal is named)
@@ -339,7 +366,12 @@ def _arc_points(p0: np.ndarray, p1: np.ndarray, arc: _Arc, tol: float, file: str
                              file=file, line=arc.line)
     r = max(r0, r1)
     step = 2.0 * math.acos(max(-1.0, 1.0 - tol / r)) if tol < r else math.pi / 2
-    k = max(1, math.ceil(phi / min(step, math.pi / 2)))
+    k_float = phi / min(step, math.pi / 2)
+    if not k_float <= MAX_ARC_POINTS:
+        raise InputError(f"{what}: {k_float:.3g} points would be needed to keep the chord error within {tol:g} mm "
+                         f"(radius {r:.6g} mm, sweep {math.degrees(phi):.6g} deg; at most {MAX_ARC_POINTS} per arc): "
+                         "raise chord_tol", file=file, line=arc.line)
+    k = max(1, math.ceil(k_float))
     s = np.arange(1, k) / k
     th = phi * s
     e1 = u0 / r0
@@ -356,7 +388,7 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
     chord_tol: chordal tolerance of the CIRCLE interpolation (mm). units: 'mm' or 'inch' to
     override the unit found in the file. InputError naming the file and line for a malformed
     GOTO / CIRCLE / MOVARC / MSYS / FEDRAT / TLDATA / CUTTER, unknown units, a tool axis or MSYS axis that is not
-    unit, a CIRCLE not followed by a GOTO, a multi-turn helix, a file without any position.
+    unit, a CIRCLE not followed by a GOTO, a helix whose end GOTO is off its radius, a file without any position.
     """
     file = str(path)
     if not (chord_tol > 0 and math.isfinite(chord_tol)):
@@ -478,16 +510,13 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
             if nums:
                 rpm = abs(nums[0])
         elif m == "CIRCLE":
-            args = rec.args
-            if "TIMES" in [a.upper() for a in args]:
-                raise InputError("CIRCLE with TIMES (a helix of several turns) is not supported", file=file,
-                                 line=rec.line)
+            args, turns = _circle_times(rec, file)
             v = _numbers(rec, file, "CIRCLE", tuple(range(7, 12)), args)
             c_axis = _unit_axis(np.array(v[3:6]), rec, file, "CIRCLE axis")
             if not v[6] > 0:
                 raise InputError(f"CIRCLE radius must be > 0, got {v[6]:g}", file=file, line=rec.line)
             # NX gives the axis for a clockwise motion: counter-clockwise about its opposite
-            arc = _Arc(np.array(v[:3]) * st.scale, -c_axis, v[6] * st.scale, rec.line, "CIRCLE")
+            arc = _Arc(np.array(v[:3]) * st.scale, -c_axis, v[6] * st.scale, rec.line, "CIRCLE", turns=turns)
         elif m == "MOVARC":
             words = [a.upper() for a in rec.args]
             if len(rec.args) != 9 or words[7] != "ANGLE":
@@ -578,6 +607,23 @@ def _mill(d: float, r: float, length: float | None, what: str, rec: _Record, fil
                          f"R = {r:g}", file=file, line=rec.line)
     return Tool(name=name, kind="mill", diameter=d * scale, corner_radius=min(r, d / 2) * scale,
                 length=None if length is None else length * scale, line=rec.line)
+
+
+def _circle_times(rec: _Record, file: str) -> tuple[list[str], int]:
+    """The CIRCLE arguments before ``TIMES`` and the number of full turns n after it (0 without)."""
+    words = [a.upper() for a in rec.args]
+    if "TIMES" not in words:
+        return rec.args, 0
+    k = words.index("TIMES")
+    tail = rec.args[k + 1:]
+    try:
+        n = float(tail[0]) if len(tail) == 1 else math.nan
+    except ValueError:
+        n = math.nan
+    if not (math.isfinite(n) and n >= 0 and n == int(n) and n <= MAX_TURNS):
+        raise InputError(f"malformed CIRCLE: TIMES must be followed by one whole number of turns 0..{MAX_TURNS} "
+                         f"({rec.text!r})", file=file, line=rec.line)
+    return rec.args[:k], int(n)
 
 
 def _is_number(s: str) -> bool:
