@@ -50,6 +50,13 @@ Records read (one per line; ``MAJOR/arg,arg,...`` or a bare major word):
   is listed once among the warnings with the lines it appears on (``CUTCOM``, ``CYCLE`` ... are
   not applied).
 
+A record that cannot be read costs only its tool path: the file is cut into tool paths at
+``TOOL PATH/`` and ``END-OF-PATH`` (in a file without ``TOOL PATH/`` records at the tool changes,
+``TLDATA/`` and ``CUTTER/``); the bad tool path's points are dropped, the records up to the next
+cut are skipped (their modal settings too), and the program's warnings name it with the file,
+the line and the reason (``tool path 'NAME' (line L) dropped: FILE, line N: reason``). Only when
+no tool path could be read is it an InputError (the error itself when there was one).
+
 Sources for the record formats: Siemens NX documentation, "User Defined Operations and CLSF ->
 CLSF Manager" (CIRCLE/ argument list ``CIRCLE/x,y,z,i,j,k,r,t,f,d,e,[TIMES,n]``: centre and axis
 "of the curve or helix in MCS", the axis "assuming a clockwise direction", r the radius, t the
@@ -278,6 +285,17 @@ class _State:
         self.done += len(P)
         self.last = tuple(P[-1].tolist())
 
+    def truncate(self, n: int) -> None:
+        """Drop the points from index n on."""
+        self.flush()
+        while self.blocks and self.done - len(self.blocks[-1][0]) >= n:
+            self.done -= len(self.blocks.pop()[0])
+        if self.done > n:
+            keep = len(self.blocks[-1][0]) - (self.done - n)
+            self.blocks[-1] = tuple(b[:keep] for b in self.blocks[-1])
+            self.done = n
+        self.last = tuple(self.blocks[-1][0][-1].tolist()) if self.blocks else None
+
     def arrays(self) -> tuple[np.ndarray, ...]:
         self.flush()
         return tuple(np.concatenate([b[k] for b in self.blocks]) for k in range(6))
@@ -417,6 +435,7 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
         tp = ToolPath(name=name, tool=None, start=st.count, stop=st.count, line=line,
                       transform=transforms[cur_xform].copy())
         toolpaths.append(tp)
+        first_line[id(tp)] = cur_line
         return tp
 
     def add_point(p: tuple, a: tuple, rapid: bool, line: int) -> None:
@@ -425,172 +444,224 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
             open_tp = start_toolpath(None, None)
         st.add(p, a, rapid, feed, line, cur_xform)
 
+    # a record that cannot be read costs only its tool path: the file is cut into tool paths at
+    # TOOL PATH/ and END-OF-PATH (files without TOOL PATH/ records: at tool changes, TLDATA/ and
+    # CUTTER/); the bad one's points are dropped and the records up to the next cut skipped
+    boundaries = {"TOOL PATH", "END-OF-PATH"}
+    if not any(r.major == "TOOL PATH" for r in recs):
+        boundaries |= {"TLDATA", "CUTTER"}
+    dropped: list[InputError] = []
+    skipping = False
+    first_line: dict[int, int] = {}  # id(tool path) -> the line of the record that opened it
+
+    def drop(exc: InputError, major: str) -> None:
+        nonlocal open_tp, arc, rapid_next, record_rapid, last_motion, skipping
+        tp = open_tp
+        if tp is not None and major in boundaries and major != "END-OF-PATH" and st.count > tp.start:
+            tp.stop = st.count  # a bad tool change: the tool path before it is whole, the new one is lost
+            tp = None
+        if tp is not None:
+            st.truncate(tp.start)
+            k = next(k for k, t in enumerate(toolpaths) if t is tp)
+            del toolpaths[k]
+            line = tp.line if tp.line is not None else first_line.get(id(tp), exc.line)
+            desc = f"'{tp.name}' (line {line})" if tp.name else f"(unnamed, from line {line})"
+        else:
+            desc = f"(unnamed, from line {exc.line})"
+        dropped.append(exc)
+        warnings.append(f"tool path {desc} dropped: {exc}")
+        open_tp, arc = None, None
+        rapid_next = record_rapid = False
+        last_motion = ""
+        skipping = major != "END-OF-PATH"  # a bad END-OF-PATH (an arc without end) is the cut itself
+
     queue: deque[_Record] = deque()
     i = 0
+    cur_line = 0
     while i < len(recs) or queue:
         if queue:
             rec = queue.popleft()
         else:
             rec = recs[i]
             i += 1
-        m = rec.major
-        if m == "GOTO-RUN":
-            texts = rec.run or []
-            if arc is not None:  # the first GOTO ends an arc: on its own, then the rest as a run
-                queue.appendleft(_Record(rec.line, "GOTO", None, texts[0].rstrip()))
-                if len(texts) > 1:
-                    queue.insert(1, _Record(rec.line + 1, "GOTO-RUN", None, "", texts[1:]))
+        if skipping:
+            if rec.major not in boundaries:
                 continue
-            got = _bulk_goto(texts, st.scale, axis) if len(texts) >= 16 else None
-            if got is None:  # short, or something to report: record by record
-                queue.extendleft(_Record(rec.line + k, "GOTO", None, t.rstrip()) for k, t in
-                                 reversed(list(enumerate(texts))))
+            skipping = False
+            if rec.major == "END-OF-PATH":
                 continue
-            P, Tm = got
-            if open_tp is None:
-                open_tp = start_toolpath(None, None)
-            rap = np.zeros(len(P), dtype=bool)
-            rap[0] = rapid_next
-            st.add_block(P, Tm, rap, np.where(rap, np.nan, feed), np.arange(rec.line, rec.line + len(P)), cur_xform)
-            axis = tuple(Tm[-1].tolist())
-            rapid_next = record_rapid = False
-            last_motion = "GOTO"
-            continue
-        if m in ("GOTO", "FROM") or (rec.args == [] and last_motion == "GOTO" and _is_numbers(rec.text)):
-            if m not in ("GOTO", "FROM"):  # a further point of a multi-point GOTO
-                args = [a.strip() for a in rec.text.split(",")]
-            else:
-                args = rec.split()
-            v = _goto_numbers(rec, file, m, args)
-            sc = st.scale
-            p = (v[0] * sc, v[1] * sc, v[2] * sc)
-            if len(v) == 6:
-                axis = _unit_tuple(v[3], v[4], v[5], rec, file)
-            if m != "GOTO" and m != "FROM":
-                rapid = record_rapid  # further points of a multi-point GOTO move like its first
-            else:
-                rapid = rapid_next or m == "FROM"
-                record_rapid = rapid
-            if arc is not None:
-                if st.last is None:
-                    raise InputError(f"{arc.record} before any position: the arc has no start point", file=file,
-                                     line=arc.line)
-                for q in _arc_points(np.array(st.last), np.array(p), arc, chord_tol, file).tolist():
-                    add_point(tuple(q), axis, rapid, rec.line)
-                arc = None
-            add_point(p, axis, rapid, rec.line)
-            if m == "GOTO":
-                rapid_next = False  # RAPID holds for the whole motion record (all its points)
+        cur_line = rec.line
+        try:
+            m = rec.major
+            if m == "GOTO-RUN":
+                texts = rec.run or []
+                if arc is not None:  # the first GOTO ends an arc: on its own, then the rest as a run
+                    queue.appendleft(_Record(rec.line, "GOTO", None, texts[0].rstrip()))
+                    if len(texts) > 1:
+                        queue.insert(1, _Record(rec.line + 1, "GOTO-RUN", None, "", texts[1:]))
+                    continue
+                got = _bulk_goto(texts, st.scale, axis) if len(texts) >= 16 else None
+                if got is None:  # short, or something to report: record by record
+                    queue.extendleft(_Record(rec.line + k, "GOTO", None, t.rstrip()) for k, t in
+                                     reversed(list(enumerate(texts))))
+                    continue
+                P, Tm = got
+                if open_tp is None:
+                    open_tp = start_toolpath(None, None)
+                rap = np.zeros(len(P), dtype=bool)
+                rap[0] = rapid_next
+                st.add_block(P, Tm, rap, np.where(rap, np.nan, feed), np.arange(rec.line, rec.line + len(P)), cur_xform)
+                axis = tuple(Tm[-1].tolist())
+                rapid_next = record_rapid = False
                 last_motion = "GOTO"
-            continue
-        last_motion = m
-        if m == "RAPID":
-            rapid_next = True
-        elif m == "FEDRAT":
-            words = [a.upper() for a in rec.args if a and not _is_number(a)]
-            nums = [a for a in rec.args if _is_number(a)]
-            if len(nums) != 1 or len(words) > 1 or (words and words[0] not in _FEED_UNIT):
-                raise InputError(f"malformed FEDRAT: expected FEDRAT/[MMPM|IPM|MMPR|IPR,]f ({rec.text!r})",
-                                 file=file, line=rec.line)
-            if words:
-                feed_unit = _FEED_UNIT[words[0]]
-            value = float(nums[0])
-            if not (value > 0 and math.isfinite(value)):
-                raise InputError(f"FEDRAT must be > 0, got {nums[0]}", file=file, line=rec.line)
-            length, per_rev = feed_unit
-            scale = INCH_MM if (length or unit) == "inch" else 1.0
-            if per_rev:
-                if not rpm:
-                    raise InputError("feed per revolution without a spindle speed (SPINDL/RPM,n)", file=file,
-                                     line=rec.line)
-                value *= rpm
-            feed = value * scale
-        elif m == "SPINDL":
-            nums = [float(a) for a in rec.args if _is_number(a)]
-            if nums:
-                rpm = abs(nums[0])
-        elif m == "CIRCLE":
-            args, turns = _circle_times(rec, file)
-            v = _numbers(rec, file, "CIRCLE", tuple(range(7, 12)), args)
-            c_axis = _unit_axis(np.array(v[3:6]), rec, file, "CIRCLE axis")
-            if not v[6] > 0:
-                raise InputError(f"CIRCLE radius must be > 0, got {v[6]:g}", file=file, line=rec.line)
-            # NX gives the axis for a clockwise motion: counter-clockwise about its opposite
-            arc = _Arc(np.array(v[:3]) * st.scale, -c_axis, v[6] * st.scale, rec.line, "CIRCLE", turns=turns)
-        elif m == "MOVARC":
-            words = [a.upper() for a in rec.args]
-            if len(rec.args) != 9 or words[7] != "ANGLE":
-                raise InputError(f"malformed MOVARC: expected MOVARC/xc,yc,zc,i,j,k,r,ANGLE,sweep ({rec.text!r})",
-                                 file=file, line=rec.line)
-            v = _numbers(rec, file, "MOVARC", (8,), rec.args[:7] + rec.args[8:])
-            normal = _unit_axis(np.array(v[3:6]), rec, file, "MOVARC normal")
-            if not v[6] > 0:
-                raise InputError(f"MOVARC radius must be > 0, got {v[6]:g}", file=file, line=rec.line)
-            if not 0 < v[7] <= 360 + 1e-9:
-                raise InputError(f"MOVARC sweep must be in (0, 360] deg (several turns are not supported), got "
-                                 f"{v[7]:g}", file=file, line=rec.line)
-            arc = _Arc(np.array(v[:3]) * st.scale, normal, v[6] * st.scale, rec.line, "MOVARC",
-                       math.radians(min(v[7], 360.0)))
-        elif m == "MSYS":
-            transforms.append(_msys(rec, file, st.scale))
-            cur_xform = len(transforms) - 1
-            if open_tp is not None and open_tp.start == st.count:
-                open_tp.transform = transforms[cur_xform].copy()
-        elif m == "UNITS":
-            word = rec.args[0].upper() if rec.args else ""
-            if word not in _UNIT_WORDS:
-                raise InputError(f"unknown units {word or rec.text!r} (expected UNITS/MM or UNITS/INCHES)", file=file,
-                                 line=rec.line)
-            if units is None:
-                unit = _UNIT_WORDS[word]
-                st.scale = INCH_MM if unit == "inch" else 1.0
-        elif m == "TOOL PATH":
-            if open_tp is not None:
-                open_tp.stop = st.count
-            tool_name = rec.args[2] if len(rec.args) > 2 and rec.args[1].upper() == "TOOL" else None
-            open_tp = start_toolpath(rec.args[0] if rec.args and rec.args[0] else None, rec.line)
-            if last_tool is not None and tool_name is not None and last_tool.name == tool_name:
-                open_tp.tool = last_tool
-        elif m == "END-OF-PATH":
-            if arc is not None:
-                raise InputError(f"{arc.record} is not followed by a GOTO (the arc has no end point)", file=file,
-                                 line=arc.line)
-            if open_tp is not None:
-                open_tp.stop = st.count
-                open_tp = None
-        elif m in ("TLDATA", "CUTTER"):
-            if m == "CUTTER":
-                v = _numbers(rec, file, "CUTTER", tuple(range(1, 8)), rec.args)
-                tool = _mill(v[0], v[1] if len(v) > 1 else 0.0, None, "CUTTER", rec, file, st.scale, tool_name)
-            elif rec.args and rec.args[0].lower() == "mill":
-                v = _numbers(rec, file, "TLDATA/MILL", tuple(range(3, 12)), rec.args[1:])
-                tool = _mill(v[0], v[1], v[2], "TLDATA/MILL", rec, file, st.scale, tool_name)
+                continue
+            if m in ("GOTO", "FROM") or (rec.args == [] and last_motion == "GOTO" and _is_numbers(rec.text)):
+                if m not in ("GOTO", "FROM"):  # a further point of a multi-point GOTO
+                    args = [a.strip() for a in rec.text.split(",")]
+                else:
+                    args = rec.split()
+                v = _goto_numbers(rec, file, m, args)
+                sc = st.scale
+                p = (v[0] * sc, v[1] * sc, v[2] * sc)
+                if len(v) == 6:
+                    axis = _unit_tuple(v[3], v[4], v[5], rec, file)
+                if m != "GOTO" and m != "FROM":
+                    rapid = record_rapid  # further points of a multi-point GOTO move like its first
+                else:
+                    rapid = rapid_next or m == "FROM"
+                    record_rapid = rapid
+                if arc is not None:
+                    if st.last is None:
+                        raise InputError(f"{arc.record} before any position: the arc has no start point", file=file,
+                                         line=arc.line)
+                    for q in _arc_points(np.array(st.last), np.array(p), arc, chord_tol, file).tolist():
+                        add_point(tuple(q), axis, rapid, rec.line)
+                    arc = None
+                add_point(p, axis, rapid, rec.line)
+                if m == "GOTO":
+                    rapid_next = False  # RAPID holds for the whole motion record (all its points)
+                    last_motion = "GOTO"
+                continue
+            last_motion = m
+            if m == "RAPID":
+                rapid_next = True
+            elif m == "FEDRAT":
+                words = [a.upper() for a in rec.args if a and not _is_number(a)]
+                nums = [a for a in rec.args if _is_number(a)]
+                if len(nums) != 1 or len(words) > 1 or (words and words[0] not in _FEED_UNIT):
+                    raise InputError(f"malformed FEDRAT: expected FEDRAT/[MMPM|IPM|MMPR|IPR,]f ({rec.text!r})",
+                                     file=file, line=rec.line)
+                if words:
+                    feed_unit = _FEED_UNIT[words[0]]
+                value = float(nums[0])
+                if not (value > 0 and math.isfinite(value)):
+                    raise InputError(f"FEDRAT must be > 0, got {nums[0]}", file=file, line=rec.line)
+                length, per_rev = feed_unit
+                scale = INCH_MM if (length or unit) == "inch" else 1.0
+                if per_rev:
+                    if not rpm:
+                        raise InputError("feed per revolution without a spindle speed (SPINDL/RPM,n)", file=file,
+                                         line=rec.line)
+                    value *= rpm
+                feed = value * scale
+            elif m == "SPINDL":
+                nums = [float(a) for a in rec.args if _is_number(a)]
+                if nums:
+                    rpm = abs(nums[0])
+            elif m == "CIRCLE":
+                args, turns = _circle_times(rec, file)
+                v = _numbers(rec, file, "CIRCLE", tuple(range(7, 12)), args)
+                c_axis = _unit_axis(np.array(v[3:6]), rec, file, "CIRCLE axis")
+                if not v[6] > 0:
+                    raise InputError(f"CIRCLE radius must be > 0, got {v[6]:g}", file=file, line=rec.line)
+                # NX gives the axis for a clockwise motion: counter-clockwise about its opposite
+                arc = _Arc(np.array(v[:3]) * st.scale, -c_axis, v[6] * st.scale, rec.line, "CIRCLE", turns=turns)
+            elif m == "MOVARC":
+                words = [a.upper() for a in rec.args]
+                if len(rec.args) != 9 or words[7] != "ANGLE":
+                    raise InputError(f"malformed MOVARC: expected MOVARC/xc,yc,zc,i,j,k,r,ANGLE,sweep ({rec.text!r})",
+                                     file=file, line=rec.line)
+                v = _numbers(rec, file, "MOVARC", (8,), rec.args[:7] + rec.args[8:])
+                normal = _unit_axis(np.array(v[3:6]), rec, file, "MOVARC normal")
+                if not v[6] > 0:
+                    raise InputError(f"MOVARC radius must be > 0, got {v[6]:g}", file=file, line=rec.line)
+                if not 0 < v[7] <= 360 + 1e-9:
+                    raise InputError(f"MOVARC sweep must be in (0, 360] deg (several turns are not supported), got "
+                                     f"{v[7]:g}", file=file, line=rec.line)
+                arc = _Arc(np.array(v[:3]) * st.scale, normal, v[6] * st.scale, rec.line, "MOVARC",
+                           math.radians(min(v[7], 360.0)))
+            elif m == "MSYS":
+                transforms.append(_msys(rec, file, st.scale))
+                cur_xform = len(transforms) - 1
+                if open_tp is not None and open_tp.start == st.count:
+                    open_tp.transform = transforms[cur_xform].copy()
+            elif m == "UNITS":
+                word = rec.args[0].upper() if rec.args else ""
+                if word not in _UNIT_WORDS:
+                    raise InputError(f"unknown units {word or rec.text!r} (expected UNITS/MM or UNITS/INCHES)",
+                                     file=file, line=rec.line)
+                if units is None:
+                    unit = _UNIT_WORDS[word]
+                    st.scale = INCH_MM if unit == "inch" else 1.0
+            elif m == "TOOL PATH":
+                if open_tp is not None:
+                    open_tp.stop = st.count
+                tool_name = rec.args[2] if len(rec.args) > 2 and rec.args[1].upper() == "TOOL" else None
+                open_tp = start_toolpath(rec.args[0] if rec.args and rec.args[0] else None, rec.line)
+                if last_tool is not None and tool_name is not None and last_tool.name == tool_name:
+                    open_tp.tool = last_tool
+            elif m == "END-OF-PATH":
+                if arc is not None:
+                    raise InputError(f"{arc.record} is not followed by a GOTO (the arc has no end point)", file=file,
+                                     line=arc.line)
+                if open_tp is not None:
+                    open_tp.stop = st.count
+                    open_tp = None
+            elif m in ("TLDATA", "CUTTER"):
+                if m == "CUTTER":
+                    v = _numbers(rec, file, "CUTTER", tuple(range(1, 8)), rec.args)
+                    tool = _mill(v[0], v[1] if len(v) > 1 else 0.0, None, "CUTTER", rec, file, st.scale, tool_name)
+                elif rec.args and rec.args[0].lower() == "mill":
+                    v = _numbers(rec, file, "TLDATA/MILL", tuple(range(3, 12)), rec.args[1:])
+                    tool = _mill(v[0], v[1], v[2], "TLDATA/MILL", rec, file, st.scale, tool_name)
+                else:
+                    kind = rec.args[0].lower() if rec.args else ""
+                    tool = Tool(name=tool_name, kind=kind or "unknown", diameter=None, corner_radius=None,
+                                line=rec.line)
+                    warnings.append(f"line {rec.line}: TLDATA/{kind.upper()} kept without dimensions "
+                                    "(only MILL is read)")
+                if open_tp is not None and st.count > open_tp.start and open_tp.tool is not None:
+                    open_tp.stop = st.count  # a tool change after motion: the next points are another tool path
+                    open_tp = start_toolpath(None, rec.line)
+                if open_tp is None:
+                    open_tp = start_toolpath(None, None)
+                open_tp.tool = tool
+                last_tool = tool
+            elif m in ("LOAD", "LOADTL"):
+                nums = [a for a in rec.args if _is_number(a)]
+                if nums and open_tp is not None and open_tp.tool is not None:
+                    open_tp.tool = _with_number(open_tp.tool, int(float(nums[0])))
+                    last_tool = open_tp.tool
+            elif m in _SKIPPED:
+                pass
             else:
-                kind = rec.args[0].lower() if rec.args else ""
-                tool = Tool(name=tool_name, kind=kind or "unknown", diameter=None, corner_radius=None, line=rec.line)
-                warnings.append(f"line {rec.line}: TLDATA/{kind.upper()} kept without dimensions (only MILL is read)")
-            if open_tp is not None and st.count > open_tp.start and open_tp.tool is not None:
-                open_tp.stop = st.count  # a tool change after motion: the next points are another tool path
-                open_tp = start_toolpath(None, rec.line)
-            if open_tp is None:
-                open_tp = start_toolpath(None, None)
-            open_tp.tool = tool
-            last_tool = tool
-        elif m in ("LOAD", "LOADTL"):
-            nums = [a for a in rec.args if _is_number(a)]
-            if nums and open_tp is not None and open_tp.tool is not None:
-                open_tp.tool = _with_number(open_tp.tool, int(float(nums[0])))
-                last_tool = open_tp.tool
-        elif m in _SKIPPED:
-            pass
-        else:
-            unknown.setdefault(m, []).append(rec.line)
+                unknown.setdefault(m, []).append(rec.line)
+        except InputError as exc:
+            drop(exc, rec.major)
     if arc is not None:
-        raise InputError(f"{arc.record} is not followed by a GOTO (the arc has no end point)", file=file,
-                         line=arc.line)
+        try:
+            raise InputError(f"{arc.record} is not followed by a GOTO (the arc has no end point)", file=file,
+                             line=arc.line)
+        except InputError as exc:
+            drop(exc, "")
     if open_tp is not None:
         open_tp.stop = st.count
     if st.count == 0:
+        if len(dropped) == 1:
+            raise dropped[0]
+        if dropped:
+            raise InputError(f"no tool path could be read: all {len(dropped)} were dropped (the first: "
+                             f"{dropped[0].message}, line {dropped[0].line})", file=file, line=dropped[0].line)
         raise InputError("no GOTO record: the file holds no tool position", file=file)
     for major, lines in unknown.items():
         shown = ", ".join(str(x) for x in lines[:10]) + (f", ... ({len(lines)} in all)" if len(lines) > 10 else "")
