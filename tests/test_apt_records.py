@@ -94,3 +94,85 @@ def test_fusion_tool_change_is_the_cut(tmp_path):
     assert [tp.tool.number for tp in prog.toolpaths] == [1, 3]
     np.testing.assert_array_equal(prog.tip[:, 0], [0, 1, 20, 21])
     assert any("line 8" in w and "corner radius" in w for w in prog.warnings), prog.warnings
+
+
+# ----------------------------------------------------------------------------------------------
+# record syntax: '/', continuation, harmless and not-applied records
+HARMLESS = """PARTNO BLADE 7
+PARTNO/'blade / 7, finish'
+MACHIN/MILL,1
+PPRINT/'op: finish / lead 10, tilt 0'
+PPRINT finish without a slash
+INSERT M08
+SPINDL/RPM,9000,CLW
+SPINDL/OFF
+COOLNT/flood
+COOLNT/OFF
+SELECT/TOOL,3
+TOOLNO/3
+SEQNO/ON
+OPSKIP/ON
+OPSTOP
+DELAY/1.5
+INTOL/0.01
+OUTTOL/0.01
+AUTOPS
+INDIRV/1,0,0
+CLRSRF/Z,50
+CLEARP/XYPLAN,50
+AUXFUN/99,NOW
+PAINT/COLOR,186
+DISPLY/ON
+REMARK this is a remark
+CYCLE/OFF
+MULTAX/ON
+MULTAX
+MODE/MILL
+END
+FINI
+"""
+
+
+def test_harmless_records_give_no_warning(tmp_path):
+    text = "UNITS/MM\nFEDRAT/MMPM,100\nGOTO/0,0,0\n" + HARMLESS + "GOTO/1,0,0\n"
+    prog = read_apt(_write(tmp_path, "h.apt", text))
+    assert prog.warnings == [] and len(prog) == 2
+
+
+def test_records_not_applied_are_one_warning(tmp_path):
+    text = ("UNITS/MM\nFEDRAT/MMPM,100\nCUTCOM/LEFT\nGOTO/0,0,0\nCYCLE/DRILL,5,MMPM,100,2\nGOTO/1,0,0\n"
+            "CUTCOM/OFF\nGODLTA/0,0,5\nTLAXIS/NORMPS\nCYCLE/OFF\nWHATEVER/1,2\nGOTO/2,0,0\n")
+    prog = read_apt(_write(tmp_path, "n.apt", text))
+    assert prog.warnings == ["records ignored (not applied): CUTCOM (lines 3, 7); CYCLE (line 5); GODLTA (line 8); "
+                             "TLAXIS (line 9); WHATEVER (line 11)"], prog.warnings
+    assert len(prog) == 3
+
+
+def test_slash_spacing_case_and_continuations(tmp_path):
+    text = ("UNITS/MM\nfedrat / mmpm , 100\n"
+            "GOTO / 1.0 , 2.0 , 3.0\n"
+            "  goto/\t4,5,6,0,0,1\n"
+            "GOTO/7,$\n8,$   \n 9 $$ a comment after the last part\n"
+            "GOTO/10,11,12,$ $$ a comment after the continuation mark\n"
+            "0.6,0,0.8\n"
+            "GOTO/13,14,15\n16,17,18\n19,20,21,0,0.6,0.8\n"
+            "$$ GOTO/99,99,99 a comment line\n"
+            "GOTO/22,23,$\n")  # a continuation at the end of the file: the record is read as it stands
+    p = _write(tmp_path, "s.cls", text)
+    with pytest.raises(InputError, match="malformed GOTO: '' is not a number") as exc:
+        read_apt(p)  # 'GOTO/22,23,' has an empty third number
+    assert exc.value.line == 14
+    prog = read_apt(_write(tmp_path, "t.cls", text.replace("GOTO/22,23,$\n", "GOTO/22,23,$\n24\n")))
+    np.testing.assert_allclose(prog.tip, [[1, 2, 3], [4, 5, 6], [7, 8, 9], [10, 11, 12], [13, 14, 15], [16, 17, 18],
+                                          [19, 20, 21], [22, 23, 24]])
+    np.testing.assert_allclose(prog.axis, [[0, 0, 1]] * 3 + [[0.6, 0, 0.8]] * 3 + [[0, 0.6, 0.8]] * 2)
+    assert prog.line.tolist() == [3, 4, 5, 8, 10, 11, 12, 14] and np.all(prog.feed == 100) and not prog.warnings
+
+
+def test_tlaxis_sets_the_modal_axis(tmp_path):
+    text = "UNITS/MM\nFEDRAT/MMPM,100\nGOTO/0,0,0\nTLAXIS/0,0.6,0.8\nGOTO/1,0,0\nGOTO/2,0,0,1,0,0\nGOTO/3,0,0\n"
+    prog = read_apt(_write(tmp_path, "a.apt", text))
+    np.testing.assert_allclose(prog.axis, [[0, 0, 1], [0, 0.6, 0.8], [1, 0, 0], [1, 0, 0]])
+    with pytest.raises(InputError, match=r"tool axis \(i, j, k\) \(0, 0, 2\) is not a unit vector") as exc:
+        read_apt(_write(tmp_path, "b.apt", text.replace("TLAXIS/0,0.6,0.8", "TLAXIS/0,0,2")))
+    assert exc.value.line == 4

@@ -44,11 +44,22 @@ Records read (one per line; ``MAJOR/arg,arg,...`` or a bare major word):
   the centre c of radius r, counter-clockwise about (i, j, k) (right-hand rule; the post flips the
   normal for a clockwise arc), sweeping s degrees (0 < s <= 360; 360 with start = end is a full
   circle); the sweep must agree with the start and end points.
-- Known records that do not change the geometry (PAINT, PPRINT, PARTNO, COOLNT, SPINDL, SELECT,
-  INSERT, DISPLY, OPSKIP, OPSTOP, STOP, END, FINI, SET, MACHIN, MODE, MULTAX, DELAY, CLRSRF) are
-  skipped (MULTAX needs no state: a GOTO with 3 numbers keeps the modal axis); any other record
-  is listed once among the warnings with the lines it appears on (``CUTCOM``, ``CYCLE`` ... are
-  not applied).
+- ``TLAXIS/i,j,k``: the modal tool axis (as a 6-number GOTO sets it; CATIA writes it before
+  3-number GOTOs); other TLAXIS forms (APT source words) are not applied.
+- Known records that do not change the geometry are skipped without a warning: text and display
+  (PAINT, PPRINT, PARTNO, REMARK, INSERT, DISPLY, CLPRNT, TPRINT, PLABEL, OPNAME, HEADER, LETTER,
+  ISN, SEQNO, TMARK, LEADER, TRAILER, VERIFY), machine functions (COOLNT, SPINDL, SELECT, SELCTL,
+  AUXFUN, PREFUN, PPFUN, OPSKIP, OPSTOP, STOP, DELAY, DWELL, REWIND, TOOLNO, TLCHG, MACHIN, MODE,
+  SET, END, FINI), tolerances and APT source words without motion (INTOL, OUTTOL, TOLER, AUTOPS,
+  INDIRV, CLEARP, CLRSRF, PPLOT), MULTAX (no state: a GOTO with 3 numbers keeps the modal axis)
+  and ``CYCLE/OFF``. ``MULTAX/OFF`` while the modal axis is tilted is named in a warning: the
+  3-number GOTOs after it keep that axis (CATIA's APT locks the last axis; Autodesk's ISO 4343
+  post writes MULTAX/OFF for Z-axis sections). Every other record (``CUTCOM``, other ``CYCLE/`` records, ``GODLTA``,
+  ``TRACUT``, ``ORIGIN``, ``ROTABL``, unknown words ...) is not applied and listed in ONE warning
+  with the lines it appears on: ``records ignored (not applied): CUTCOM (lines 18, 31); ...``.
+- A record is ``MAJOR/args`` or a bare word; spaces may surround the ``/`` (``GOTO / 1, 2, 3``);
+  a record without ``/`` whose text holds several words (``PPRINT text``, ``PARTNO name``,
+  ``CHANNEL,1``) has its first word as major word.
 
 A record that cannot be read costs only its tool path: the file is cut into tool paths at
 ``TOOL PATH/`` and ``END-OF-PATH`` (in a file without ``TOOL PATH/`` records at the tool changes,
@@ -68,7 +79,21 @@ lists as documented in STEP Tools' APT-to-STEP-NC converter (apt2step, Apache-2.
 Creo "CLDATA output for circular interpolation" page (CIRCLE/x,y,z,i,j,k,r after the start GOTO,
 end GOTO after it); the APT ``$`` continuation and ``$$`` comment syntax and the non-modal RAPID
 as in that converter;
-CUTTER/, MOVARC/, MULTAX/, LOADTL/ as written by Autodesk's "Common ISO 4343 APT" post (apt.cps).
+CUTTER/, MOVARC/, MULTAX/, LOADTL/ as written by Autodesk's "Common ISO 4343 APT" post (apt.cps),
+which also writes ``PPRINT/'text'`` (text holding '/' and ','), ``COOLNT/ON|flood|MIST|THRU|OFF``,
+``CUTCOM/ON|LEFT|RIGHT[,n]|OFF``, ``DELAY/t``, ``CYCLE/DRILL|DEEP|TAP|BORE,...`` (hole positions as
+GOTOs) ending with ``CYCLE/OFF``, ``STOP``/``OPSTOP``, ``END``/``FINI`` and ``MULTAX/OFF`` with
+3-number GOTOs for Z-axis sections. Other CAM systems' APT: the Vericut help page "Supported
+APT-CLS NC Program Records" (the APT words a verifier skips: AUTOPS, AUXFUN, CLPRNT, DELAY,
+DISPLY, INSERT, INTOL, OUTTOL, ISN, MACHIN, OPSKIP, PAINT, PARTNO, PPFUN, PREFUN, REMARK, SELCTL,
+SELECT, SEQNO, TMARK, TOOLNO, ...; spaces anywhere in a record; ``$`` continues a record), the
+CATIA / 3DEXPERIENCE APT format pages (``PARTNO text`` and ``PPRINT text`` without '/',
+``GOTO / x, y, z``, ``CUTTER/`` continued with ``$``, ``TOOLNO/``, MULTAX/OFF locking the last
+axis, INDIRV/ in APT source), ICAM's CL command list (TLAXIS, MULTAX, CUTTER, FROM, GODLTA) and a
+generic APT post-processor's command list (COOLNT, CUTCOM, CYCLE, DWELL, CLEARP, RETRCT, GOHOME,
+ROTABL, TRANS, ORIGIN ...; the last five move or transform and are not applied here). No
+documentation of PowerMill's or Mastercam's own APT output was found among the references
+searched; the corpus files of tests/data/apt named after them are generic APT of that kind.
 """
 
 from __future__ import annotations
@@ -94,8 +119,13 @@ DEFAULT_CHORD_TOL = 1e-3
 MAX_ARC_POINTS = 1_000_000
 #: the most full turns a CIRCLE ... TIMES,n helix may make
 MAX_TURNS = 100_000
+#: records that change nothing the reader gives (display, text, machine functions, tolerances,
+#: post-processor words without motion): skipped without a warning
 _SKIPPED = {"PAINT", "PPRINT", "PARTNO", "COOLNT", "SELECT", "INSERT", "DISPLY", "OPSKIP", "OPSTOP", "STOP",
-            "END", "FINI", "SET", "MACHIN", "MODE", "MULTAX", "DELAY", "CLRSRF", "REMARK", "PPFUN"}
+            "END", "FINI", "SET", "MACHIN", "MODE", "MULTAX", "DELAY", "CLRSRF", "REMARK", "PPFUN",
+            "AUTOPS", "AUXFUN", "CLPRNT", "DWELL", "HEADER", "INTOL", "OUTTOL", "TOLER", "ISN", "LETTER",
+            "PPLOT", "PREFUN", "REWIND", "SELCTL", "SEQNO", "TMARK", "TOOLNO", "TLCHG", "INDIRV", "CLEARP",
+            "OPNAME", "TPRINT", "PLABEL", "VERIFY", "LEADER", "TRAILER"}
 _UNIT_WORDS = {"MM": "mm", "MILLIMETERS": "mm", "INCHES": "inch", "INCH": "inch", "IN": "inch"}
 _FEED_UNIT = {"MMPM": ("mm", False), "IPM": ("inch", False), "MMPR": ("mm", True), "IPR": ("inch", True),
               "PERMIN": (None, False), "PERREV": (None, True)}
@@ -143,11 +173,22 @@ def _records(text: str) -> list[_Record]:
             continue
         major, slash, rest = body.partition("/")
         args = [a.strip() for a in rest.split(",")] if slash else []
-        out.append(_Record(start, major.strip().upper(), args, body))
+        out.append(_Record(start, _major(major), args, body))
     if pending is not None:
-        out.append(_Record(pending[0], pending[1].partition("/")[0].strip().upper(),
-                           [a.strip() for a in pending[1].partition("/")[2].split(",")], pending[1]))
+        major, slash, rest = pending[1].partition("/")
+        out.append(_Record(pending[0], _major(major), [a.strip() for a in rest.split(",")] if slash else [],
+                           pending[1]))
     return out
+
+
+def _major(head: str) -> str:
+    """The major word of a record from the text before its '/': upper case; a head holding more
+    than one word (``PPRINT text``, ``PARTNO name``, ``CHANNEL,1``) is its first word, except
+    ``TOOL PATH``."""
+    major = head.strip().upper()
+    if major != "TOOL PATH" and any(c in major for c in " \t,"):
+        major = major.replace(",", " ").split()[0]
+    return major
 
 
 def _numbers(rec: _Record, file: str, what: str, counts: tuple[int, ...], args: list[str] | None = None
@@ -424,6 +465,7 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
     rapid_next = False
     arc: _Arc | None = None
     unknown: dict[str, list[int]] = {}
+    multax_off: list[tuple[int, tuple]] = []  # MULTAX/OFF while the modal axis is tilted: (line, axis)
     toolpaths: list[ToolPath] = []
     open_tp: ToolPath | None = None
     last_tool: Tool | None = None
@@ -642,7 +684,12 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
                 if nums and open_tp is not None and open_tp.tool is not None:
                     open_tp.tool = _with_number(open_tp.tool, int(float(nums[0])))
                     last_tool = open_tp.tool
-            elif m in _SKIPPED:
+            elif m == "TLAXIS" and len(rec.args) == 3 and all(_is_number(a) for a in rec.args):
+                v = _numbers(rec, file, "TLAXIS", (3,))
+                axis = _unit_tuple(v[0], v[1], v[2], rec, file)  # the modal axis of 3-number GOTOs
+            elif m == "MULTAX" and [a.upper() for a in rec.args] == ["OFF"] and abs(axis[2] - 1.0) > 1e-9:
+                multax_off.append((rec.line, axis))
+            elif m in _SKIPPED or (m == "CYCLE" and [a.upper() for a in rec.args] == ["OFF"]):
                 pass
             else:
                 unknown.setdefault(m, []).append(rec.line)
@@ -663,10 +710,20 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
             raise InputError(f"no tool path could be read: all {len(dropped)} were dropped (the first: "
                              f"{dropped[0].message}, line {dropped[0].line})", file=file, line=dropped[0].line)
         raise InputError("no GOTO record: the file holds no tool position", file=file)
-    for major, lines in unknown.items():
-        shown = ", ".join(str(x) for x in lines[:10]) + (f", ... ({len(lines)} in all)" if len(lines) > 10 else "")
-        what = "line" if len(lines) == 1 else "lines"
-        warnings.append(f"record {major} ignored ({what} {shown})")
+    if multax_off:
+        ln, a = multax_off[0]
+        more = f" (and {len(multax_off) - 1} more)" if len(multax_off) > 1 else ""
+        warnings.append(f"MULTAX/OFF on line {ln}{more} while the tool axis is tilted: the 3-number GOTOs after it "
+                        f"keep the last axis ({a[0]:.6g}, {a[1]:.6g}, {a[2]:.6g}) as APT locks it; a post meaning "
+                        "the Z axis there (a Fusion / HSM 3-axis section) gives the axis as a 6-number GOTO")
+    if unknown:  # one warning for all the records not applied
+        parts = []
+        for major, lines in unknown.items():
+            shown = ", ".join(str(x) for x in lines[:10]) + (f", ... ({len(lines)} in all)" if len(lines) > 10 else "")
+            parts.append(f"{major[:40]} ({'line' if len(lines) == 1 else 'lines'} {shown})")
+        if len(parts) > 20:
+            parts = parts[:20] + [f"and {len(parts) - 20} more"]
+        warnings.append(f"records ignored (not applied): {'; '.join(parts)}")
     return _program(st, transforms, toolpaths, warnings)
 
 
