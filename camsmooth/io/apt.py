@@ -187,7 +187,8 @@ def _major(head: str) -> str:
     ``TOOL PATH``."""
     major = head.strip().upper()
     if major != "TOOL PATH" and any(c in major for c in " \t,"):
-        major = major.replace(",", " ").split()[0]
+        words = major.replace(",", " ").split()
+        major = words[0] if words else major  # a head of commas alone stays as it is (an unknown record)
     return major
 
 
@@ -230,7 +231,8 @@ def _unit_tuple(i: float, j: float, k: float, rec: _Record, file: str) -> tuple[
 
 
 def _unit_axis(v: np.ndarray, rec: _Record, file: str, what: str) -> np.ndarray:
-    n = float(np.linalg.norm(v))
+    with np.errstate(over="ignore", invalid="ignore"):
+        n = float(np.linalg.norm(v))
     if n < 1e-12 or abs(n - 1.0) > UNIT_TOL:
         raise InputError(f"{what} ({', '.join(f'{x:g}' for x in v)}) is not a unit vector (length {n:.9g}, "
                          f"allowed 1 +- {UNIT_TOL:g})", file=file, line=rec.line)
@@ -680,9 +682,12 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
                 open_tp.tool = tool
                 last_tool = tool
             elif m in ("LOAD", "LOADTL"):
-                nums = [a for a in rec.args if _is_number(a)]
+                nums = [float(a) for a in rec.args if _is_number(a)]
+                if nums and not (math.isfinite(nums[0]) and nums[0] == int(nums[0]) and abs(nums[0]) < 2**31):
+                    raise InputError(f"malformed {m}: the tool number {nums[0]:g} is not a whole number ({rec.text!r})",
+                                     file=file, line=rec.line)
                 if nums and open_tp is not None and open_tp.tool is not None:
-                    open_tp.tool = _with_number(open_tp.tool, int(float(nums[0])))
+                    open_tp.tool = _with_number(open_tp.tool, int(nums[0]))
                     last_tool = open_tp.tool
             elif m == "TLAXIS" and len(rec.args) == 3 and all(_is_number(a) for a in rec.args):
                 v = _numbers(rec, file, "TLAXIS", (3,))
@@ -692,7 +697,7 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
             elif m in _SKIPPED or (m == "CYCLE" and [a.upper() for a in rec.args] == ["OFF"]):
                 pass
             else:
-                unknown.setdefault(m, []).append(rec.line)
+                unknown.setdefault(m or rec.text.strip()[:40], []).append(rec.line)
         except InputError as exc:
             drop(exc, rec.major)
     if arc is not None:

@@ -486,6 +486,20 @@ def _strip_comment(line: str, klartext: bool) -> str:
     return line.strip()
 
 
+def _header_pivot(text: str | None, default: float, file: str, line: int | None) -> float:
+    """The pivot length of the camsmooth post header (``pivot=L``, mm), or ``default`` without
+    one; InputError naming the line when it is not a finite number >= 0."""
+    if text is None:
+        return default
+    try:
+        pivot = float(text)
+    except ValueError:
+        pivot = math.nan
+    if not (math.isfinite(pivot) and pivot >= 0):
+        raise InputError(f"the camsmooth post header gives pivot={text}: not a length >= 0 mm", file=file, line=line)
+    return pivot
+
+
 def read_gcode(path: str | os.PathLike, machine: Any = None) -> CLProgram:
     """Read a program written by ``write_gcode`` (any dialect, either mode) as a CLProgram.
 
@@ -510,7 +524,7 @@ def read_gcode(path: str | os.PathLike, machine: Any = None) -> CLProgram:
         warnings.append("no camsmooth post header: read as generic G-code")
     if machine is None:
         base = load_machine(None)
-        pivot = float(info.get("pivot", base.pivot))
+        pivot = _header_pivot(info.get("pivot"), base.pivot, file, lines.index(tag) + 1 if tag else None)
         machine = Machine(base.name, base.kind, pivot, ab_head_chain(pivot), {}, base.post)
     mode = info.get("mode")
     tcp_words = {d.tcp_on.split()[0] for d in DIALECTS.values() if d.tcp_on}
