@@ -7,7 +7,8 @@ with a helix), the CL CSV reader (``read_cl_csv``), the G-code reader (``read_gc
 written by ``write_gcode`` in three dialects) and the machine TOML reader (``load_machine``, the
 default machine file). Mutations (1 to 8 per example): delete, duplicate or overwrite a run of
 bytes, insert bytes (digits, separators, '$', '/', NaN and infinity spellings, non-UTF-8 bytes,
-CR, NUL), delete, duplicate or swap lines, insert a line from a pool of troublesome records.
+CR, NUL), delete, duplicate or swap lines, insert a line from a pool of troublesome records. A
+floating-point RuntimeWarning (overflow, invalid value) counts as a finding too.
 
 tests/test_fuzz_readers.py runs a short pass of this in the suite; this script runs a longer one
 and prints what it ran. Usage: python benchmarks/fuzz_readers.py [EXAMPLES_PER_READER] [SEED]
@@ -18,6 +19,7 @@ from __future__ import annotations
 import sys
 import tempfile
 import time
+import warnings
 from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
@@ -66,7 +68,8 @@ def _cl_seeds() -> list[tuple[str, bytes]]:
         a = 0.05 * k
         rows.append(f"{k * 0.5:.4f},{0.1 * k:.4f},{0.01 * k * k:.4f},{np.sin(a):.7f},0.0000000,{np.cos(a):.7f},"
                     f"{k // 4},{900 + 10 * k}")
-    return [("cl.csv", ("\n".join(rows) + "\n").encode())]
+    other = "\ufeffRow,X,Y,Z,I,J,K,note\n" + "".join(f"{k // 3},{k},0,0,0,0,1,\"a, b\"\n" for k in range(6))
+    return [("cl.csv", ("\n".join(rows) + "\n").encode()), ("cl_bom.csv", other.encode())]
 
 
 def _gcode_seeds(folder: Path) -> list[tuple[str, bytes]]:
@@ -97,7 +100,9 @@ def _gcode_seeds(folder: Path) -> list[tuple[str, bytes]]:
 def _machine_seeds() -> list[tuple[str, bytes]]:
     from camsmooth.machine.kinematics import DEFAULT_MACHINE_TOML
 
-    return [("machine.toml", DEFAULT_MACHINE_TOML.encode())]
+    minimal = (b'[machine]\nkind = "AB-head"\npivot = 200.0\n[axis.A]\nmin = -90\nmax = 90\nvmax = 30\namax = 100\n'
+               b'[axis.B]\nmin = -120\nmax = 120\nvmax = 30.5\namax = 1e2\n[post]\ndialect = "siemens"\nmode = "tcp"\n')
+    return [("machine.toml", DEFAULT_MACHINE_TOML.encode()), ("minimal.toml", minimal)]
 
 
 def seed_files(folder: Path) -> dict[str, list[tuple[str, bytes]]]:
@@ -154,11 +159,14 @@ def mutate(data: bytes, ops: list[tuple[str, float, int, bytes, int]]) -> bytes:
 
 
 def read_or_input_error(reader: Callable[[Path], Any], path: Path) -> str:
-    """'ok' or 'InputError'; any other exception propagates (that is a finding)."""
-    try:
-        reader(path)
-    except InputError:
-        return "InputError"
+    """'ok' or 'InputError'; any other exception propagates (that is a finding), and so does a
+    floating-point RuntimeWarning (overflow, invalid value: the CLI would print it)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        try:
+            reader(path)
+        except InputError:
+            return "InputError"
     return "ok"
 
 

@@ -176,3 +176,18 @@ def test_tlaxis_sets_the_modal_axis(tmp_path):
     with pytest.raises(InputError, match=r"tool axis \(i, j, k\) \(0, 0, 2\) is not a unit vector") as exc:
         read_apt(_write(tmp_path, "b.apt", text.replace("TLAXIS/0,0.6,0.8", "TLAXIS/0,0,2")))
     assert exc.value.line == 4
+
+
+def test_latin1_text_records_do_not_cost_the_file(tmp_path):
+    """A Windows CAM system's PPRINT in its code page ('Fräser Ø10' in cp1252): read, with a warning."""
+    text = "UNITS/MM\nPPRINT/'Fräser Ø10'\nFEDRAT/MMPM,100\nGOTO/0,0,0\nGOTO/1,0,0\n"
+    p = tmp_path / "latin.apt"
+    p.write_bytes(text.encode("cp1252"))
+    prog = read_apt(p)
+    assert len(prog) == 2
+    assert prog.warnings == ["the APT file is not UTF-8 text (byte 0xe4 on line 2): read as Latin-1 (only text "
+                             "records such as PPRINT should hold such bytes)"], prog.warnings
+    with pytest.raises(InputError, match="UTF-16"):
+        q = tmp_path / "u16.apt"
+        q.write_bytes(text.encode("utf-16"))
+        read_apt(q)

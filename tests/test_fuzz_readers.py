@@ -5,6 +5,8 @@ as a plain regression test."""
 
 from __future__ import annotations
 
+import re
+
 import pytest
 
 pytest.importorskip("hypothesis")
@@ -62,9 +64,9 @@ def test_gcode_header_pivot_not_a_number_is_an_input_error(fuzz_folder):
 
 def test_apt_huge_arc_is_an_input_error(tmp_path):
     p = tmp_path / "huge.cls"
-    p.write_text("UNITS/MM\nFEDRAT/MMPM,100\nGOTO/1e12,0,0\nCIRCLE/0,0,0,0,0,1,1e12,0.01,0.5,6,1\nGOTO/0,1e12,0\n")
+    p.write_text("UNITS/MM\nFEDRAT/MMPM,100\nGOTO/1e8,0,0\nCIRCLE/0,0,0,0,0,1,1e8,0.01,0.5,6,1\nGOTO/0,1e8,0\n")
     with pytest.raises(InputError, match="points would be needed") as exc:
-        read_apt(p)
+        read_apt(p, chord_tol=1e-5)
     assert exc.value.line == 4
 
 
@@ -82,3 +84,54 @@ def test_apt_tool_number_not_whole_is_an_input_error(tmp_path, load):
     with pytest.raises(InputError, match="is not a whole number") as exc:
         read_apt(p)
     assert exc.value.line == 3
+
+
+@pytest.mark.parametrize("body, needle, line", [
+    ("GOTO/1e308,1e308,1e308\n", "'1e308' is beyond", 2),
+    ("MSYS/1e308,0,0,1,0,0,0,1,0\nGOTO/1,1,1\n", "malformed MSYS: '1e308' is beyond", 2),
+    ("GOTO/1,0,0\nCIRCLE/1e308,1e308,0,0,0,1,1,0.01,0.5,6,1\nGOTO/0,1,0\n", "malformed CIRCLE", 3),
+    ("FEDRAT/IPM,1e308\nGOTO/1,1,1\n", "FEDRAT must be > 0 and at most 1e+09", 2),
+    ("SPINDL/RPM,1e308\nGOTO/1,1,1\n", "the speed 1e+308", 2),
+    ("".join(f"GOTO/{'1e300' if k == 20 else k},0,0\n" for k in range(40)), "'1e300' is beyond", 22),
+])
+def test_apt_huge_numbers_are_input_errors_not_overflows(tmp_path, body, needle, line):
+    """Numbers beyond 1e9 overflowed to infinity (inch scaling, norms) with numpy RuntimeWarnings."""
+    import warnings
+
+    p = tmp_path / "huge.apt"
+    p.write_text("UNITS/INCHES\n" + body)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        with pytest.raises(InputError, match=re.escape(needle)) as exc:
+            read_apt(p)
+    assert exc.value.line == line
+
+
+def test_cl_csv_huge_axis_is_an_input_error_without_overflow_warning(tmp_path):
+    import warnings
+
+    from camsmooth.io.clcsv import read_cl_csv
+
+    p = tmp_path / "huge.csv"
+    p.write_text("x,y,z,i,j,k\n1,2,3,0,0,1\n1e308,1e308,1e308,1e308,1e308,1e308\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        with pytest.raises(InputError, match="not a unit vector") as exc:
+            read_cl_csv(p)
+    assert (exc.value.row, exc.value.column) == (2, "i,j,k")
+
+
+def test_gcode_axis_word_beyond_any_machine_is_an_input_error(fuzz_folder):
+    folder, seeds, _ = fuzz_folder
+    text = seeds["gcode"][0][1].decode()
+    lines = text.splitlines()
+    k = next(i for i, ln in enumerate(lines) if ln.startswith("G00 X"))
+    lines[k] = lines[k].replace("X0.0000", "X" + "9" * 40)
+    p = folder / "big.nc"
+    p.write_text("\n".join(lines) + "\n")
+    with pytest.raises(InputError, match=r"X1e\+40 is beyond \+-1e\+09") as exc:
+        read_gcode(p)
+    assert exc.value.line == k + 1
+    p.write_text(text.replace("pivot=150.000000", "pivot=1e308"))
+    with pytest.raises(InputError, match="pivot=1e308: not a length of 0 to 1e"):
+        read_gcode(p)

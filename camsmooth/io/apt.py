@@ -61,7 +61,8 @@ Records read (one per line; ``MAJOR/arg,arg,...`` or a bare major word):
   a record without ``/`` whose text holds several words (``PPRINT text``, ``PARTNO name``,
   ``CHANNEL,1``) has its first word as major word.
 
-A record that cannot be read costs only its tool path: the file is cut into tool paths at
+A file that is not UTF-8 (a CAM system's code page in PPRINT / PARTNO text) is read as Latin-1
+with a warning. A record that cannot be read costs only its tool path: the file is cut into tool paths at
 ``TOOL PATH/`` and ``END-OF-PATH`` (in a file without ``TOOL PATH/`` records at the tool changes,
 ``TLDATA/`` and ``CUTTER/``); the bad tool path's points are dropped, the records up to the next
 cut are skipped (their modal settings too), and the program's warnings name it with the file,
@@ -102,6 +103,7 @@ import math
 import os
 from collections import deque
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -117,6 +119,9 @@ INCH_MM = 25.4
 DEFAULT_CHORD_TOL = 1e-3
 #: the most points one arc or helix is interpolated with (a larger need is an InputError)
 MAX_ARC_POINTS = 1_000_000
+#: the largest magnitude of a number in a record (lengths in mm or inch, feeds, speeds): larger
+#: ones are errors, so that no product or square of them overflows
+MAX_ABS = 1e9
 #: the most full turns a CIRCLE ... TIMES,n helix may make
 MAX_TURNS = 100_000
 #: records that change nothing the reader gives (display, text, machine functions, tolerances,
@@ -208,6 +213,9 @@ def _numbers(rec: _Record, file: str, what: str, counts: tuple[int, ...], args: 
                              line=rec.line) from None
         if not math.isfinite(v):
             raise InputError(f"malformed {what}: {a!r} is not a finite number", file=file, line=rec.line)
+        if abs(v) > MAX_ABS:
+            raise InputError(f"malformed {what}: {a!r} is beyond +-{MAX_ABS:g} (no length, feed or speed of a CAM "
+                             "program is that large)", file=file, line=rec.line)
         out.append(v)
     return out
 
@@ -218,7 +226,7 @@ def _goto_numbers(rec: _Record, file: str, what: str, args: list[str]) -> list[f
         v = [float(a) for a in args]
     except ValueError:
         v = []
-    if len(v) in (3, 6) and math.isfinite(sum(v)):
+    if len(v) in (3, 6) and max(map(abs, v)) <= MAX_ABS:  # NaN fails the comparison too
         return v
     return _numbers(rec, file, what, (3, 6), args)
 
@@ -376,7 +384,7 @@ def _bulk_goto(run: list[str], scale: float, axis: tuple) -> tuple[np.ndarray, n
                                   comments=None)
             except ValueError:
                 return None
-        if part.shape != (len(sel), c) or not np.isfinite(part).all():
+        if part.shape != (len(sel), c) or not (np.abs(part) <= MAX_ABS).all():
             return None
         P[sel] = part[:, :3]
         if c == 6:
@@ -454,8 +462,8 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
     file = str(path)
     if not (chord_tol > 0 and math.isfinite(chord_tol)):
         raise InputError(f"chord_tol must be a finite number > 0 mm, got {chord_tol!r}", file=file)
-    recs = _records(read_text_file(path, "APT file"))
     warnings: list[str] = []
+    recs = _records(_apt_text(path, warnings))
     unit = _file_unit(recs, file, units, warnings)
     st = _State(file=file, scale=INCH_MM if unit == "inch" else 1.0, unit=unit, chord_tol=chord_tol)
     transforms: list[np.ndarray] = [np.eye(4)]
@@ -598,8 +606,9 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
                 if words:
                     feed_unit = _FEED_UNIT[words[0]]
                 value = float(nums[0])
-                if not (value > 0 and math.isfinite(value)):
-                    raise InputError(f"FEDRAT must be > 0, got {nums[0]}", file=file, line=rec.line)
+                if not (0 < value <= MAX_ABS):
+                    raise InputError(f"FEDRAT must be > 0 and at most {MAX_ABS:g}, got {nums[0]}", file=file,
+                                     line=rec.line)
                 length, per_rev = feed_unit
                 scale = INCH_MM if (length or unit) == "inch" else 1.0
                 if per_rev:
@@ -611,6 +620,9 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
             elif m == "SPINDL":
                 nums = [float(a) for a in rec.args if _is_number(a)]
                 if nums:
+                    if not abs(nums[0]) <= MAX_ABS:
+                        raise InputError(f"malformed SPINDL: the speed {nums[0]:g} is not a number up to {MAX_ABS:g}",
+                                         file=file, line=rec.line)
                     rpm = abs(nums[0])
             elif m == "CIRCLE":
                 args, turns = _circle_times(rec, file)
@@ -740,6 +752,22 @@ def _mill(d: float, r: float, length: float | None, what: str, rec: _Record, fil
                          f"R = {r:g}", file=file, line=rec.line)
     return Tool(name=name, kind="mill", diameter=d * scale, corner_radius=min(r, d / 2) * scale,
                 length=None if length is None else length * scale, line=rec.line)
+
+
+def _apt_text(path: str | os.PathLike, warnings: list[str]) -> str:
+    """The file's text: UTF-8, or else Latin-1 with a warning (CAM systems on Windows write
+    PPRINT / PARTNO text in their code page: 'Fräser Ø10'; the records themselves are ASCII)."""
+    try:
+        return read_text_file(path, "APT file")
+    except InputError as exc:
+        if "is not UTF-8 text" not in exc.message:
+            raise
+        reason = exc.message
+    raw = Path(path).read_bytes()
+    if raw.startswith(b"\xef\xbb\xbf"):
+        raw = raw[3:]
+    warnings.append(f"{reason}: read as Latin-1 (only text records such as PPRINT should hold such bytes)")
+    return raw.decode("latin-1").replace("\r\n", "\n").replace("\r", "\n")
 
 
 def _circle_times(rec: _Record, file: str) -> tuple[list[str], int]:

@@ -476,6 +476,8 @@ def _program_end(d: Dialect, mode: str, tcp_off: str | None, name: str) -> list[
 
 # ----------------------------------------------------------------------------------------------
 # reader
+#: the largest magnitude of an axis word (mm, deg) or header pivot the reader takes
+MAX_WORD = 1e9
 _WORD = re.compile(r"([A-Z])\s*([+-]?(?:\d+\.?\d*|\.\d+))")
 
 
@@ -495,8 +497,9 @@ def _header_pivot(text: str | None, default: float, file: str, line: int | None)
         pivot = float(text)
     except ValueError:
         pivot = math.nan
-    if not (math.isfinite(pivot) and pivot >= 0):
-        raise InputError(f"the camsmooth post header gives pivot={text}: not a length >= 0 mm", file=file, line=line)
+    if not 0 <= pivot <= MAX_WORD:
+        raise InputError(f"the camsmooth post header gives pivot={text}: not a length of 0 to {MAX_WORD:g} mm",
+                         file=file, line=line)
     return pivot
 
 
@@ -582,6 +585,10 @@ def read_gcode(path: str | os.PathLike, machine: Any = None) -> CLProgram:
             is_rapid = motion == 0
         if not any(w in state for w in words):
             continue
+        big = next((w for w in state if w in words and not abs(words[w]) <= MAX_WORD), None)
+        if big is not None:
+            raise InputError(f"{big}{words[big]:g} is beyond +-{MAX_WORD:g} (not a position of a machine)", file=file,
+                             line=k)
         for w in state:
             if w in words:
                 state[w] = words[w]
