@@ -166,3 +166,30 @@ def test_bad_apt_records_name_the_line(files, tmp_path, capsys, bad, needle):
         rc, err = _run([verb[0], str(tmp_path / "bad.cls"), "--surface", str(d / "plane.stl"), *verb[1:]], capsys)
         assert rc == 2 and "bad.cls" in err and "line 7" in err and needle.lower() in err.lower(), err
         assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.cls"]
+
+
+def test_a_bad_tool_path_is_dropped_and_named_on_stderr(files, tmp_path, capsys):
+    """A record that cannot be read costs only its tool path: the good one is smoothed, the bad one
+    is named (file, line, reason) among the warnings on stderr, for smooth and analyze."""
+    d, ccs, tips, axes = files
+    good = _clsf(tips, axes)
+    bad = ("TOOL PATH/BROKEN,TOOL,MILL_D10R1\nTLDATA/MILL,10.0000,1.0000,75.0000,0.0000,0.0000\n"
+           "FEDRAT/MMPM,1500\nGOTO/1.0,2.0,3.0\nGOTO/1.0,2.0\nGOTO/1.0,3.0,3.0\nEND-OF-PATH\n")
+    path = tmp_path / "two.cls"
+    path.write_text(bad + good)
+    prog = load_program(path)
+    assert [tp.name for tp in prog.toolpaths] == ["FINISH_PLANE"]
+    np.testing.assert_array_equal(prog.tip, load_program(d / "finish.cls").tip)
+    dropped = [w for w in prog.warnings if "dropped" in w]
+    assert len(dropped) == 1 and "'BROKEN' (line 1)" in dropped[0] and str(path) in dropped[0]
+    assert "line 5" in dropped[0] and "malformed GOTO" in dropped[0]
+    rc, err = _run(["smooth", str(path), "--surface", str(d / "plane.stl"), "--lead", "2:20", "--tilt", "-10:10",
+                    "-o", str(tmp_path / "o.csv")], capsys)
+    assert rc == 0, err
+    assert any(ln.startswith("camsmooth: warning: tool path 'BROKEN' (line 1) dropped") and "line 5" in ln
+               for ln in err.splitlines()), err
+    assert len(read_result_csv(tmp_path / "o.csv")["x"]) == 402
+    rc, err = _run(["analyze", str(path), "--quiet"], capsys)
+    assert rc == 0 and err == ""
+    rc, err = _run(["analyze", str(path)], capsys)
+    assert rc == 0 and "tool path 'BROKEN' (line 1) dropped" in err, err

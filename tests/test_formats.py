@@ -192,7 +192,7 @@ def test_nx_clsf_reads_to_the_right_points_in_mm(tmp_path):
     # the unknown record is listed once, with both its lines; skipped display records are not
     cut = [w for w in prog.warnings if "CUTCOM" in w]
     assert len(cut) == 1
-    assert f"lines {_line_of(NX_FILE, 'CUTCOM/LEFT')}, {_line_of(NX_FILE, 'CUTCOM/OFF')}" in cut[0]
+    assert f"CUTCOM (lines {_line_of(NX_FILE, 'CUTCOM/LEFT')}, {_line_of(NX_FILE, 'CUTCOM/OFF')})" in cut[0]
     assert not [w for w in prog.warnings if "PAINT" in w or "SPINDL" in w]
 
     # the cutting view keeps rows and tool paths
@@ -256,7 +256,7 @@ def test_fusion_iso4343_apt(tmp_path):
     p = _write(tmp_path, "op.apt", FUSION)
     assert detect_format(p) == "apt"
     prog = read_apt(p, chord_tol=0.001)
-    assert prog.warnings == ["record CUTCOM ignored (line 18)"], prog.warnings
+    assert prog.warnings == ["records ignored (not applied): CUTCOM (line 18)"], prog.warnings
     # two tools, a tool change after motion splits the tool path
     assert len(prog.toolpaths) == 2
     t1, t2 = (tp.tool for tp in prog.toolpaths)
@@ -304,7 +304,7 @@ def test_fusion_movarc_bad_input(tmp_path, arc, needle):
     ("GOTO/0,0,0,0,0,2\n", "tool axis (i, j, k) (0, 0, 2) is not a unit vector", 2),
     ("UNITS/FEET\nGOTO/0,0,0\n", "unknown units 'FEET'", 2),
     ("GOTO/0,0,0\nCIRCLE/0,0,0,0,0,1,5,0.01,0.5,6,1\nEND-OF-PATH\n", "not followed by a GOTO", 3),
-    ("GOTO/5,0,0\nCIRCLE/0,0,0,0,0,1,5,0.01,0.5,6,1,TIMES,2\nGOTO/5,0,0\n", "TIMES", 3),
+    ("GOTO/5,0,0\nCIRCLE/0,0,0,0,0,1,5,0.01,0.5,6,1,TIMES,two\nGOTO/5,0,0\n", "TIMES must be followed", 3),
     ("GOTO/7,0,0\nCIRCLE/0,0,0,0,0,1,5,0.01,0.5,6,1\nGOTO/0,5,0\n", "start point is 7 mm from the axis", 3),
     ("MSYS/0,0,0,1,0,0,1,0,0\nGOTO/0,0,0\n", "not perpendicular", 2),
     ("FEDRAT/XPM,5\nGOTO/0,0,0\n", "malformed FEDRAT", 2),

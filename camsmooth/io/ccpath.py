@@ -51,7 +51,8 @@ def unit_columns(table: Table, names: Sequence[str], what: str, tol: float = UNI
     InputError naming the row and the columns for a zero vector or a length off 1 by more than
     ``tol`` (a file whose vectors are not unit is more likely wrong than imprecise)."""
     v = np.stack([table[c] for c in names], axis=1)
-    norm = np.linalg.norm(v, axis=1)
+    with np.errstate(over="ignore"):  # a huge component: an infinite length, named below
+        norm = np.linalg.norm(v, axis=1)
     column = ",".join(names)
     zero = norm < 1e-12
     if zero.any():

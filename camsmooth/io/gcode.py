@@ -519,6 +519,8 @@ def _program_end(d: Dialect, mode: str, tcp_off: str | None, name: str) -> list[
 
 # ----------------------------------------------------------------------------------------------
 # reader
+#: the largest magnitude of an axis word (mm, deg) or header pivot the reader takes
+MAX_WORD = 1e9
 _WORD = re.compile(r"([A-Z])\s*([+-]?(?:\d+\.?\d*|\.\d+))")
 
 
@@ -527,6 +529,21 @@ def _strip_comment(line: str, klartext: bool) -> str:
     if not klartext:
         line = re.sub(r"\(.*?\)", "", line)
     return line.strip()
+
+
+def _header_pivot(text: str | None, default: float, file: str, line: int | None) -> float:
+    """The pivot length of the camsmooth post header (``pivot=L``, mm), or ``default`` without
+    one; InputError naming the line when it is not a finite number >= 0."""
+    if text is None:
+        return default
+    try:
+        pivot = float(text)
+    except ValueError:
+        pivot = math.nan
+    if not 0 <= pivot <= MAX_WORD:
+        raise InputError(f"the camsmooth post header gives pivot={text}: not a length of 0 to {MAX_WORD:g} mm",
+                         file=file, line=line)
+    return pivot
 
 
 def read_gcode(path: str | os.PathLike, machine: Any = None) -> CLProgram:
@@ -553,7 +570,7 @@ def read_gcode(path: str | os.PathLike, machine: Any = None) -> CLProgram:
         warnings.append("no camsmooth post header: read as generic G-code")
     if machine is None:
         base = load_machine(None)
-        pivot = float(info.get("pivot", base.pivot))
+        pivot = _header_pivot(info.get("pivot"), base.pivot, file, lines.index(tag) + 1 if tag else None)
         machine = Machine(base.name, base.kind, pivot, ab_head_chain(pivot), {}, base.post)
     mode = info.get("mode")
     tcp_words = {d.tcp_on.split()[0] for d in DIALECTS.values() if d.tcp_on}
@@ -611,6 +628,10 @@ def read_gcode(path: str | os.PathLike, machine: Any = None) -> CLProgram:
             is_rapid = motion == 0
         if not any(w in state for w in words):
             continue
+        big = next((w for w in state if w in words and not abs(words[w]) <= MAX_WORD), None)
+        if big is not None:
+            raise InputError(f"{big}{words[big]:g} is beyond +-{MAX_WORD:g} (not a position of a machine)", file=file,
+                             line=k)
         for w in state:
             if w in words:
                 state[w] = words[w]

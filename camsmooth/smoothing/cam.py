@@ -62,8 +62,9 @@ class CamProgram:
     program: CLProgram
 
     def warnings(self) -> list[str]:
-        """One line per run left out, naming the file lines and the clearance."""
-        out = []
+        """The program reader's warnings (records ignored, tool paths dropped), then one line per
+        run left out, naming the file lines and the clearance."""
+        out = list(self.program.warnings)
         for o in self.off_contact:
             what = {"air": "does not touch the mesh (an air move or a lead)", "gouge": "cuts into the mesh",
                     "short": "touches for fewer than 3 points"}[o.why]
