@@ -25,6 +25,7 @@ from camsmooth.diagnosis.recordings import AXES, ROTARY_AXES, Program, Recording
 from camsmooth.diagnosis.selector import Fit, Selector, channel_rms, pooled
 from camsmooth.diagnosis.terms import separating_measurement, term
 from camsmooth.diagnosis.terms.base import fmt
+from camsmooth.errors import InputError, InternalError
 from camsmooth.io.atomic import write_text_atomic
 from camsmooth.machine import fitting
 from camsmooth.machine.kinematics import Machine
@@ -327,10 +328,23 @@ def _effect_states(P: Problem, name: str, names: Sequence[str], before: np.ndarr
 
 def diagnose(program: Program, recording: Recording, machine: Machine | None = None, base: ErrorModel | None = None,
              options: Options | None = None) -> Diagnosis:
-    """Run the whole diagnosis (module docstring; camsmooth.diagnosis.selector for the rules)."""
+    """Run the whole diagnosis (module docstring; camsmooth.diagnosis.selector for the rules).
+
+    Bad input raises InputError from ``prepare`` (alignment, floors); an InputError raised after
+    that comes from a value computed here (a fit's NaN reaching a model constructor, say) and is
+    re-raised as InternalError: a bug, exit 70 from the CLI, never 'bad input'."""
     t0 = time.perf_counter()
     opt = options or Options()
     P = prepare(program, recording, machine, base, opt)
+    try:
+        return _diagnose(program, recording, machine, base, opt, P, t0)
+    except InputError as exc:
+        raise InternalError(f"diagnosis failed after its inputs were read: {exc}") from exc
+
+
+def _diagnose(program: Program, recording: Recording, machine: Machine | None, base: ErrorModel | None,
+              opt: Options, P: Problem, t0: float) -> Diagnosis:
+    """The selection and the findings of ``diagnose`` on a prepared problem P."""
     sel = Selector(P, opt)
     res = sel.run()
     if res["active"]:

@@ -36,6 +36,7 @@ import numpy as np
 from camsmooth.diagnosis.problem import Options, Problem
 from camsmooth.diagnosis.terms import CANDIDATES, LIBRARY, Param, Term, separating_measurement, term
 from camsmooth.diagnosis.terms.thermal import ThermalDrift
+from camsmooth.errors import InputError, InternalError
 from camsmooth.machine import fitting
 from camsmooth.machine.model import ErrorModel
 
@@ -77,6 +78,16 @@ def channel_rms(resid: np.ndarray, valid: np.ndarray, channels: Sequence[str]) -
         v = resid[valid[:, j], j]
         out[c] = float(np.sqrt(np.mean(v * v))) if len(v) else math.nan
     return out
+
+
+def finite_check(key: Sequence[str], pnames: dict[str, list[str]], x: np.ndarray, rss: float) -> None:
+    """Raise InternalError when a fit of the terms ``key`` ended on non-finite parameters or a
+    non-finite weighted RSS: a numerical breakdown inside the fit, never bad input (the CLI exits
+    70), and never a verdict computed from NaN."""
+    bad = [n for n, v in zip([n for k in key for n in pnames.get(k, [])], x, strict=False) if not np.isfinite(v)]
+    if bad or not np.all(np.isfinite(x)) or not math.isfinite(rss):
+        raise InternalError(f"the fit of {', '.join(key) or 'no term'} broke down: non-finite "
+                            + (f"parameter(s) {', '.join(bad)}" if bad else f"weighted RSS {rss!r}"))
 
 
 def pooled(f: Fit) -> float:
@@ -250,6 +261,7 @@ class Selector:
         res = fitting.levenberg_marquardt(rfun, x0, lo=lo, hi=hi, step=1e-4 * scale, scale=scale, mask=valid,
                                           known_jt=known_jt, jac=jac, rtol=1e-7)
         x, H, rss, Jt, r_valid = res.x, res.H, res.cost, res.Jt, res.r
+        finite_check(key, pnames, x, rss)
         r = rfun(x)
         rr = np.where(valid, r, 0.0)
         n = int(valid.sum())
@@ -281,6 +293,9 @@ class Selector:
             fold_rss[k] = float(np.sum(np.where(test, rk, 0.0) ** 2))
             fold_n[k] = int(test.sum())
         resid_phys = held / P.w_fit
+        if not np.all(np.isfinite(fold_rss)):
+            raise InternalError(f"the held-out scores of {', '.join(key) or 'no term'} are not finite "
+                                f"(fold RSS {fold_rss.tolist()})")
         return Fit(key, pnames, x, physics_of(x), cov, rss, n, n_eff,
                    n_eff * math.log(max(rss, 1e-300) / n) + len(x) * math.log(n_eff),
                    channel_rms(r / P.w_fit, valid, P.channels), float(fold_rss.sum()),
@@ -462,6 +477,9 @@ class Selector:
                     continue
                 try:
                     trials[name] = scr._screen_pruned(cur_s, name)
+                except InputError as exc:
+                    # every input was checked by prepare: a value computed here was refused
+                    raise InternalError(f"screening fit of {name}: {exc}") from exc
                 except (ValueError, np.linalg.LinAlgError) as exc:
                     rejected[name] = {"name": name, "reason": f"fit failed: {exc}"}
             if not trials:

@@ -1,0 +1,71 @@
+"""Issue 20: misses of `camsmooth diagnose`, each fixed as a class - internal failures are exit 70
+(not bad input), per-channel resolution from the data's own grid, significance judged on the
+channels a term acts on, lag told from clock offset by the response shape, significance that does
+not depend on what else is unexplained, and an effect outside the library left unexplained."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from benchmarks.synthetic import make_program, record
+from camsmooth.cli.main import main as cli_main
+from camsmooth.diagnosis.engine import diagnose
+from camsmooth.diagnosis.recordings import write_program_csv, write_recording_csv
+from camsmooth.errors import InputError, InternalError
+
+
+# ---- 5. a NaN inside a fit is an internal error (exit 70), never bad input (exit 2) ------------------
+@pytest.fixture
+def lag_files(tmp_path):
+    prog = make_program("lines", duration=3.0, rate=200.0, seed=1)
+    rec = record(prog, {"Kv_X": 40.0}, channels=("axes",), noise={"axes": 1e-3}, seed=2)
+    write_program_csv(tmp_path / "p.csv", prog)
+    write_recording_csv(tmp_path / "r.csv", rec)
+    return prog, rec, tmp_path
+
+
+def _argv(d):
+    return ["diagnose", "--program", str(d / "p.csv"), "--recording", str(d / "r.csv"), "--out", str(d / "f.json"),
+            "--quiet"]
+
+
+def test_nan_parameters_from_a_fit_are_an_internal_error(lag_files, monkeypatch, capsys):
+    """A fit that ends on NaN parameters must stop the run as a bug (exit 70), not be judged (a
+    'nan%' verdict) nor reported as bad input."""
+    from camsmooth.machine import fitting
+
+    real = fitting.levenberg_marquardt
+
+    def broken(*a, **k):
+        res = real(*a, **k)
+        res.x = np.full_like(res.x, np.nan)
+        return res
+
+    monkeypatch.setattr(fitting, "levenberg_marquardt", broken)
+    prog, rec, d = lag_files
+    with pytest.raises(InternalError, match="non-finite"):
+        diagnose(prog, rec)
+    assert cli_main(_argv(d)) == 70
+    err = capsys.readouterr().err
+    assert "internal error" in err and "bug" in err
+    assert not (d / "f.json").exists()
+
+
+def test_a_model_constructor_refusing_a_computed_value_is_an_internal_error(lag_files, monkeypatch, capsys):
+    """The issue's message: 'geometric error EXX must be a finite number, got nan' raised while the
+    findings are put together is InputError from the model's constructor - after the inputs were
+    read it is a bug: exit 70."""
+    from camsmooth.diagnosis.terms.servo_lag import ServoLag
+    from camsmooth.machine.model import ErrorModel
+
+    def report(self, names, x, sd):
+        ErrorModel(geometric={"EXX": float("nan")})  # what a NaN parameter reaching a model does
+
+    monkeypatch.setattr(ServoLag, "report", report)
+    prog, rec, d = lag_files
+    with pytest.raises(InternalError) as e:
+        diagnose(prog, rec)
+    assert not isinstance(e.value, InputError) and "EXX must be a finite number" in str(e.value)
+    assert cli_main(_argv(d)) == 70
+    assert "internal error" in capsys.readouterr().err
