@@ -69,3 +69,49 @@ def test_a_model_constructor_refusing_a_computed_value_is_an_internal_error(lag_
     assert not isinstance(e.value, InputError) and "EXX must be a finite number" in str(e.value)
     assert cli_main(_argv(d)) == 70
     assert "internal error" in capsys.readouterr().err
+
+
+# ---- 1. resolution per channel from the data's own grid --------------------------------------------
+def test_a_channel_within_a_hundredth_of_a_mm_keeps_its_own_step():
+    """Values within +-0.01 mm written to 4 decimals have step 1e-4 mm (not 10^4 mm: zero is a
+    multiple of every power of ten, a value smaller than 10^k is not)."""
+    from camsmooth.diagnosis.recordings import quantisation_steps
+
+    rng = np.random.default_rng(0)
+    for decimals in (4, 5, 6):
+        v = np.round(rng.uniform(-0.0099, 0.0099, 2000), decimals)
+        assert np.allclose(quantisation_steps(v), 10.0 ** -decimals), decimals
+
+
+def test_a_non_decimal_grid_is_found_from_the_data():
+    """Encoder counts of 1/2048 mm, written exactly or rounded to 6 decimals: the step is the
+    grid's, not the file's decimals; full-precision values have none."""
+    from camsmooth.diagnosis.recordings import quantisation_steps
+
+    rng = np.random.default_rng(1)
+    counts = np.round(rng.normal(0, 3.0, 5000) * 2048)
+    assert np.allclose(quantisation_steps(counts / 2048), 1 / 2048, rtol=1e-6)
+    assert np.allclose(quantisation_steps(np.round(counts / 2048, 6)), 1 / 2048, rtol=1e-3)
+    small = np.round(rng.uniform(-0.009, 0.009, 2000) * 2048) / 2048
+    assert np.allclose(quantisation_steps(small), 1 / 2048, rtol=1e-6)
+    assert not np.any(quantisation_steps(np.array([float(f"{x:.10g}") for x in rng.normal(0, 0.003, 2000)])))
+
+
+def test_a_small_range_channel_keeps_its_weight(tmp_path):
+    """Through the CSV reader and prepare: Y_act held at 0 with 3 um noise, written to 4 decimals,
+    gets a floor of about its noise, not one of thousands of mm."""
+    from camsmooth.diagnosis.problem import prepare
+    from camsmooth.diagnosis.recordings import Program, Recording, read_recording_csv
+
+    prog = make_program("lines", duration=4.0, rate=200.0, seed=3)
+    prog = Program(t=prog.t, axes={"X": prog.axes["X"], "Y": np.zeros(len(prog.t))}, S=prog.S)
+    rng = np.random.default_rng(4)
+    rec = Recording(t=prog.t.copy(), channels={"X_act": np.round(prog.axes["X"] + rng.normal(0, 3e-3, len(prog.t)), 4),
+                                               "Y_act": np.round(np.clip(rng.normal(0, 3e-3, len(prog.t)),
+                                                                         -0.0099, 0.0099), 4)})
+    write_recording_csv(tmp_path / "r.csv", rec)
+    back = read_recording_csv(tmp_path / "r.csv")
+    assert np.allclose(back.quantum["Y_act"], 1e-4)
+    P = prepare(prog, back)
+    assert P.floor_info["Y_act"]["quantisation_rms"] < 1e-4
+    assert P.floor_info["Y_act"]["rms"] < 5e-3
