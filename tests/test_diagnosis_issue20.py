@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from benchmarks.synthetic import make_program, record
+from benchmarks.synthetic import make_program, make_special_program, record
 from camsmooth.cli.main import main as cli_main
 from camsmooth.diagnosis.engine import diagnose
 from camsmooth.diagnosis.recordings import write_program_csv, write_recording_csv
@@ -115,3 +115,27 @@ def test_a_small_range_channel_keeps_its_weight(tmp_path):
     P = prepare(prog, back)
     assert P.floor_info["Y_act"]["quantisation_rms"] < 1e-4
     assert P.floor_info["Y_act"]["rms"] < 5e-3
+
+
+# ---- 2. a term's resolution is judged on the channels it acts on ------------------------------------
+def test_an_x_scale_error_is_not_refused_for_the_resolution_of_tip_y():
+    """EXX = 3.3 um/mm on a grid program, X_act and tip_x recorded at full precision and tip_y in
+    whole micrometres: EXX does not move tip_y, so tip_y's resolution says nothing about it."""
+    prog = make_special_program("grid", rate=50.0, seed=1)
+    rec = record(prog, {"EXX": 3.3e-3}, channels=("axes", "tip"), noise={"axes": 1e-3, "tip": 1e-3}, seed=5)
+    rec.channels["tip_y"] = np.round(rec.channels["tip_y"] / 1e-3) * 1e-3
+    rec.quantum["tip_y"] = np.full(len(rec.t), 1e-3)
+    f = diagnose(prog, rec).findings
+    assert f["named"] == ["linear_positioning"], {r["name"]: r["reason"] for r in f["rejected"]}
+    assert f["effects"][0]["parameters"]["EXX"] == pytest.approx(3.3e-3, rel=0.01)
+
+
+def test_acted_channels_are_the_ones_the_term_moves():
+    from camsmooth.diagnosis.problem import prepare
+    from camsmooth.diagnosis.terms import term
+    from camsmooth.diagnosis.terms.base import acted_channels
+
+    prog = make_special_program("grid", rate=20.0, seed=1, duration=20.0)
+    rec = record(prog, {}, channels=("axes", "tip"), noise={"axes": 1e-3, "tip": 1e-3}, seed=5)
+    P = prepare(prog, rec)
+    assert set(acted_channels(P, term("linear_positioning"), ["EXX"], np.array([1e-3]))) == {"X_act", "tip_x"}
