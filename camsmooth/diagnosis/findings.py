@@ -228,8 +228,10 @@ def discriminate_lag_offset(sel: Selector, result: Mapping[str, Any]) -> dict[st
                              np.array([max(tau0, 1e-4)]), np.array([0.0]), np.array([2.0]), np.array([1e-3]),
                              physics_common)
     h_common, h_off, h_lag = pooled(f_common), pooled(f_off), pooled(f_lag)
-    shape_same = abs(h_common - h_off) <= sel.opt.equivalent * min(h_common, h_off) + 1e-12 or \
-        abs(h_common - h_off) < 0.5 * abs(h_lag - min(h_common, h_off)) and abs(h_common - h_off) < 0.02 * h_off
+    # by shape: one common lag against one offset (one parameter each), told apart when their
+    # held-out chi-square difference is beyond the noise (Selector.compare)
+    shape = sel.compare(f_common, f_off)
+    shape_same = not shape["resolved"]
     names = f_lag.pnames["servo_lag"]
     sl = f_lag.slice("servo_lag")
     taus, sds = f_lag.x[sl], f_lag.sd()[sl]
@@ -259,10 +261,12 @@ def discriminate_lag_offset(sel: Selector, result: Mapping[str, Any]) -> dict[st
     else:
         better = "servo lag" if h_common < h_off else "clock offset"
         verdict = (f"The shape of the response separates them: one common lag gives held-out {h_common:.4g} and one "
-                   f"offset {h_off:.4g} floors, favouring a {better}; the per-axis delays ({delay_text}) agree within "
-                   "their uncertainties.")
+                   f"offset {h_off:.4g} floors (held-out chi-square difference {abs(shape['delta_chi2']):.4g} floors^2,"
+                   f" standard error {shape['se']:.3g}), favouring a {better}; the per-axis delays ({delay_text})"
+                   " agree within their uncertainties.")
     return {"heldout_common_lag": h_common, "heldout_offset": h_off, "heldout_per_axis_lag": h_lag,
-            "shape_distinguishes": not shape_same, "per_axis_delays": delays, "delays_differ": bool(spread),
+            "shape_distinguishes": not shape_same, "shape_chi2_difference": shape["delta_chi2"],
+            "shape_chi2_se": shape["se"], "per_axis_delays": delays, "delays_differ": bool(spread),
             "chi2_per_dof": chi2 / dof, "verdict": verdict, "units": "held-out RMS in noise floors"}
 
 

@@ -648,17 +648,37 @@ class Selector:
             out.update(ok=True, reason="accepted")
         return out
 
+    def compare(self, a: Fit, b: Fit) -> dict[str, Any]:
+        """Whether the data tell fit a from fit b by their held-out residuals (a Vuong-type test on
+        the chi-square difference): delta = chi2(b) - chi2(a) summed over the valid fit entries in
+        noise floors^2, its standard error from the per-entry differences (sqrt(n var(d)),
+        inflated by n / n_eff for the autocorrelation of the better fit's residual), the number of
+        folds where the better fit is better. ``resolved`` when |delta| exceeds
+        ``Options.separate_z`` standard errors and ``Options.separate_chi2``, and the better fit
+        wins in most folds: the two predictions differ by more than the noise can hide, however
+        small that is against the rest of the residual."""
+        P, opt = self.P, self.opt
+        valid = P.valid_fit
+        if a.heldout_resid is None or b.heldout_resid is None:
+            return {"delta_chi2": 0.0, "se": math.inf, "resolved": False, "better": None, "folds_better": 0}
+        ea = np.where(valid, a.heldout_resid * P.w_fit, 0.0)
+        eb = np.where(valid, b.heldout_resid * P.w_fit, 0.0)
+        d = (eb * eb - ea * ea)[valid]
+        n = int(d.size)
+        delta = float(d.sum())
+        best = ea if delta > 0 else eb
+        n_eff = fitting.effective_sample_count(best, n)
+        se = math.sqrt(max(n * float(np.var(d)), 0.0) * n / max(n_eff, 1.0)) if n > 1 else math.inf
+        K = len(a.fold_rss)
+        if delta > 0:
+            folds_better = int(np.sum(a.fold_rss < b.fold_rss))
+        else:
+            folds_better = int(np.sum(b.fold_rss < a.fold_rss))
+        resolved = abs(delta) > max(opt.separate_z * se, opt.separate_chi2) and folds_better > K // 2
+        return {"delta_chi2": delta, "se": se, "resolved": bool(resolved),
+                "better": (a.active if delta > 0 else b.active), "folds_better": folds_better, "folds": K}
+
     def equivalent(self, a: Fit, b: Fit) -> bool:
-        """Two fits explain the residual equally when their held-out mean squares (in floors^2)
-        differ by less than ``equivalent_floor2`` (their predictions differ by well under the
-        noise), or when the difference is within both the fold-to-fold scatter (paired, 2 SE) and
-        ``equivalent`` of the held-out mean square."""
-        ma = a.heldout_rss / max(int(a.fold_n.sum()), 1)
-        mb = b.heldout_rss / max(int(b.fold_n.sum()), 1)
-        if abs(mb - ma) < self.opt.equivalent_floor2:
-            return True
-        da = a.fold_rss / np.maximum(a.fold_n, 1)
-        db = b.fold_rss / np.maximum(b.fold_n, 1)
-        d = db - da
-        se = float(np.std(d, ddof=1) / math.sqrt(len(d))) if len(d) > 1 else math.inf
-        return abs(float(np.mean(d))) < 2 * se and abs(mb - ma) < self.opt.equivalent * ma
+        """Two fits explain the residual equally when the data do not tell them apart
+        (``compare``: their held-out chi-square difference is within the noise)."""
+        return not self.compare(a, b)["resolved"]
