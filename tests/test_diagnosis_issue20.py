@@ -159,3 +159,17 @@ def test_lag_and_offset_are_told_apart_when_the_shape_resolves_them(truth, noise
     lv = f["lag_vs_offset"]
     assert lv["shape_distinguishes"] is True
     assert abs(lv["shape_chi2_difference"]) > 3 * lv["shape_chi2_se"]
+
+
+def test_a_warm_start_with_missing_values_starts_those_from_their_initial_guess(lag_files):
+    """A warm start read from a model that lacks a parameter (a thermal element it does not hold
+    reads tau = NaN) must not carry the NaN into the fit."""
+    from camsmooth.diagnosis.problem import Options, prepare
+    from camsmooth.diagnosis.selector import Selector
+
+    prog, rec, _ = lag_files
+    sel = Selector(prepare(prog, rec), Options())
+    n = len(sel.fit(("servo_lag",)).x)
+    sel.cache.clear()
+    f = sel.fit(("servo_lag",), x0=np.full(n, np.nan))
+    assert np.all(np.isfinite(f.x)) and 1 / f.x[0] == pytest.approx(40.0, rel=0.05)

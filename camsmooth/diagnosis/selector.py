@@ -186,6 +186,10 @@ class Selector:
         scale = np.array([p.scale for p in params])
         if x0 is None or len(x0) != len(params):
             x0 = self._start(active, terms, pnames)
+        elif not np.all(np.isfinite(x0)):
+            # a warm start read from a model that lacks some parameters (a thermal element it
+            # does not hold reads tau = NaN): those start from their initial values
+            x0 = np.where(np.isfinite(x0), x0, self._start(active, terms, pnames))
         x0 = np.clip(x0, lo + 1e-12 * (hi - lo), hi - 1e-12 * (hi - lo))
 
         def rfun(x: np.ndarray) -> np.ndarray:
