@@ -427,12 +427,16 @@ def _diagnose(program: Program, recording: Recording, machine: Machine | None, b
     if any(n in res["active"] for n in ("servo_lag", "time_offset")) and "time_offset" in res["applicable"] and \
             "servo_lag" in res["applicable"]:
         discrimination = discriminate_lag_offset(sel, res)
-    rule = (f"a term is named only when it lowers the held-out RMS by {100 * opt.margin:.3g}% in most folds and "
-            f"BIC by {opt.bic_margin:g}, its effect on some channel reaches {opt.min_effect_floors:g} noise floors RMS "
-            f"(a floor holds the channel's white noise and resolution), its parameters differ from their base values "
-            f"by {opt.resolvable_sigma:g} standard uncertainties (a clock offset by {opt.min_offset_periods:g} of the "
-            "sample period as well), and it survives the joint refit; an axis or element inside a term that fails "
-            "is reported as 'none measurable'")
+    share = (f"it lowers the held-out RMS by {100 * opt.margin:.3g}% in most folds and BIC by {opt.bic_margin:g}"
+             + (f" with the held-out chi-square fall beyond {opt.separate_z:g} standard errors, or it is an effect on "
+                f"its own (at least {opt.standalone_floors:g} noise floors RMS, lowering the held-out mean square by "
+                f"{opt.margin_floor2:g} floors^2 in most folds, beyond the noise or consistent across the folds, "
+                "whatever else is left unexplained)" if opt.rule == "standalone" else ""))
+    rule = (f"a term is named only when {share}; its effect on some channel reaches {opt.min_effect_floors:g} noise "
+            "floors RMS (a floor holds the channel's white noise and resolution), its parameters differ from their "
+            f"base values by {opt.resolvable_sigma:g} standard uncertainties (a clock offset by "
+            f"{opt.min_offset_periods:g} of the sample period as well), and it survives the joint refit; an axis or "
+            "element inside a term that fails is reported as 'none measurable'")
     result = Findings(
         program=program.source, recording=recording.source,
         channels={c: {"unit": channel_unit(c), "samples": int(P.valid[:, j].sum())} for j, c in enumerate(P.channels)},

@@ -168,6 +168,10 @@ def locate_intervals(t: np.ndarray, resid: np.ndarray, floor: np.ndarray, valid:
 class Options:
     """Diagnosis settings. folds: blocked time folds for held-out scoring; margin: the relative
     fall of the pooled held-out RMS a term must bring; bic_margin: the fall of BIC it must bring;
+    rule: 'standalone' (default: those, with the held-out chi-square fall beyond the noise, or
+    an effect of standalone_floors noise floors RMS that lowers the held-out mean square by
+    margin_floor2 floors^2 and is consistent across the folds, ``Selector.judge``) or 'margin'
+    (the earlier rule);
     separate_z, separate_chi2: two candidates are told apart when their held-out chi-square
     difference (floors^2) exceeds separate_z of its standard errors and separate_chi2
     (``Selector.compare``), else they explain the residual equally; min_effect_floors: a term
@@ -181,7 +185,10 @@ class Options:
     most this many of those (the chosen one is refitted and judged on all of them)."""
 
     folds: int = 5
+    rule: str = "standalone"
+    standalone_floors: float = 3.0
     margin: float = 0.02
+    margin_floor2: float = 0.04
     bic_margin: float = 6.0
     separate_z: float = 3.0
     separate_chi2: float = 10.0
