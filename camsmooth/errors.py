@@ -41,3 +41,9 @@ class InputError(CamsmoothError, ValueError):
 class InfeasibleError(CamsmoothError):
     """A problem that has no solution under the stated limits; the message names the binding
     constraint (axis, limit, row, point)."""
+
+
+class InternalError(RuntimeError):
+    """A failure inside camsmooth that no input explains (a fit that broke down numerically, a
+    value computed here that a constructor refuses): a bug to report, never bad input. Not a
+    CamsmoothError, so the CLI exits 70 (internal error) on it, not 2."""

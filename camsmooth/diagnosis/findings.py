@@ -25,6 +25,7 @@ from camsmooth.diagnosis.recordings import AXES, ROTARY_AXES, Program, Recording
 from camsmooth.diagnosis.selector import Fit, Selector, channel_rms, pooled
 from camsmooth.diagnosis.terms import separating_measurement, term
 from camsmooth.diagnosis.terms.base import fmt
+from camsmooth.errors import InputError, InternalError
 from camsmooth.io.atomic import write_text_atomic
 from camsmooth.machine import fitting
 from camsmooth.machine.kinematics import Machine
@@ -227,8 +228,10 @@ def discriminate_lag_offset(sel: Selector, result: Mapping[str, Any]) -> dict[st
                              np.array([max(tau0, 1e-4)]), np.array([0.0]), np.array([2.0]), np.array([1e-3]),
                              physics_common)
     h_common, h_off, h_lag = pooled(f_common), pooled(f_off), pooled(f_lag)
-    shape_same = abs(h_common - h_off) <= sel.opt.equivalent * min(h_common, h_off) + 1e-12 or \
-        abs(h_common - h_off) < 0.5 * abs(h_lag - min(h_common, h_off)) and abs(h_common - h_off) < 0.02 * h_off
+    # by shape: one common lag against one offset (one parameter each), told apart when their
+    # held-out chi-square difference is beyond the noise (Selector.compare)
+    shape = sel.compare(f_common, f_off)
+    shape_same = not shape["resolved"]
     names = f_lag.pnames["servo_lag"]
     sl = f_lag.slice("servo_lag")
     taus, sds = f_lag.x[sl], f_lag.sd()[sl]
@@ -258,10 +261,12 @@ def discriminate_lag_offset(sel: Selector, result: Mapping[str, Any]) -> dict[st
     else:
         better = "servo lag" if h_common < h_off else "clock offset"
         verdict = (f"The shape of the response separates them: one common lag gives held-out {h_common:.4g} and one "
-                   f"offset {h_off:.4g} floors, favouring a {better}; the per-axis delays ({delay_text}) agree within "
-                   "their uncertainties.")
+                   f"offset {h_off:.4g} floors (held-out chi-square difference {abs(shape['delta_chi2']):.4g} floors^2,"
+                   f" standard error {shape['se']:.3g}), favouring a {better}; the per-axis delays ({delay_text})"
+                   " agree within their uncertainties.")
     return {"heldout_common_lag": h_common, "heldout_offset": h_off, "heldout_per_axis_lag": h_lag,
-            "shape_distinguishes": not shape_same, "per_axis_delays": delays, "delays_differ": bool(spread),
+            "shape_distinguishes": not shape_same, "shape_chi2_difference": shape["delta_chi2"],
+            "shape_chi2_se": shape["se"], "per_axis_delays": delays, "delays_differ": bool(spread),
             "chi2_per_dof": chi2 / dof, "verdict": verdict, "units": "held-out RMS in noise floors"}
 
 
@@ -327,10 +332,23 @@ def _effect_states(P: Problem, name: str, names: Sequence[str], before: np.ndarr
 
 def diagnose(program: Program, recording: Recording, machine: Machine | None = None, base: ErrorModel | None = None,
              options: Options | None = None) -> Diagnosis:
-    """Run the whole diagnosis (module docstring; camsmooth.diagnosis.selector for the rules)."""
+    """Run the whole diagnosis (module docstring; camsmooth.diagnosis.selector for the rules).
+
+    Bad input raises InputError from ``prepare`` (alignment, floors); an InputError raised after
+    that comes from a value computed here (a fit's NaN reaching a model constructor, say) and is
+    re-raised as InternalError: a bug, exit 70 from the CLI, never 'bad input'."""
     t0 = time.perf_counter()
     opt = options or Options()
     P = prepare(program, recording, machine, base, opt)
+    try:
+        return _diagnose(program, recording, machine, base, opt, P, t0)
+    except InputError as exc:
+        raise InternalError(f"diagnosis failed after its inputs were read: {exc}") from exc
+
+
+def _diagnose(program: Program, recording: Recording, machine: Machine | None, base: ErrorModel | None,
+              opt: Options, P: Problem, t0: float) -> Diagnosis:
+    """The selection and the findings of ``diagnose`` on a prepared problem P."""
     sel = Selector(P, opt)
     res = sel.run()
     if res["active"]:
@@ -409,12 +427,16 @@ def diagnose(program: Program, recording: Recording, machine: Machine | None = N
     if any(n in res["active"] for n in ("servo_lag", "time_offset")) and "time_offset" in res["applicable"] and \
             "servo_lag" in res["applicable"]:
         discrimination = discriminate_lag_offset(sel, res)
-    rule = (f"a term is named only when it lowers the held-out RMS by {100 * opt.margin:.3g}% in most folds and "
-            f"BIC by {opt.bic_margin:g}, its effect on some channel reaches {opt.min_effect_floors:g} noise floors RMS "
-            f"(a floor holds the channel's white noise and resolution), its parameters differ from their base values "
-            f"by {opt.resolvable_sigma:g} standard uncertainties (a clock offset by {opt.min_offset_periods:g} of the "
-            "sample period as well), and it survives the joint refit; an axis or element inside a term that fails "
-            "is reported as 'none measurable'")
+    share = (f"it lowers the held-out RMS by {100 * opt.margin:.3g}% in most folds and BIC by {opt.bic_margin:g}"
+             + (f" with the held-out chi-square fall beyond {opt.separate_z:g} standard errors, or it is an effect on "
+                f"its own (at least {opt.standalone_floors:g} noise floors RMS, lowering the held-out mean square by "
+                f"{opt.margin_floor2:g} floors^2 in most folds, beyond the noise or consistent across the folds, "
+                "whatever else is left unexplained)" if opt.rule == "standalone" else ""))
+    rule = (f"a term is named only when {share}; its effect on some channel reaches {opt.min_effect_floors:g} noise "
+            "floors RMS (a floor holds the channel's white noise and resolution), its parameters differ from their "
+            f"base values by {opt.resolvable_sigma:g} standard uncertainties (a clock offset by "
+            f"{opt.min_offset_periods:g} of the sample period as well), and it survives the joint refit; an axis or "
+            "element inside a term that fails is reported as 'none measurable'")
     result = Findings(
         program=program.source, recording=recording.source,
         channels={c: {"unit": channel_unit(c), "samples": int(P.valid[:, j].sum())} for j, c in enumerate(P.channels)},

@@ -168,22 +168,30 @@ def locate_intervals(t: np.ndarray, resid: np.ndarray, floor: np.ndarray, valid:
 class Options:
     """Diagnosis settings. folds: blocked time folds for held-out scoring; margin: the relative
     fall of the pooled held-out RMS a term must bring; bic_margin: the fall of BIC it must bring;
-    equivalent, equivalent_floor2: when two candidates explain the residual equally
-    (``Selector._equivalent``); min_effect_floors: a term (and each axis or element inside it)
-    is named only when its effect on some channel reaches this RMS in noise floors (a floor is the
-    larger of the white noise and the resolution, q / sqrt(12)); min_offset_periods: a clock offset
-    must reach this fraction of the sample period; resolvable_sigma: a parameter must differ
-    from its base value by this many standard uncertainties; correlation_limit: parameters of
-    two named terms correlated beyond it are reported; max_fit_samples: fits and scores use at
-    most this many samples (an even random subset, seeded) - final figures use all;
-    screen_samples: each round ranks the terms on at most this many of those (the chosen one is
-    refitted and judged on all of them)."""
+    rule: 'standalone' (default: those, with the held-out chi-square fall beyond the noise, or
+    an effect of standalone_floors noise floors RMS that lowers the held-out mean square by
+    margin_floor2 floors^2 and is consistent across the folds, ``Selector.judge``) or 'margin'
+    (the earlier rule);
+    separate_z, separate_chi2: two candidates are told apart when their held-out chi-square
+    difference (floors^2) exceeds separate_z of its standard errors and separate_chi2
+    (``Selector.compare``), else they explain the residual equally; min_effect_floors: a term
+    (and each axis or element inside it) is named only when its effect on some channel reaches
+    this RMS in noise floors (a floor is the larger of the white noise and the resolution,
+    q / sqrt(12)); min_offset_periods: a clock offset must reach this fraction of the sample
+    period; resolvable_sigma: a parameter must differ from its base value by this many standard
+    uncertainties; correlation_limit: parameters of two named terms correlated beyond it are
+    reported; max_fit_samples: fits and scores use at most this many samples (an even random
+    subset, seeded) - final figures use all; screen_samples: each round ranks the terms on at
+    most this many of those (the chosen one is refitted and judged on all of them)."""
 
     folds: int = 5
+    rule: str = "standalone"
+    standalone_floors: float = 3.0
     margin: float = 0.02
+    margin_floor2: float = 0.04
     bic_margin: float = 6.0
-    equivalent: float = 0.01
-    equivalent_floor2: float = 0.05
+    separate_z: float = 3.0
+    separate_chi2: float = 10.0
     min_effect_floors: float = 0.1
     min_offset_periods: float = 0.1
     resolvable_sigma: float = 3.0

@@ -20,6 +20,7 @@ samples outside the time span of the program's segment are dropped, never extrap
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -106,11 +107,16 @@ def quantisation_steps(values: np.ndarray, min_distinct: int = 10) -> np.ndarray
 
     Values written with a fixed number of decimals (step 10^-d) or of significant figures (step
     10^(e - s + 1) for a value of exponent e: the Michigan traces keep 3 figures, so 158 has step 1
-    and 72.4 step 0.1) are both recognised: per value the largest power of ten it is a multiple of
-    is found; d is the most decimals any value needs and s the most significant figures; each
-    value's step is the coarser of the two models (zero values take 10^-d). The RMS rounding
-    error of a value with step q is q/sqrt(12). Fewer than ``min_distinct`` distinct values, or
-    values needing more than 9 decimals, are no evidence of quantisation (steps 0).
+    and 72.4 step 0.1) are both recognised: per value the largest power of ten it is a non-zero
+    multiple of is found (relative to the value: a value smaller than 10^k is never a multiple of
+    it, so a channel that stays within +-0.01 mm is not given a step of 10^4 mm); d is the most
+    decimals any value needs and s the most significant figures; each value's step is the coarser
+    of the two models (zero values take 10^-d). The data's own grid is then checked
+    (``uniform_grid``): when every distinct value lies on a uniform grid coarser than the written
+    decimals (encoder counts of 1/2048 mm written to 6 decimals, say), that grid is the step. The
+    RMS rounding error of a value with step q is q/sqrt(12). Fewer than ``min_distinct`` distinct
+    values are no evidence of quantisation (steps 0), nor are values that need more than 9
+    decimals and lie on no uniform grid.
     """
     x = np.asarray(values, dtype=float)
     out = np.zeros(len(x))
@@ -122,15 +128,47 @@ def quantisation_steps(values: np.ndarray, min_distinct: int = 10) -> np.ndarray
     for k in range(-9, 5):
         s = 10.0 ** k
         quo = xs / s
-        kmax[np.abs(quo - np.round(quo)) <= 1e-6] = k
-    if np.any(kmax == -100):
-        return out
-    expo = np.floor(np.log10(np.abs(xs))).astype(np.int64)
-    figures = int(np.max(expo - kmax + 1))
-    q_dec = 10.0 ** int(np.min(kmax))
-    out[:] = q_dec
-    out[nz] = np.maximum(q_dec, 10.0 ** (expo - figures + 1).astype(float))
+        m = np.round(quo)
+        kmax[(m != 0.0) & (np.abs(quo - m) <= 1e-6 + 1e-12 * np.abs(quo))] = k
+    q_dec = 0.0
+    if not np.any(kmax == -100):
+        expo = np.floor(np.log10(np.abs(xs))).astype(np.int64)
+        figures = int(np.max(expo - kmax + 1))
+        q_dec = 10.0 ** int(np.min(kmax))
+        out[:] = q_dec
+        out[nz] = np.maximum(q_dec, 10.0 ** (expo - figures + 1).astype(float))
+    grid = uniform_grid(x, min_distinct, written=q_dec)
+    if grid > 0.0:
+        out = np.maximum(out, grid)
     return out
+
+
+def uniform_grid(values: np.ndarray, min_distinct: int = 10, written: float = 0.0) -> float:
+    """The step q of a uniform grid v0 + k q that holds every distinct finite value (file units),
+    or 0 when there is none: q is the smallest gap between distinct values and every value must
+    lie within 1e-3 q (plus half the written step ``written``, the rounding of the file) of a grid
+    point. The step is refined over the whole span (total span / total grid steps), so rounding
+    of the written values does not accumulate. Relative to the data, so a channel of small range
+    is judged on its own gaps."""
+    v = np.asarray(values, float)
+    u = np.unique(v[np.isfinite(v)][:200000])
+    if len(u) < min_distinct:
+        return 0.0
+    gaps = np.diff(u)
+    q0 = float(np.min(gaps))
+    span = float(u[-1] - u[0])
+    if not q0 > 0.0 or span / q0 > 1e8 or q0 < 1e-12 * max(float(np.max(np.abs(u))), 1e-300):
+        return 0.0
+    q = q0
+    for lim in (4.0, 16.0, 64.0, 256.0, 1024.0, math.inf):
+        # refine q on the gaps of up to lim steps (their step counts are unambiguous), then wider
+        steps = np.round(gaps / q)
+        sel = steps <= lim
+        q = float(np.sum(gaps[sel]) / np.sum(steps[sel]))
+    steps = np.round(gaps / q)
+    k = np.concatenate([[0.0], np.cumsum(steps)])
+    tol = 1e-3 * q + 0.5 * written + 1e-12 * float(np.max(np.abs(u)))
+    return q if float(np.max(np.abs(u - u[0] - k * q))) <= tol else 0.0
 
 
 def rms_step(q: np.ndarray | float) -> float:

@@ -7,8 +7,11 @@ fit on the other folds' Jacobian rows, then simulated exactly). Greedy forward s
 backward check: each round every remaining term is screened jointly with the chosen ones (those
 linearised); the best is refitted exactly and joins when
 
-* the pooled held-out RMS falls by a clear margin, in most folds, and BIC (sample count reduced
-  for the residual's lag-1 autocorrelation) falls by a clear margin;
+* the pooled held-out RMS falls in most folds, and either by a clear margin with BIC (sample
+  count reduced for the residual's lag-1 autocorrelation) falling by a clear margin and the
+  held-out chi-square fall beyond the noise, or the term is a clear effect on its own (a few
+  noise floors RMS, consistent across the folds), whatever else is left unexplained
+  (``Selector.judge``);
 * it is physics the user can act on (``Selector.measurable``): its effect on some channel reaches
   ``Options.min_effect_floors`` noise floors RMS (the floor is the larger of the white noise and
   the channel's resolution, q / sqrt(12)), its
@@ -36,6 +39,7 @@ import numpy as np
 from camsmooth.diagnosis.problem import Options, Problem
 from camsmooth.diagnosis.terms import CANDIDATES, LIBRARY, Param, Term, separating_measurement, term
 from camsmooth.diagnosis.terms.thermal import ThermalDrift
+from camsmooth.errors import InputError, InternalError
 from camsmooth.machine import fitting
 from camsmooth.machine.model import ErrorModel
 
@@ -62,6 +66,16 @@ class Fit:
     heldout_resid: np.ndarray | None = None
     Jt: np.ndarray | None = None
     approximate: bool = False
+    fold_x: np.ndarray | None = None  # (K, p): the parameters fitted without each fold
+
+    def jackknife_sd(self) -> np.ndarray:
+        """Blocked jackknife standard uncertainty of each parameter from the fits that leave one
+        fold out (sqrt((K - 1) / K sum (x_k - mean)^2), internal units): contiguous folds in time
+        carry the residual's autocorrelation, so this holds for coloured noise as well."""
+        if self.fold_x is None or len(self.fold_x) < 2:
+            return np.full(len(self.x), np.inf)
+        K = len(self.fold_x)
+        return np.sqrt((K - 1) / K * np.sum((self.fold_x - self.fold_x.mean(axis=0)) ** 2, axis=0))
 
     def slice(self, name: str) -> slice:
         i0 = sum(len(self.pnames[n]) for n in self.active[:self.active.index(name)])
@@ -77,6 +91,16 @@ def channel_rms(resid: np.ndarray, valid: np.ndarray, channels: Sequence[str]) -
         v = resid[valid[:, j], j]
         out[c] = float(np.sqrt(np.mean(v * v))) if len(v) else math.nan
     return out
+
+
+def finite_check(key: Sequence[str], pnames: dict[str, list[str]], x: np.ndarray, rss: float) -> None:
+    """Raise InternalError when a fit of the terms ``key`` ended on non-finite parameters or a
+    non-finite weighted RSS: a numerical breakdown inside the fit, never bad input (the CLI exits
+    70), and never a verdict computed from NaN."""
+    bad = [n for n, v in zip([n for k in key for n in pnames.get(k, [])], x, strict=False) if not np.isfinite(v)]
+    if bad or not np.all(np.isfinite(x)) or not math.isfinite(rss):
+        raise InternalError(f"the fit of {', '.join(key) or 'no term'} broke down: non-finite "
+                            + (f"parameter(s) {', '.join(bad)}" if bad else f"weighted RSS {rss!r}"))
 
 
 def pooled(f: Fit) -> float:
@@ -175,6 +199,10 @@ class Selector:
         scale = np.array([p.scale for p in params])
         if x0 is None or len(x0) != len(params):
             x0 = self._start(active, terms, pnames)
+        elif not np.all(np.isfinite(x0)):
+            # a warm start read from a model that lacks some parameters (a thermal element it
+            # does not hold reads tau = NaN): those start from their initial values
+            x0 = np.where(np.isfinite(x0), x0, self._start(active, terms, pnames))
         x0 = np.clip(x0, lo + 1e-12 * (hi - lo), hi - 1e-12 * (hi - lo))
 
         def rfun(x: np.ndarray) -> np.ndarray:
@@ -250,6 +278,7 @@ class Selector:
         res = fitting.levenberg_marquardt(rfun, x0, lo=lo, hi=hi, step=1e-4 * scale, scale=scale, mask=valid,
                                           known_jt=known_jt, jac=jac, rtol=1e-7)
         x, H, rss, Jt, r_valid = res.x, res.H, res.cost, res.Jt, res.r
+        finite_check(key, pnames, x, rss)
         r = rfun(x)
         rr = np.where(valid, r, 0.0)
         n = int(valid.sum())
@@ -260,6 +289,7 @@ class Selector:
         held = np.zeros_like(r)
         fold_rss = np.zeros(K)
         fold_n = np.zeros(K, dtype=int)
+        fold_x = np.zeros((K, len(x)))
         for k in range(K):
             te_e = entry_fold == k
             H_te, g_te = fitting.gram(Jt[:, te_e], r_valid[te_e])
@@ -269,6 +299,7 @@ class Selector:
             if free.any():
                 dx[free] = -np.linalg.pinv(H_tr[np.ix_(free, free)]) @ g_tr[free]
             xk = np.clip(x + dx, lo, hi)
+            fold_x[k] = xk
             if approximate:
                 # a screening fit: the held-out prediction linearised as well (r + J dx)
                 rk = r.copy()
@@ -281,10 +312,14 @@ class Selector:
             fold_rss[k] = float(np.sum(np.where(test, rk, 0.0) ** 2))
             fold_n[k] = int(test.sum())
         resid_phys = held / P.w_fit
+        if not np.all(np.isfinite(fold_rss)):
+            raise InternalError(f"the held-out scores of {', '.join(key) or 'no term'} are not finite "
+                                f"(fold RSS {fold_rss.tolist()})")
         return Fit(key, pnames, x, physics_of(x), cov, rss, n, n_eff,
                    n_eff * math.log(max(rss, 1e-300) / n) + len(x) * math.log(n_eff),
                    channel_rms(r / P.w_fit, valid, P.channels), float(fold_rss.sum()),
-                   channel_rms(resid_phys, valid, P.channels), fold_rss, fold_n, resid_phys, Jt, approximate)
+                   channel_rms(resid_phys, valid, P.channels), fold_rss, fold_n, resid_phys, Jt, approximate,
+                   fold_x)
 
     def screen(self, current: Fit, name: str) -> Fit:
         """A cheap joint fit of ``current`` plus term ``name``: the new parameters are simulated
@@ -382,6 +417,12 @@ class Selector:
         base = np.nan_to_num(np.asarray(t.read(P.base, names), float))
         params = {p.name: p for p in t.params(P)}
         sig = np.abs(x - base) > opt.resolvable_sigma * np.maximum(sd, 1e-300)
+        if opt.rule == "standalone" and f.fold_x is not None:
+            # or resolved by the blocked jackknife with one sign in every fold (the covariance
+            # inflated for a strongly autocorrelated rest can hide a clear, consistent effect)
+            jk = f.jackknife_sd()[sl]
+            same = np.all(np.sign(f.fold_x[:, sl] - base) == np.sign(x - base), axis=0)
+            sig |= same & (np.abs(x - base) > opt.resolvable_sigma * np.maximum(jk, 1e-300))
         groups: dict[str, list[int]] = {}
         for i, n in enumerate(names):
             groups.setdefault(params[n].group, []).append(i)
@@ -462,6 +503,9 @@ class Selector:
                     continue
                 try:
                     trials[name] = scr._screen_pruned(cur_s, name)
+                except InputError as exc:
+                    # every input was checked by prepare: a value computed here was refused
+                    raise InternalError(f"screening fit of {name}: {exc}") from exc
                 except (ValueError, np.linalg.LinAlgError) as exc:
                     rejected[name] = {"name": name, "reason": f"fit failed: {exc}"}
             if not trials:
@@ -522,6 +566,19 @@ class Selector:
                 if f2 is not final:
                     changed = True
                     break
+            if not changed and len(active) >= 2:
+                # and each would still join last: a term taken in as a stand-in for one that joined
+                # after it (or whose pruning changed since) is dropped
+                for name in list(active):
+                    reduced = tuple(a for a in active if a != name)
+                    v = self.judge(self.fit(reduced, x0=self.x_from(reduced, final.physics)), final)
+                    if not v["ok"]:
+                        active.remove(name)
+                        rejected[name] = {"name": name, "reason": f"dropped in the final joint fit with "
+                                          f"{', '.join(active)}: as the last term it {v['reason']}", "dropped": True,
+                                          "heldout_rms_change_pct": v["heldout_change_pct"]}
+                        changed = True
+                        break
         chain = [self.fit(())]
         steps = []
         for i, name in enumerate(active):
@@ -602,6 +659,21 @@ class Selector:
         return verdict if why is None else {**verdict, "ok": False, "reason": why}
 
     def judge(self, before: Fit, after: Fit) -> dict[str, Any]:
+        """Whether ``after`` (one more term) explains clearly more than ``before``: the held-out
+        RMS falls, in most folds, and either
+
+        * (share) by ``Options.margin`` of itself, BIC falls by ``bic_margin`` and - with
+          ``Options.rule`` 'standalone', the default - the held-out chi-square fall is beyond the
+          noise (``compare``: ``separate_z`` standard errors under the residual's
+          autocorrelation), or
+        * (an effect on its own, rule 'standalone' only) the new term's effect reaches
+          ``standalone_floors`` noise floors RMS on some channel, the held-out mean square falls by
+          ``margin_floor2`` floors^2, and the fall is beyond the noise or a parameter of the term
+          keeps one sign and size across the folds (``consistent``). None of this depends on how
+          much else is left unexplained: a clear reversal on a laser log with a large unexplained
+          pitch error is named.
+
+        Rule 'margin' is the earlier rule (the share alone, without the chi-square test)."""
         opt = self.opt
         fit_change = math.sqrt(after.rss / max(before.rss, 1e-300)) - 1.0
         held_change = math.sqrt(after.heldout_rss / max(before.heldout_rss, 1e-300)) - 1.0
@@ -611,36 +683,120 @@ class Selector:
         n_eff = max(before.n_eff, after.n_eff)
         dp = len(after.x) - len(before.x)
         dbic = n_eff * math.log(max(after.rss, 1e-300) / max(before.rss, 1e-300)) + dp * math.log(max(n_eff, 2.0))
+        cmp = self.compare(after, before)
+        n_held = max(int(after.fold_n.sum()), 1)
         out = {"fit_change_pct": 100 * fit_change, "heldout_change_pct": 100 * held_change, "delta_bic": dbic,
-               "folds_better": per_fold_better, "folds": K}
+               "folds_better": per_fold_better, "folds": K, "heldout_chi2_fall": cmp["delta_chi2"],
+               "heldout_chi2_se": cmp["se"], "rule": opt.rule}
+        margin_why = None
+        if held_change > -opt.margin:
+            margin_why = (f"lowers the held-out RMS by only {-100 * held_change:.2g}% "
+                          f"(a clear margin is {100 * opt.margin:.3g}%)")
+        elif dbic > -opt.bic_margin:
+            margin_why = f"BIC does not fall clearly (change {dbic:+.3g}, effective n {n_eff:.0f})"
+        elif opt.rule == "standalone" and not cmp["resolved"]:
+            margin_why = (f"its held-out chi-square fall ({cmp['delta_chi2']:.3g} floors^2) is within "
+                          f"{opt.separate_z:g} standard errors ({cmp['se']:.3g}) under the residual's autocorrelation")
+        standalone_why = None
+        if opt.rule == "standalone" and margin_why is not None:
+            z = self.new_effect(before, after)
+            out["effect_floors"] = z
+            if z < opt.standalone_floors:
+                standalone_why = (f"its effect ({z:.2g} noise floors RMS) is below the {opt.standalone_floors:g} "
+                                  "floors of an effect named on its own")
+            elif cmp["delta_chi2"] < opt.margin_floor2 * n_held:
+                standalone_why = (f"it lowers the held-out mean square by only {cmp['delta_chi2'] / n_held:.2g} "
+                                  f"floors^2 (at least {opt.margin_floor2:g})")
+            elif not cmp["resolved"] and not (cmp["delta_chi2"] > opt.separate_chi2 and
+                                              self.consistent(before, after)):
+                standalone_why = (f"its held-out chi-square fall ({cmp['delta_chi2']:.3g} floors^2) is within "
+                                  f"{opt.separate_z:g} standard errors ({cmp['se']:.3g}) and its parameters do not "
+                                  f"keep one sign and size across the {K} folds")
         if held_change >= 0:
             out.update(ok=False, reason=f"improves the fit RMS by {-100 * fit_change:.2g}% but the held-out RMS "
                        f"rises by {100 * held_change:.2g}%" if fit_change < 0 else
                        "does not lower the fit RMS")
-        elif held_change > -opt.margin:
-            out.update(ok=False, reason=f"lowers the held-out RMS by only {-100 * held_change:.2g}% "
-                       f"(a clear margin is {100 * opt.margin:.3g}%)")
         elif per_fold_better <= K // 2:
             out.update(ok=False, reason=f"lowers the pooled held-out RMS by {-100 * held_change:.2g}% but only in "
                        f"{per_fold_better} of {K} folds")
-        elif dbic > -opt.bic_margin:
-            out.update(ok=False, reason=f"BIC does not fall clearly (change {dbic:+.3g}, effective n "
-                       f"{n_eff:.0f})")
+        elif margin_why is not None and (opt.rule != "standalone" or standalone_why is not None):
+            out.update(ok=False, reason=margin_why + ("" if standalone_why is None else
+                                                      f"; nor is it an effect on its own: {standalone_why}"))
         else:
-            out.update(ok=True, reason="accepted")
+            out.update(ok=True, reason="accepted" if margin_why is None else
+                       "accepted as an effect on its own (clear, consistent across the folds, whatever else is "
+                       f"left unexplained; {margin_why})")
         return out
 
+    def new_effect(self, before: Fit, after: Fit) -> float:
+        """The effect of the terms ``after`` adds to ``before`` (at their values in ``after``): the
+        largest RMS over channels in noise floors (``effect``); an absolute size, whatever else
+        is left unexplained."""
+        z = 0.0
+        for name in after.active:
+            if name not in before.active and after.pnames[name]:
+                z = max(z, self.effect(after, after.pnames[name], name)[0])
+        return z
+
+    def consistent(self, before: Fit, after: Fit) -> bool:
+        """Whether a term ``after`` adds to ``before`` has a parameter of one sign and size across
+        the folds: every fit that leaves a fold out keeps the sign of its change from the base
+        value, and that change exceeds ``resolvable_sigma`` blocked-jackknife uncertainties
+        (``Fit.jackknife_sd``: contiguous folds, so autocorrelated residuals are accounted for).
+        The significance of the term itself, not of how much else is left unexplained."""
+        if after.fold_x is None:
+            return False
+        P, opt = self.P, self.opt
+        jk = after.jackknife_sd()
+        for name in after.active:
+            if name in before.active or not after.pnames[name]:
+                continue
+            t = term(name)
+            sl = after.slice(name)
+            names = after.pnames[name]
+            base = np.nan_to_num(np.asarray(t.read(P.base, names), float))
+            params = {p.name: p for p in t.params(P)}
+            dx = after.x[sl] - base
+            dk = after.fold_x[:, sl] - base
+            for i, n in enumerate(names):
+                if n in params and params[n].optional:
+                    continue
+                if np.all(np.sign(dk[:, i]) == np.sign(dx[i])) and dx[i] != 0 and \
+                        abs(dx[i]) > opt.resolvable_sigma * max(float(jk[sl][i]), 1e-300):
+                    return True
+        return False
+
+    def compare(self, a: Fit, b: Fit) -> dict[str, Any]:
+        """Whether the data tell fit a from fit b by their held-out residuals (a Vuong-type test on
+        the chi-square difference): delta = chi2(b) - chi2(a) summed over the valid fit entries in
+        noise floors^2, its standard error from the per-entry differences (sqrt(n var(d)),
+        inflated by n / n_eff for the autocorrelation of the better fit's residual), the number of
+        folds where the better fit is better. ``resolved`` when |delta| exceeds
+        ``Options.separate_z`` standard errors and ``Options.separate_chi2``, and the better fit
+        wins in most folds: the two predictions differ by more than the noise can hide, however
+        small that is against the rest of the residual."""
+        P, opt = self.P, self.opt
+        valid = P.valid_fit
+        if a.heldout_resid is None or b.heldout_resid is None:
+            return {"delta_chi2": 0.0, "se": math.inf, "resolved": False, "better": None, "folds_better": 0}
+        ea = np.where(valid, a.heldout_resid * P.w_fit, 0.0)
+        eb = np.where(valid, b.heldout_resid * P.w_fit, 0.0)
+        d = (eb * eb - ea * ea)[valid]
+        n = int(d.size)
+        delta = float(d.sum())
+        best = ea if delta > 0 else eb
+        n_eff = fitting.effective_sample_count(best, n)
+        se = math.sqrt(max(n * float(np.var(d)), 0.0) * n / max(n_eff, 1.0)) if n > 1 else math.inf
+        K = len(a.fold_rss)
+        if delta > 0:
+            folds_better = int(np.sum(a.fold_rss < b.fold_rss))
+        else:
+            folds_better = int(np.sum(b.fold_rss < a.fold_rss))
+        resolved = abs(delta) > max(opt.separate_z * se, opt.separate_chi2) and folds_better > K // 2
+        return {"delta_chi2": delta, "se": se, "resolved": bool(resolved),
+                "better": (a.active if delta > 0 else b.active), "folds_better": folds_better, "folds": K}
+
     def equivalent(self, a: Fit, b: Fit) -> bool:
-        """Two fits explain the residual equally when their held-out mean squares (in floors^2)
-        differ by less than ``equivalent_floor2`` (their predictions differ by well under the
-        noise), or when the difference is within both the fold-to-fold scatter (paired, 2 SE) and
-        ``equivalent`` of the held-out mean square."""
-        ma = a.heldout_rss / max(int(a.fold_n.sum()), 1)
-        mb = b.heldout_rss / max(int(b.fold_n.sum()), 1)
-        if abs(mb - ma) < self.opt.equivalent_floor2:
-            return True
-        da = a.fold_rss / np.maximum(a.fold_n, 1)
-        db = b.fold_rss / np.maximum(b.fold_n, 1)
-        d = db - da
-        se = float(np.std(d, ddof=1) / math.sqrt(len(d))) if len(d) > 1 else math.inf
-        return abs(float(np.mean(d))) < 2 * se and abs(mb - ma) < self.opt.equivalent * ma
+        """Two fits explain the residual equally when the data do not tell them apart
+        (``compare``: their held-out chi-square difference is within the noise)."""
+        return not self.compare(a, b)["resolved"]

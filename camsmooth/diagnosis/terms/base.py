@@ -160,19 +160,20 @@ class Geometric(Term):
                 for c in cands if c[0] in keep]
 
     def unresolvable(self, P: Problem, names: Sequence[str], x: np.ndarray, sd: np.ndarray) -> str | None:
-        """A geometric error whose effect on the tool stays below the resolution (quantisation
-        step) of every channel that sees it is not a finding, however many samples average it."""
-        chans = [c for c in self.present(P) if channel_is_length(c) and P.floor_info[c]["q_recording_rms"] > 0]
-        if not chans:
+        """A geometric error whose effect stays below the resolution (quantisation step) of every
+        channel it acts on is not a finding, however many samples average it. Judged on the
+        channels the fitted error moves (``acted_channels``), each against its own resolution: a
+        channel with no detected quantum resolves any effect, so an error on X seen by X_act is
+        never refused for the resolution of tip_y, which it does not move."""
+        peaks = acted_channels(P, self, names, x)
+        if not peaks:
             return None
-        m = P.base.copy()
-        self.write(m, names, x)
-        d = P.sim_fit.run(m) - P.sim_fit.run(P.base)
-        peaks = {c: float(np.max(np.abs(d[:, P.channels.index(c)]))) for c in chans}
-        if all(peaks[c] < P.floor_info[c]["q_recording_rms"] for c in chans):
-            worst = max(chans, key=lambda c: peaks[c] / P.floor_info[c]["q_recording_rms"])
-            return (f"its largest effect ({peaks[worst] * 1e3:.3g} um on {worst}) stays below the recording's "
-                    f"resolution ({P.floor_info[worst]['q_recording_rms'] * 1e3:.3g} um)")
+        res = {c: P.floor_info[c]["q_recording_rms"] for c in peaks}
+        if all(peaks[c] < res[c] for c in peaks):
+            worst = max(peaks, key=lambda c: peaks[c] / res[c])
+            f, u = (1e3, "um") if channel_is_length(worst) else (1.0, "")
+            return (f"its largest effect ({peaks[worst] * f:.3g} {u} on {worst}) stays below the recording's "
+                    f"resolution ({res[worst] * f:.3g} {u})").replace(" )", ")")
         return None
 
     def write(self, model: ErrorModel, names: Sequence[str], x: np.ndarray) -> None:
@@ -218,6 +219,23 @@ def travel(P: Problem, a: str) -> float:
     """The largest |position| (mm) axis a reaches in the program (at least 1 mm)."""
     u = P.knots.u.get(a)
     return max(1.0, float(np.max(np.abs(u)))) if u is not None else 1.0
+
+
+def acted_channels(P: Problem, t: Term, names: Sequence[str], x: np.ndarray, rel: float = 0.01
+                   ) -> dict[str, float]:
+    """The channels term ``t`` with parameters ``names`` = x (over the base model) acts on: channel
+    -> largest |change| of the simulated channel (internal units), for the channels whose change
+    exceeds ``rel`` of the largest change in noise floors (a term that does not move a channel is
+    not judged there)."""
+    m = P.base.copy()
+    t.write(m, names, x)
+    d = np.abs(P.sim_fit.run(m) - P.sim_fit.run(P.base))
+    peaks = {c: float(np.max(d[:, j])) for j, c in enumerate(P.channels)}
+    z = {c: float(np.max(d[:, j] * P.w_fit[:, j])) for j, c in enumerate(P.channels)}
+    top = max(z.values(), default=0.0)
+    if not top > 0.0:
+        return {}
+    return {c: peaks[c] for c in P.channels if z[c] > rel * top}
 
 
 def channel_is_length(c: str) -> bool:
