@@ -119,6 +119,8 @@ INCH_MM = 25.4
 DEFAULT_CHORD_TOL = 1e-3
 #: the most points one arc or helix is interpolated with (a larger need is an InputError)
 MAX_ARC_POINTS = 1_000_000
+#: the most interpolated arc and helix points in one file
+MAX_ARC_POINTS_TOTAL = 10_000_000
 #: the largest magnitude of a number in a record (lengths in mm or inch, feeds, speeds): larger
 #: ones are errors, so that no product or square of them overflows
 MAX_ABS = 1e9
@@ -475,6 +477,7 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
     rapid_next = False
     arc: _Arc | None = None
     unknown: dict[str, list[int]] = {}
+    arc_points = 0  # interpolated arc points so far
     multax_off: list[tuple[int, tuple]] = []  # MULTAX/OFF while the modal axis is tilted: (line, axis)
     toolpaths: list[ToolPath] = []
     open_tp: ToolPath | None = None
@@ -586,8 +589,18 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
                     if st.last is None:
                         raise InputError(f"{arc.record} before any position: the arc has no start point", file=file,
                                          line=arc.line)
-                    for q in _arc_points(np.array(st.last), np.array(p), arc, chord_tol, file).tolist():
-                        add_point(tuple(q), axis, rapid, rec.line)
+                    Q = _arc_points(np.array(st.last), np.array(p), arc, chord_tol, file)
+                    arc_points += len(Q)
+                    if arc_points > MAX_ARC_POINTS_TOTAL:
+                        raise InputError(f"{arc.record}: the arcs up to here need {arc_points} points to keep the "
+                                         f"chord error within {chord_tol:g} mm (at most {MAX_ARC_POINTS_TOTAL} in a "
+                                         "file): raise chord_tol", file=file, line=arc.line)
+                    if len(Q):
+                        if open_tp is None:
+                            open_tp = start_toolpath(None, None)
+                        n = len(Q)
+                        st.add_block(Q, np.tile(np.asarray(axis, float), (n, 1)), np.full(n, rapid),
+                                     np.full(n, math.nan if rapid else feed), np.full(n, rec.line, np.int64), cur_xform)
                     arc = None
                 add_point(p, axis, rapid, rec.line)
                 if m == "GOTO":
