@@ -119,3 +119,14 @@ def test_helix_bad_end_or_turns_named(tmp_path, circle, end, needle):
     with pytest.raises(InputError) as exc:
         read_apt(p, chord_tol=1e-4)
     assert needle in str(exc.value) and exc.value.line == 4 and str(p) in str(exc.value), str(exc.value)
+
+
+def test_arcs_past_the_file_limit_are_named(tmp_path, monkeypatch):
+    import camsmooth.io.apt as apt
+
+    monkeypatch.setattr(apt, "MAX_ARC_POINTS_TOTAL", 500)
+    arc = "CIRCLE/0,0,0,0,0,1,10,0.01,0.5,6,1,TIMES,1\nGOTO/10,0,-1\n"
+    text = "UNITS/MM\nFEDRAT/MMPM,100\nGOTO/10,0,0\n" + arc * 3  # 222 points a turn: two fit, the third does not
+    with pytest.raises(InputError, match="at most 500 in a file") as exc:
+        read_apt(_write(tmp_path, "many.cls", text), chord_tol=0.001)
+    assert exc.value.line == 8

@@ -1,4 +1,5 @@
-"""APT CLDATA in the Siemens NX CLSF dialect -> CLProgram (tool tip and axis per point, mm).
+"""APT CLDATA (Siemens NX CLSF, ISO 4343 and other CAM systems' APT) -> CLProgram (tool tip and
+axis per point, mm).
 
 Records read (one per line; ``MAJOR/arg,arg,...`` or a bare major word):
 
@@ -54,20 +55,22 @@ Records read (one per line; ``MAJOR/arg,arg,...`` or a bare major word):
   INDIRV, CLEARP, CLRSRF, PPLOT), MULTAX (no state: a GOTO with 3 numbers keeps the modal axis)
   and ``CYCLE/OFF``. ``MULTAX/OFF`` while the modal axis is tilted is named in a warning: the
   3-number GOTOs after it keep that axis (CATIA's APT locks the last axis; Autodesk's ISO 4343
-  post writes MULTAX/OFF for Z-axis sections). Every other record (``CUTCOM``, other ``CYCLE/`` records, ``GODLTA``,
-  ``TRACUT``, ``ORIGIN``, ``ROTABL``, unknown words ...) is not applied and listed in ONE warning
-  with the lines it appears on: ``records ignored (not applied): CUTCOM (lines 18, 31); ...``.
+  post writes MULTAX/OFF for Z-axis sections). Every other record (``CUTCOM``, other ``CYCLE/``
+  records, ``GODLTA``, ``TRACUT``, ``ORIGIN``, ``ROTABL``, unknown words ...) is not applied and
+  listed in ONE warning with the lines it appears on: ``records ignored (not applied): CUTCOM
+  (lines 18, 31); ...``.
 - A record is ``MAJOR/args`` or a bare word; spaces may surround the ``/`` (``GOTO / 1, 2, 3``);
   a record without ``/`` whose text holds several words (``PPRINT text``, ``PARTNO name``,
   ``CHANNEL,1``) has its first word as major word.
 
 A file that is not UTF-8 (a CAM system's code page in PPRINT / PARTNO text) is read as Latin-1
-with a warning. A record that cannot be read costs only its tool path: the file is cut into tool paths at
-``TOOL PATH/`` and ``END-OF-PATH`` (in a file without ``TOOL PATH/`` records at the tool changes,
-``TLDATA/`` and ``CUTTER/``); the bad tool path's points are dropped, the records up to the next
-cut are skipped (their modal settings too), and the program's warnings name it with the file,
-the line and the reason (``tool path 'NAME' (line L) dropped: FILE, line N: reason``). Only when
-no tool path could be read is it an InputError (the error itself when there was one).
+with a warning. Numbers beyond +-1e9 (MAX_ABS) are errors. A record that cannot be read costs
+only its tool path: the file is cut into tool paths at ``TOOL PATH/`` and ``END-OF-PATH`` (in a
+file without ``TOOL PATH/`` records at the tool changes, ``TLDATA/`` and ``CUTTER/``); the bad
+tool path's points are dropped, the records up to the next cut are skipped (their modal settings
+too), and the program's warnings name it with the file, the line and the reason (``tool path
+'NAME' (line L) dropped: FILE, line N: reason``). Only when no tool path could be read is it an
+InputError (the error itself when there was one).
 
 Sources for the record formats: Siemens NX documentation, "User Defined Operations and CLSF ->
 CLSF Manager" (CIRCLE/ argument list ``CIRCLE/x,y,z,i,j,k,r,t,f,d,e,[TIMES,n]``: centre and axis
@@ -119,6 +122,8 @@ INCH_MM = 25.4
 DEFAULT_CHORD_TOL = 1e-3
 #: the most points one arc or helix is interpolated with (a larger need is an InputError)
 MAX_ARC_POINTS = 1_000_000
+#: the most interpolated arc and helix points in one file
+MAX_ARC_POINTS_TOTAL = 10_000_000
 #: the largest magnitude of a number in a record (lengths in mm or inch, feeds, speeds): larger
 #: ones are errors, so that no product or square of them overflows
 MAX_ABS = 1e9
@@ -455,9 +460,12 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
     """Read an APT CLDATA / NX CLSF file (module docstring) as a CLProgram in mm, workpiece frame.
 
     chord_tol: chordal tolerance of the CIRCLE interpolation (mm). units: 'mm' or 'inch' to
-    override the unit found in the file. InputError naming the file and line for a malformed
-    GOTO / CIRCLE / MOVARC / MSYS / FEDRAT / TLDATA / CUTTER, unknown units, a tool axis or MSYS axis that is not
-    unit, a CIRCLE not followed by a GOTO, a helix whose end GOTO is off its radius, a file without any position.
+    override the unit found in the file. A record that cannot be read (a malformed GOTO / CIRCLE /
+    MOVARC / MSYS / FEDRAT / TLDATA / CUTTER / LOAD, a tool axis or MSYS axis that is not unit, a
+    CIRCLE not followed by a GOTO, a helix whose end GOTO is off its radius, a number beyond
+    MAX_ABS) drops its tool path with a warning naming the file, the line and the reason; it is an
+    InputError naming them when no tool path could be read. InputError for unknown units and a
+    file without any position.
     """
     file = str(path)
     if not (chord_tol > 0 and math.isfinite(chord_tol)):
@@ -475,6 +483,7 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
     rapid_next = False
     arc: _Arc | None = None
     unknown: dict[str, list[int]] = {}
+    arc_points = 0  # interpolated arc points so far
     multax_off: list[tuple[int, tuple]] = []  # MULTAX/OFF while the modal axis is tilted: (line, axis)
     toolpaths: list[ToolPath] = []
     open_tp: ToolPath | None = None
@@ -586,8 +595,18 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
                     if st.last is None:
                         raise InputError(f"{arc.record} before any position: the arc has no start point", file=file,
                                          line=arc.line)
-                    for q in _arc_points(np.array(st.last), np.array(p), arc, chord_tol, file).tolist():
-                        add_point(tuple(q), axis, rapid, rec.line)
+                    Q = _arc_points(np.array(st.last), np.array(p), arc, chord_tol, file)
+                    arc_points += len(Q)
+                    if arc_points > MAX_ARC_POINTS_TOTAL:
+                        raise InputError(f"{arc.record}: the arcs up to here need {arc_points} points to keep the "
+                                         f"chord error within {chord_tol:g} mm (at most {MAX_ARC_POINTS_TOTAL} in a "
+                                         "file): raise chord_tol", file=file, line=arc.line)
+                    if len(Q):
+                        if open_tp is None:
+                            open_tp = start_toolpath(None, None)
+                        n = len(Q)
+                        st.add_block(Q, np.tile(np.asarray(axis, float), (n, 1)), np.full(n, rapid),
+                                     np.full(n, math.nan if rapid else feed), np.full(n, rec.line, np.int64), cur_xform)
                     arc = None
                 add_point(p, axis, rapid, rec.line)
                 if m == "GOTO":
