@@ -135,3 +135,17 @@ def test_gcode_axis_word_beyond_any_machine_is_an_input_error(fuzz_folder):
     p.write_text(text.replace("pivot=150.000000", "pivot=1e308"))
     with pytest.raises(InputError, match="pivot=1e308: not a length of 0 to 1e"):
         read_gcode(p)
+
+
+@pytest.mark.parametrize("arc", ["CIRCLE/0,0,0,0,0,1,0.00001,0.01,0.5,6,1", "MOVARC/0,0,0,0,0,1,0.00001,ANGLE,90"])
+def test_apt_arc_point_on_the_axis_is_an_input_error_not_nan(tmp_path, arc):
+    """A tiny radius let a start point on the axis pass the radius check: NaN points (0 / 0)."""
+    import warnings
+
+    p = tmp_path / "axis.apt"
+    p.write_text(f"UNITS/MM\nGOTO/0,0,0\n{arc}\nGOTO/0,0,0\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        with pytest.raises(InputError, match="start point lies on the axis") as exc:
+            read_apt(p)
+    assert exc.value.line == 3

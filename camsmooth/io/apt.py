@@ -420,6 +420,9 @@ def _arc_points(p0: np.ndarray, p1: np.ndarray, arc: _Arc, tol: float, file: str
         if abs(r - arc.radius) > slack:
             raise InputError(f"{what}: the arc's {which} point is {r:.6g} mm from the axis, the radius is "
                              f"{arc.radius:.6g} mm", file=file, line=arc.line)
+        if not r > 1e-9:
+            raise InputError(f"{what}: the arc's {which} point lies on the axis (radius {arc.radius:.6g} mm): it "
+                             "gives no angle", file=file, line=arc.line)
     phi = math.atan2(float(np.cross(u0, u1) @ n), float(u0 @ u1))
     if arc.turns:
         # n full turns plus the angle to the end point in [0, 2 pi); an end point within the
