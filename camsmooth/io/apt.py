@@ -435,12 +435,15 @@ def _arc_points(p0: np.ndarray, p1: np.ndarray, arc: _Arc, tol: float, file: str
     elif phi <= 1e-12:
         phi += 2.0 * math.pi  # the sweep is in (0, 2 pi]; start = end is a full circle
     if arc.sweep is not None:
-        # the points decide below 2 pi; the record's sweep must agree (a wrong sign or normal is named)
-        gap = abs(phi - arc.sweep) * arc.radius
-        if gap > slack and not (arc.sweep > 2 * math.pi - 1e-9 and phi > 2 * math.pi - 1e-9):
-            raise InputError(f"{arc.record}: the sweep is {math.degrees(arc.sweep):.6g} deg but the start and end "
-                             f"points are {math.degrees(phi):.6g} deg apart counter-clockwise about the normal",
-                             file=file, line=arc.line)
+        # the points decide; where start and end are within the tolerance of each other their angle
+        # is known only modulo a turn (a tiny arc or a full circle): the record's sweep decides
+        if abs(phi - arc.sweep) * arc.radius > slack:
+            if min(abs(phi + 2 * math.pi - arc.sweep), abs(phi - 2 * math.pi - arc.sweep)) * arc.radius <= slack:
+                phi = arc.sweep
+            else:
+                raise InputError(f"{arc.record}: the sweep is {math.degrees(arc.sweep):.6g} deg but the start and "
+                                 f"end points are {math.degrees(phi):.6g} deg apart counter-clockwise about the "
+                                 "normal", file=file, line=arc.line)
     r = max(r0, r1)
     step = 2.0 * math.acos(max(-1.0, 1.0 - tol / r)) if tol < r else math.pi / 2
     k_float = phi / min(step, math.pi / 2)
