@@ -32,7 +32,8 @@ Records read (one per line; ``MAJOR/arg,arg,...`` or a bare major word):
   (i, j, k) of radius r, starting at the current point; NX gives the axis "assuming a clockwise
   direction", i.e. the tool moves clockwise about (i, j, k) (counter-clockwise about -(i, j, k)).
   The arc (a helix when start and end differ along the axis) is replaced by chords whose
-  deviation from it is at most ``chord_tol`` mm. A full circle when start = end.
+  deviation from it is at most ``chord_tol`` mm. A full circle when start = end (within the
+  tolerance of the radius check below: a rounded end point a hair past the start).
 - ``CIRCLE/xc,yc,zc,i,j,k,r,t,f,d,e,TIMES,n``: a helix about the same axis, in the same sense, of n
   full turns plus the angle from the start to the following GOTO (in [0, 360) deg; an end within
   the tolerance of the start angle ends after exactly n turns). The rise along the axis from the
@@ -432,8 +433,8 @@ def _arc_points(p0: np.ndarray, p1: np.ndarray, arc: _Arc, tol: float, file: str
         if min(phi, 2.0 * math.pi - phi) * arc.radius <= slack:
             phi = 0.0
         phi += 2.0 * math.pi * arc.turns
-    elif phi <= 1e-12:
-        phi += 2.0 * math.pi  # the sweep is in (0, 2 pi]; start = end is a full circle
+    elif phi <= 1e-12 or (arc.sweep is None and phi * arc.radius <= slack):
+        phi += 2.0 * math.pi  # the sweep is in (0, 2 pi]; start = end (within the tolerance) is a full circle
     if arc.sweep is not None:
         # the points decide; where start and end are within the tolerance of each other their angle
         # is known only modulo a turn (a tiny arc or a full circle): the record's sweep decides
