@@ -10,6 +10,11 @@ bytes, insert bytes (digits, separators, '$', '/', NaN and infinity spellings, n
 CR, NUL), delete, duplicate or swap lines, insert a line from a pool of troublesome records. A
 floating-point RuntimeWarning (overflow, invalid value) counts as a finding too.
 
+A fifth pass ("apt-gen") generates APT files record by record instead (consistent arcs and
+helices, MSYS frames, tool paths and tool changes, feeds, '$' continuations) and checks the
+program read too: finite points, unit axes, tool paths in order, rows where the moves are not
+rapid.
+
 tests/test_fuzz_readers.py runs a short pass of this in the suite; this script runs a longer one
 and prints what it ran. Usage: python benchmarks/fuzz_readers.py [EXAMPLES_PER_READER] [SEED]
 """
@@ -31,7 +36,7 @@ from hypothesis import strategies as st
 
 from camsmooth.errors import InputError
 
-__all__ = ["READERS", "seed_files", "mutations", "mutate", "read_or_input_error"]
+__all__ = ["READERS", "seed_files", "mutations", "mutate", "read_or_input_error", "apt_programs", "check_apt_program"]
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -158,6 +163,105 @@ def mutate(data: bytes, ops: list[tuple[str, float, int, bytes, int]]) -> bytes:
     return data
 
 
+# ----------------------------------------------------------------------------------------------
+# APT programs generated record by record (not mutated): consistent arcs and helices among tool
+# paths, tool changes, MSYS frames, feeds, continuations; the reader must give finite points and
+# unit axes, or an InputError
+def _f(v: float) -> str:
+    return f"{v:.4f}"
+
+
+def _unit(v: tuple[float, float, float]) -> np.ndarray:
+    a = np.asarray(v, float)
+    return a / np.linalg.norm(a)
+
+
+_coord = st.floats(-200, 200, allow_nan=False)
+_vec = st.tuples(st.floats(-1, 1), st.floats(-1, 1), st.floats(-1, 1)).filter(lambda v: sum(x * x for x in v) > 0.05)
+
+
+@st.composite
+def _arc_block(draw: st.DrawFn) -> str:
+    """Start GOTO, CIRCLE (NX, clockwise about its axis, optional TIMES) or MOVARC, end GOTO."""
+    c = np.array([draw(_coord), draw(_coord), draw(_coord)])
+    a = _unit(draw(_vec))
+    t = np.array([1.0, 0, 0]) if abs(a[0]) < 0.9 else np.array([0, 1.0, 0])
+    e1 = _unit(tuple(t - (t @ a) * a))
+    e2 = np.cross(a, e1)
+    r = draw(st.floats(0.05, 50))
+    th0, th1 = draw(st.floats(0, 6.3)), draw(st.floats(0, 6.3))
+    h0, h1 = draw(st.floats(-20, 20)), draw(st.floats(-20, 20))
+    p0 = c + r * (np.cos(th0) * e1 + np.sin(th0) * e2) + h0 * a
+    p1 = c + r * (np.cos(th1) * e1 + np.sin(th1) * e2) + h1 * a
+    vec = ",".join(f"{x:.9f}" for x in a)
+    if draw(st.booleans()):
+        times = draw(st.sampled_from(["", ",TIMES,0", ",TIMES,1", ",TIMES,3"]))
+        rec = f"CIRCLE/{','.join(map(_f, c))},{vec},{r:.6f},0.01,0.5,10,1{times}"
+    else:
+        sweep = ((th1 - th0) % (2 * np.pi)) or 2 * np.pi
+        rec = f"MOVARC/{','.join(map(_f, c))},{vec},{r:.6f},ANGLE,{np.degrees(sweep):.6f}"
+    return f"GOTO/{','.join(map(_f, p0))}\n{rec}\nGOTO/{','.join(map(_f, p1))}"
+
+
+@st.composite
+def _msys(draw: st.DrawFn) -> str:
+    x = _unit(draw(_vec))
+    y = draw(_vec)
+    y = np.asarray(y) - (np.asarray(y) @ x) * x
+    if np.linalg.norm(y) < 0.1:
+        y = np.cross(x, [0.0, 0.0, 1.0]) if abs(x[2]) < 0.9 else np.cross(x, [1.0, 0.0, 0.0])
+    y = _unit(tuple(y))
+    return "MSYS/" + ",".join([_f(draw(_coord)) for _ in range(3)] + [f"{v:.7f}" for v in (*x, *y)])
+
+
+_goto = st.builds(lambda p, a, six: "GOTO/" + ",".join(map(_f, p)) + ("," + ",".join(f"{v:.7f}" for v in _unit(a))
+                                                                     if six else ""),
+                  st.tuples(_coord, _coord, _coord), _vec, st.booleans())
+_record = st.one_of(
+    _goto, _goto, _goto, _arc_block(), _msys(),
+    st.builds(lambda p: ",".join(map(_f, p)), st.tuples(_coord, _coord, _coord)),  # a further point of a GOTO
+    st.sampled_from(["RAPID", "END-OF-PATH", "UNITS/MM", "MULTAX/OFF", "MULTAX/ON", "CYCLE/OFF", "CUTCOM/LEFT",
+                     "COOLNT/ON", "PPRINT/'a, b / c'", "PPRINT finish", "SPINDL/RPM,12000,CLW", "FEDRAT/MMPR,0.05",
+                     "FEDRAT/MMPM,800", "FEDRAT/1500.0, MMPM", "$$ comment", "END", "FINI"]),
+    st.builds("TOOL PATH/OP{},TOOL,T{}".format, st.integers(0, 9), st.integers(0, 3)),
+    st.builds("TLDATA/MILL,{:.4f},{:.4f},50,0,0".format, st.floats(1, 20), st.floats(0, 0.5)),
+    st.builds("CUTTER/{:.4f},{:.4f}".format, st.floats(1, 20), st.floats(0, 0.5)),
+    st.builds("LOADTL/{}".format, st.integers(1, 99)),
+    st.builds(lambda a: "TLAXIS/" + ",".join(f"{v:.7f}" for v in _unit(a)), _vec),
+)
+
+
+@st.composite
+def apt_programs(draw: st.DrawFn) -> bytes:
+    """An APT file of 1 to 40 generated records, some continued with '$'."""
+    lines = ["SPINDL/RPM,10000", draw(_goto)]
+    for rec in draw(st.lists(_record, min_size=1, max_size=40)):
+        for part in rec.split("\n"):
+            if "," in part and draw(st.integers(0, 9)) == 0:  # an APT continuation after a comma
+                k = part.index(",") + 1
+                part = part[:k] + "$\n " + part[k:]
+            lines.append(part)
+    return ("\n".join(lines) + "\n").encode()
+
+
+def check_apt_program(path: Path) -> str:
+    """'ok' (finite points, unit axes, rows and tool paths consistent) or 'InputError'."""
+    from camsmooth.io.apt import read_apt
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        try:
+            prog = read_apt(path)
+        except InputError:
+            return "InputError"
+    assert np.isfinite(prog.tip).all(), "non-finite tool tip"
+    assert np.allclose(np.linalg.norm(prog.axis, axis=1), 1.0, atol=1e-9), "axis not unit"
+    assert all(0 <= tp.start <= tp.stop <= len(prog) for tp in prog.toolpaths), "tool path out of range"
+    assert all(a.stop <= b.start for a, b in zip(prog.toolpaths, prog.toolpaths[1:], strict=False)), "overlap"
+    assert ((prog.rows >= 0) == ~prog.rapid).all(), "rows and rapids disagree"
+    return "ok"
+
+
 def read_or_input_error(reader: Callable[[Path], Any], path: Path) -> str:
     """'ok' or 'InputError'; any other exception propagates (that is a finding), and so does a
     floating-point RuntimeWarning (overflow, invalid value: the CLI would print it)."""
@@ -173,10 +277,22 @@ def read_or_input_error(reader: Callable[[Path], Any], path: Path) -> str:
 def run(reader_name: str, examples: int, folder: Path, deadline_ms: float = 5000.0,
         rng_seed: int | None = None) -> Counter:
     """Fuzz one reader for ``examples`` examples; the outcomes counted ('ok', 'InputError')."""
+    counts: Counter = Counter()
+    if reader_name == "apt-gen":
+
+        @settings(max_examples=examples, deadline=deadline_ms, database=None,
+                  suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+        @given(data=apt_programs())
+        def generated(data: bytes) -> None:
+            path = folder / "fuzz_generated.apt"
+            path.write_bytes(data)
+            counts[check_apt_program(path)] += 1
+
+        (seed(rng_seed)(generated) if rng_seed is not None else generated)()
+        return counts
     readers = _readers()
     reader = readers[reader_name]
     seeds = seed_files(folder)[reader_name]
-    counts: Counter = Counter()
 
     @settings(max_examples=examples, deadline=deadline_ms, database=None,
               suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
@@ -197,11 +313,12 @@ def main(examples: int = 2000, rng_seed: int | None = None) -> None:
     print(f"fuzz_readers: {examples} examples per reader, deadline 5 s per example, "
           f"seed {'random' if rng_seed is None else rng_seed}")
     with tempfile.TemporaryDirectory() as d:
-        for name in READERS:
+        for name in (*READERS, "apt-gen"):
             t0 = time.perf_counter()
             counts = run(name, examples, Path(d), rng_seed=rng_seed)
             n = sum(counts.values())
-            print(f"  {name:8s} {n:6d} runs (seeds {len(seed_files(Path(d))[name])}): {counts['ok']} read, "
+            what = "generated" if name == "apt-gen" else f"seeds {len(seed_files(Path(d))[name])}"
+            print(f"  {name:8s} {n:6d} runs ({what}): {counts['ok']} read, "
                   f"{counts['InputError']} InputError, no other exception; {time.perf_counter() - t0:.1f} s")
 
 

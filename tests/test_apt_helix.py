@@ -130,3 +130,12 @@ def test_arcs_past_the_file_limit_are_named(tmp_path, monkeypatch):
     with pytest.raises(InputError, match="at most 500 in a file") as exc:
         read_apt(_write(tmp_path, "many.cls", text), chord_tol=0.001)
     assert exc.value.line == 8
+
+
+def test_circle_end_a_hair_past_the_start_is_a_full_circle(tmp_path):
+    """A full NX circle whose end GOTO is rounded a hair past the start: a full turn, not an arc of
+    a few micrometres (the record gives no sweep to tell)."""
+    text = "UNITS/MM\nGOTO/10,0,0\nCIRCLE/0,0,0,0,0,-1,10,0.01,0.5,6,1\nGOTO/10,0.00001,0\n"
+    prog = read_apt(_write(tmp_path, "full.cls", text), chord_tol=0.01)
+    ang = np.unwrap(np.arctan2(prog.tip[:, 1], prog.tip[:, 0]))
+    assert len(prog) == 72 and math.isclose(ang[-1], 2 * math.pi + 1e-6, abs_tol=1e-6)  # 71 chords of 0.01 mm

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import re
 
+import numpy as np
 import pytest
 
 pytest.importorskip("hypothesis")
@@ -14,7 +15,16 @@ pytest.importorskip("hypothesis")
 from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
-from benchmarks.fuzz_readers import READERS, _readers, mutate, mutations, read_or_input_error, seed_files  # noqa: E402
+from benchmarks.fuzz_readers import (  # noqa: E402
+    READERS,
+    _readers,
+    apt_programs,
+    check_apt_program,
+    mutate,
+    mutations,
+    read_or_input_error,
+    seed_files,
+)
 from camsmooth.errors import InputError  # noqa: E402
 from camsmooth.io.apt import read_apt  # noqa: E402
 from camsmooth.io.gcode import read_gcode  # noqa: E402
@@ -45,6 +55,16 @@ def test_mutated_files_read_or_raise_input_error(fuzz_folder, name, which, ops):
     path = folder / f"fuzz_{name}_{file}"
     path.write_bytes(mutate(data, ops))
     assert read_or_input_error(readers[name], path) in ("ok", "InputError")
+
+
+@settings(max_examples=120, deadline=3000, database=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@given(data=apt_programs())
+def test_generated_apt_programs_read_to_finite_points_or_raise_input_error(fuzz_folder, data):
+    folder, _, _ = fuzz_folder
+    path = folder / "generated.apt"
+    path.write_bytes(data)
+    assert check_apt_program(path) in ("ok", "InputError")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -135,3 +155,37 @@ def test_gcode_axis_word_beyond_any_machine_is_an_input_error(fuzz_folder):
     p.write_text(text.replace("pivot=150.000000", "pivot=1e308"))
     with pytest.raises(InputError, match="pivot=1e308: not a length of 0 to 1e"):
         read_gcode(p)
+
+
+@pytest.mark.parametrize("arc", ["CIRCLE/0,0,0,0,0,1,0.00001,0.01,0.5,6,1", "MOVARC/0,0,0,0,0,1,0.00001,ANGLE,90"])
+def test_apt_arc_point_on_the_axis_is_an_input_error_not_nan(tmp_path, arc):
+    """A tiny radius let a start point on the axis pass the radius check: NaN points (0 / 0)."""
+    import warnings
+
+    p = tmp_path / "axis.apt"
+    p.write_text(f"UNITS/MM\nGOTO/0,0,0\n{arc}\nGOTO/0,0,0\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        with pytest.raises(InputError, match="start point lies on the axis") as exc:
+            read_apt(p)
+    assert exc.value.line == 3
+
+
+def test_apt_movarc_of_no_sweep_is_no_arc(tmp_path):
+    """Start = end with a sweep within the tolerance of 0 (found by the generated programs): no arc,
+    not a full circle contradicting the sweep."""
+    p = tmp_path / "zero.apt"
+    p.write_text("UNITS/MM\nGOTO/81.5951,120.6399,60.0627\n"
+                 "MOVARC/81.5451,120.6399,60.0627,0,1,0,0.05,ANGLE,0.005730\nGOTO/81.5951,120.6399,60.0627\n")
+    prog = read_apt(p)
+    assert len(prog) == 2
+
+
+def test_apt_movarc_full_turn_with_end_a_hair_before_the_start(tmp_path):
+    """ANGLE 360 with the end point a hair short of the start (rounding; found by the generated
+    programs) is the full circle the record says, not a contradiction."""
+    p = tmp_path / "full.apt"
+    p.write_text("UNITS/MM\nGOTO/10,0,0\nMOVARC/0,0,0,0,0,1,10,ANGLE,360\nGOTO/10,-0.00001,0\n")
+    prog = read_apt(p, chord_tol=0.01)
+    ang = np.unwrap(np.arctan2(prog.tip[:, 1], prog.tip[:, 0]))
+    assert np.all(np.diff(ang[:-1]) > 0) and ang[-2] > 2 * np.pi - 0.1

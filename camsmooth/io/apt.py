@@ -32,7 +32,8 @@ Records read (one per line; ``MAJOR/arg,arg,...`` or a bare major word):
   (i, j, k) of radius r, starting at the current point; NX gives the axis "assuming a clockwise
   direction", i.e. the tool moves clockwise about (i, j, k) (counter-clockwise about -(i, j, k)).
   The arc (a helix when start and end differ along the axis) is replaced by chords whose
-  deviation from it is at most ``chord_tol`` mm. A full circle when start = end.
+  deviation from it is at most ``chord_tol`` mm. A full circle when start = end (within the
+  tolerance of the radius check below: a rounded end point a hair past the start).
 - ``CIRCLE/xc,yc,zc,i,j,k,r,t,f,d,e,TIMES,n``: a helix about the same axis, in the same sense, of n
   full turns plus the angle from the start to the following GOTO (in [0, 360) deg; an end within
   the tolerance of the start angle ends after exactly n turns). The rise along the axis from the
@@ -420,6 +421,9 @@ def _arc_points(p0: np.ndarray, p1: np.ndarray, arc: _Arc, tol: float, file: str
         if abs(r - arc.radius) > slack:
             raise InputError(f"{what}: the arc's {which} point is {r:.6g} mm from the axis, the radius is "
                              f"{arc.radius:.6g} mm", file=file, line=arc.line)
+        if not r > 1e-9:
+            raise InputError(f"{what}: the arc's {which} point lies on the axis (radius {arc.radius:.6g} mm): it "
+                             "gives no angle", file=file, line=arc.line)
     phi = math.atan2(float(np.cross(u0, u1) @ n), float(u0 @ u1))
     if arc.turns:
         # n full turns plus the angle to the end point in [0, 2 pi); an end point within the
@@ -429,15 +433,18 @@ def _arc_points(p0: np.ndarray, p1: np.ndarray, arc: _Arc, tol: float, file: str
         if min(phi, 2.0 * math.pi - phi) * arc.radius <= slack:
             phi = 0.0
         phi += 2.0 * math.pi * arc.turns
-    elif phi <= 1e-12:
-        phi += 2.0 * math.pi  # the sweep is in (0, 2 pi]; start = end is a full circle
+    elif phi <= 1e-12 or (arc.sweep is None and phi * arc.radius <= slack):
+        phi += 2.0 * math.pi  # the sweep is in (0, 2 pi]; start = end (within the tolerance) is a full circle
     if arc.sweep is not None:
-        # the points decide below 2 pi; the record's sweep must agree (a wrong sign or normal is named)
-        gap = abs(phi - arc.sweep) * arc.radius
-        if gap > slack and not (arc.sweep > 2 * math.pi - 1e-9 and phi > 2 * math.pi - 1e-9):
-            raise InputError(f"{arc.record}: the sweep is {math.degrees(arc.sweep):.6g} deg but the start and end "
-                             f"points are {math.degrees(phi):.6g} deg apart counter-clockwise about the normal",
-                             file=file, line=arc.line)
+        # the points decide; where start and end are within the tolerance of each other their angle
+        # is known only modulo a turn (a tiny arc or a full circle): the record's sweep decides
+        if abs(phi - arc.sweep) * arc.radius > slack:
+            if min(abs(phi + 2 * math.pi - arc.sweep), abs(phi - 2 * math.pi - arc.sweep)) * arc.radius <= slack:
+                phi = arc.sweep
+            else:
+                raise InputError(f"{arc.record}: the sweep is {math.degrees(arc.sweep):.6g} deg but the start and "
+                                 f"end points are {math.degrees(phi):.6g} deg apart counter-clockwise about the "
+                                 "normal", file=file, line=arc.line)
     r = max(r0, r1)
     step = 2.0 * math.acos(max(-1.0, 1.0 - tol / r)) if tol < r else math.pi / 2
     k_float = phi / min(step, math.pi / 2)
