@@ -30,7 +30,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from camsmooth.controller.linuxcnc_sim import linuxcnc_missing, simulate  # noqa: E402
+from camsmooth.controller.linuxcnc_sim import (  # noqa: E402
+    linuxcnc_missing,
+    programmed_tip_path,
+    row_samples,
+    simulate,
+    tip_deviation,
+)
 from camsmooth.geometry.cutter import ToroidalCutter  # noqa: E402
 from camsmooth.geometry.paths import CCPath  # noqa: E402
 from camsmooth.geometry.surfaces import load_surface  # noqa: E402
@@ -48,35 +54,6 @@ def linuxcnc_machine():
     data = tomllib.loads(DEFAULT_MACHINE_TOML)
     data["post"] = {"dialect": "linuxcnc", "mode": "machine"}
     return machine_from_dict(data, "<bench machine>")
-
-
-def dense_curve(machine, q: np.ndarray, sub: int = 16) -> np.ndarray:
-    """The tip path of the full-density program: each block's joints interpolated linearly."""
-    s = np.linspace(0.0, 1.0, sub, endpoint=False)
-    qq = (q[:-1, None, :] + s[None, :, None] * np.diff(q, axis=0)[:, None, :]).reshape(-1, 5)
-    qq = np.vstack([qq, q[-1:]])
-    tip, _ = machine.tool_pose_np(qq[:, 3], qq[:, 4], qq[:, 0], qq[:, 1], qq[:, 2])
-    return tip
-
-
-def distance_to_polyline(p: np.ndarray, curve: np.ndarray, chunk: int = 2000) -> np.ndarray:
-    """Distance of each point to the polyline (brute force over its segments, in chunks)."""
-    from scipy.spatial import cKDTree
-
-    a, d = curve[:-1], np.diff(curve, axis=0)
-    tree = cKDTree(0.5 * (curve[:-1] + curve[1:]))
-    seg_len = np.linalg.norm(d, axis=1).max()
-    out = np.empty(len(p))
-    for i in range(0, len(p), chunk):
-        pp = p[i:i + chunk]
-        near = tree.query_ball_point(pp, r=seg_len + 0.05)
-        for j, idx in enumerate(near):
-            idx = np.asarray(idx if idx else [int(tree.query(pp[j])[1])])
-            rel = pp[j] - a[idx]
-            t = np.clip(np.einsum("ij,ij->i", rel, d[idx]) / np.maximum(np.einsum("ij,ij->i", d[idx], d[idx]),
-                                                                           1e-300), 0, 1)
-            out[i + j] = np.linalg.norm(rel - t[:, None] * d[idx], axis=1).min()
-    return out
 
 
 def run(sample: str, rows: int, methods: list[str], keep: Path | None) -> list[dict]:
@@ -101,38 +78,23 @@ def run(sample: str, rows: int, methods: list[str], keep: Path | None) -> list[d
             t0 = time.time()
             sim = simulate(ngc, machine, keep=(keep / f"{sample}_{m}") if keep else None)
             wall = time.time() - t0
-            lines = ngc.read_text().split("\n")
-        # the program's cut blocks per row: G01 lines after a row comment, without the entry move
-        row_lines: dict[int, list[int]] = {}
-        row = None
-        for k, ln in enumerate(lines, start=1):
-            if ln.startswith("(row "):
-                row, entry = int(ln.split()[1].rstrip(":")), True
-            elif ln.startswith("G01") and row is not None:
-                if entry:
-                    entry = False
-                    continue
-                row_lines.setdefault(row, []).append(k)
-            elif ln.startswith("G00"):
-                row = None if row is not None and row in row_lines else row
+            text = ngc.read_text()
+        samples = row_samples(text, sim)
         joints = sim.joints
         tip_sim, _ = machine.tool_pose_np(np.radians(joints[:, 3]), np.radians(joints[:, 4]), joints[:, 0],
                                           joints[:, 1], joints[:, 2])
         q = np.column_stack([r.xyz, r.A, r.B])
-        for rid, lns in row_lines.items():
-            on = np.isin(sim.line, lns)
-            k = np.flatnonzero(on)
+        for rid, k in samples.items():
             executed = (k[-1] - k[0] + 1) * sim.servo_period
             sel = r.rows == rid
             predicted = r.controller.row_cycle_time[list(r.controller.row_ids).index(rid)]
             optimal = r.plan.row_cycle_time[list(r.plan.row_ids).index(rid)]
-            # the programmed path: the entry feed move along the tool axis, then the row's blocks
             first = np.flatnonzero(sel)[0]
             entry = r.cl[first] + DEFAULT_SAFE_HEIGHT_MM * r.axis[first]
-            curve = np.vstack([entry[None, :], dense_curve(machine, q[sel])])
-            dev = distance_to_polyline(tip_sim[k[0]:k[-1] + 1], curve).max()
+            dev = tip_deviation(tip_sim[k[0]:k[-1] + 1], programmed_tip_path(machine, q[sel], entry)).max()
             out.append(dict(sample=sample, method=m, row=int(rid), executed=executed, predicted=predicted,
-                            optimal=optimal, deviation_um=1e3 * dev, blocks=len(lns), points=int(sel.sum()),
+                            optimal=optimal, deviation_um=1e3 * dev, blocks=int(r.controller.keep[sel].sum() - 1),
+                            points=int(sel.sum()),
                             wall=wall))
     return out
 

@@ -17,7 +17,8 @@ from camsmooth.controller.blocks import BLOCK_TOLERANCE_SHARE, ControllerPlan, P
 from camsmooth.controller.linuxcnc import LinuxCNCPlanner
 from camsmooth.machine.kinematics import Machine
 
-__all__ = ["PLANNERS", "planner_for", "ControllerPlan", "Planner", "decimate", "predict", "LinuxCNCPlanner"]
+__all__ = ["PLANNERS", "PATH_TOLERANCE_SHARE", "BLOCK_TOLERANCE_SHARE", "planner_for", "ControllerPlan", "Planner",
+           "decimate", "predict", "LinuxCNCPlanner"]
 
 #: share of the user's tolerance the controller may blend off the path (G64 P), the rest is the blocks'
 PATH_TOLERANCE_SHARE = 1.0 - BLOCK_TOLERANCE_SHARE

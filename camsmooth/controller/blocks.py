@@ -146,13 +146,22 @@ class Planner(Protocol):
         """End time (s from the row's first point) of each block of one row."""
         ...
 
+    def safe_block_times(self, machine: Machine, q_blocks: np.ndarray, block_time: np.ndarray,
+                         tolerance: float) -> np.ndarray:
+        """Block times (s, at least ``block_time``) that keep the controller's blending within
+        ``tolerance`` (mm)."""
+        ...
+
 
 def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
-            t_opt: np.ndarray, keep: np.ndarray, *, entry_height: float, entry_feed: np.ndarray) -> ControllerPlan:
+            t_opt: np.ndarray, keep: np.ndarray, *, entry_height: float, entry_feed: np.ndarray,
+            blend_tolerance: float | None = None) -> ControllerPlan:
     """The controller's timing of a program written in the blocks ``keep`` with the block times
     of the time-optimal law ``t_opt`` (s from each row's start). q: (N, 5) X Y Z mm A B rad;
     tip: (N, 3) mm. Each row is entered by a feed move of ``entry_height`` mm along the tool axis
-    at the row's programmed feed ``entry_feed`` (mm/min, per row), as the G-code writer does."""
+    at the row's programmed feed ``entry_feed`` (mm/min, per row), as the G-code writer does.
+    blend_tolerance: mm the controller's blends may take the tip off the path; the block times
+    are lengthened where its blends would go farther (``Planner.safe_block_times``)."""
     rows = np.asarray(rows)
     n = len(rows)
     starts, ends = _row_bounds(rows)
@@ -163,6 +172,8 @@ def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray,
     for r, (a, b) in enumerate(zip(starts, ends, strict=True)):
         k = a + np.flatnonzero(keep[a:b])
         bt = np.diff(t_opt[k])
+        if blend_tolerance is not None and len(k) > 2:
+            bt = planner.safe_block_times(machine, q[k], bt, blend_tolerance)
         block_time[k[1:]] = bt
         _, axis = machine.tool_pose_np(q[a, 3], q[a, 4], q[a, 0], q[a, 1], q[a, 2])
         entry_q = q[a].copy()

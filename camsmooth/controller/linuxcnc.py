@@ -83,6 +83,11 @@ class Segments:
     tolerance: float = 0.0
 
 
+def _tip(machine: Machine, q: np.ndarray) -> np.ndarray:
+    tip, _ = machine.tool_pose_np(q[:, 3], q[:, 4], q[:, 0], q[:, 1], q[:, 2])
+    return np.asarray(tip)
+
+
 def _limits(machine: Machine) -> tuple[np.ndarray, np.ndarray]:
     """(vmax, amax) per joint X Y Z A B in program units (mm/s, mm/s^2, deg/s, deg/s^2)."""
     v, a = np.full(5, np.inf), np.full(5, np.inf)
@@ -313,6 +318,53 @@ class LinuxCNCPlanner:
                             np.ones(k, bool))
         bt = self.run(seg)
         return bt.end[1:] - bt.end[0]
+
+    def safe_block_times(self, machine: Machine, q_blocks: np.ndarray, block_time: np.ndarray,
+                         tolerance: float) -> np.ndarray:
+        """The block times (s) to command so that LinuxCNC's parabolic blends keep the tool tip
+        within ``tolerance`` (mm) of the blocks' tip path: at least ``block_time``.
+
+        Why: LinuxCNC blends all five joints at once between two rotary blocks, from the moment
+        the first one, decelerating at a/2, is slower than the blend speed v_b: the joints then
+        follow a parabola from J - d w_1 to J + d w_2 (J the corner, w the joint change per mm of
+        the block's XYZ length, d = v_b^2 / a, a the smaller segment acceleration), whose
+        middle lies (d / 4) (w_2 - w_1) from J in joint space. Its tip error grows with the
+        pivot lever; ``G64 P`` bounds only the XYZ part. So the commanded speed of both blocks is
+        capped at sqrt(a d_max) with d_max the d whose tip error across the path is
+        ``tolerance`` (the tip error is linear in d: the Jacobian of the forward kinematics,
+        evaluated by a finite step). Joints X Y Z mm A B rad."""
+        q = np.asarray(q_blocks, float)
+        bt = np.asarray(block_time, float).copy()
+        if len(q) < 3:
+            return bt
+        dq = np.diff(q, axis=0)
+        L = np.linalg.norm(dq[:, :3], axis=1)
+        ok = L > 0
+        w = np.where(ok[:, None], dq / np.maximum(L, 1e-300)[:, None], 0.0)
+        jq = q[1:-1]  # corners between block k and k + 1
+        step = 0.01  # mm of d for the finite step (the error is linear in d)
+        dw = 0.25 * (w[1:] - w[:-1])
+        tip0 = _tip(machine, jq)
+        err = (_tip(machine, jq + step * dw) - tip0) / step
+        tangent = _tip(machine, jq + step * w[1:]) - _tip(machine, jq - step * w[:-1])
+        tangent /= np.maximum(np.linalg.norm(tangent, axis=1), 1e-300)[:, None]
+        err -= np.sum(err * tangent, axis=1)[:, None] * tangent
+        per_d = np.linalg.norm(err, axis=1)  # mm of tip error per mm of d
+        vmax, amax = _limits(machine)
+        deg = np.r_[1.0, 1.0, 1.0, 180.0 / np.pi, 180.0 / np.pi]
+        d_prog = np.abs(dq) * deg
+        with np.errstate(divide="ignore", invalid="ignore"):
+            acc = np.where(L > 0, L / np.max(np.where(d_prog > 0, d_prog / amax, 0.0), axis=1), np.inf)
+        a = np.minimum(acc[1:], acc[:-1])  # the blend's d uses the slower of the two decelerations
+        with np.errstate(divide="ignore"):
+            d_max = np.where(per_d > 0, tolerance / per_d, np.inf)
+        v_cap = np.sqrt(a * d_max)
+        ok_corner = ok[1:] & ok[:-1]
+        for side in (0, 1):  # the block before the corner and the block after it
+            k = np.flatnonzero(ok_corner) + side
+            v = v_cap[ok_corner]
+            bt[k] = np.maximum(bt[k], L[k] / v)
+        return bt
 
     def run(self, seg: Segments) -> BlockTimes:
         """Start and end time of every segment (s); a segment of zero length (LinuxCNC drops it)

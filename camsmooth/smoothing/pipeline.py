@@ -375,7 +375,7 @@ class ProgramSmoother:
     def controller_plan(self, r: MethodResult, q: np.ndarray, tip: np.ndarray) -> Any:
         """The blocks the program is written in and the machine's controller's timing of them
         (camsmooth.controller), None when camsmooth has no model of the machine's controller."""
-        from camsmooth.controller import decimate, planner_for, predict
+        from camsmooth.controller import PATH_TOLERANCE_SHARE, decimate, planner_for, predict
         from camsmooth.io.gcode import DEFAULT_SAFE_HEIGHT_MM
 
         planner = planner_for(self.nominal, self.tolerance)
@@ -385,7 +385,8 @@ class ProgramSmoother:
         keep = decimate(self.real, p.path.rows, q, tip, self.tolerance)
         entry = np.asarray(p.feed, float)[[s.start for s in p.slices]]
         return predict(planner, self.nominal, p.path.rows, q, tip, r.plan.t_plan, keep,
-                       entry_height=DEFAULT_SAFE_HEIGHT_MM, entry_feed=entry)
+                       entry_height=DEFAULT_SAFE_HEIGHT_MM, entry_feed=entry,
+                       blend_tolerance=PATH_TOLERANCE_SHARE * self.tolerance)
 
     def _point_names(self, i: int) -> str:
         return self.program.name(i)
