@@ -712,6 +712,7 @@ class Selector:
                 standalone_why = (f"its held-out chi-square fall ({cmp['delta_chi2']:.3g} floors^2) is within "
                                   f"{opt.separate_z:g} standard errors ({cmp['se']:.3g}) and its parameters do not "
                                   f"keep one sign and size across the {K} folds")
+        worse = self.worse_channels(before, after) if opt.rule == "standalone" else []
         if held_change >= 0:
             out.update(ok=False, reason=f"improves the fit RMS by {-100 * fit_change:.2g}% but the held-out RMS "
                        f"rises by {100 * held_change:.2g}%" if fit_change < 0 else
@@ -719,6 +720,13 @@ class Selector:
         elif per_fold_better <= K // 2:
             out.update(ok=False, reason=f"lowers the pooled held-out RMS by {-100 * held_change:.2g}% but only in "
                        f"{per_fold_better} of {K} folds")
+        elif worse:
+            c, dc, se = worse[0]
+            out.update(ok=False, reason=f"lowers the held-out RMS by {-100 * held_change:.2g}% but makes it worse on "
+                       f"{c} (held-out chi-square up {-dc:.3g} floors^2, {-dc / max(se, 1e-300):.2g} standard errors): "
+                       "it does not explain its share consistently across the channels it moves - a stand-in for an "
+                       "effect outside the library")
+            out["worse_channels"] = [w[0] for w in worse]
         elif margin_why is not None and (opt.rule != "standalone" or standalone_why is not None):
             out.update(ok=False, reason=margin_why + ("" if standalone_why is None else
                                                       f"; nor is it an effect on its own: {standalone_why}"))
@@ -727,6 +735,34 @@ class Selector:
                        "accepted as an effect on its own (clear, consistent across the folds, whatever else is "
                        f"left unexplained; {margin_why})")
         return out
+
+    def worse_channels(self, before: Fit, after: Fit) -> list[tuple[str, float, float]]:
+        """Channels on which ``after`` predicts the held-out samples clearly worse than ``before``:
+        (channel, chi-square fall in floors^2 - negative - and its standard error), for falls
+        below -``separate_z`` standard errors (the per-entry spread, inflated by n / n_eff for the
+        channel's residual autocorrelation) and -``separate_chi2``. A physical term explains its
+        share on every channel it moves; one that buys a fall on one channel with a rise on another
+        stands in for something else."""
+        P, opt = self.P, self.opt
+        if before.heldout_resid is None or after.heldout_resid is None:
+            return []
+        out = []
+        for j, c in enumerate(P.channels):
+            v = P.valid_fit[:, j]
+            if not v.any():
+                continue
+            ea = before.heldout_resid[v, j] * P.w_fit[v, j]
+            eb = after.heldout_resid[v, j] * P.w_fit[v, j]
+            d = ea * ea - eb * eb
+            dc = float(d.sum())
+            if dc >= -opt.separate_chi2:
+                continue
+            n = len(d)
+            n_eff = fitting.effective_sample_count(eb, n)
+            se = math.sqrt(n * float(np.var(d)) * n / max(n_eff, 1.0))
+            if dc < -opt.separate_z * se:
+                out.append((c, dc, se))
+        return sorted(out, key=lambda w: w[1] / max(w[2], 1e-300))
 
     def new_effect(self, before: Fit, after: Fit) -> float:
         """The effect of the terms ``after`` adds to ``before`` (at their values in ``after``): the
