@@ -249,3 +249,19 @@ def test_a_sag_outside_the_library_is_not_named_a_rotary_location_error(seed):
     assert f["effects"][-1]["name"] == "unexplained" and f["effects"][-1]["channels"] == ["tip_z"]
     assert "tip_z" in f["intervals"][0]["channels"]
     assert "worse on tip_y" in {r["name"]: r["reason"] for r in f["rejected"]}["rotary_location"]
+
+
+# ---- 7. the harder catalogue -----------------------------------------------------------------------
+def test_a_three_effect_mixture_is_named_without_going_round_in_circles():
+    """Positioning + squareness + backlash on the tip (benchmarks/hard_cases.py, seed 2): all three
+    named, in a few seconds - the selection stops when it comes back to a set it held before
+    (a guard: correlated terms once traded places for ever). Passes on the old code as well."""
+    import time
+
+    from benchmarks.hard_cases import hard_cases, run_hard_case
+
+    h = next(h for h in hard_cases((2,)) if h.label.startswith("mix: positioning"))
+    t0 = time.perf_counter()
+    r = run_hard_case(h, diagnose)
+    assert sorted(r["named"]) == ["backlash", "linear_positioning", "linear_squareness"] and not r["bad"]
+    assert time.perf_counter() - t0 < 60

@@ -495,6 +495,7 @@ class Selector:
         equivalences: list[dict[str, Any]] = []
         t_start = time.perf_counter()
         scr = self.screener()
+        seen: set[frozenset[str]] = {frozenset()}
         while len(active) < opt.max_terms:
             trials = {}
             cur_s = scr.fit(tuple(active))
@@ -546,6 +547,9 @@ class Selector:
             rejected.pop(best, None)
             current = exact
             active, current = self._backward(active, current, rejected)
+            if frozenset(active) in seen:
+                break  # back to a set already held: the search would go round in a cycle
+            seen.add(frozenset(active))
         # survives the joint refit: every kept term is checked again in the final joint fit, with the
         # axes or elements held back while other terms were missing given another chance
         for name in active:
@@ -571,7 +575,7 @@ class Selector:
                 # after it (or whose pruning changed since) is dropped
                 for name in list(active):
                     reduced = tuple(a for a in active if a != name)
-                    v = self.judge(self.fit(reduced, x0=self.x_from(reduced, final.physics)), final)
+                    v = self.judge(self.fit(reduced, x0=self.x_from(reduced, final.physics)), final, channels=False)
                     if not v["ok"]:
                         active.remove(name)
                         rejected[name] = {"name": name, "reason": f"dropped in the final joint fit with "
@@ -583,7 +587,8 @@ class Selector:
         steps = []
         for i, name in enumerate(active):
             f = self.fit(tuple(active[:i + 1]))
-            steps.append({"added": name, "before": chain[-1], "after": f, "verdict": self.judge(chain[-1], f)})
+            steps.append({"added": name, "before": chain[-1], "after": f,
+                          "verdict": self.judge(chain[-1], f, channels=False)})
             chain.append(f)
         current = chain[-1]
         for e in equivalences:
@@ -618,7 +623,7 @@ class Selector:
             for old in active[:-1]:
                 reduced = tuple(a for a in active if a != old)
                 f_red = self.fit(reduced, x0=self.x_from(reduced, current.physics))
-                v = self.judge(f_red, current)
+                v = self.judge(f_red, current, channels=False)
                 if not v["ok"]:
                     active.remove(old)
                     rejected[old] = {"name": old, "reason": f"dropped once {', '.join(active)} had joined: as "
@@ -658,7 +663,7 @@ class Selector:
         why = term(name).veto(self.P, f.pnames[name], f.x[f.slice(name)])
         return verdict if why is None else {**verdict, "ok": False, "reason": why}
 
-    def judge(self, before: Fit, after: Fit) -> dict[str, Any]:
+    def judge(self, before: Fit, after: Fit, channels: bool = True) -> dict[str, Any]:
         """Whether ``after`` (one more term) explains clearly more than ``before``: the held-out
         RMS falls, in most folds, and either
 
@@ -672,6 +677,10 @@ class Selector:
           keeps one sign and size across the folds (``consistent``). None of this depends on how
           much else is left unexplained: a clear reversal on a laser log with a large unexplained
           pitch error is named.
+
+        With ``channels`` (a term joining, rule 'standalone'), it must not make the held-out residual
+        clearly worse on any channel (``worse_channels``); not asked when an earlier term is checked
+        again beside later ones, where correlated terms trade channels between them.
 
         Rule 'margin' is the earlier rule (the share alone, without the chi-square test)."""
         opt = self.opt
@@ -712,7 +721,7 @@ class Selector:
                 standalone_why = (f"its held-out chi-square fall ({cmp['delta_chi2']:.3g} floors^2) is within "
                                   f"{opt.separate_z:g} standard errors ({cmp['se']:.3g}) and its parameters do not "
                                   f"keep one sign and size across the {K} folds")
-        worse = self.worse_channels(before, after) if opt.rule == "standalone" else []
+        worse = self.worse_channels(before, after) if opt.rule == "standalone" and channels else []
         if held_change >= 0:
             out.update(ok=False, reason=f"improves the fit RMS by {-100 * fit_change:.2g}% but the held-out RMS "
                        f"rises by {100 * held_change:.2g}%" if fit_change < 0 else
