@@ -419,10 +419,12 @@ class Selector:
         sig = np.abs(x - base) > opt.resolvable_sigma * np.maximum(sd, 1e-300)
         if opt.rule == "standalone" and f.fold_x is not None:
             # or resolved by the blocked jackknife with one sign in every fold (the covariance
-            # inflated for a strongly autocorrelated rest can hide a clear, consistent effect)
+            # inflated for a strongly autocorrelated rest can hide a clear, consistent effect);
+            # main parameters only - a higher-order part still needs the covariance test
             jk = f.jackknife_sd()[sl]
             same = np.all(np.sign(f.fold_x[:, sl] - base) == np.sign(x - base), axis=0)
-            sig |= same & (np.abs(x - base) > opt.resolvable_sigma * np.maximum(jk, 1e-300))
+            main = np.array([not params[n].optional for n in names])
+            sig |= main & same & (np.abs(x - base) > opt.resolvable_sigma * np.maximum(jk, 1e-300))
         groups: dict[str, list[int]] = {}
         for i, n in enumerate(names):
             groups.setdefault(params[n].group, []).append(i)
