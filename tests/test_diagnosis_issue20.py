@@ -227,3 +227,52 @@ def test_coloured_noise_nulls_name_nothing(kind, seed):
     for c in rec.channels:
         rec.channels[c] = rec.channels[c] + _coloured(len(rec.t), 1e-3, 0.95, rng) + rng.normal(0, 3e-4, len(rec.t))
     assert diagnose(prog, rec).findings["named"] == []
+
+
+# ---- 4. an effect outside the library is left unexplained and located ------------------------------------
+@pytest.mark.parametrize("seed", [7, 8])
+def test_a_sag_outside_the_library_is_not_named_a_rotary_location_error(seed):
+    """A Z sag of the tool tip growing with X and with the A tilt (tip_z -= 10 um (1 + X / 5 mm)
+    sin A) is in no term. Rotary location takes the sin A part on tip_z but, as an axis-line offset,
+    also moves tip_y by (1 - cos A), which the data do not show: its held-out residual on tip_y gets
+    clearly worse. Nothing is named; the rest is unexplained and located on tip_z."""
+    from benchmarks.synthetic import concealed_cases, program_for
+
+    case = next(c for c in concealed_cases((1,)) if c.label == "rotary location")
+    prog = program_for(case)
+    rec = record(prog, {}, channels=("axes", "tip", "axis"),
+                 noise={"axes": 1e-3, "tip": 1e-3, "rotary": 1e-6, "axis": 1e-6}, seed=seed)
+    X, A = prog.axes["X"], prog.axes["A"]
+    rec.channels["tip_z"] = rec.channels["tip_z"] - 0.01 * (1 + 2 * X / 10.0) * np.sin(A)
+    f = diagnose(prog, rec).findings
+    assert f["named"] == []
+    assert f["effects"][-1]["name"] == "unexplained" and f["effects"][-1]["channels"] == ["tip_z"]
+    assert "tip_z" in f["intervals"][0]["channels"]
+    assert "worse on tip_y" in {r["name"]: r["reason"] for r in f["rejected"]}["rotary_location"]
+
+
+# ---- 7. the harder catalogue -----------------------------------------------------------------------
+def test_a_three_effect_mixture_is_named_without_going_round_in_circles():
+    """Positioning + squareness + backlash on the tip (benchmarks/hard_cases.py, seed 2): all three
+    named, in a few seconds - the selection stops when it comes back to a set it held before
+    (a guard: correlated terms once traded places for ever). Passes on the old code as well."""
+    import time
+
+    from benchmarks.hard_cases import hard_cases, run_hard_case
+
+    h = next(h for h in hard_cases((2,)) if h.label.startswith("mix: positioning"))
+    t0 = time.perf_counter()
+    r = run_hard_case(h, diagnose)
+    assert sorted(r["named"]) == ["backlash", "linear_positioning", "linear_squareness"] and not r["bad"]
+    assert time.perf_counter() - t0 < 60
+
+
+def test_a_weak_scale_error_keeps_no_spurious_pitch_terms():
+    """A 3.3 um/mm scale error of X at 3 noise sigmas on a laser run (benchmarks/hard_cases.py):
+    EXX alone, within 2% - the fold-consistency path that rescues a main parameter does not keep
+    higher-order (pitch) parts the covariance does not resolve. Passes on the old code as well."""
+    from benchmarks.hard_cases import hard_cases, run_hard_case
+
+    h = next(h for h in hard_cases((1,)) if h.label == "weak: positioning at 3 sigma")
+    r = run_hard_case(h, diagnose)
+    assert r["named"] == ["linear_positioning"] and r["errors"]["EXX"] < 0.02

@@ -419,10 +419,12 @@ class Selector:
         sig = np.abs(x - base) > opt.resolvable_sigma * np.maximum(sd, 1e-300)
         if opt.rule == "standalone" and f.fold_x is not None:
             # or resolved by the blocked jackknife with one sign in every fold (the covariance
-            # inflated for a strongly autocorrelated rest can hide a clear, consistent effect)
+            # inflated for a strongly autocorrelated rest can hide a clear, consistent effect);
+            # main parameters only - a higher-order part still needs the covariance test
             jk = f.jackknife_sd()[sl]
             same = np.all(np.sign(f.fold_x[:, sl] - base) == np.sign(x - base), axis=0)
-            sig |= same & (np.abs(x - base) > opt.resolvable_sigma * np.maximum(jk, 1e-300))
+            main = np.array([not params[n].optional for n in names])
+            sig |= main & same & (np.abs(x - base) > opt.resolvable_sigma * np.maximum(jk, 1e-300))
         groups: dict[str, list[int]] = {}
         for i, n in enumerate(names):
             groups.setdefault(params[n].group, []).append(i)
@@ -495,6 +497,7 @@ class Selector:
         equivalences: list[dict[str, Any]] = []
         t_start = time.perf_counter()
         scr = self.screener()
+        seen: set[frozenset[str]] = {frozenset()}
         while len(active) < opt.max_terms:
             trials = {}
             cur_s = scr.fit(tuple(active))
@@ -546,6 +549,9 @@ class Selector:
             rejected.pop(best, None)
             current = exact
             active, current = self._backward(active, current, rejected)
+            if frozenset(active) in seen:
+                break  # back to a set already held: the search would go round in a cycle
+            seen.add(frozenset(active))
         # survives the joint refit: every kept term is checked again in the final joint fit, with the
         # axes or elements held back while other terms were missing given another chance
         for name in active:
@@ -571,7 +577,7 @@ class Selector:
                 # after it (or whose pruning changed since) is dropped
                 for name in list(active):
                     reduced = tuple(a for a in active if a != name)
-                    v = self.judge(self.fit(reduced, x0=self.x_from(reduced, final.physics)), final)
+                    v = self.judge(self.fit(reduced, x0=self.x_from(reduced, final.physics)), final, channels=False)
                     if not v["ok"]:
                         active.remove(name)
                         rejected[name] = {"name": name, "reason": f"dropped in the final joint fit with "
@@ -583,7 +589,8 @@ class Selector:
         steps = []
         for i, name in enumerate(active):
             f = self.fit(tuple(active[:i + 1]))
-            steps.append({"added": name, "before": chain[-1], "after": f, "verdict": self.judge(chain[-1], f)})
+            steps.append({"added": name, "before": chain[-1], "after": f,
+                          "verdict": self.judge(chain[-1], f, channels=False)})
             chain.append(f)
         current = chain[-1]
         for e in equivalences:
@@ -618,7 +625,7 @@ class Selector:
             for old in active[:-1]:
                 reduced = tuple(a for a in active if a != old)
                 f_red = self.fit(reduced, x0=self.x_from(reduced, current.physics))
-                v = self.judge(f_red, current)
+                v = self.judge(f_red, current, channels=False)
                 if not v["ok"]:
                     active.remove(old)
                     rejected[old] = {"name": old, "reason": f"dropped once {', '.join(active)} had joined: as "
@@ -658,7 +665,7 @@ class Selector:
         why = term(name).veto(self.P, f.pnames[name], f.x[f.slice(name)])
         return verdict if why is None else {**verdict, "ok": False, "reason": why}
 
-    def judge(self, before: Fit, after: Fit) -> dict[str, Any]:
+    def judge(self, before: Fit, after: Fit, channels: bool = True) -> dict[str, Any]:
         """Whether ``after`` (one more term) explains clearly more than ``before``: the held-out
         RMS falls, in most folds, and either
 
@@ -672,6 +679,10 @@ class Selector:
           keeps one sign and size across the folds (``consistent``). None of this depends on how
           much else is left unexplained: a clear reversal on a laser log with a large unexplained
           pitch error is named.
+
+        With ``channels`` (a term joining, rule 'standalone'), it must not make the held-out residual
+        clearly worse on any channel (``worse_channels``); not asked when an earlier term is checked
+        again beside later ones, where correlated terms trade channels between them.
 
         Rule 'margin' is the earlier rule (the share alone, without the chi-square test)."""
         opt = self.opt
@@ -712,6 +723,7 @@ class Selector:
                 standalone_why = (f"its held-out chi-square fall ({cmp['delta_chi2']:.3g} floors^2) is within "
                                   f"{opt.separate_z:g} standard errors ({cmp['se']:.3g}) and its parameters do not "
                                   f"keep one sign and size across the {K} folds")
+        worse = self.worse_channels(before, after) if opt.rule == "standalone" and channels else []
         if held_change >= 0:
             out.update(ok=False, reason=f"improves the fit RMS by {-100 * fit_change:.2g}% but the held-out RMS "
                        f"rises by {100 * held_change:.2g}%" if fit_change < 0 else
@@ -719,6 +731,13 @@ class Selector:
         elif per_fold_better <= K // 2:
             out.update(ok=False, reason=f"lowers the pooled held-out RMS by {-100 * held_change:.2g}% but only in "
                        f"{per_fold_better} of {K} folds")
+        elif worse:
+            c, dc, se = worse[0]
+            out.update(ok=False, reason=f"lowers the held-out RMS by {-100 * held_change:.2g}% but makes it worse on "
+                       f"{c} (held-out chi-square up {-dc:.3g} floors^2, {-dc / max(se, 1e-300):.2g} standard errors): "
+                       "it does not explain its share consistently across the channels it moves - a stand-in for an "
+                       "effect outside the library")
+            out["worse_channels"] = [w[0] for w in worse]
         elif margin_why is not None and (opt.rule != "standalone" or standalone_why is not None):
             out.update(ok=False, reason=margin_why + ("" if standalone_why is None else
                                                       f"; nor is it an effect on its own: {standalone_why}"))
@@ -727,6 +746,34 @@ class Selector:
                        "accepted as an effect on its own (clear, consistent across the folds, whatever else is "
                        f"left unexplained; {margin_why})")
         return out
+
+    def worse_channels(self, before: Fit, after: Fit) -> list[tuple[str, float, float]]:
+        """Channels on which ``after`` predicts the held-out samples clearly worse than ``before``:
+        (channel, chi-square fall in floors^2 - negative - and its standard error), for falls
+        below -``separate_z`` standard errors (the per-entry spread, inflated by n / n_eff for the
+        channel's residual autocorrelation) and -``separate_chi2``. A physical term explains its
+        share on every channel it moves; one that buys a fall on one channel with a rise on another
+        stands in for something else."""
+        P, opt = self.P, self.opt
+        if before.heldout_resid is None or after.heldout_resid is None:
+            return []
+        out = []
+        for j, c in enumerate(P.channels):
+            v = P.valid_fit[:, j]
+            if not v.any():
+                continue
+            ea = before.heldout_resid[v, j] * P.w_fit[v, j]
+            eb = after.heldout_resid[v, j] * P.w_fit[v, j]
+            d = ea * ea - eb * eb
+            dc = float(d.sum())
+            if dc >= -opt.separate_chi2:
+                continue
+            n = len(d)
+            n_eff = fitting.effective_sample_count(eb, n)
+            se = math.sqrt(n * float(np.var(d)) * n / max(n_eff, 1.0))
+            if dc < -opt.separate_z * se:
+                out.append((c, dc, se))
+        return sorted(out, key=lambda w: w[1] / max(w[2], 1e-300))
 
     def new_effect(self, before: Fit, after: Fit) -> float:
         """The effect of the terms ``after`` adds to ``before`` (at their values in ``after``): the
