@@ -67,13 +67,27 @@ _RENDER_TIMEOUT_S = 120.0
 # series preparation
 @dataclass
 class _Series:
-    """One method's data laid out for plotting: cumulative time, row breaks, decimation."""
+    """One method's data laid out for plotting: cumulative time (the planned time law t_plan when
+    the method has one, else the programmed-feed time), row breaks, decimation, and the rates of
+    a quantity under that time law."""
 
     m: MethodResult
     t: np.ndarray          # cumulative program time (s)
     starts: np.ndarray     # index of each row's first point
     max_points: int
     primary: bool = False
+    row_t: np.ndarray | None = None  # s from each row's start under the time law plotted
+
+    @property
+    def planned(self) -> bool:
+        return self.m.plan is not None
+
+    def rates(self, q: np.ndarray) -> Any:
+        """Velocity and acceleration of q (N or (N, k)) under the plotted time law
+        (camsmooth.smoothing.nlp.program_rates)."""
+        from camsmooth.smoothing.nlp import program_rates
+
+        return program_rates(np.asarray(q, float), self.row_t if self.row_t is not None else self.m.t, self.m.rows)
 
     @property
     def decimated(self) -> bool:
@@ -177,12 +191,13 @@ def _colour(method: str, order: list[str]) -> str:
 
 # ----------------------------------------------------------------------------------------------
 # figures
-def _figure(nrows: int, ncols: int, title: str, height_per_row: float = 2.6, width: float | None = None):
+def _figure(nrows: int, ncols: int, title: str, height_per_row: float = 2.6, width: float | None = None,
+            sharey: bool | str = False):
     from matplotlib.figure import Figure
 
     width = width or max(6.0, 4.6 * ncols)
     fig = Figure(figsize=(width, 0.6 + height_per_row * nrows), dpi=_DPI, layout="constrained")
-    axes = fig.subplots(nrows, ncols, squeeze=False, sharex="col")
+    axes = fig.subplots(nrows, ncols, squeeze=False, sharex="col", sharey=sharey)
     fig.suptitle(title, fontsize=11)
     return fig, axes
 
@@ -237,11 +252,18 @@ def _plot_axes(series: list[_Series], colours: dict[str, str], machine: Any, qua
     }[quantity]
     lab_a, lab_b, unit, limit_label, get = spec
     title = f"Rotary axes: {quantity} per method ({unit}){_decimation_note(series)}"
-    fig, axes = _figure(2, len(series), title)
+    fig, axes = _figure(2, len(series), title, sharey="row")
     for c, s in enumerate(series):
         for r_, (axis_name, lab) in enumerate((("A", lab_a), ("B", lab_b))):
             ax = axes[r_, c]
-            y = np.degrees(np.asarray(get(s.m, axis_name), dtype=float))
+            q = np.asarray(getattr(s.m, axis_name), dtype=float)
+            if quantity == "angle":
+                y = np.degrees(q)
+            elif s.planned:  # under the planned time law, the one the program's F words command
+                rq = s.rates(q)
+                y = np.degrees(rq.vel if quantity == "velocity" else rq.acc)
+            else:
+                y = np.degrees(np.asarray(get(s.m, axis_name), dtype=float))
             x, yy = s.line(y)
             ax.plot(x, yy, color=colours[s.m.method], linewidth=0.9, label=s.m.method)
             lim = _axis_limits(machine, axis_name)
@@ -259,9 +281,13 @@ def _plot_axes(series: list[_Series], colours: dict[str, str], machine: Any, qua
             if r_ == 0:
                 ax.set_title(s.m.method + (" (primary)" if s.primary else ""), fontsize=10)
             if r_ == 1:
-                ax.set_xlabel("program time (s)")
+                ax.set_xlabel(_time_label(s))
             ax.legend(loc="upper right", fontsize=7)
     return fig
+
+
+def _time_label(s: _Series) -> str:
+    return "planned time t_plan (s)" if s.planned else "time at the programmed feed (s)"
 
 
 def _plot_compound(series: list[_Series], colours: dict[str, str]) -> Any:
@@ -270,7 +296,8 @@ def _plot_compound(series: list[_Series], colours: dict[str, str]) -> Any:
     ax = axes[0, 0]
     positive = False
     for s in series:
-        y = np.abs(np.asarray(s.m.compound_acc, dtype=float))
+        y = (np.linalg.norm(s.rates(s.m.axis).acc, axis=1) if s.planned
+             else np.abs(np.asarray(s.m.compound_acc, dtype=float)))
         any_positive = bool(np.any(y > 0))
         positive |= any_positive
         x, yy = s.line(np.where(y > 0, y, np.nan))
@@ -283,7 +310,7 @@ def _plot_compound(series: list[_Series], colours: dict[str, str]) -> Any:
     if series:
         _mark_rows(ax, series[0])
     ax.grid(True, which="both", alpha=0.3)
-    ax.set_xlabel("program time (s)")
+    ax.set_xlabel(_time_label(series[0]) if series else "time (s)")
     ax.set_ylabel("|T''| (1/s\u00b2)")
     ax.legend(loc="upper right", fontsize=8)
     return fig
@@ -291,7 +318,7 @@ def _plot_compound(series: list[_Series], colours: dict[str, str]) -> Any:
 
 def _plot_lead_tilt(series: list[_Series], colours: dict[str, str]) -> Any:
     fig, axes = _figure(2, len(series), "Lead and tilt (deg) within their per-point windows (shaded)"
-                        + _decimation_note(series))
+                        + _decimation_note(series), sharey="row")
     for c, s in enumerate(series):
         for r_, (name, window) in enumerate((("lead", s.m.lead_window), ("tilt", s.m.tilt_window))):
             ax = axes[r_, c]
@@ -316,31 +343,48 @@ def _plot_lead_tilt(series: list[_Series], colours: dict[str, str]) -> Any:
             if r_ == 0:
                 ax.set_title(s.m.method, fontsize=10)
             else:
-                ax.set_xlabel("program time (s)")
+                ax.set_xlabel(_time_label(s))
             ax.legend(loc="upper right", fontsize=7)
     return fig
 
 
 def _plot_clearance(series: list[_Series], colours: dict[str, str], line: float = CLEARANCE_TOL_MM) -> Any:
-    fig, axes = _figure(1, len(series), "Clearance \u03b4 tool to surface (mm); gouge below "
-                        f"{line:g} mm" + _decimation_note(series), height_per_row=3.2)
-    for c, s in enumerate(series):
+    """Clearance per method in micrometres, scaled to the data (the same scale for every method);
+    the gouge line -tolerance drawn when it lies near the data, else named in a corner note;
+    legends below the panels, never over the line."""
+    fig, axes = _figure(1, len(series), "Clearance \u03b4 tool to surface (\u00b5m); gouge below "
+                        f"{1e3 * line:.4g} \u00b5m" + _decimation_note(series), height_per_row=3.4, sharey="row")
+    um = [1e3 * np.asarray(s.m.delta, dtype=float) for s in series]
+    finite = np.concatenate([d[np.isfinite(d)] for d in um]) if um else np.zeros(0)
+    lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (-1.0, 1.0)
+    span = max(hi - lo, 1e-3)
+    tol_um = 1e3 * line
+    show_line = lo - 0.5 * span <= tol_um
+    for c, (s, d) in enumerate(zip(series, um, strict=True)):
         ax = axes[0, c]
-        d = np.asarray(s.m.delta, dtype=float)
         x, yy = s.line(d)
         ax.plot(x, yy, color=colours[s.m.method], linewidth=0.9, label="\u03b4")
-        ax.axhline(0.0, color="k", linewidth=0.8)
-        ax.axhline(line, color="#d62728", linestyle="--", linewidth=0.9, label=f"tolerance {line:g} mm")
+        ax.axhline(0.0, color="k", linewidth=0.6, alpha=0.6)
+        if show_line:
+            ax.axhline(tol_um, color="#d62728", linestyle="--", linewidth=0.9, label=f"-tolerance {tol_um:.4g} \u00b5m")
+        else:
+            ax.text(0.99, 0.02, f"gouge line {tol_um:.4g} \u00b5m (off scale, below)", transform=ax.transAxes,
+                    ha="right", va="bottom", fontsize=7, color="#d62728")
         with np.errstate(invalid="ignore"):
-            bad = d < line
+            bad = d < tol_um
         if bad.any():
             ax.plot(s.t[bad], d[bad], ".", color="#d62728", markersize=3, label=f"gouge ({int(bad.sum())})")
+        k = int(np.nanargmin(d)) if np.isfinite(d).any() else None
+        if k is not None:
+            ax.plot([s.t[k]], [d[k]], "v", color="k", markersize=5,
+                    label=f"worst {d[k]:.3g} \u00b5m (row {int(s.m.rows[k])}, point {int(s.m.idx[k])})")
         _mark_rows(ax, s)
         ax.grid(True, alpha=0.3)
+        ax.set_ylim(lo - 0.1 * span if not show_line else min(lo, tol_um) - 0.1 * span, hi + 0.1 * span)
         ax.set_title(s.m.method, fontsize=10)
-        ax.set_xlabel("program time (s)")
-        ax.set_ylabel("\u03b4 (mm)")
-        ax.legend(loc="upper right", fontsize=7)
+        ax.set_xlabel(_time_label(s))
+        ax.set_ylabel("\u03b4 (\u00b5m)")
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.22), ncol=2, fontsize=7, frameon=False)
     return fig
 
 
@@ -704,8 +748,9 @@ def write_report(result: SmoothResult, out_dir: str | os.PathLike, *, title: str
     series = []
     for name in order:
         m = result.methods[name]
-        series.append(_Series(m, cumulative_time(m.t, m.rows), _row_starts(m.rows),
-                              max(int(max_plot_points), 4), primary=name == result.primary))
+        row_t = np.asarray(m.plan.t_plan, float) if m.plan is not None else np.asarray(m.t, float)
+        series.append(_Series(m, cumulative_time(row_t, m.rows), _row_starts(m.rows),
+                              max(int(max_plot_points), 4), primary=name == result.primary, row_t=row_t))
     t_start = time.perf_counter()
     with atomic_dir(out_dir, replace=replace) as tmp:
         proc = None
