@@ -253,6 +253,9 @@ def _plot_axes(series: list[_Series], colours: dict[str, str], machine: Any, qua
     lab_a, lab_b, unit, limit_label, get = spec
     title = f"Rotary axes: {quantity} per method ({unit}){_decimation_note(series)}"
     fig, axes = _figure(2, len(series), title, sharey="row")
+    # one scale per axis across the methods: the travel lines are drawn for all or for none
+    union = {ax_: np.degrees(np.concatenate([np.asarray(getattr(s.m, ax_), float) for s in series]))
+             for ax_ in ("A", "B")}
     for c, s in enumerate(series):
         for r_, (axis_name, lab) in enumerate((("A", lab_a), ("B", lab_b))):
             ax = axes[r_, c]
@@ -269,7 +272,7 @@ def _plot_axes(series: list[_Series], colours: dict[str, str], machine: Any, qua
             lim = _axis_limits(machine, axis_name)
             if lim is not None:
                 if quantity == "angle":
-                    _limit_lines(ax, np.degrees([lim.min, lim.max]), "travel", y, always=False)
+                    _limit_lines(ax, np.degrees([lim.min, lim.max]), "travel", union[axis_name], always=False)
                 else:
                     vmax = lim.vmax if quantity == "velocity" else lim.amax
                     if np.isfinite(vmax):
@@ -344,7 +347,8 @@ def _plot_lead_tilt(series: list[_Series], colours: dict[str, str]) -> Any:
                 ax.set_title(s.m.method, fontsize=10)
             else:
                 ax.set_xlabel(_time_label(s))
-            ax.legend(loc="upper right", fontsize=7)
+            ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12 if r_ == 0 else -0.28), ncol=3, fontsize=7,
+                      frameon=False)
     return fig
 
 
@@ -1036,8 +1040,9 @@ def _html(result: SmoothResult, order: list[str], folder: Path, title: str | Non
     for name in PLOT_FILES + ((FEED_PLOT,) if (folder / FEED_PLOT).exists() else ()):
         head, cap = _CAPTIONS[name]
         k += 1
-        cap += (" Time is cumulative over the program (rows concatenated; faint vertical lines at row starts)"
-                + (", under the planned time law." if planned else ", at the programmed feed."))
+        if name != FEED_PLOT:
+            cap += (" Time is cumulative over the program (rows concatenated; faint vertical lines at row starts)"
+                    + (", under the planned time law." if planned else ", at the programmed feed."))
         if note:
             cap += " Long series are drawn decimated:" + note
         parts.append(f"<h2>{k}. {html.escape(head)}</h2><figure>{_img_tag(folder / name, head)}"
