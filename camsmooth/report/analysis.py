@@ -60,7 +60,8 @@ def write_analysis_report(analysis: Any, series: dict[str, np.ndarray], machine:
                 tp["singular"]["points"], f"{tp['cycle_time_s']:.2f} ({tp['limiting']})",
                 "\u2014" if tp["clearance"] is None else f"{tp['clearance']['min_mm']:.4g}")) + "</tr>")
         head = ("tool path", "tool (mm)", "points", "feed (mm/min)", "A (deg)", "B (deg)", "\u0393",
-                "violations, planned law", "violations at the programmed feed", "near singular", "cycle time (s)", "min clearance (mm)")
+                "violations, planned law", "violations at the programmed feed", "near singular", "cycle time (s)",
+                "min clearance (mm)")
         warn = "".join(f"<li>{html.escape(w)}</li>" for w in doc["warnings"])
         text = ("<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>camsmooth analyze</title></head>"
                 f"<body><h1>{html.escape(str(doc['source']))} ({html.escape(doc['format'])}), {doc['points']} "
