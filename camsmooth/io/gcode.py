@@ -753,10 +753,13 @@ def _own_header(lines: list[str], tag: str | None, info: dict[str, str], rows: n
     head = "\n".join(lines[:80])
     tool = None
     m = _TOOL.search(head)
-    if m:
-        R, r_c, dia = (float(m.group(k)) for k in (1, 2, 3))
-        tool = Tool(name="camsmooth", kind="mill", diameter=dia, corner_radius=r_c,
-                    length=float(m.group(4)) if m.group(4) else None, line=None)
+    try:
+        if m:
+            r_c, dia = float(m.group(2)), float(m.group(3))
+            tool = Tool(name="camsmooth", kind="mill", diameter=dia, corner_radius=r_c,
+                        length=float(m.group(4)) if m.group(4) else None, line=None)
+    except ValueError:  # a mangled header: the tool is not known
+        tool = None
     mm = _METHOD.search(head)
     method = info.get("method") or (mm.group(1) if mm else None)
     n_points = int(mm.group(2)) if mm else None
@@ -771,14 +774,9 @@ def _own_header(lines: list[str], tag: str | None, info: dict[str, str], rows: n
     cut = ~rapid
     starts = cut & np.r_[True, rapid[:-1]]
     grp = np.cumsum(starts)
-    feed = np.full(n, np.nan)
-    last = np.nan
-    for i in np.flatnonzero(cut):  # modal; a Python loop over cut points only where f= is rare
-        if starts[i]:
-            last = np.nan
-        if np.isfinite(f[i]):
-            last = f[i]
-        feed[i] = last
+    marker = np.where(cut & (np.isfinite(f) | starts), np.arange(n), -1)  # a row's start resets it
+    last = np.maximum.accumulate(marker) if n else marker
+    feed = np.where(cut & (last >= 0), f[np.maximum(last, 0)], np.nan)
     dt = np.full(n, np.nan)
     inv = np.asarray(inverse, bool)
     if mode == "machine":
