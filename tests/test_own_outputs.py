@@ -150,3 +150,33 @@ def test_gcode_header_has_no_python_reprs(generic, tmp_path):
     for bad in ("array(", "np.float64", "Machine(", "nan", "(0.0349"):
         assert bad not in head, bad
     assert "lead window: 2 to 20 deg" in head and "tolerance: 0.005 mm" in head
+
+
+@pytest.mark.parametrize(("dialect", "mode"), [("siemens", "tcp"), ("heidenhain", "tcp"), ("fanuc", "machine"),
+                                               ("linuxcnc", "tcp")])
+def test_every_dialect_carries_the_programmed_time_and_the_planned_law(generic, dialect, mode, tmp_path):
+    from camsmooth.io.gcode import write_gcode
+    from camsmooth.smoothing.feed import block_feeds
+
+    r = generic.result
+    feed = block_feeds(r.plan, r.cl, r.rows, np.asarray(generic.inputs["feed"], float))
+    nc = write_gcode(tmp_path / f"{dialect}.nc", generic, generic.machine, generic.cutter, feed, dialect=dialect,
+                     mode=mode)
+    prog = load_program(nc).cutting()
+    w = prog.written
+    assert w.method == "nlp" and w.tolerance == 0.005 and w.dialect == dialect
+    np.testing.assert_allclose(w.t, r.t, atol=1e-9)
+    np.testing.assert_allclose(w.feed, generic.inputs["feed"])
+    np.testing.assert_array_equal(w.row_id, r.rows)
+    ends = np.r_[np.flatnonzero(np.diff(prog.rows)), len(prog.rows) - 1]
+    assert float(w.t_plan[ends].sum()) == pytest.approx(r.metrics.cycle_time_optimal_s, rel=1e-3)
+
+
+def test_times_that_do_not_increase_are_not_a_time_base(generic, tmp_path):
+    """A program written from times that do not increase along a row (no programmed-feed time)
+    is read without one: analyze then times it from the tips at the feed."""
+    from camsmooth.io.gcode import write_gcode
+
+    r = dataclasses.replace(generic.result, t=np.zeros(len(generic.result)), plan=None)
+    nc = write_gcode(tmp_path / "z.nc", r, generic.machine, generic.cutter, 2000.0)
+    assert load_program(nc).written.t is None

@@ -799,7 +799,10 @@ def _own_header(lines: list[str], tag: str | None, info: dict[str, str], rows: n
         row_id = np.full(n, -1, np.int64)
         row_id[cut] = np.asarray(row_ids, np.int64)[rows[cut]]
     every = n_points is None or int(cut.sum()) == n_points
+    inner = np.flatnonzero(cut & ~starts)
+    with np.errstate(invalid="ignore"):
+        t_ok = bool(np.isfinite(t[cut]).all() and np.all(t[inner] > t[inner - 1]))  # increasing along each row
     written = Written(method=method, tolerance=tol, every_point=every, dialect=info.get("dialect"),
-                      t=t if np.isfinite(t[cut]).all() else None,
+                      t=t if t_ok else None,
                       feed=feed if np.isfinite(feed[cut]).all() else None, t_plan=t_plan, row_id=row_id)
     return tool, written
