@@ -82,7 +82,8 @@ def test_report_reads_as_a_programmer_needs_it(smoothed, tmp_path):
     nlp = smoothed.methods["nlp"].metrics
     # the verdict: both cycle times, the binding limit, peaks, violations, worst clearance with its place
     assert f"cycle time {nlp.cycle_time_optimal_s:.4g} s time-optimal, {nlp.cycle_time_s:.4g} s on the linuxcnc" in text
-    assert "binds most:" in text and "under the planned law" in text and "at the programmed feed" in text
+    assert "binds most in the time-optimal law:" in text
+    assert "under the planned law" in text and "at the programmed feed" in text
     assert re.search(r"worst clearance -?[\d.e-]+ µm at row \d+, point \d+", text)
     # Setup in mm and degrees: the windows as written by a person
     assert "lead window 2 to 20 deg" in text and "tilt window -15 to 15 deg" in text

@@ -638,7 +638,8 @@ def _verdict_html(order: list[str], summaries: dict[str, dict[str, Any]], primar
         if s["controller"]:
             cyc += f", {_fmt(s['cycle_time_s'], '.4g')} s on the {html.escape(s['controller'])} controller"
         share = s["binding_share"]
-        binds = (f"binds most: {html.escape(s['limiting'])}"
+        where = " in the time-optimal law" if s["controller"] else ""
+        binds = (f"binds most{where}: {html.escape(s['limiting'])}"
                  + (f" ({100 * share:.0f}% of the time)" if np.isfinite(share) else "")) if s["limiting"] else ""
         law = "under the planned law" if s["planned"] else "at the programmed feed"
         pa = s["peak_A_acc_plan"] if s["planned"] else s["peak_A_acc_deg"]
@@ -663,7 +664,8 @@ def _summary_table(order: list[str], summaries: dict[str, dict[str, Any]], prima
     head = ["method", "points / rows", "\u0393 (1/s\u2074)", "cycle time optimal (s)"]
     if any_ctrl:
         head.append(f"cycle time {ctrl_name} (s)")
-    head += ["binds most", "peak |A''| / |B''| (deg/s\u00b2)", "violations, planned law",
+    head += ["binds most (time-optimal law)" if any_ctrl else "binds most", "peak |A''| / |B''| (deg/s\u00b2)",
+             "violations, planned law",
              "violations at the programmed feed", "min \u03b4 (\u00b5m)"]
     if not any_ctrl:
         head.append("run time (s)")
