@@ -525,8 +525,8 @@ _equivalent(_NLP, 'limit_violations', [
     'float(a.max(initial=None))',
 ], _WHY_EMPTY)
 _equivalent(_NLP, 'limit_violations', [
-    'viol[f"{name} velocity"] = int(np.sum(v > lim.vmax * (1 + 1e-9))) -> viol[f"{name} velocity"] = '
-    'int(np.sum(v >= lim.vmax * (1 + 1e-9)))',
+    'viol[f"{name} velocity"] = int(np.sum(v > lim.vmax * (1 + rel) + slack_v)) -> viol[f"{name} velocity"] = '
+    'int(np.sum(v >= lim.vmax * (1 + rel) + slack_v))',
 ], _WHY_EQUALITY)
 _equivalent(_NLP, 'program_rates', [
     't = np.asarray(t, float) -> t = np.asarray(t, )',

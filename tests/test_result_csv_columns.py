@@ -129,13 +129,14 @@ def test_the_default_tolerance_has_one_home():
     from tests.conftest import ROOT
 
     assert DEFAULT_TOLERANCE_MM == 0.005   # README: "--tolerance (default 0.005 mm)"
-    for f in (smooth, analyze_program):
-        assert inspect.signature(f).parameters["tolerance"].default is DEFAULT_TOLERANCE_MM
+    assert inspect.signature(smooth).parameters["tolerance"].default is DEFAULT_TOLERANCE_MM
+    # analyze: None is the tolerance a camsmooth program was written with, else DEFAULT_TOLERANCE_MM
+    assert inspect.signature(analyze_program).parameters["tolerance"].default is None
     parser = build_parser()
     smooth_args = parser.parse_args(["smooth", "p.csv", "--surface", "s.stl", "--lead", "2:20", "--tilt", "0:0",
                                      "-o", "o.csv"])
     assert smooth_args.tolerance is DEFAULT_TOLERANCE_MM
-    assert parser.parse_args(["analyze", "p.csv"]).tolerance is DEFAULT_TOLERANCE_MM
+    assert parser.parse_args(["analyze", "p.csv"]).tolerance is None
     homes = [p.relative_to(ROOT).as_posix() for p in sorted((ROOT / "camsmooth").rglob("*.py"))
              if re.search(r"(?i)tol\w*\s*[:=][^\n]*\b0\.005\b", p.read_text(encoding="utf-8"))]
     assert homes == ["camsmooth/constants.py"]

@@ -104,6 +104,10 @@ def load_input(args: argparse.Namespace, surface: Any, machine: Any) -> tuple[An
     from camsmooth.smoothing.cam import cam_program, cutter_of
 
     program = load_program(args.path, args.format, machine=machine)
+    if not isinstance(program, CCPath) and program.format == "result-csv":
+        from camsmooth.io.ccpath import read_cc_csv
+
+        program = read_cc_csv(args.path)  # camsmooth's result CSV: its CC path, smoothed again
     if isinstance(program, CCPath):
         return program, _cutter(args)
     declared = cutter_of(program) if args.cutter_radius is None and args.corner_radius is None else None
@@ -214,15 +218,18 @@ def _write_outputs(result: Any, out_csv: Path, gcode: Path | None, report: Path 
 def _print_summary(result) -> None:
     m = result.result.metrics
     ctrl = m.controller or "axes"
-    head = ("method", "Gamma", "peak|A''|", "peak|B''|", "min delta", "violations", "optimal s", f"{ctrl} s",
-            "limited by", "time s")
-    print("{:8s} {:>12s} {:>10s} {:>10s} {:>10s} {:>10s} {:>9s} {:>11s} {:>16s} {:>8s}".format(*head))
+    head = ("method", "Gamma", "peak|A''|", "peak|B''|", "min delta", "violations", "at feed", "optimal s",
+            f"{ctrl} s", "limited by", "time s")
+    print("{:8s} {:>12s} {:>10s} {:>10s} {:>10s} {:>10s} {:>8s} {:>9s} {:>11s} {:>16s} {:>8s}".format(*head))
     for name, r in result.methods.items():
         mm = r.metrics
         nviol = sum(mm.violations.values())
-        print(f"{name:8s} {mm.gamma:12.4g} {mm.peak_A_acc:10.4g} {mm.peak_B_acc:10.4g} "
-              f"{mm.min_delta:10.4g} {nviol:10d} {mm.cycle_time_optimal_s:9.2f} {mm.cycle_time_s:11.2f} "
+        nfeed = sum(mm.violations_programmed.values())
+        print(f"{name:8s} {mm.gamma:12.4g} {mm.peak_A_acc_plan:10.4g} {mm.peak_B_acc_plan:10.4g} "
+              f"{mm.min_delta:10.4g} {nviol:10d} {nfeed:8d} {mm.cycle_time_optimal_s:9.2f} {mm.cycle_time_s:11.2f} "
               f"{mm.limiting or '-':>16s} {mm.runtime_s:8.2f}")
+    print("peaks (deg/s^2) and violations under the planned time law; 'at feed': violations at the programmed "
+          "feed, before planning")
     if m.controller:
         print(f"cycle times: 'optimal' is the time-optimal law under the axes' limits; '{ctrl}' what the {ctrl} "
               f"controller's planner makes of the program as written ({m.blocks} cut blocks)")
@@ -325,13 +332,20 @@ def run_analyze(args: argparse.Namespace) -> int:
     if not args.quiet:
         print(f"{analysis.source} ({analysis.format}): {analysis.points} cutting points, "
               f"{len(analysis.toolpaths)} tool path(s)")
-        head = ("tool path", "points", "A deg", "B deg", "Gamma", "violations", "cycle s", "limited by", "min delta")
-        print("{:24s} {:>7s} {:>17s} {:>17s} {:>10s} {:>10s} {:>9s} {:>16s} {:>10s}".format(*head))
+        head = ("tool path", "points", "A deg", "B deg", "Gamma", "violations", "at feed", "cycle s", "limited by",
+                "min delta")
+        print("{:24s} {:>7s} {:>17s} {:>17s} {:>10s} {:>10s} {:>11s} {:>9s} {:>16s} {:>10s}".format(*head))
         for tp in analysis.toolpaths:
             md = "-" if tp.clearance is None else f"{tp.clearance['min_mm']:.4g}"
+            ctrl = f" {tp.controller} {tp.cycle_time_s:.2f} s" if tp.controller else ""
             print(f"{tp.name[:24]:24s} {tp.points:7d} {tp.A_range_deg[0]:8.2f}..{tp.A_range_deg[1]:<7.2f} "
                   f"{tp.B_range_deg[0]:8.2f}..{tp.B_range_deg[1]:<7.2f} {tp.gamma:10.4g} "
-                  f"{sum(tp.violations.values()):10d} {tp.cycle_time_s:9.2f} {tp.limiting:>16s} {md:>10s}")
+                  f"{sum(tp.violations.values()):10d} {sum(tp.violations_programmed.values()):11d} "
+                  f"{tp.cycle_time_optimal_s:9.2f} {tp.limiting or '-':>16s} {md:>10s}{ctrl}")
+        print("violations: under the planned time law (what the program's F words command); 'at feed': at the "
+              "programmed feed, before planning; cycle s: the time-optimal law"
+              + (f" (the {analysis.toolpaths[0].controller} controller's time after it)"
+                 if analysis.toolpaths and analysis.toolpaths[0].controller else ""))
         for w in analysis.warnings:
             print(f"camsmooth: warning: {w}", file=sys.stderr)
     return EXIT_OK
@@ -452,13 +466,15 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("analyze", help="analyse a program as it is: axes, limits, Gamma, cycle time, clearance")
     p.add_argument("program", help="APT/CLSF, CL CSV, CC CSV or camsmooth G-code (format detected from the content)")
-    p.add_argument("--format", default=None, choices=("apt", "cl-csv", "cc-csv", "gcode"),
-                   help="the program's format, when detection should not decide")
+    p.add_argument("--format", default=None, choices=("apt", "cl-csv", "cc-csv", "gcode", "result-csv"),
+                   help="the program's format, when detection should not decide (result-csv: camsmooth's own "
+                   "result CSV, recognised by its header)")
     p.add_argument("--machine", default=None, help="machine TOML (default: the built-in AB head)")
     p.add_argument("--surface", default=None, help="surface mesh or definition: adds the clearance of every pose")
     _add_cutter_args(p, required=False)
-    p.add_argument("--tolerance", type=_POSITIVE_MM, default=DEFAULT_TOLERANCE_MM, metavar="MM",
-                   help=f"clearance tolerance (mm, default {DEFAULT_TOLERANCE_MM:g})")
+    p.add_argument("--tolerance", type=_POSITIVE_MM, default=None, metavar="MM",
+                   help=f"clearance tolerance (mm; default the one a camsmooth program was written with, else "
+                        f"{DEFAULT_TOLERANCE_MM:g})")
     p.add_argument("--feed", type=number(gt=0, unit="mm/min"), default=None, metavar="F",
                    help="feed (mm/min, > 0) where the program sets none")
     p.add_argument("--lead", type=angle_range(0, 90, strict=True), default=None, metavar="MIN:MAX",

@@ -74,9 +74,10 @@ from camsmooth import __version__
 from camsmooth.controller import PATH_TOLERANCE_SHARE
 from camsmooth.errors import InfeasibleError, InputError
 from camsmooth.io.atomic import atomic_path
-from camsmooth.io.program import CLProgram, ToolPath
+from camsmooth.io.program import CLProgram, Tool, ToolPath, Written
 from camsmooth.io.table import read_text_file
-from camsmooth.smoothing.result import MethodResult, SmoothResult
+from camsmooth.smoothing.evaluate import WRITTEN_DECIMALS, written_joints
+from camsmooth.smoothing.result import MethodResult, SmoothResult, describe_inputs
 
 __all__ = ["write_gcode", "read_gcode", "tip_path_lengths", "DEFAULT_SAFE_HEIGHT_MM", "DIALECTS"]
 
@@ -206,6 +207,8 @@ class _Moves:
     feed: np.ndarray  # (M,) mm/min (nan for rapids)
     row_start: list[tuple[int, int, int]] = field(default_factory=list)  # (move index, row id, points)
     block_time: np.ndarray | None = None  # (M,) s commanded per block, nan where the feed decides
+    t_prog: np.ndarray | None = None  # (M,) s from the row's start at the programmed feed (nan for rapids)
+    f_prog: np.ndarray | None = None  # (M,) mm/min the programmed feed (nan for rapids)
 
 
 def _check_travel(machine: Any, rows: np.ndarray, idx: np.ndarray, A: np.ndarray, B: np.ndarray, xyz: np.ndarray,
@@ -237,10 +240,12 @@ def _row_slices(rows: np.ndarray) -> list[slice]:
 
 
 def _moves(rows: np.ndarray, joints: np.ndarray, tips: np.ndarray, T: np.ndarray, feed: np.ndarray,
-           h: float, block_time: np.ndarray | None = None) -> _Moves:
+           h: float, block_time: np.ndarray | None = None, t_prog: np.ndarray | None = None,
+           f_prog: np.ndarray | None = None) -> _Moves:
     """Entry rapid, row points, exit rapid per row (loop over rows, not points). block_time: (N,)
-    s per point, the commanded time of the block ending there (nan where the feed decides)."""
-    J, P, R, F, starts, BT = [], [], [], [], [], []
+    s per point, the commanded time of the block ending there (nan where the feed decides);
+    t_prog: (N,) s from the row's start at the programmed feed (written beside each block)."""
+    J, P, R, F, starts, BT, TP, FP = [], [], [], [], [], [], [], []
     up = np.zeros((1, 5))
     count = 0
     for sl in _row_slices(rows):
@@ -258,12 +263,16 @@ def _moves(rows: np.ndarray, joints: np.ndarray, tips: np.ndarray, T: np.ndarray
         bt = np.full(n, np.nan) if block_time is None else np.asarray(block_time[sl], float).copy()
         bt[0] = np.nan  # the entry move runs at the programmed feed
         BT += [np.array([np.nan]), bt, np.array([np.nan])]
+        tp = np.full(n, np.nan) if t_prog is None else np.asarray(t_prog[sl], float)
+        TP += [np.array([np.nan]), tp, np.array([np.nan])]
+        fp = feed[sl] if f_prog is None else np.asarray(f_prog[sl], float)
+        FP += [np.array([np.nan]), fp, np.array([np.nan])]
         starts.append((count, int(rows[first]), n))
         count += n + 2
     if not J:
         return _Moves(np.zeros((0, 5)), np.zeros((0, 3)), np.zeros(0, bool), np.zeros(0), [], np.zeros(0))
     return _Moves(np.concatenate(J), np.concatenate(P), np.concatenate(R), np.concatenate(F), starts,
-                  np.concatenate(BT))
+                  np.concatenate(BT), np.concatenate(TP), np.concatenate(FP))
 
 
 def _block_feeds(machine: Any, mv: _Moves, mode: str) -> tuple[np.ndarray, int]:
@@ -300,7 +309,9 @@ def _block_feeds(machine: Any, mv: _Moves, mode: str) -> tuple[np.ndarray, int]:
 
 
 def _header(dialect: Dialect, mode: str, machine: Any, cutter: Any, method: str, inputs: dict[str, Any],
-            n_points: int, h: float, still: int) -> list[str]:
+            n_points: int, h: float, still: int, tolerance: float | None = None) -> list[str]:
+    """The header comments: machine, tool, method, the run's inputs (mm, mm/min, degrees), the post
+    tag ``camsmooth post:`` that ``read_gcode`` recognises, and the conventions."""
     c = dialect.comment
     R, r_c = float(cutter.R), float(cutter.r)
     diameter = float(getattr(cutter, "diameter", 2.0 * (R + r_c)))
@@ -314,23 +325,25 @@ def _header(dialect: Dialect, mode: str, machine: Any, cutter: Any, method: str,
         c(f"method: {method}; {n_points} points"),
     ]
     head.extend(c(f"input {k}: {v}") for k, v in _simple_items(inputs))
-    head.append(c(f"{_POST_TAG} dialect={dialect.name} mode={mode} units=mm pivot={pivot:.6f}"))
+    tol = "" if tolerance is None else f" tolerance={float(tolerance):.6g}"
+    head.append(c(f"{_POST_TAG} dialect={dialect.name} mode={mode} units=mm pivot={pivot:.6f} method={method}{tol}"))
     if mode == "machine":
         head.append(c("X Y Z: head pivot position mm (no tool length compensation); A B: degrees"))
-        head.append(c("F: inverse time 1/min (G93), so the tool tip moves at the programmed feed"))
+        head.append(c("F: inverse time 1/min (G93), so the tool tip moves at the planned feed"))
         if still:
             head.append(c(f"{still} block(s) turn A/B without moving the tip: timed by the rotary speed limits"))
     else:
         head.append(c("X Y Z: tool tip mm, workpiece frame; A B: rotary axis positions, degrees; F: tip feed mm/min"))
     head.append(c("A B: right-hand rule about +X / +Y, tool relative to workpiece: T = Rx(A) Ry(B) e_z"))
     head.append(c(f"rows are entered and left by rapids {h:.4f} mm up along the tool axis"))
+    head.append(c("t= beside a block: s from the row's start at the programmed feed f= (mm/min, given where it "
+                  "changes)"))
     return head
 
 
-def _simple_items(inputs: dict[str, Any]) -> Iterable[tuple[str, Any]]:
-    for k, v in inputs.items():
-        if isinstance(v, (str, int, float, os.PathLike)) and not isinstance(v, bool):
-            yield str(k), v
+def _simple_items(inputs: dict[str, Any]) -> Iterable[tuple[str, str]]:
+    """The run's inputs as (label, text), mm, mm/min and degrees (camsmooth.smoothing.result.describe_inputs)."""
+    yield from describe_inputs(inputs)
 
 
 def write_gcode(path: str | os.PathLike, result: SmoothResult | MethodResult, machine: Any, cutter: Any,
@@ -399,11 +412,21 @@ def write_gcode(path: str | os.PathLike, result: SmoothResult | MethodResult, ma
             raise InputError(f"feed must be a finite number > 0 mm/min at row {int(rows[k])}, point {int(idx[k])}, "
                              f"got {float(feed[k])!r}", column="feed")
     ctrl = getattr(r, "controller", None)
+    plan = getattr(r, "plan", None)
+    t_prog = np.asarray(r.t, float) if getattr(r, "t", None) is not None and len(r.t) == n else None
+    f_prog = np.asarray(inputs.get("feed", feed), float).reshape(-1)
+    f_prog = f_prog if f_prog.shape == (n,) else feed
     block_time = None
     if ctrl is not None:  # the blocks the controller plan timed (camsmooth.controller.blocks)
         sel = np.asarray(ctrl.keep, bool)
         rows, idx, xyz, A, B, T, tip, feed = (v[sel] for v in (rows, idx, xyz, A, B, T, tip, feed))
+        t_prog = None if t_prog is None else t_prog[sel]
+        f_prog = f_prog[sel]
         block_time = np.asarray(ctrl.block_time, float)[sel]
+    elif plan is not None and len(plan.t_plan) == n:  # every point a block, timed by the planned law
+        same = np.r_[False, rows[1:] == rows[:-1]]
+        block_time = np.where(same, np.r_[0.0, np.diff(np.asarray(plan.t_plan, float))], np.nan)
+        block_time[same & ~(block_time > 0)] = np.nan  # a repeat the plan gives no time: the feed decides
     if tolerance is None:
         metrics = getattr(r, "metrics", None)
         tolerance = getattr(metrics, "tolerance_mm", None)
@@ -417,13 +440,13 @@ def write_gcode(path: str | os.PathLike, result: SmoothResult | MethodResult, ma
         _check_travel(machine, rows, idx, A, B, xyz + h * T, f"retract ({h:g} mm along the tool axis)")
 
     joints = np.column_stack([xyz, A, B])
-    mv = _moves(rows, joints, tip, T, feed, h, block_time)
+    mv = _moves(rows, joints, tip, T, feed, h, block_time, t_prog, f_prog)
     # the controller runs the values as written (4 decimals, mm and degrees): time the blocks on those
-    mv.joints[:, :3] = np.round(mv.joints[:, :3], 4)
-    mv.joints[:, 3:] = np.radians(np.round(np.degrees(mv.joints[:, 3:]), 4))
-    mv.tips = np.round(mv.tips, 4)
+    mv.joints = written_joints(mv.joints)
+    mv.tips = np.round(mv.tips, WRITTEN_DECIMALS)
     F, still = _block_feeds(machine, mv, mode)
-    lines = _program_open(d, program_name) + _header(d, mode, machine, cutter, method, inputs, n, h, still)
+    lines = _program_open(d, program_name) + _header(d, mode, machine, cutter, method, inputs, n, h, still,
+                                                     tolerance)
     lines += _program_start(d, mode, tcp_on, tool_no, tolerance)
     deg = np.degrees
     coords = np.column_stack([mv.joints[:, :3] if mode == "machine" else mv.tips, deg(mv.joints[:, 3:])])
@@ -456,6 +479,7 @@ def _blocks(d: Dialect, mode: str, mv: Any, coords: np.ndarray, F: np.ndarray) -
     if len(k):
         f_text[k] = _fixed_sig(f_vals[k]) if mode == "machine" else _fixed(f_vals[k], 1).to_numpy()
         f_text[k] = " F" + f_text[k]
+    f_text = f_text + _annotations(d, mv, rapid)
     cols = {c: _fixed(coords[:, j], sign=d.klartext) for j, c in enumerate("XYZAB")}
     df = pl.DataFrame({**cols, "rapid": rapid, "f": f_text.astype(str)})
     words = [pl.lit(c) + pl.col(c) for c in "XYZAB"]
@@ -472,6 +496,31 @@ def _blocks(d: Dialect, mode: str, mv: Any, coords: np.ndarray, F: np.ndarray) -
             row, cnt = starts[a_]
             out.append(d.comment(f"row {row}: {cnt} points"))
         out.extend(block[a_:b_])
+    return out
+
+
+def _annotations(d: Dialect, mv: Any, rapid: np.ndarray) -> np.ndarray:
+    """Per block the comment ``t=<s> [f=<mm/min>]``: the programmed-feed time from the row's start
+    (9 decimals) and, where it changes (and at each row's entry), the programmed feed, so that
+    ``read_gcode`` recovers the time base smooth computed Gamma on ("" for rapids and when the
+    writer was given no times)."""
+    n = len(rapid)
+    out = np.full(n, "", dtype=object)
+    t = getattr(mv, "t_prog", None)
+    if t is None:
+        return out
+    k = np.flatnonzero(~rapid & np.isfinite(t))
+    if not len(k):
+        return out
+    text = "t=" + _fixed(np.asarray(t)[k], 9).to_numpy().astype(object)
+    feed = np.asarray(mv.f_prog if mv.f_prog is not None else mv.feed, float)
+    prev_cut = np.r_[True, rapid[:-1]]
+    prev_feed = np.r_[np.nan, feed[:-1]]
+    new_f = (prev_cut | (feed != prev_feed))[k] & np.isfinite(feed[k])
+    if new_f.any():
+        text[new_f] = text[new_f] + " f=" + _fixed(feed[k][new_f], 3).to_numpy().astype(object)
+    out[k] = np.array([" " + d.comment(x) for x in text], dtype=object) if d.comment is not _paren else \
+        " (" + text + ")"
     return out
 
 
@@ -522,6 +571,11 @@ def _program_end(d: Dialect, mode: str, tcp_off: str | None, name: str) -> list[
 #: the largest magnitude of an axis word (mm, deg) or header pivot the reader takes
 MAX_WORD = 1e9
 _WORD = re.compile(r"([A-Z])\s*([+-]?(?:\d+\.?\d*|\.\d+))")
+#: the per-block annotation the writer adds (``_annotations``)
+_ANNOT = re.compile(r"[(;]\s*t=(\d+\.\d+)(?:\s+f=(\d+\.\d+))?")
+_ROW_COMMENT = re.compile(r"[(;]\s*row (-?\d+): (\d+) points")
+_TOOL = re.compile(r"tool: toroidal R ([\d.]+) mm, r ([\d.]+) mm, diameter ([\d.]+) mm(?:, shank ([\d.]+) mm)?")
+_METHOD = re.compile(r"method: ([\w-]+)[;,] (\d+) points")
 
 
 def _strip_comment(line: str, klartext: bool) -> str:
@@ -578,6 +632,9 @@ def read_gcode(path: str | os.PathLike, machine: Any = None) -> CLProgram:
     rapid: list[bool] = []
     fword: list[float] = []
     line_no: list[int] = []
+    t_ann: list[float] = []
+    f_ann: list[float] = []
+    row_ids: list[int] = []
     inverse = False
     inv_flag: list[bool] = []
     units_inch = False
@@ -586,6 +643,10 @@ def read_gcode(path: str | os.PathLike, machine: Any = None) -> CLProgram:
     f_modal = math.nan
     tcp_seen = False
     for k, raw in enumerate(lines, start=1):
+        if tag is not None:
+            row_c = _ROW_COMMENT.search(raw)
+            if row_c:
+                row_ids.append(int(row_c.group(1)))
         s = _strip_comment(raw, klartext)
         if not s or s.startswith("%"):
             continue
@@ -639,6 +700,9 @@ def read_gcode(path: str | os.PathLike, machine: Any = None) -> CLProgram:
             missing = [w for w, v in state.items() if math.isnan(v)]
             raise InputError(f"first motion block does not give {', '.join(missing)}", file=file, line=k)
         joints.append([state[w] for w in ("X", "Y", "Z", "A", "B")])
+        ann = _ANNOT.search(raw) if tag is not None and not is_rapid else None
+        t_ann.append(float(ann.group(1)) if ann else math.nan)
+        f_ann.append(float(ann.group(2)) if ann and ann.group(2) else math.nan)
         rapid.append(is_rapid)
         fword.append(math.nan if is_rapid else f_modal)
         inv_flag.append(inverse)
@@ -670,8 +734,75 @@ def read_gcode(path: str | os.PathLike, machine: Any = None) -> CLProgram:
         feed = np.where(rap, np.nan, F)
     new = ~rap & np.r_[True, rap[:-1]]
     rows = np.where(rap, -1, np.cumsum(new) - 1)
-    tp = ToolPath(name=Path(file).stem, tool=None, start=0, stop=len(q), line=None)
+    tool, written = _own_header(lines, tag, info, rows, rap, q, F, inv_flag, t_ann, f_ann, row_ids, tip, mode)
+    tp = ToolPath(name=Path(file).stem, tool=tool, start=0, stop=len(q), line=None)
     prog = CLProgram(tip=tip, axis=axis, rows=rows, feed=feed, rapid=rap, line=np.asarray(line_no), toolpaths=[tp],
-                     source=file, format="gcode", warnings=warnings, angles=q[:, 3:])
+                     source=file, format="gcode", warnings=warnings, angles=q[:, 3:], written=written)
     prog.warnings.append(f"dialect {dialect}, mode {mode}")
     return prog
+
+
+def _own_header(lines: list[str], tag: str | None, info: dict[str, str], rows: np.ndarray, rapid: np.ndarray,
+                q: np.ndarray, F: np.ndarray, inverse: list[bool], t_ann: list[float], f_ann: list[float],
+                row_ids: list[int], tip: np.ndarray, mode: str) -> tuple[Tool | None, Written | None]:
+    """The tool and what camsmooth wrote beside the blocks (``Written``) of a program camsmooth
+    wrote (its ``camsmooth post:`` header), (None, None) for another program. t_plan: the block
+    times the program commands (G93: 60 / F s; tcp mode: the tip chord / F), from each row's start."""
+    if tag is None:
+        return None, None
+    head = "\n".join(lines[:80])
+    tool = None
+    m = _TOOL.search(head)
+    try:
+        if m:
+            r_c, dia = float(m.group(2)), float(m.group(3))
+            tool = Tool(name="camsmooth", kind="mill", diameter=dia, corner_radius=r_c,
+                        length=float(m.group(4)) if m.group(4) else None, line=None)
+    except ValueError:  # a mangled header: the tool is not known
+        tool = None
+    mm = _METHOD.search(head)
+    method = info.get("method") or (mm.group(1) if mm else None)
+    n_points = int(mm.group(2)) if mm else None
+    try:
+        tol = float(info["tolerance"]) if "tolerance" in info else None
+    except ValueError:
+        tol = None
+    n = len(rows)
+    t = np.asarray(t_ann, float)
+    f = np.asarray(f_ann, float)
+    # the programmed feed is written where it changes: carry it forward within each row
+    cut = ~rapid
+    starts = cut & np.r_[True, rapid[:-1]]
+    grp = np.cumsum(starts)
+    marker = np.where(cut & (np.isfinite(f) | starts), np.arange(n), -1)  # a row's start resets it
+    last = np.maximum.accumulate(marker) if n else marker
+    feed = np.where(cut & (last >= 0), f[np.maximum(last, 0)], np.nan)
+    dt = np.full(n, np.nan)
+    inv = np.asarray(inverse, bool)
+    if mode == "machine":
+        with np.errstate(divide="ignore"):
+            dt = np.where(inv, 60.0 / F, np.nan)
+    else:
+        chord = np.r_[np.nan, np.linalg.norm(np.diff(tip, axis=0), axis=1)]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            dt = 60.0 * chord / F
+    dt = np.where(cut & ~starts, dt, 0.0)
+    t_plan = None
+    if np.all(np.isfinite(dt[cut])):
+        total = np.cumsum(dt)
+        first = np.flatnonzero(starts)
+        t_plan = np.full(n, np.nan)
+        t_plan[cut] = total[cut] - total[first][grp[cut] - 1]
+    n_rows = int(starts.sum())
+    row_id = None
+    if len(row_ids) == n_rows:
+        row_id = np.full(n, -1, np.int64)
+        row_id[cut] = np.asarray(row_ids, np.int64)[rows[cut]]
+    every = n_points is None or int(cut.sum()) == n_points
+    inner = np.flatnonzero(cut & ~starts)
+    with np.errstate(invalid="ignore"):
+        t_ok = bool(np.isfinite(t[cut]).all() and np.all(t[inner] > t[inner - 1]))  # increasing along each row
+    written = Written(method=method, tolerance=tol, every_point=every, dialect=info.get("dialect"),
+                      t=t if t_ok else None,
+                      feed=feed if np.isfinite(feed[cut]).all() else None, t_plan=t_plan, row_id=row_id)
+    return tool, written

@@ -82,6 +82,43 @@ class ToolPath:
 
 
 @dataclass
+class Written:
+    """What camsmooth wrote beside the poses of its own output (a result CSV or G-code), so that
+    ``analyze`` evaluates the program as ``smooth`` did (camsmooth.smoothing.evaluate).
+
+    method: the smoothing method ('nlp', ...) or None; tolerance: mm, the run's, or None;
+    every_point: all of smooth's points are written (False for the longer blocks of a modelled
+    controller, camsmooth.controller); dialect: the G-code dialect it was written for (None: CSV).
+    Per point (None where not written): t s from the row's
+    start at the programmed feed; feed mm/min, the programmed feed; t_plan s from the row's start,
+    the time law the program commands (G93 block times, the CSV's ``t_opt``); row_id, idx: smooth's
+    row id and index in the row; cc, normals (mm; CSV); delta (mm) and status (CSV).
+    """
+
+    method: str | None = None
+    tolerance: float | None = None
+    every_point: bool = True
+    dialect: str | None = None
+    t: np.ndarray | None = None
+    feed: np.ndarray | None = None
+    t_plan: np.ndarray | None = None
+    row_id: np.ndarray | None = None
+    idx: np.ndarray | None = None
+    cc: np.ndarray | None = None
+    normals: np.ndarray | None = None
+    delta: np.ndarray | None = None
+    status: np.ndarray | None = None
+
+    _PER_POINT = ("t", "feed", "t_plan", "row_id", "idx", "cc", "normals", "delta", "status")
+
+    def take(self, keep: np.ndarray) -> Written:
+        """A copy with the per-point arrays at the points ``keep`` (bool mask or indices)."""
+        per = {k: (None if getattr(self, k) is None else getattr(self, k)[keep]) for k in self._PER_POINT}
+        return Written(method=self.method, tolerance=self.tolerance, every_point=self.every_point,
+                       dialect=self.dialect, **per)
+
+
+@dataclass
 class CLProgram:
     """A cutter-location program, per point in machining order.
 
@@ -93,7 +130,8 @@ class CLProgram:
     the line (data row for CSV) of the record that produced the point. toolpaths: contiguous
     point ranges with name and tool. angles: (N, 2) commanded rotary angles A, B (rad) when the
     file commands them (G-code) else None. source: the file; format: the reader's format name;
-    warnings: messages naming lines (records ignored, assumptions made).
+    warnings: messages naming lines (records ignored, assumptions made). written: what camsmooth
+    wrote beside the poses when the file is camsmooth's own output (``Written``), else None.
     """
 
     tip: np.ndarray
@@ -107,6 +145,7 @@ class CLProgram:
     format: str = "cl"
     warnings: list[str] = field(default_factory=list)
     angles: np.ndarray | None = None
+    written: Written | None = None
 
     def __post_init__(self) -> None:
         self.tip = np.asarray(self.tip, dtype=float).reshape(-1, 3)
@@ -147,7 +186,8 @@ class CLProgram:
         return CLProgram(tip=self.tip[keep], axis=None if self.axis is None else self.axis[keep],
                          rows=self.rows[keep], feed=self.feed[keep], rapid=self.rapid[keep], line=self.line[keep],
                          toolpaths=tps, source=self.source, format=self.format, warnings=list(self.warnings),
-                         angles=None if self.angles is None else self.angles[keep])
+                         angles=None if self.angles is None else self.angles[keep],
+                         written=None if self.written is None else self.written.take(keep))
 
     def toolpath_of(self, index: int) -> ToolPath | None:
         """The tool path holding point ``index`` (None if none does)."""
@@ -181,9 +221,12 @@ class CLProgram:
 
 # ----------------------------------------------------------------------------------------------
 # format detection and the entry point
-FORMATS = ("apt", "cl-csv", "cc-csv", "gcode")
+FORMATS = ("apt", "cl-csv", "cc-csv", "gcode", "result-csv")
 _ALIASES = {"cls": "apt", "clsf": "apt", "cldata": "apt", "apt": "apt", "cl": "cl-csv", "cl-csv": "cl-csv",
-            "cc": "cc-csv", "cc-csv": "cc-csv", "gcode": "gcode", "nc": "gcode", "g-code": "gcode"}
+            "cc": "cc-csv", "cc-csv": "cc-csv", "gcode": "gcode", "nc": "gcode", "g-code": "gcode",
+            "result": "result-csv", "result-csv": "result-csv"}
+#: header columns that make a CSV camsmooth's own result CSV (camsmooth.io.output.write_result_csv)
+RESULT_MARK = ("row", "idx", "t", "clx", "cly", "clz", "i", "j", "k", "a", "b", "x", "y", "z", "delta", "status")
 _APT_RECORD = re.compile(r"^\s*(TOOL PATH/|GOTO/|TLDATA/|CUTTER/|MSYS/|FEDRAT/|RAPID\s*$|LOADTL/|LOAD/|PARTNO|"
                          r"UNITS/|MULTAX/|CIRCLE/|MOVARC/|END-OF-PATH|FROM/|\$\$)", re.IGNORECASE | re.MULTILINE)
 _GCODE_LINE = re.compile(r"^\s*(%|O\d+|N\d+|G\d|M\d|\(|;|\d+\s+BEGIN PGM|BEGIN PGM|T\d|TRAORI)",
@@ -194,8 +237,9 @@ _EXTENSIONS = {".cls": "apt", ".clsf": "apt", ".apt": "apt", ".aptsource": "apt"
 
 
 def detect_format(path: str | os.PathLike, head: str | None = None) -> str:
-    """The format of a program file ('apt', 'cl-csv', 'cc-csv' or 'gcode') from its content: APT
-    records, a CSV header naming x,y,z and nx,ny,nz (CC) or i,j,k (CL), G-code blocks; the
+    """The format of a program file ('apt', 'cl-csv', 'cc-csv', 'gcode' or 'result-csv') from its
+    content: APT records, camsmooth's result CSV (its header, RESULT_MARK), a CSV header naming
+    x,y,z and nx,ny,nz (CC) or i,j,k (CL), G-code blocks; the
     extension decides only when the content does not. InputError when neither tells."""
     file = str(path)
     if head is None:
@@ -209,6 +253,8 @@ def detect_format(path: str | os.PathLike, head: str | None = None) -> str:
         head = raw.decode("utf-8-sig", errors="replace").replace("\r", "\n")
     first = next((ln for ln in head.split("\n") if ln.strip()), "")
     names = {h.strip().strip('"').lower() for h in re.split(r"[,;\t]", first)}
+    if set(RESULT_MARK) <= names:
+        return "result-csv"
     if {"x", "y", "z"} <= names:
         if {"nx", "ny", "nz"} <= names:
             return "cc-csv"
@@ -252,9 +298,50 @@ def _read_gcode(path: str | os.PathLike, **kw: Any) -> CLProgram:
     return read_gcode(path, **{k: v for k, v in kw.items() if k in ("machine",)})
 
 
+def _read_result(path: str | os.PathLike, **_: Any) -> CLProgram:
+    return read_result_program(path)
+
+
 #: format name -> loader(path, **options); options a loader does not take are ignored
 LOADERS: dict[str, Callable[..., CLProgram | CCPath]] = {
-    "apt": _read_apt, "cl-csv": _read_cl, "cc-csv": _read_cc, "gcode": _read_gcode}
+    "apt": _read_apt, "cl-csv": _read_cl, "cc-csv": _read_cc, "gcode": _read_gcode, "result-csv": _read_result}
+
+
+def read_result_program(path: str | os.PathLike) -> CLProgram:
+    """camsmooth's result CSV (camsmooth.io.output.write_result_csv) as the program it describes:
+    tool tips ``clx,cly,clz``, axes ``i,j,k``, the commanded A, B and the pivot X Y Z, one row per
+    ``row`` id, and beside them (``Written``) the programmed-feed time ``t``, the programmed feed
+    (``feed``, or from t and the CC points in files without it), the time-optimal law ``t_opt``,
+    the CC points, normals, clearance and status."""
+    from camsmooth.io.output import read_result_csv
+
+    c = read_result_csv(path)
+    rows_id = np.asarray(c["row"], np.int64)
+    n = len(rows_id)
+    starts = np.r_[True, rows_id[1:] != rows_id[:-1]] if n else np.zeros(0, bool)
+    rows = np.cumsum(starts) - 1
+    cc = np.column_stack([c["x"], c["y"], c["z"]])
+    t = np.asarray(c["t"], float)
+    if "feed" in c:
+        feed = np.asarray(c["feed"], float)
+    else:  # t_i - t_(i-1) = |CC_i - CC_(i-1)| / F_i (camsmooth.smoothing.pipeline.row_times)
+        dt = np.r_[np.nan, np.diff(t)]
+        seg = np.r_[np.nan, np.linalg.norm(np.diff(cc, axis=0), axis=1)]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            feed = np.where(starts, np.nan, 60.0 * seg / dt)
+        nxt = np.minimum(np.flatnonzero(starts) + 1, max(n - 1, 0))
+        feed[starts] = feed[nxt]
+    ang = np.radians(np.column_stack([c["A"], c["B"]]))
+    written = Written(method=None, tolerance=None, every_point=True, t=t, feed=feed,
+                      t_plan=np.asarray(c["t_opt"], float) if "t_opt" in c else None, row_id=rows_id,
+                      idx=np.asarray(c["idx"], np.int64), cc=cc,
+                      normals=np.column_stack([c["nx"], c["ny"], c["nz"]]) if "nx" in c else None,
+                      delta=np.asarray(c["delta"], float), status=np.asarray(c["status"]))
+    tp = ToolPath(name=Path(str(path)).stem, tool=None, start=0, stop=n, line=None)
+    return CLProgram(tip=np.column_stack([c["clx"], c["cly"], c["clz"]]),
+                     axis=np.column_stack([c["i"], c["j"], c["k"]]), rows=rows, feed=feed,
+                     rapid=np.zeros(n, bool), line=np.arange(1, n + 1), toolpaths=[tp],
+                     source=str(path), format="result-csv", angles=ang, written=written)
 
 
 def load_program(source: str | os.PathLike, format: str | None = None, **options: Any) -> CLProgram | CCPath:
@@ -272,4 +359,10 @@ def load_program(source: str | os.PathLike, format: str | None = None, **options
         fmt = _ALIASES.get(str(format).lower())
         if fmt is None:
             raise InputError(f"unknown program format {format!r} (known: {', '.join(FORMATS)})", file=str(source))
+        if fmt == "cl-csv" and detect_format(source) == "result-csv":
+            # its x,y,z are the CC points, not tool tips: read it as the program it describes
+            program = LOADERS["result-csv"](source, **options)
+            program.warnings.append("a camsmooth result CSV: read as the program it describes (tool tips clx,cly,clz, "
+                                    "axes i,j,k), not as a CL CSV whose x,y,z would be the CC points")
+            return program
     return LOADERS[fmt](source, **options)

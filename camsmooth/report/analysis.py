@@ -51,15 +51,17 @@ def write_analysis_report(analysis: Any, series: dict[str, np.ndarray], machine:
         rows = []
         for tp in doc["toolpaths"]:
             viol = ", ".join(f"{k}: {v}" for k, v in tp["violations"].items() if v) or "none"
+            viol_p = ", ".join(f"{k}: {v}" for k, v in tp.get("violations_programmed", {}).items() if v) or "none"
             tool = tp["tool"] or {}
             rows.append("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in (
                 tp["name"], f"D {tool.get('diameter')} r {tool.get('corner_radius')}", tp["points"],
                 f"{tp['feed'][0]:g}..{tp['feed'][1]:g}", f"{tp['A_range_deg'][0]:.3f}..{tp['A_range_deg'][1]:.3f}",
-                f"{tp['B_range_deg'][0]:.3f}..{tp['B_range_deg'][1]:.3f}", f"{tp['gamma']:.4g}", viol,
+                f"{tp['B_range_deg'][0]:.3f}..{tp['B_range_deg'][1]:.3f}", f"{tp['gamma']:.4g}", viol, viol_p,
                 tp["singular"]["points"], f"{tp['cycle_time_s']:.2f} ({tp['limiting']})",
                 "\u2014" if tp["clearance"] is None else f"{tp['clearance']['min_mm']:.4g}")) + "</tr>")
-        head = ("tool path", "tool (mm)", "points", "feed (mm/min)", "A (deg)", "B (deg)", "\u0393", "violations",
-                "near singular", "cycle time (s)", "min clearance (mm)")
+        head = ("tool path", "tool (mm)", "points", "feed (mm/min)", "A (deg)", "B (deg)", "\u0393",
+                "violations, planned law", "violations at the programmed feed", "near singular", "cycle time (s)",
+                "min clearance (mm)")
         warn = "".join(f"<li>{html.escape(w)}</li>" for w in doc["warnings"])
         text = ("<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>camsmooth analyze</title></head>"
                 f"<body><h1>{html.escape(str(doc['source']))} ({html.escape(doc['format'])}), {doc['points']} "

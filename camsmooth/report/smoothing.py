@@ -67,13 +67,27 @@ _RENDER_TIMEOUT_S = 120.0
 # series preparation
 @dataclass
 class _Series:
-    """One method's data laid out for plotting: cumulative time, row breaks, decimation."""
+    """One method's data laid out for plotting: cumulative time (the planned time law t_plan when
+    the method has one, else the programmed-feed time), row breaks, decimation, and the rates of
+    a quantity under that time law."""
 
     m: MethodResult
     t: np.ndarray          # cumulative program time (s)
     starts: np.ndarray     # index of each row's first point
     max_points: int
     primary: bool = False
+    row_t: np.ndarray | None = None  # s from each row's start under the time law plotted
+
+    @property
+    def planned(self) -> bool:
+        return self.m.plan is not None
+
+    def rates(self, q: np.ndarray) -> Any:
+        """Velocity and acceleration of q (N or (N, k)) under the plotted time law
+        (camsmooth.smoothing.nlp.program_rates)."""
+        from camsmooth.smoothing.nlp import program_rates
+
+        return program_rates(np.asarray(q, float), self.row_t if self.row_t is not None else self.m.t, self.m.rows)
 
     @property
     def decimated(self) -> bool:
@@ -177,12 +191,13 @@ def _colour(method: str, order: list[str]) -> str:
 
 # ----------------------------------------------------------------------------------------------
 # figures
-def _figure(nrows: int, ncols: int, title: str, height_per_row: float = 2.6, width: float | None = None):
+def _figure(nrows: int, ncols: int, title: str, height_per_row: float = 2.6, width: float | None = None,
+            sharey: bool | str = False):
     from matplotlib.figure import Figure
 
     width = width or max(6.0, 4.6 * ncols)
     fig = Figure(figsize=(width, 0.6 + height_per_row * nrows), dpi=_DPI, layout="constrained")
-    axes = fig.subplots(nrows, ncols, squeeze=False, sharex="col")
+    axes = fig.subplots(nrows, ncols, squeeze=False, sharex="col", sharey=sharey)
     fig.suptitle(title, fontsize=11)
     return fig, axes
 
@@ -237,17 +252,27 @@ def _plot_axes(series: list[_Series], colours: dict[str, str], machine: Any, qua
     }[quantity]
     lab_a, lab_b, unit, limit_label, get = spec
     title = f"Rotary axes: {quantity} per method ({unit}){_decimation_note(series)}"
-    fig, axes = _figure(2, len(series), title)
+    fig, axes = _figure(2, len(series), title, sharey="row")
+    # one scale per axis across the methods: the travel lines are drawn for all or for none
+    union = {ax_: np.degrees(np.concatenate([np.asarray(getattr(s.m, ax_), float) for s in series]))
+             for ax_ in ("A", "B")}
     for c, s in enumerate(series):
         for r_, (axis_name, lab) in enumerate((("A", lab_a), ("B", lab_b))):
             ax = axes[r_, c]
-            y = np.degrees(np.asarray(get(s.m, axis_name), dtype=float))
+            q = np.asarray(getattr(s.m, axis_name), dtype=float)
+            if quantity == "angle":
+                y = np.degrees(q)
+            elif s.planned:  # under the planned time law, the one the program's F words command
+                rq = s.rates(q)
+                y = np.degrees(rq.vel if quantity == "velocity" else rq.acc)
+            else:
+                y = np.degrees(np.asarray(get(s.m, axis_name), dtype=float))
             x, yy = s.line(y)
             ax.plot(x, yy, color=colours[s.m.method], linewidth=0.9, label=s.m.method)
             lim = _axis_limits(machine, axis_name)
             if lim is not None:
                 if quantity == "angle":
-                    _limit_lines(ax, np.degrees([lim.min, lim.max]), "travel", y, always=False)
+                    _limit_lines(ax, np.degrees([lim.min, lim.max]), "travel", union[axis_name], always=False)
                 else:
                     vmax = lim.vmax if quantity == "velocity" else lim.amax
                     if np.isfinite(vmax):
@@ -259,9 +284,13 @@ def _plot_axes(series: list[_Series], colours: dict[str, str], machine: Any, qua
             if r_ == 0:
                 ax.set_title(s.m.method + (" (primary)" if s.primary else ""), fontsize=10)
             if r_ == 1:
-                ax.set_xlabel("program time (s)")
+                ax.set_xlabel(_time_label(s))
             ax.legend(loc="upper right", fontsize=7)
     return fig
+
+
+def _time_label(s: _Series) -> str:
+    return "planned time t_plan (s)" if s.planned else "time at the programmed feed (s)"
 
 
 def _plot_compound(series: list[_Series], colours: dict[str, str]) -> Any:
@@ -270,7 +299,8 @@ def _plot_compound(series: list[_Series], colours: dict[str, str]) -> Any:
     ax = axes[0, 0]
     positive = False
     for s in series:
-        y = np.abs(np.asarray(s.m.compound_acc, dtype=float))
+        y = (np.linalg.norm(s.rates(s.m.axis).acc, axis=1) if s.planned
+             else np.abs(np.asarray(s.m.compound_acc, dtype=float)))
         any_positive = bool(np.any(y > 0))
         positive |= any_positive
         x, yy = s.line(np.where(y > 0, y, np.nan))
@@ -283,7 +313,7 @@ def _plot_compound(series: list[_Series], colours: dict[str, str]) -> Any:
     if series:
         _mark_rows(ax, series[0])
     ax.grid(True, which="both", alpha=0.3)
-    ax.set_xlabel("program time (s)")
+    ax.set_xlabel(_time_label(series[0]) if series else "time (s)")
     ax.set_ylabel("|T''| (1/s\u00b2)")
     ax.legend(loc="upper right", fontsize=8)
     return fig
@@ -291,7 +321,7 @@ def _plot_compound(series: list[_Series], colours: dict[str, str]) -> Any:
 
 def _plot_lead_tilt(series: list[_Series], colours: dict[str, str]) -> Any:
     fig, axes = _figure(2, len(series), "Lead and tilt (deg) within their per-point windows (shaded)"
-                        + _decimation_note(series))
+                        + _decimation_note(series), sharey="row")
     for c, s in enumerate(series):
         for r_, (name, window) in enumerate((("lead", s.m.lead_window), ("tilt", s.m.tilt_window))):
             ax = axes[r_, c]
@@ -316,31 +346,49 @@ def _plot_lead_tilt(series: list[_Series], colours: dict[str, str]) -> Any:
             if r_ == 0:
                 ax.set_title(s.m.method, fontsize=10)
             else:
-                ax.set_xlabel("program time (s)")
-            ax.legend(loc="upper right", fontsize=7)
+                ax.set_xlabel(_time_label(s))
+            ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12 if r_ == 0 else -0.28), ncol=3, fontsize=7,
+                      frameon=False)
     return fig
 
 
 def _plot_clearance(series: list[_Series], colours: dict[str, str], line: float = CLEARANCE_TOL_MM) -> Any:
-    fig, axes = _figure(1, len(series), "Clearance \u03b4 tool to surface (mm); gouge below "
-                        f"{line:g} mm" + _decimation_note(series), height_per_row=3.2)
-    for c, s in enumerate(series):
+    """Clearance per method in micrometres, scaled to the data (the same scale for every method);
+    the gouge line -tolerance drawn when it lies near the data, else named in a corner note;
+    legends below the panels, never over the line."""
+    fig, axes = _figure(1, len(series), "Clearance \u03b4 tool to surface (\u00b5m); gouge below "
+                        f"{1e3 * line:.4g} \u00b5m" + _decimation_note(series), height_per_row=3.4, sharey="row")
+    um = [1e3 * np.asarray(s.m.delta, dtype=float) for s in series]
+    finite = np.concatenate([d[np.isfinite(d)] for d in um]) if um else np.zeros(0)
+    lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (-1.0, 1.0)
+    span = max(hi - lo, 1e-3)
+    tol_um = 1e3 * line
+    show_line = lo - 0.5 * span <= tol_um
+    for c, (s, d) in enumerate(zip(series, um, strict=True)):
         ax = axes[0, c]
-        d = np.asarray(s.m.delta, dtype=float)
         x, yy = s.line(d)
         ax.plot(x, yy, color=colours[s.m.method], linewidth=0.9, label="\u03b4")
-        ax.axhline(0.0, color="k", linewidth=0.8)
-        ax.axhline(line, color="#d62728", linestyle="--", linewidth=0.9, label=f"tolerance {line:g} mm")
+        ax.axhline(0.0, color="k", linewidth=0.6, alpha=0.6)
+        if show_line:
+            ax.axhline(tol_um, color="#d62728", linestyle="--", linewidth=0.9, label=f"-tolerance {tol_um:.4g} \u00b5m")
+        else:
+            ax.text(0.99, 0.02, f"gouge line {tol_um:.4g} \u00b5m (off scale, below)", transform=ax.transAxes,
+                    ha="right", va="bottom", fontsize=7, color="#d62728")
         with np.errstate(invalid="ignore"):
-            bad = d < line
+            bad = d < tol_um
         if bad.any():
             ax.plot(s.t[bad], d[bad], ".", color="#d62728", markersize=3, label=f"gouge ({int(bad.sum())})")
+        k = int(np.nanargmin(d)) if np.isfinite(d).any() else None
+        if k is not None:
+            ax.plot([s.t[k]], [d[k]], "v", color="k", markersize=5,
+                    label=f"worst {d[k]:.3g} \u00b5m (row {int(s.m.rows[k])}, point {int(s.m.idx[k])})")
         _mark_rows(ax, s)
         ax.grid(True, alpha=0.3)
+        ax.set_ylim(lo - 0.1 * span if not show_line else min(lo, tol_um) - 0.1 * span, hi + 0.1 * span)
         ax.set_title(s.m.method, fontsize=10)
-        ax.set_xlabel("program time (s)")
-        ax.set_ylabel("\u03b4 (mm)")
-        ax.legend(loc="upper right", fontsize=7)
+        ax.set_xlabel(_time_label(s))
+        ax.set_ylabel("\u03b4 (\u00b5m)")
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.22), ncol=2, fontsize=7, frameon=False)
     return fig
 
 
@@ -523,6 +571,14 @@ def method_summary(m: MethodResult) -> dict[str, Any]:
         "unreachable": [tuple(int(v) for v in p) for p in mt.unreachable] if mt is not None else [],
         "runtime_s": float(mt.runtime_s) if mt is not None else nan,
         "cycle_time_s": float(mt.cycle_time_s) if mt is not None else nan,
+        "cycle_time_optimal_s": float(mt.cycle_time_optimal_s) if mt is not None else nan,
+        "controller": mt.controller if mt is not None else "",
+        "violations_programmed": dict(mt.violations_programmed) if mt is not None else {},
+        "peak_A_acc_plan": float(mt.peak_A_acc_plan) if mt is not None else nan,
+        "peak_B_acc_plan": float(mt.peak_B_acc_plan) if mt is not None else nan,
+        "planned": m.plan is not None,
+        "binding_share": _binding_share(m),
+        "worst": _worst_point(m),
         "gouge_line": _gouge_line(mt),
         "limiting": mt.limiting if mt is not None else "",
         "mapped_points": mt.mapped_points if mt is not None else None,
@@ -541,15 +597,78 @@ def _short_list(items: Sequence[Any], limit: int = 60) -> str:
     return txt + (f", \u2026 and {len(items) - limit} more" if len(items) > limit else "")
 
 
+def _binding_share(m: MethodResult) -> float:
+    """Share (0-1) of the planned law's time during which its most binding constraint binds."""
+    plan = m.plan
+    if plan is None:
+        return float("nan")
+    lt = np.asarray(plan.limit_time, float)
+    return float(lt.max() / lt.sum()) if lt.size and lt.sum() > 0 else float("nan")
+
+
+def _worst_point(m: MethodResult) -> tuple[float, int, int] | None:
+    """(clearance mm, row, point) of the smallest clearance, None when none is known."""
+    d = np.asarray(m.delta, float)
+    if not d.size or not np.isfinite(d).any():
+        return None
+    k = int(np.nanargmin(d))
+    return float(d[k]), int(m.rows[k]), int(m.idx[k])
+
+
+def _total(counts: dict[str, int]) -> tuple[int, str]:
+    """Total of the counts and the non-zero ones named ('B acceleration 3, interference 1')."""
+    named = [f"{k} {v}" for k, v in counts.items() if v]
+    return int(sum(counts.values())), ", ".join(named)
+
+
+def _clearance_text(worst: tuple[float, int, int] | None) -> str:
+    if worst is None:
+        return "clearance not known"
+    d, row, idx = worst
+    return f"worst clearance {1e3 * d:.3g} \u00b5m at row {row}, point {idx}"
+
+
+def _verdict_html(order: list[str], summaries: dict[str, dict[str, Any]], primary: str) -> str:
+    """One line per method, primary first: the answers a CAM programmer looks for first."""
+    items = []
+    for name in sorted(order, key=lambda n: n != primary):
+        s = summaries[name]
+        tag = html.escape(name) + (" (primary)" if name == primary else "")
+        cyc = f"cycle time {_fmt(s['cycle_time_optimal_s'], '.4g')} s time-optimal"
+        if s["controller"]:
+            cyc += f", {_fmt(s['cycle_time_s'], '.4g')} s on the {html.escape(s['controller'])} controller"
+        share = s["binding_share"]
+        where = " in the time-optimal law" if s["controller"] else ""
+        binds = (f"binds most{where}: {html.escape(s['limiting'])}"
+                 + (f" ({100 * share:.0f}% of the time)" if np.isfinite(share) else "")) if s["limiting"] else ""
+        law = "under the planned law" if s["planned"] else "at the programmed feed"
+        pa = s["peak_A_acc_plan"] if s["planned"] else s["peak_A_acc_deg"]
+        pb = s["peak_B_acc_plan"] if s["planned"] else s["peak_B_acc_deg"]
+        peaks = f"peak B'' {_fmt(pb, '.4g')} and A'' {_fmt(pa, '.4g')} deg/s\u00b2 {law}"
+        total, named = _total(s["violations"])
+        viol = f"{total} violation{'s' * (total != 1)} {law}" + (f" ({html.escape(named)})" if named else "")
+        if s["planned"]:
+            tp, _ = _total(s["violations_programmed"])
+            viol += f"; {tp} at the programmed feed"
+        bad = total > 0 or (s["worst"] is not None and s["worst"][0] < s["gouge_line"])
+        parts = [p for p in (cyc, binds, peaks, viol, html.escape(_clearance_text(s["worst"]))) if p]
+        items.append(f"<li class='{'badline' if bad else ''}'><b>{tag}</b>: " + "; ".join(parts) + ".</li>")
+    return "<ul class='verdict'>" + "".join(items) + "</ul>"
+
+
 def _summary_table(order: list[str], summaries: dict[str, dict[str, Any]], primary: str) -> str:
-    vnames: list[str] = []
-    for name in order:
-        vnames += [v for v in summaries[name]["violations"] if v not in vnames]
-    head = (["method", "points", "rows", "\u0393 (gamma)", "peak |A''| (deg/s\u00b2)",
-             "peak |B''| (deg/s\u00b2)", "min \u03b4 (mm)"]
-            + [f"violations: {v}" for v in vnames]
-            + ["unclean rows", "unreachable points", "cycle time (s)", "feed limited by", "map points",
-               "run time (s)"])
+    """At most ten columns: the per-axis violation counts collapsed into one total with the
+    non-zero ones named."""
+    any_ctrl = any(summaries[n]["controller"] for n in order)
+    ctrl_name = next((summaries[n]["controller"] for n in order if summaries[n]["controller"]), "")
+    head = ["method", "points / rows", "\u0393 (1/s\u2074)", "cycle time optimal (s)"]
+    if any_ctrl:
+        head.append(f"cycle time {ctrl_name} (s)")
+    head += ["binds most (time-optimal law)" if any_ctrl else "binds most", "peak |A''| / |B''| (deg/s\u00b2)",
+             "violations, planned law",
+             "violations at the programmed feed", "min \u03b4 (\u00b5m)"]
+    if not any_ctrl:
+        head.append("run time (s)")
     with_model = any(summaries[n].get("model") for n in order)
     if with_model:  # ideal against predicted-real (error model given)
         head += ["real tip error, as commanded (\u00b5m)", "real tip error, uncompensated (\u00b5m)",
@@ -557,27 +676,141 @@ def _summary_table(order: list[str], summaries: dict[str, dict[str, Any]], prima
     out = ["<table class='summary'>", "<tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr>"]
     for name in order:
         s = summaries[name]
-        bad_delta = np.isfinite(s["min_delta"]) and s["min_delta"] < s["gouge_line"]
-        cells = [
-            (html.escape(name) + (" <b>(primary)</b>" if name == primary else ""), False),
-            (str(s["points"]), False), (str(s["rows"]), False),
-            (_fmt(s["gamma"]), False), (_fmt(s["peak_A_acc_deg"]), False), (_fmt(s["peak_B_acc_deg"]), False),
-            (_fmt(s["min_delta"]), bad_delta),
-        ]
-        for v in vnames:
-            count = s["violations"].get(v)
-            cells.append(("\u2014" if count is None else str(count), bool(count)))
-        cells += [(str(len(s["unclean_rows"])), bool(s["unclean_rows"])),
-                  (str(len(s["unreachable"])), bool(s["unreachable"])), (_fmt(s["cycle_time_s"], ".5g"), False),
-                  (html.escape(s["limiting"] or "\u2014"), False),
-                  ("\u2014" if s["mapped_points"] is None else str(s["mapped_points"]), False),
-                  (_fmt(s["runtime_s"], ".3g"), False)]
+        bad_delta = bool(np.isfinite(s["min_delta"]) and s["min_delta"] < s["gouge_line"])
+        planned = s["planned"]
+        pa = s["peak_A_acc_plan"] if planned else s["peak_A_acc_deg"]
+        pb = s["peak_B_acc_plan"] if planned else s["peak_B_acc_deg"]
+        total, named = _total(s["violations"])
+        total_p, named_p = _total(s["violations_programmed"] or s["violations"])
+        cells = [(html.escape(name) + (" <b>(primary)</b>" if name == primary else ""), False),
+                 (f"{s['points']} / {s['rows']}", False), (_fmt(s["gamma"]), False),
+                 (_fmt(s["cycle_time_optimal_s"] if planned else s["cycle_time_s"], ".5g"), False)]
+        if any_ctrl:
+            cells.append((_fmt(s["cycle_time_s"], ".5g") if s["controller"] else "\u2014", False))
+        cells += [(html.escape(s["limiting"] or "\u2014"), False), (f"{_fmt(pa)} / {_fmt(pb)}", False),
+                  (str(total) + (f" <small>({html.escape(named)})</small>" if named else ""), bool(total)),
+                  (str(total_p) + (f" <small>({html.escape(named_p)})</small>" if named_p else ""), False),
+                  (_fmt(1e3 * s["min_delta"], ".3g"), bad_delta)]
+        if not any_ctrl:
+            cells.append((_fmt(s["runtime_s"], ".3g"), False))
         if with_model:
             md = s.get("model") or {}
             cells += [(_fmt(md.get(k, float("nan")), ".3g"), False)
                       for k in ("tip_error_um_max", "tip_error_um_max_uncompensated", "axis_error_urad_max")]
         tds = "".join(f"<td class='{'bad' if bad else ''}'>{c}</td>" for c, bad in cells)
         out.append(f"<tr>{tds}</tr>")
+    out.append("</table>")
+    return "\n".join(out)
+
+
+#: most rows the per-row table lists (the slowest are kept beyond it)
+MAX_TABLE_ROWS = 60
+
+
+def _rows_html(m: MethodResult) -> str:
+    """Per row of one method: points, cycle time (time-optimal, controller's), peak rates under
+    the planned law (deg/s, deg/s^2) and the smallest clearance (um) with its point."""
+    from camsmooth.smoothing.nlp import program_rates
+
+    starts = _row_starts(m.rows)
+    ends = np.r_[starts[1:], len(m.rows)]
+    mt = m.metrics
+    t = np.asarray(m.plan.t_plan if m.plan is not None else m.t, float)
+    law = "planned law" if m.plan is not None else "programmed feed"
+    ra, rb = program_rates(m.A, t, m.rows), program_rates(m.B, t, m.rows)
+    opt = list(getattr(mt, "row_cycle_time_optimal_s", []) or []) if mt is not None else []
+    ctl = list(mt.row_cycle_time_s) if mt is not None and mt.controller else []
+    n = len(starts)
+    if len(opt) != n:
+        opt = [float(t[b - 1] - t[a]) for a, b in zip(starts, ends, strict=True)]
+    keep = np.arange(n)
+    note = ""
+    if n > MAX_TABLE_ROWS:
+        keep = np.sort(np.argsort(opt)[::-1][:MAX_TABLE_ROWS])
+        note = f"<p class='small'>{n} rows: the {MAX_TABLE_ROWS} slowest are listed.</p>"
+    head = ["row", "points", "cycle time optimal (s)"] + (
+        [f"cycle time {mt.controller} (s)"] if ctl else []) + [
+        f"peak |A'| / |B'| (deg/s), {law}", f"peak |A''| / |B''| (deg/s\u00b2), {law}",
+        "min \u03b4 (\u00b5m) at point"]
+    out = ["<table class='rows'>", "<tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr>"]
+    deg = np.degrees
+    for k in keep:
+        a, b = int(starts[k]), int(ends[k])
+        d = np.asarray(m.delta[a:b], float)
+        dk = int(np.nanargmin(d)) if np.isfinite(d).any() else None
+        dtxt = "\u2014" if dk is None else f"{1e3 * d[dk]:.3g} at {int(m.idx[a + dk])}"
+        cells = [str(int(m.rows[a])), str(b - a), _fmt(opt[k], ".4g")] + ([_fmt(ctl[k], ".4g")] if ctl else []) + [
+            f"{_fmt(deg(np.abs(ra.vel[a:b]).max()), '.3g')} / {_fmt(deg(np.abs(rb.vel[a:b]).max()), '.3g')}",
+            f"{_fmt(deg(np.abs(ra.acc[a:b]).max()), '.4g')} / {_fmt(deg(np.abs(rb.acc[a:b]).max()), '.4g')}", dtxt]
+        out.append("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in cells) + "</tr>")
+    out.append("</table>")
+    return note + "\n".join(out)
+
+
+def stepover_mm(cc: np.ndarray, rows: np.ndarray) -> float:
+    """The path's stepover (mm): the median over rows of the median distance from a row's CC
+    points to the nearest point of the row before it (NaN for a single row)."""
+    from scipy.spatial import cKDTree
+
+    starts = _row_starts(rows)
+    ends = np.r_[starts[1:], len(rows)]
+    cc = np.asarray(cc, float)
+    per = []
+    for (a0, b0), (a1, b1) in zip(zip(starts[:-1], ends[:-1], strict=True), zip(starts[1:], ends[1:], strict=True),
+                                  strict=True):
+        d, _ = cKDTree(cc[a0:b0]).query(cc[a1:b1])
+        per.append(float(np.median(d)))
+    return float(np.median(per)) if per else float("nan")
+
+
+def effective_radius(cutter: Any, lead: np.ndarray, tilt: np.ndarray) -> np.ndarray:
+    """Effective cutting radius across the feed (mm) per point: 1 / the cutter's curvature across
+    the feed, R / sin(lead) + r at zero tilt (docs/METHODS.md section 1.3; Euler's formula for
+    tilt, camsmooth.smoothing.orientation.cutter_curvature_tensors)."""
+    from camsmooth.smoothing.orientation import cutter_curvature_tensors
+
+    K = cutter_curvature_tensors(float(cutter.R), float(cutter.r), np.asarray(lead, float), np.asarray(tilt, float))
+    with np.errstate(divide="ignore"):
+        return 1.0 / K[..., 1, 1]
+
+
+def scallop_um(r_eff: np.ndarray, stepover: float) -> np.ndarray:
+    """Scallop height (um) of a cutter section of radius r_eff (mm) at the stepover (mm),
+    h = r_eff - sqrt(r_eff^2 - (s/2)^2) (docs/METHODS.md section 1.3); NaN where r_eff < s/2."""
+    r = np.asarray(r_eff, float)
+    with np.errstate(invalid="ignore"):
+        return 1e3 * (r - np.sqrt(r * r - (0.5 * stepover) ** 2))
+
+
+def _geometry_html(result: SmoothResult, order: list[str]) -> str:
+    """Per method: lead and tilt, the effective cutting radius across the feed and the scallop
+    height at the path's stepover."""
+    c = result.cutter
+    if c is None or not hasattr(c, "R") or not hasattr(c, "r"):
+        return "<p class='small'>No cutter in the result: no cutting geometry.</p>"
+    ref = result.result
+    s_over = stepover_mm(ref.cc, ref.rows)
+    head = ["method", "lead (deg) median [min, max]", "tilt (deg) median [min, max]",
+            "effective radius across the feed (mm) median [min]",
+            f"scallop at stepover {_fmt(s_over, '.3g')} mm (\u00b5m) median [max]"]
+    out = ["<table class='geometry'>", "<tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr>"]
+    for name in order:
+        m = result.methods[name]
+        lead, tilt = np.degrees(np.asarray(m.lead, float)), np.degrees(np.asarray(m.tilt, float))
+        r_eff = effective_radius(c, m.lead, m.tilt)
+        ok = np.isfinite(r_eff)
+        h = scallop_um(r_eff[ok], s_over) if np.isfinite(s_over) else np.full(int(ok.sum()), np.nan)
+
+        def stat(v: np.ndarray, worst: Any, spec: str = ".3g") -> str:
+            v = v[np.isfinite(v)]
+            return "\u2014" if not v.size else f"{format(float(np.median(v)), spec)} [{format(float(worst(v)), spec)}]"
+
+        def span(v: np.ndarray) -> str:
+            v = np.round(v[np.isfinite(v)], 2) + 0.0  # to 0.01 deg, no '-0'
+            return "\u2014" if not v.size else f"{np.median(v):.4g} [{v.min():.4g}, {v.max():.4g}]"
+
+        cells = [name, span(lead), span(tilt), stat(r_eff[ok], np.min), stat(h, np.max)]
+        out.append("<tr>" + "".join(f"<td>{html.escape(x)}</td>" for x in cells) + "</tr>")
     out.append("</table>")
     return "\n".join(out)
 
@@ -610,25 +843,34 @@ def _notice(order: list[str], summaries: dict[str, dict[str, Any]], primary: str
 
 
 def _setup_html(result: SmoothResult) -> str:
+    """Machine, axes, post, cutter and the run's inputs in mm, mm/min, degrees and s, rounded."""
+    from camsmooth.smoothing.result import describe_inputs
+
     m, c = result.machine, result.cutter
-    rows = []
+    rows: list[tuple[str, str]] = []
     if m is not None:
         rows.append(("machine", f"{getattr(m, 'name', '?')} (kind {getattr(m, 'kind', '?')}, "
                                 f"pivot {_fmt(getattr(m, 'pivot', None))} mm)"))
-        for ax in ("A", "B"):
+        for ax in ("A", "B", "X", "Y", "Z"):
             lim = _axis_limits(m, ax)
-            if lim is not None:
-                deg = np.degrees
-                rows.append((f"axis {ax}", f"travel [{_fmt(deg(lim.min))}, {_fmt(deg(lim.max))}] deg, "
-                                           f"vmax {_fmt(deg(lim.vmax))} deg/s, "
-                                           f"amax {_fmt(deg(lim.amax))} deg/s\u00b2"))
+            if lim is None:
+                continue
+            rot = ax in "AB"
+            conv = np.degrees if rot else float
+            u = "deg" if rot else "mm"
+            rows.append((f"axis {ax}", f"travel {_fmt(conv(lim.min))} to {_fmt(conv(lim.max))} {u}, "
+                                       f"vmax {_fmt(conv(lim.vmax))} {u}/s, amax {_fmt(conv(lim.amax))} {u}/s\u00b2"))
+        post = getattr(m, "post", None)
+        if post is not None:
+            rows.append(("G-code post", f"{post.dialect}, {post.mode} mode"))
     if c is not None:
-        rows.append(("cutter", f"R {_fmt(getattr(c, 'R', None))} mm, r {_fmt(getattr(c, 'r', None))} mm, "
-                               f"diameter {_fmt(getattr(c, 'diameter', None))} mm, "
-                               f"shank {_fmt(getattr(c, 'shank_length', None))} mm"))
-    for k, v in (result.inputs or {}).items():
-        txt = repr(v) if not isinstance(v, (str, os.PathLike)) else str(v)
-        rows.append((str(k), txt if len(txt) < 300 else txt[:300] + "\u2026"))
+        txt = (f"toroidal: R {_fmt(getattr(c, 'R', None))} mm, r {_fmt(getattr(c, 'r', None))} mm, "
+               f"diameter {_fmt(getattr(c, 'diameter', None))} mm, shank {_fmt(getattr(c, 'shank_length', None))} mm")
+        hr = getattr(c, "holder_radius", None)
+        if hr:
+            txt += f", holder radius {_fmt(hr)} mm, length {_fmt(getattr(c, 'holder_length', None))} mm"
+        rows.append(("cutter", txt))
+    rows += describe_inputs(result.inputs or {})
     return ("<table class='setup'>" + "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>"
                                               for k, v in rows) + "</table>")
 
@@ -646,25 +888,33 @@ td.bad { color: #b00; font-weight: bold; background: #fdecec; }
 .warn { border: 1px dashed #c60; background: #fff6e5; padding: 0.5em 1em; }
 figure { margin: 0.5em 0 1.5em 0; } figure img { max-width: 100%; border: 1px solid #ddd; }
 figcaption { font-size: 0.85em; color: #555; }
+.small { font-size: 0.85em; color: #555; }
+ul.verdict li { margin: 0.3em 0; } ul.verdict li.badline { color: #b00; }
+table.rows td, table.geometry td { text-align: right; } table.rows td:first-child { text-align: left; }
 """
 
 _CAPTIONS = {
-    "axes_angles.png": ("1. Rotary axes A and B",
-                        "Commanded A and B (deg) per method; dashed: travel limits (named in the corner "
-                        "when far off scale)."),
-    "axes_velocity.png": ("2. Axis velocities", "A' and B' (deg/s) per method; dashed: \u00b1vmax."),
-    "axes_acceleration.png": ("3. Axis accelerations",
-                              "A'' and B'' (deg/s\u00b2) per method; dashed: \u00b1amax."),
-    "compound_acceleration.png": ("4. Compound angular acceleration",
-                                  "|d\u00b2T/dt\u00b2| of the unit tool axis per method (log scale)."),
-    "lead_tilt.png": ("5. Lead and tilt",
+    "axes_angles.png": ("Rotary axes A and B",
+                        "Commanded A and B (deg) per method, on one scale per axis across the methods; dashed: "
+                        "travel limits (named in the corner when far off scale)."),
+    "axes_velocity.png": ("Axis velocities", "A' and B' (deg/s) per method under the planned time law; dashed: "
+                          "\u00b1vmax."),
+    "axes_acceleration.png": ("Axis accelerations",
+                              "A'' and B'' (deg/s\u00b2) per method under the planned time law (three-point second "
+                              "differences of the commanded angles); dashed: \u00b1amax."),
+    "compound_acceleration.png": ("Compound angular acceleration",
+                                  "|d\u00b2T/dt\u00b2| of the unit tool axis per method under the planned time law "
+                                  "(log scale). \u0393 in the tables is the same quantity at the programmed feed, "
+                                  "the objective the nlp method minimises."),
+    "lead_tilt.png": ("Lead and tilt",
                       "Lead and tilt (deg) per method; shaded: admissible window per point after gouge "
                       "tightening; dashed: the lead floor below which the tool's heel gouges the mesh, from "
                       "the accessibility map at the points where one was needed; x: outside the window."),
-    "clearance.png": ("6. Clearance",
-                      "Minimum signed clearance \u03b4 tool to surface (mm); solid: 0; dashed: "
-                      "tolerance (the --tolerance of the run); dots: gouges."),
-    FEED_PLOT: ("8. Planned feed",
+    "clearance.png": ("Clearance",
+                      "Minimum signed clearance \u03b4 tool to surface (\u00b5m), on the scale of the data; "
+                      "dashed: -tolerance (the run's --tolerance), drawn when near the data, else named; "
+                      "triangle: the worst point."),
+    FEED_PLOT: ("Planned feed",
                 "The tool-tip feed (mm/min) of the time-optimal time law under every axis's velocity and "
                 "acceleration limits, against the path length (mm), per method; the programmed feed drawn; "
                 "cycle time and the constraint that binds longest in each title."),
@@ -704,8 +954,9 @@ def write_report(result: SmoothResult, out_dir: str | os.PathLike, *, title: str
     series = []
     for name in order:
         m = result.methods[name]
-        series.append(_Series(m, cumulative_time(m.t, m.rows), _row_starts(m.rows),
-                              max(int(max_plot_points), 4), primary=name == result.primary))
+        row_t = np.asarray(m.plan.t_plan, float) if m.plan is not None else np.asarray(m.t, float)
+        series.append(_Series(m, cumulative_time(row_t, m.rows), _row_starts(m.rows),
+                              max(int(max_plot_points), 4), primary=name == result.primary, row_t=row_t))
     t_start = time.perf_counter()
     with atomic_dir(out_dir, replace=replace) as tmp:
         proc = None
@@ -758,27 +1009,47 @@ def _html(result: SmoothResult, order: list[str], folder: Path, title: str | Non
     primary = result.primary
     n = len(result.result)
     title = title or f"camsmooth report \u2014 {primary}, {n} points, {summaries[primary]['rows']} rows"
+    planned = any(s.planned for s in series)
+    law = ("Rates, peaks and the headline violations are under the planned time law t_plan (the time-optimal "
+           "law the program's F words command); counts at the programmed feed are the motion before planning. "
+           if planned else "")
+    sections: list[tuple[str, str]] = [
+        ("Verdict", _verdict_html(order, summaries, primary)),
+        ("Summary", _summary_table(order, summaries, primary)
+         + f"<p class='small'>{law}Red cells need attention (a gouge below {1e3 * _gouge_line(result):.4g} "
+           "\u00b5m, a violation under the planned law).</p>"),
+        (f"Per row ({html.escape(primary)})", _rows_html(result.result)),
+        ("Cutting geometry: effective radius and scallop",
+         _geometry_html(result, order)
+         + "<p class='small'>What lead and tilt do across the feed: a toroidal cutter (ring radius R, corner "
+           "radius r) tilted forward by the lead cuts like a circle of radius R / sin(lead) + r across the feed "
+           "(Euler's formula with tilt), and leaves scallops h = r_eff - sqrt(r_eff\u00b2 - (s/2)\u00b2) "
+           "between passes a stepover s apart on a flat (docs/METHODS.md section 1.3). The stepover is the "
+           "median distance between neighbouring rows' CC points.</p>"),
+        ("Setup", _setup_html(result)),
+    ]
     parts = [
         "<!DOCTYPE html>", "<html lang='en'><head><meta charset='utf-8'>",
         f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
         f"<h1>{html.escape(title)}</h1>",
         _notice(order, summaries, primary, result.warnings),
-        "<h2>Summary</h2>",
-        _summary_table(order, summaries, primary),
-        "<p style='font-size:0.85em;color:#555'>Peak accelerations and minimum clearance over the whole "
-        f"program; violations are counts per constraint; red cells need attention (gouge below "
-        f"{_gouge_line(result):g} mm, any violation, unclean row or unreachable point).</p>",
-        "<h2>Setup</h2>", _setup_html(result),
     ]
+    k = 0
+    for head, body in sections:
+        k += 1
+        parts.append(f"<h2>{k}. {head}</h2>{body}")
     note = _decimation_note(series)
     for name in PLOT_FILES + ((FEED_PLOT,) if (folder / FEED_PLOT).exists() else ()):
         head, cap = _CAPTIONS[name]
-        cap += " Time is cumulative over the program (rows concatenated; faint vertical lines at row starts)."
+        k += 1
+        if name != FEED_PLOT:
+            cap += (" Time is cumulative over the program (rows concatenated; faint vertical lines at row starts)"
+                    + (", under the planned time law." if planned else ", at the programmed feed."))
         if note:
             cap += " Long series are drawn decimated:" + note
-        parts.append(f"<h2>{html.escape(head)}</h2><figure>{_img_tag(folder / name, head)}"
+        parts.append(f"<h2>{k}. {html.escape(head)}</h2><figure>{_img_tag(folder / name, head)}"
                      f"<figcaption>{html.escape(cap)}</figcaption></figure>")
-    parts.append("<h2>7. Tool axes on the surface (3D)</h2>")
+    parts.append(f"<h2>{k + 1}. Tool axes on the surface (3D)</h2>")
     scene = folder / SCENE_FILE
     if not scene_note and scene.exists():
         before = "grey: before (method 'none'), " if "none" in result.methods and primary != "none" else ""

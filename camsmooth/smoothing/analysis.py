@@ -14,7 +14,7 @@ written as JSON for the user); radians inside.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -24,10 +24,10 @@ from camsmooth.geometry.clearance import MeshIndex, clearance
 from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl
 from camsmooth.geometry.frames import axis_from_lead_tilt, local_frames
 from camsmooth.geometry.paths import CCPath, estimate_feed_dirs
-from camsmooth.io.program import CLProgram, Tool
+from camsmooth.io.program import CLProgram, Tool, Written
 from camsmooth.machine.kinematics import Machine
-from camsmooth.smoothing.feed import plan_program
-from camsmooth.smoothing.nlp import limit_violations, program_rates
+from camsmooth.smoothing.evaluate import evaluate_program
+from camsmooth.smoothing.nlp import program_rates
 from camsmooth.smoothing.result import interferes
 
 __all__ = ["SINGULAR_DEG", "ProgramAnalysis", "ToolpathAnalysis", "analyze_program"]
@@ -43,7 +43,13 @@ class ToolpathAnalysis:
     violations: count of samples over each limit; gamma (1/s^4); peaks: largest |velocity| and
     |acceleration| per axis (deg/s, deg/s^2, mm/s, mm/s^2); singular: points and passes within
     SINGULAR_DEG of |B| = 90 deg; clearance: min, gouges (below -tolerance), air points (above it)
-    or None without a mesh; cycle_time_s and limiting: the planned time law's."""
+    or None without a mesh (camsmooth's result CSV: as it was written); violations and peaks under
+    the planned time law (the headline, as ``smooth`` counts them; 'interference' when the clearance
+    is known), violations_programmed and peaks_programmed at the programmed feed;
+    cycle_time_optimal_s: the time-optimal law's (s), cycle_time_s: the controller's where camsmooth
+    models it (controller: its name), else the same; limiting: the constraint that binds longest;
+    rows: row ids, with row_cycle_time_s and row_cycle_time_optimal_s (s); method: the smoothing
+    method of a program camsmooth wrote (else None)."""
 
     name: str
     tool: dict[str, Any] | None
@@ -59,6 +65,14 @@ class ToolpathAnalysis:
     clearance: dict[str, float] | None
     cycle_time_s: float
     limiting: str
+    violations_programmed: dict[str, int] = field(default_factory=dict)
+    peaks_programmed: dict[str, float] = field(default_factory=dict)
+    cycle_time_optimal_s: float = float("nan")
+    controller: str = ""
+    rows: list[int] = field(default_factory=list)
+    row_cycle_time_s: list[float] = field(default_factory=list)
+    row_cycle_time_optimal_s: list[float] = field(default_factory=list)
+    method: str | None = None
 
 
 @dataclass(frozen=True)
@@ -109,51 +123,85 @@ def _ik(machine: Machine, axes: np.ndarray, rows: np.ndarray) -> tuple[np.ndarra
 
 def _toolpath(name: str, tool: Tool | None, machine: Machine, tip: np.ndarray, axes: np.ndarray, feed: np.ndarray,
               rows: np.ndarray, angles: np.ndarray | None, index: MeshIndex | None, cutter: ToroidalCutter | None,
-              tolerance: float) -> tuple[ToolpathAnalysis, dict[str, np.ndarray]]:
+              tolerance: float, written: Written | None = None, own_blocks: bool = False
+              ) -> tuple[ToolpathAnalysis, dict[str, np.ndarray]]:
+    """One tool path through camsmooth.smoothing.evaluate (the functions smooth reports with).
+    written: what camsmooth wrote beside its own program (its programmed-feed time, feed and
+    planned time law; the positions are then judged as written, with their rounding allowed
+    for); own_blocks: the points are the controller's blocks already (camsmooth's G-code)."""
     A, B = (angles[:, 0], angles[:, 1]) if angles is not None else _ik(machine, axes, rows)
     T = machine.tool_axis_np(A, B)
     xyz = machine.linear_axes(tip, T)
-    t = _times(tip, feed, rows)
-    joints = {"X": xyz[:, 0], "Y": xyz[:, 1], "Z": xyz[:, 2], "A": A, "B": B}
-    viol, peaks = limit_violations(machine.limits, joints, t, rows)
-    peaks = {k: v * (np.degrees(1.0) if k[0] in "AB" else 1.0) for k, v in peaks.items()}  # deg for A, B
-    gamma = float(np.sum(program_rates(T, t, rows).sec ** 2))
+    own = written is not None
+    t = written.t if own and written.t is not None else _times(tip, feed, rows)
+    f = written.feed if own and written.feed is not None else feed
+    q = np.column_stack([xyz, A, B])
+    ev = evaluate_program(machine, rows, t, q, tip, T, f, tolerance=tolerance, written=own,
+                          t_plan=written.t_plan if own else None,
+                          keep=np.ones(len(rows), bool) if own_blocks else None)
+    law = ev.law
+    deg = {k: (np.degrees(1.0) if k[0] in "AB" else 1.0) for k in ev.peaks}
+    peaks = {k: v * deg[k] for k, v in ev.peaks.items()}
+    peaks_p = {k: v * deg[k] for k, v in ev.peaks_programmed.items()}
     starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
     ends = np.r_[starts[1:], len(t)] - 1
     offset = np.repeat(np.r_[0.0, np.cumsum(t[ends])[:-1]], np.diff(np.r_[starts, len(t)]))
     series = {"t": t + offset}
-    for name_, q in (("A", A), ("B", B)):
-        rq = program_rates(q, t, rows)
-        series[f"{name_} angle"], series[f"{name_} velocity"] = np.degrees(q), np.degrees(rq.vel)
+    for name_, qq in (("A", A), ("B", B)):
+        rq = program_rates(qq, t, rows)
+        series[f"{name_} angle"], series[f"{name_} velocity"] = np.degrees(qq), np.degrees(rq.vel)
         series[f"{name_} acceleration"] = np.degrees(rq.acc)
     near = np.abs(np.cos(B)) < np.sin(np.radians(SINGULAR_DEG))
     passes = int(np.sum(np.diff(np.r_[0, near.astype(int)]) == 1))
     clear = None
+    viol, viol_p = dict(ev.violations), dict(ev.violations_programmed)
     if index is not None and cutter is not None:
         d = clearance(index, cutter, tip, T).delta
         clear = {"min_mm": float(d.min()), "gouges": int(np.sum(interferes(d, tolerance))),
                  "air": int(np.sum(d > tolerance)), "tolerance_mm": float(tolerance)}
-    plan = plan_program(machine, rows, np.column_stack([xyz, A, B]), tip, feed)
+    elif own and written.delta is not None and written.status is not None:  # as smooth wrote them
+        d = np.asarray(written.delta, float)
+        clear = {"min_mm": float(np.nanmin(d)) if np.isfinite(d).any() else float("nan"),
+                 "gouges": int(np.sum(written.status == "interference")), "air": int(np.sum(d > tolerance)),
+                 "tolerance_mm": float(tolerance)}
+    if clear is not None:
+        viol["interference"] = viol_p["interference"] = clear["gouges"]
     branch = ("B in [-90, 90] deg (the first branch of docs/METHODS.md section 1.4)"
               if np.all(np.abs(B) <= np.pi / 2 + 1e-12)
               else f"B beyond +-90 deg at {int(np.sum(np.abs(B) > np.pi / 2))} points (the second branch)")
-    deg = np.degrees
+    row_ids = (written.row_id[starts] if own and written.row_id is not None else rows[starts]).tolist()
+    ctrl = law.controller
     return ToolpathAnalysis(name=name, tool=_tool_json(tool), points=len(tip),
-                            feed=[float(feed[1:].min(initial=feed[0])), float(feed[1:].max(initial=feed[0]))],
-                            A_range_deg=[float(deg(A.min())), float(deg(A.max()))],
-                            B_range_deg=[float(deg(B.min())), float(deg(B.max()))], branch=branch, violations=viol,
-                            gamma=gamma, peaks=peaks, singular={"points": int(near.sum()), "passes": passes},
-                            clearance=clear, cycle_time_s=plan.cycle_time, limiting=plan.limiting), series
+                            feed=[float(f[1:].min(initial=f[0])), float(f[1:].max(initial=f[0]))],
+                            A_range_deg=[float(np.degrees(A.min())), float(np.degrees(A.max()))],
+                            B_range_deg=[float(np.degrees(B.min())), float(np.degrees(B.max()))], branch=branch,
+                            violations=viol, gamma=ev.gamma, peaks=peaks, singular={"points": int(near.sum()),
+                                                                                    "passes": passes},
+                            clearance=clear, cycle_time_s=law.cycle_time, limiting=law.limiting,
+                            violations_programmed=viol_p, peaks_programmed=peaks_p,
+                            cycle_time_optimal_s=law.cycle_time_optimal,
+                            controller=ctrl.controller if ctrl is not None else "",
+                            rows=[int(r) for r in row_ids], row_cycle_time_s=law.row_cycle_time.tolist(),
+                            row_cycle_time_optimal_s=law.row_cycle_time_optimal.tolist(),
+                            method=written.method if own else None), series
 
 
 def analyze_program(program: CLProgram | CCPath, machine: Machine, *, index: MeshIndex | None = None,
-                    cutter: ToroidalCutter | None = None, tolerance: float = DEFAULT_TOLERANCE_MM,
+                    cutter: ToroidalCutter | None = None, tolerance: float | None = None,
                     feed: float | None = None, lead: float = np.radians(11.0), tilt: float = 0.0) -> ProgramAnalysis:
     """The program as it is (module docstring). machine: the AB head; index, cutter: the mesh and
     the tool for the clearance (optional); tolerance (mm); feed (mm/min) where the program gives
     none; lead, tilt (rad, local frame of METHODS section 1): the constant orientation a CC path
-    is analysed with."""
+    is analysed with. A program camsmooth wrote (its result CSV or G-code, ``CLProgram.written``)
+    is evaluated as smooth evaluated it: on its programmed-feed time, with its planned time law and
+    its tolerance (``tolerance`` None: the program's own, else DEFAULT_TOLERANCE_MM)."""
     warnings: list[str] = []
+    written = getattr(program, "written", None)
+    if tolerance is None:
+        tolerance = written.tolerance if written is not None and written.tolerance else DEFAULT_TOLERANCE_MM
+    if written is not None and written.dialect and written.dialect != machine.post.dialect:
+        # the program was written for this controller: its timing is that controller's
+        machine = replace(machine, post=replace(machine.post, dialect=written.dialect))
     if isinstance(program, CCPath):
         if cutter is None:
             from camsmooth.errors import InputError
@@ -186,8 +234,10 @@ def analyze_program(program: CLProgram | CCPath, machine: Machine, *, index: Mes
         if tcut is None and tool is not None and tool.diameter is not None and tool.corner_radius is not None \
                 and tool.ring_radius is not None and tool.ring_radius >= 0 and tool.corner_radius > 0:
             tcut = ToroidalCutter(R=tool.ring_radius, r=tool.corner_radius)
+        own = None if prog.written is None else prog.written.take(s)
         a, series = _toolpath(tp.name or f"tool path {k + 1}", tool, machine, prog.tip[s], axes[s], f[s],
-                              prog.rows[s], None if prog.angles is None else prog.angles[s], index, tcut, tolerance)
+                              prog.rows[s], None if prog.angles is None else prog.angles[s], index, tcut, tolerance,
+                              written=own, own_blocks=own is not None and program.format == "gcode")
         out.append(a)
         if parts:
             series["t"] = series["t"] + parts[-1]["t"][-1]

@@ -143,18 +143,23 @@ def program_rates(q: np.ndarray, t: np.ndarray, rows: np.ndarray) -> ProgramRate
     return ProgramRates(seg_vel, seg, sec, mid, vel, acc)
 
 
-def limit_violations(limits: Mapping[str, Any], joints: Mapping[str, np.ndarray], t: np.ndarray, rows: np.ndarray
-                     ) -> tuple[dict[str, int], dict[str, float]]:
+def limit_violations(limits: Mapping[str, Any], joints: Mapping[str, np.ndarray], t: np.ndarray, rows: np.ndarray,
+                     resolution: Mapping[str, float] | None = None) -> tuple[dict[str, int], dict[str, float]]:
     """Samples of a program outside each axis's limits under the time law t (s), and the peaks.
 
     joints: axis name -> position per point (X, Y, Z mm; A, B rad; machine axes), in program
     order; limits: name -> AxisLimits (min, max, vmax, amax in the same units; axes without
     limits get peaks only). Counted per axis: positions outside [min, max], segment velocities
     over vmax, three-point second differences over amax (``program_rates``; 1e-9 relative slack).
+    resolution: name -> e, the half unit of the last decimal the positions are written with (mm,
+    rad; camsmooth.smoothing.evaluate): a sample then counts only beyond what rounding the
+    positions by e can change it (travel + e, segment velocity + 2e/h, second difference +
+    4e/(h_l h_r)) and the relative slack is 1e-6 (the 7 significant digits of a written F).
     Returns ({'<axis> travel|velocity|acceleration': count}, {'<axis> velocity|acceleration':
     largest |value|}, internal units). The one counter of the pipeline's metrics and ``analyze``."""
     viol: dict[str, int] = {}
     peaks: dict[str, float] = {}
+    rel = 1e-6 if resolution else 1e-9
     for name, q in joints.items():
         rq = program_rates(q, t, rows)
         v, a = np.abs(rq.seg_vel), np.abs(rq.sec)
@@ -163,9 +168,16 @@ def limit_violations(limits: Mapping[str, Any], joints: Mapping[str, np.ndarray]
         lim = limits.get(name)
         if lim is None:
             continue
-        viol[f"{name} travel"] = int(np.sum((q < lim.min - 1e-9) | (q > lim.max + 1e-9)))
-        viol[f"{name} velocity"] = int(np.sum(v > lim.vmax * (1 + 1e-9)))
-        viol[f"{name} acceleration"] = int(np.sum(a > lim.amax * (1 + 1e-9)))
+        e = float(resolution.get(name, 0.0)) if resolution else 0.0
+        slack_v = slack_a = 0.0
+        if e > 0:
+            h = np.diff(np.asarray(t, float))
+            with np.errstate(divide="ignore"):
+                slack_v = 2 * e / h[rq.seg]
+                slack_a = 4 * e / (h[rq.mid - 1] * h[rq.mid])
+        viol[f"{name} travel"] = int(np.sum((q < lim.min - 1e-9 - e) | (q > lim.max + 1e-9 + e)))
+        viol[f"{name} velocity"] = int(np.sum(v > lim.vmax * (1 + rel) + slack_v))
+        viol[f"{name} acceleration"] = int(np.sum(a > lim.amax * (1 + rel) + slack_a))
     return viol, peaks
 
 

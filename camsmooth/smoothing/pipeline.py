@@ -36,7 +36,8 @@ from camsmooth.geometry.paths import CCPath, check_contact_with_mesh, check_norm
 from camsmooth.geometry.surfaces import Surface, chord_deviation
 from camsmooth.machine.kinematics import Machine, load_machine
 from camsmooth.smoothing.cam import CamProgram
-from camsmooth.smoothing.nlp import limit_violations, program_rates, spline_row
+from camsmooth.smoothing.evaluate import axis_violations, gamma_of
+from camsmooth.smoothing.nlp import program_rates, spline_row
 from camsmooth.smoothing.orientation import (
     Orientation,
     initial_orientation,
@@ -344,9 +345,11 @@ class ProgramSmoother:
 
     def plan(self, r: MethodResult) -> None:
         """The time-optimal time law of a method's program under every axis's limits and the
-        programmed feed (camsmooth.smoothing.feed), rows in chunks on the workers; sets ``r.plan``
-        and the metrics cycle_time_s, limiting and row_cycle_time_s (in place: the result is being
-        built)."""
+        programmed feed (camsmooth.smoothing.feed), rows in chunks on the workers, and the
+        controller's timing of it (camsmooth.smoothing.evaluate.time_law); sets ``r.plan``,
+        ``r.controller`` and the metrics' cycle times, limiting and the headline violations, under
+        the planned law (in place: the result is being built)."""
+        from camsmooth.smoothing.evaluate import axis_violations, time_law
         from camsmooth.smoothing.feed import combine
 
         p = self.program
@@ -360,33 +363,22 @@ class ProgramSmoother:
             cuts.append(len(p))
         parts = [(p.path.rows[a:b], q[a:b], tip[a:b], p.feed[a:b]) for a, b in zip(cuts[:-1], cuts[1:], strict=True)]
         plans = [x for part in self.pool.map(plan_chunk, parts) for x in part]
-        r.plan = combine([int(p.path.rows[s.start]) for s in p.slices], plans)
-        r.metrics.cycle_time_s = r.plan.cycle_time
-        r.metrics.cycle_time_optimal_s = r.plan.cycle_time
-        r.metrics.limiting = r.plan.limiting
-        r.metrics.row_cycle_time_s = r.plan.row_cycle_time.tolist()
-        r.controller = self.controller_plan(r, q, tip)
-        if r.controller is not None:
-            r.metrics.cycle_time_s = r.controller.cycle_time
-            r.metrics.row_cycle_time_s = r.controller.row_cycle_time.tolist()
-            r.metrics.controller = r.controller.controller
-            r.metrics.blocks = r.controller.blocks
-
-    def controller_plan(self, r: MethodResult, q: np.ndarray, tip: np.ndarray) -> Any:
-        """The blocks the program is written in and the machine's controller's timing of them
-        (camsmooth.controller), None when camsmooth has no model of the machine's controller."""
-        from camsmooth.controller import PATH_TOLERANCE_SHARE, decimate, planner_for, predict
-        from camsmooth.io.gcode import DEFAULT_SAFE_HEIGHT_MM
-
-        planner = planner_for(self.nominal, self.tolerance)
-        if planner is None:
-            return None
-        p = self.program
-        keep = decimate(self.real, p.path.rows, q, tip, self.tolerance)
-        entry = np.asarray(p.feed, float)[[s.start for s in p.slices]]
-        return predict(planner, self.nominal, p.path.rows, q, tip, r.plan.t_plan, keep,
-                       entry_height=DEFAULT_SAFE_HEIGHT_MM, entry_feed=entry,
-                       blend_tolerance=PATH_TOLERANCE_SHARE * self.tolerance)
+        plan = combine([int(p.path.rows[s.start]) for s in p.slices], plans)
+        law = time_law(self.nominal, p.path.rows, q, tip, p.feed, tolerance=self.tolerance, plan=plan, real=self.real)
+        r.plan, r.controller = plan, law.controller
+        m = r.metrics
+        m.cycle_time_optimal_s = law.cycle_time_optimal
+        m.row_cycle_time_optimal_s = law.row_cycle_time_optimal.tolist()
+        m.limiting = law.limiting
+        m.cycle_time_s = law.cycle_time
+        m.row_cycle_time_s = law.row_cycle_time.tolist()
+        if law.controller is not None:
+            m.controller = law.controller.controller
+            m.blocks = law.controller.blocks
+        viol, peaks = axis_violations(self.nominal, q, law.t_plan, p.path.rows)
+        m.violations = {**viol, **{k: v for k, v in m.violations_programmed.items() if k not in viol}}
+        m.peak_A_acc_plan = float(np.degrees(peaks["A acceleration"]))
+        m.peak_B_acc_plan = float(np.degrees(peaks["B acceleration"]))
 
     def _point_names(self, i: int) -> str:
         return self.program.name(i)
@@ -411,7 +403,7 @@ class ProgramSmoother:
             delta = self.clearance(tip, T)
         lead, tilt = lead_tilt_from_axis(T, p.frames)
         ra, rb, rt = (program_rates(q, p.t, p.path.rows) for q in (A, B, T))
-        g = float(np.sum(rt.sec ** 2))
+        g = gamma_of(T, p.t, p.path.rows)
         A_vel, A_acc, B_vel, B_acc = ra.vel, ra.acc, rb.vel, rb.acc
         comp = np.linalg.norm(rt.acc, axis=1)
         res = MethodResult(method=method, rows=p.path.rows, idx=p.idx, t=p.t, cc=cc, normals=nrm, cl=cl, axis=T,
@@ -442,8 +434,7 @@ class ProgramSmoother:
         pivot's X Y Z included, ``camsmooth.smoothing.nlp.limit_violations``, and outside the
         user's windows), interference (points with delta < -tolerance), lifts (mm)."""
         p = self.program
-        joints = {"X": r.xyz[:, 0], "Y": r.xyz[:, 1], "Z": r.xyz[:, 2], "A": r.A, "B": r.B}
-        viol, _ = limit_violations(self.nominal.limits, joints, p.t, p.path.rows)
+        viol, _ = axis_violations(self.nominal, np.column_stack([r.xyz, r.A, r.B]), p.t, p.path.rows)
         tol = 1e-6
         viol["lead window"] = int(np.sum((r.lead < r.lead_window[:, 0] - tol) | (r.lead > r.lead_window[:, 1] + tol)))
         viol["tilt window"] = int(np.sum((r.tilt < r.tilt_window[:, 0] - tol) | (r.tilt > r.tilt_window[:, 1] + tol)))
@@ -453,7 +444,7 @@ class ProgramSmoother:
         unclean = sorted({int(x) for x in r.rows[gouge | lifted]})
         return Metrics(gamma=g, peak_A_acc=float(np.degrees(np.max(np.abs(r.A_acc)))),
                        peak_B_acc=float(np.degrees(np.max(np.abs(r.B_acc)))), min_delta=float(np.min(r.delta)),
-                       violations=viol, lifted_points=int(np.sum(lifted)),
+                       violations=viol, violations_programmed=dict(viol), lifted_points=int(np.sum(lifted)),
                        max_lift_mm=float(np.max(r.lift, initial=0.0)),
                        lifted_beyond_tolerance=int(np.sum(r.lift > self.tolerance)), unclean_rows=unclean,
                        unreachable=[(int(r.rows[i]), int(r.idx[i])) for i in unreachable],

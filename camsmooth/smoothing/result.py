@@ -6,6 +6,7 @@ the CSV and the report convert angles to degrees.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -43,9 +44,13 @@ class Metrics:
     """Summary of one method's program (camsmooth.smoothing.pipeline.ProgramSmoother.metrics).
 
     At the programmed feed: gamma = sum |T''|^2 (1/s^4); peak_A_acc, peak_B_acc (deg/s^2);
-    violations: samples outside each axis's TRUE travel, velocity, acceleration limits (all five
-    axes, camsmooth.smoothing.nlp.limit_violations) and the user's windows, and 'interference'
-    (points with delta < -tolerance_mm); min_delta (mm). Lifts along the normal (mm) and the rows
+    violations_programmed: samples outside each axis's TRUE travel, velocity, acceleration limits
+    (all five axes, camsmooth.smoothing.evaluate.axis_violations: on the positions as written,
+    beyond what their rounding explains) and the user's windows, and 'interference' (points with
+    delta < -tolerance_mm). violations: the same counts with the axes' velocities and
+    accelerations under the planned time law (t_plan; the headline; equal to
+    violations_programmed until the program is planned); peak_A_acc_plan, peak_B_acc_plan
+    (deg/s^2) under it. min_delta (mm). Lifts along the normal (mm) and the rows
     that are not clean; unreachable: (row, idx) without inverse kinematics. Planned time law
     (camsmooth.smoothing.feed): cycle_time_optimal_s, limiting; what the machine's controller
     makes of the program (camsmooth.controller, where camsmooth has a model of it, else the
@@ -70,6 +75,10 @@ class Metrics:
     runtime_s: float
     cycle_time_s: float = float("nan")
     cycle_time_optimal_s: float = float("nan")
+    row_cycle_time_optimal_s: list[float] = field(default_factory=list)
+    violations_programmed: dict[str, int] = field(default_factory=dict)
+    peak_A_acc_plan: float = float("nan")
+    peak_B_acc_plan: float = float("nan")
     controller: str = ""
     blocks: int | None = None
     limiting: str = ""
@@ -164,3 +173,45 @@ class SmoothResult:
         deg = np.degrees
         return np.column_stack([r.rows, r.idx, r.t, r.cc, r.normals, r.cl, r.axis, deg(r.lead), deg(r.tilt),
                                 deg(r.A), deg(r.B), r.xyz, r.delta])
+
+
+def _plain(value: Any) -> str:
+    """A value as a person reads it: numbers to 4 significant digits, text as is, no Python reprs."""
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    if isinstance(value, (float, np.floating)):
+        return "\u2014" if not np.isfinite(value) else f"{float(value):.4g}"
+    if isinstance(value, (str, os.PathLike)):
+        return str(value)
+    name = getattr(value, "name", None)
+    return str(name) if isinstance(name, str) else type(value).__name__
+
+
+def describe_inputs(inputs: dict[str, Any]) -> list[tuple[str, str]]:
+    """What went into a smoothing run (``SmoothResult.inputs``) as (label, text) rows in mm, mm/min,
+    degrees and s, rounded, for the report's Setup table and the G-code header."""
+    labels = {"path": "program", "surface": "surface", "feed": "programmed feed", "lead_range": "lead window",
+              "tilt_range": "tilt window", "tolerance": "tolerance", "chord_deviation": "mesh chord deviation",
+              "model": "error model", "compensate": "compensated", "total_runtime_s": "run time"}
+    units = {"tolerance": " mm", "chord_deviation": " mm", "total_runtime_s": " s"}
+    rows: list[tuple[str, str]] = []
+    for key, value in inputs.items():
+        if key == "real_machine" or value is None or (key == "compensate" and inputs.get("model") is None):
+            continue
+        label = labels.get(key, key.replace("_", " "))
+        if key == "feed":
+            f = np.asarray(value, float).reshape(-1)
+            f = f[np.isfinite(f)]
+            if not f.size:
+                continue
+            lo, hi = float(f.min()), float(f.max())
+            text = f"{lo:.4g} mm/min" if np.isclose(lo, hi) else f"{lo:.4g} to {hi:.4g} mm/min"
+        elif key in ("lead_range", "tilt_range"):
+            lo, hi = np.degrees(np.asarray(value, float).reshape(2))
+            text = f"{lo:.4g} to {hi:.4g} deg"
+        else:
+            text = _plain(value) + units.get(key, "")
+        rows.append((label, text))
+    return rows
