@@ -38,7 +38,7 @@ from camsmooth.controller.linuxcnc_sim import (  # noqa: E402
     tip_deviation,
 )
 from camsmooth.geometry.cutter import ToroidalCutter  # noqa: E402
-from camsmooth.geometry.paths import CCPath  # noqa: E402
+from camsmooth.geometry.paths import CCPath, zigzag_path  # noqa: E402
 from camsmooth.geometry.surfaces import load_surface  # noqa: E402
 from camsmooth.io.ccpath import read_cc_csv  # noqa: E402
 from camsmooth.io.gcode import DEFAULT_SAFE_HEIGHT_MM, write_gcode  # noqa: E402
@@ -58,8 +58,13 @@ def linuxcnc_machine():
 
 def run(sample: str, rows: int, methods: list[str], keep: Path | None) -> list[dict]:
     machine = linuxcnc_machine()
-    surf = load_surface(ROOT / "surfaces" / f"{sample}.toml")
-    path = read_cc_csv(ROOT / "surfaces" / f"{sample}_path.csv")
+    shipped = ROOT / "surfaces" / f"{sample}.toml"
+    if shipped.exists():
+        surf = load_surface(shipped)
+        path = read_cc_csv(ROOT / "surfaces" / f"{sample}_path.csv")
+    else:  # a surface of benchmarks/data (not a shipped sample): a zig-zag path on it
+        surf = load_surface(ROOT / "benchmarks" / "data" / f"{sample}.toml")
+        path = zigzag_path(surf.parametric, stepover=2.0, spacing=0.4, feed=2000.0)
     ids = np.unique(path.rows)
     mid = ids[len(ids) // 2 - rows // 2: len(ids) // 2 - rows // 2 + rows]  # rows from the middle
     k = np.isin(path.rows, mid)
@@ -101,7 +106,8 @@ def run(sample: str, rows: int, methods: list[str], keep: Path | None) -> list[d
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--samples", default="blade,wave", help="comma-separated samples in surfaces/")
+    ap.add_argument("--samples", default="blade,wave,ridge",
+                    help="comma-separated samples in surfaces/ or surface definitions in benchmarks/data/")
     ap.add_argument("--rows", type=int, default=3, help="rows per sample (from the middle of the path)")
     ap.add_argument("--methods", default="none,spline,nlp", help="comma-separated methods")
     ap.add_argument("--keep", type=Path, default=None, help="folder to keep the simulations' files in")

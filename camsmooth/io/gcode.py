@@ -209,6 +209,7 @@ class _Moves:
     block_time: np.ndarray | None = None  # (M,) s commanded per block, nan where the feed decides
     t_prog: np.ndarray | None = None  # (M,) s from the row's start at the programmed feed (nan for rapids)
     f_prog: np.ndarray | None = None  # (M,) mm/min the programmed feed (nan for rapids)
+    t_opt: np.ndarray | None = None  # (M,) s from the row's start, time-optimal law (nan: not written)
 
 
 def _check_travel(machine: Any, rows: np.ndarray, idx: np.ndarray, A: np.ndarray, B: np.ndarray, xyz: np.ndarray,
@@ -241,11 +242,13 @@ def _row_slices(rows: np.ndarray) -> list[slice]:
 
 def _moves(rows: np.ndarray, joints: np.ndarray, tips: np.ndarray, T: np.ndarray, feed: np.ndarray,
            h: float, block_time: np.ndarray | None = None, t_prog: np.ndarray | None = None,
-           f_prog: np.ndarray | None = None) -> _Moves:
+           f_prog: np.ndarray | None = None, t_opt: np.ndarray | None = None) -> _Moves:
     """Entry rapid, row points, exit rapid per row (loop over rows, not points). block_time: (N,)
     s per point, the commanded time of the block ending there (nan where the feed decides);
-    t_prog: (N,) s from the row's start at the programmed feed (written beside each block)."""
-    J, P, R, F, starts, BT, TP, FP = [], [], [], [], [], [], [], []
+    t_prog: (N,) s from the row's start at the programmed feed (written beside each block); t_opt:
+    (N,) s from the row's start under the time-optimal law, written beside each block where the
+    block times are the controller plan's (they no longer tell the time-optimal law)."""
+    J, P, R, F, starts, BT, TP, FP, TO = [], [], [], [], [], [], [], [], []
     up = np.zeros((1, 5))
     count = 0
     for sl in _row_slices(rows):
@@ -267,12 +270,14 @@ def _moves(rows: np.ndarray, joints: np.ndarray, tips: np.ndarray, T: np.ndarray
         TP += [np.array([np.nan]), tp, np.array([np.nan])]
         fp = feed[sl] if f_prog is None else np.asarray(f_prog[sl], float)
         FP += [np.array([np.nan]), fp, np.array([np.nan])]
+        to = np.full(n, np.nan) if t_opt is None else np.asarray(t_opt[sl], float)
+        TO += [np.array([np.nan]), to, np.array([np.nan])]
         starts.append((count, int(rows[first]), n))
         count += n + 2
     if not J:
         return _Moves(np.zeros((0, 5)), np.zeros((0, 3)), np.zeros(0, bool), np.zeros(0), [], np.zeros(0))
     return _Moves(np.concatenate(J), np.concatenate(P), np.concatenate(R), np.concatenate(F), starts,
-                  np.concatenate(BT), np.concatenate(TP), np.concatenate(FP))
+                  np.concatenate(BT), np.concatenate(TP), np.concatenate(FP), np.concatenate(TO))
 
 
 def _block_feeds(machine: Any, mv: _Moves, mode: str) -> tuple[np.ndarray, int]:
@@ -417,12 +422,15 @@ def write_gcode(path: str | os.PathLike, result: SmoothResult | MethodResult, ma
     f_prog = np.asarray(inputs.get("feed", feed), float).reshape(-1)
     f_prog = f_prog if f_prog.shape == (n,) else feed
     block_time = None
+    t_opt = None
     if ctrl is not None:  # the blocks the controller plan timed (camsmooth.controller.blocks)
         sel = np.asarray(ctrl.keep, bool)
         rows, idx, xyz, A, B, T, tip, feed = (v[sel] for v in (rows, idx, xyz, A, B, T, tip, feed))
         t_prog = None if t_prog is None else t_prog[sel]
         f_prog = f_prog[sel]
         block_time = np.asarray(ctrl.block_time, float)[sel]
+        if plan is not None and len(plan.t_plan) == len(sel):
+            t_opt = np.asarray(plan.t_plan, float)[sel]
     elif plan is not None and len(plan.t_plan) == n:  # every point a block, timed by the planned law
         same = np.r_[False, rows[1:] == rows[:-1]]
         block_time = np.where(same, np.r_[0.0, np.diff(np.asarray(plan.t_plan, float))], np.nan)
@@ -440,7 +448,7 @@ def write_gcode(path: str | os.PathLike, result: SmoothResult | MethodResult, ma
         _check_travel(machine, rows, idx, A, B, xyz + h * T, f"retract ({h:g} mm along the tool axis)")
 
     joints = np.column_stack([xyz, A, B])
-    mv = _moves(rows, joints, tip, T, feed, h, block_time, t_prog, f_prog)
+    mv = _moves(rows, joints, tip, T, feed, h, block_time, t_prog, f_prog, t_opt)
     # the controller runs the values as written (4 decimals, mm and degrees): time the blocks on those
     mv.joints = written_joints(mv.joints)
     mv.tips = np.round(mv.tips, WRITTEN_DECIMALS)
@@ -519,6 +527,9 @@ def _annotations(d: Dialect, mv: Any, rapid: np.ndarray) -> np.ndarray:
     new_f = (prev_cut | (feed != prev_feed))[k] & np.isfinite(feed[k])
     if new_f.any():
         text[new_f] = text[new_f] + " f=" + _fixed(feed[k][new_f], 3).to_numpy().astype(object)
+    t_opt = getattr(mv, "t_opt", None)
+    if t_opt is not None and np.isfinite(np.asarray(t_opt)[k]).all():
+        text = text + " o=" + _fixed(np.asarray(t_opt)[k], 9).to_numpy().astype(object)
     out[k] = np.array([" " + d.comment(x) for x in text], dtype=object) if d.comment is not _paren else \
         " (" + text + ")"
     return out
@@ -572,7 +583,7 @@ def _program_end(d: Dialect, mode: str, tcp_off: str | None, name: str) -> list[
 MAX_WORD = 1e9
 _WORD = re.compile(r"([A-Z])\s*([+-]?(?:\d+\.?\d*|\.\d+))")
 #: the per-block annotation the writer adds (``_annotations``)
-_ANNOT = re.compile(r"[(;]\s*t=(\d+\.\d+)(?:\s+f=(\d+\.\d+))?")
+_ANNOT = re.compile(r"[(;]\s*t=(\d+\.\d+)(?:\s+f=(\d+\.\d+))?(?:\s+o=(\d+\.\d+))?")
 _ROW_COMMENT = re.compile(r"[(;]\s*row (-?\d+): (\d+) points")
 _TOOL = re.compile(r"tool: toroidal R ([\d.]+) mm, r ([\d.]+) mm, diameter ([\d.]+) mm(?:, shank ([\d.]+) mm)?")
 _METHOD = re.compile(r"method: ([\w-]+)[;,] (\d+) points")
@@ -634,6 +645,7 @@ def read_gcode(path: str | os.PathLike, machine: Any = None) -> CLProgram:
     line_no: list[int] = []
     t_ann: list[float] = []
     f_ann: list[float] = []
+    o_ann: list[float] = []
     row_ids: list[int] = []
     inverse = False
     inv_flag: list[bool] = []
@@ -703,6 +715,7 @@ def read_gcode(path: str | os.PathLike, machine: Any = None) -> CLProgram:
         ann = _ANNOT.search(raw) if tag is not None and not is_rapid else None
         t_ann.append(float(ann.group(1)) if ann else math.nan)
         f_ann.append(float(ann.group(2)) if ann and ann.group(2) else math.nan)
+        o_ann.append(float(ann.group(3)) if ann and ann.group(3) else math.nan)
         rapid.append(is_rapid)
         fword.append(math.nan if is_rapid else f_modal)
         inv_flag.append(inverse)
@@ -734,7 +747,8 @@ def read_gcode(path: str | os.PathLike, machine: Any = None) -> CLProgram:
         feed = np.where(rap, np.nan, F)
     new = ~rap & np.r_[True, rap[:-1]]
     rows = np.where(rap, -1, np.cumsum(new) - 1)
-    tool, written = _own_header(lines, tag, info, rows, rap, q, F, inv_flag, t_ann, f_ann, row_ids, tip, mode)
+    tool, written = _own_header(lines, tag, info, rows, rap, q, F, inv_flag, t_ann, f_ann, row_ids, tip, mode,
+                                o_ann)
     tp = ToolPath(name=Path(file).stem, tool=tool, start=0, stop=len(q), line=None)
     prog = CLProgram(tip=tip, axis=axis, rows=rows, feed=feed, rapid=rap, line=np.asarray(line_no), toolpaths=[tp],
                      source=file, format="gcode", warnings=warnings, angles=q[:, 3:], written=written)
@@ -744,10 +758,13 @@ def read_gcode(path: str | os.PathLike, machine: Any = None) -> CLProgram:
 
 def _own_header(lines: list[str], tag: str | None, info: dict[str, str], rows: np.ndarray, rapid: np.ndarray,
                 q: np.ndarray, F: np.ndarray, inverse: list[bool], t_ann: list[float], f_ann: list[float],
-                row_ids: list[int], tip: np.ndarray, mode: str) -> tuple[Tool | None, Written | None]:
+                row_ids: list[int], tip: np.ndarray, mode: str,
+                o_ann: list[float] | None = None) -> tuple[Tool | None, Written | None]:
     """The tool and what camsmooth wrote beside the blocks (``Written``) of a program camsmooth
-    wrote (its ``camsmooth post:`` header), (None, None) for another program. t_plan: the block
-    times the program commands (G93: 60 / F s; tcp mode: the tip chord / F), from each row's start."""
+    wrote (its ``camsmooth post:`` header), (None, None) for another program. t_plan: the
+    time-optimal law from each row's start: the ``o=`` annotations where the writer gave them (a
+    controller plan's blocks, whose F words carry the controller's block times), else the block
+    times the program commands (G93: 60 / F s; tcp mode: the tip chord / F)."""
     if tag is None:
         return None, None
     head = "\n".join(lines[:80])
@@ -788,7 +805,10 @@ def _own_header(lines: list[str], tag: str | None, info: dict[str, str], rows: n
             dt = 60.0 * chord / F
     dt = np.where(cut & ~starts, dt, 0.0)
     t_plan = None
-    if np.all(np.isfinite(dt[cut])):
+    o = np.asarray(o_ann if o_ann is not None else [], float)
+    if len(o) == n and np.all(np.isfinite(o[cut])):
+        t_plan = np.where(cut, o, np.nan)
+    elif np.all(np.isfinite(dt[cut])):
         total = np.cumsum(dt)
         first = np.flatnonzero(starts)
         t_plan = np.full(n, np.nan)
