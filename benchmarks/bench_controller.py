@@ -37,12 +37,16 @@ from camsmooth.controller.linuxcnc_sim import (  # noqa: E402
     simulate,
     tip_deviation,
 )
-from camsmooth.geometry.cutter import ToroidalCutter  # noqa: E402
+from camsmooth.geometry.clearance import MeshIndex  # noqa: E402
+from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl  # noqa: E402
+from camsmooth.geometry.frames import axis_from_lead_tilt, local_frames  # noqa: E402
 from camsmooth.geometry.paths import CCPath, zigzag_path  # noqa: E402
 from camsmooth.geometry.surfaces import load_surface  # noqa: E402
 from camsmooth.io.ccpath import read_cc_csv  # noqa: E402
 from camsmooth.io.gcode import DEFAULT_SAFE_HEIGHT_MM, write_gcode  # noqa: E402
+from camsmooth.io.program import load_program  # noqa: E402
 from camsmooth.machine.kinematics import DEFAULT_MACHINE_TOML, machine_from_dict  # noqa: E402
+from camsmooth.smoothing.cam import cam_program  # noqa: E402
 from camsmooth.smoothing.pipeline import smooth  # noqa: E402
 
 TOLERANCE = 0.005
@@ -54,6 +58,26 @@ def linuxcnc_machine():
     data = tomllib.loads(DEFAULT_MACHINE_TOML)
     data["post"] = {"dialect": "linuxcnc", "mode": "machine"}
     return machine_from_dict(data, "<bench machine>")
+
+
+def cam_clsf(path: CCPath, cutter: ToroidalCutter, lead_deg: float = 11.0) -> str:
+    """NX CLSF text of the CC rows with a constant lead and no tilt, as CAM lead/tilt axis
+    control writes them: tool tips and axes, rapids between rows, the tool's TLDATA."""
+    fr = local_frames(path.normals, path.feed_dirs_or_estimate())
+    T = axis_from_lead_tilt(np.full(len(fr), np.radians(lead_deg)), np.zeros(len(fr)), fr)
+    tip = cc_to_cl(cutter, path.points, path.normals, T)
+    d, r = 2 * (cutter.R + cutter.r), cutter.r
+    lines = ["TOOL PATH/FINISH,TOOL,MILL", f"TLDATA/MILL,{d:.4f},{r:.4f},60.0000,0.0000,0.0000", "LOAD/TOOL,1",
+             "FEDRAT/MMPM,2000.0000"]
+    for sl in path.row_slices():
+        p, a = tip[sl], T[sl]
+        up = p[0] + 10.0 * a[0]
+        lines += ["RAPID", f"GOTO/{up[0]:.4f},{up[1]:.4f},{up[2]:.4f},{a[0, 0]:.7f},{a[0, 1]:.7f},{a[0, 2]:.7f}"]
+        lines += [f"GOTO/{x[0]:.4f},{x[1]:.4f},{x[2]:.4f},{t[0]:.7f},{t[1]:.7f},{t[2]:.7f}"
+                  for x, t in zip(p, a, strict=True)]
+        away = p[-1] + 10.0 * a[-1]
+        lines += ["RAPID", f"GOTO/{away[0]:.4f},{away[1]:.4f},{away[2]:.4f}"]
+    return "\n".join(lines + ["END-OF-PATH"]) + "\n"
 
 
 def run(sample: str, rows: int, methods: list[str], keep: Path | None) -> list[dict]:
@@ -71,7 +95,14 @@ def run(sample: str, rows: int, methods: list[str], keep: Path | None) -> list[d
     path = CCPath(points=path.points[k], normals=path.normals[k], rows=path.rows[k],
                   feed_dirs=None if path.feed_dirs is None else path.feed_dirs[k],
                   feed=None if path.feed is None else path.feed[k], source=path.source)
-    res = smooth(path, surf, machine, ToroidalCutter(R=4.0, r=1.0), feed=2000.0,
+    cutter = ToroidalCutter(R=4.0, r=1.0)
+    program = path
+    if "cam" in methods:  # the rows as a CAM system writes them (constant lead 11 deg), read back
+        with tempfile.TemporaryDirectory() as tmp:
+            cls = Path(tmp) / f"{sample}.cls"
+            cls.write_text(cam_clsf(path, cutter))
+            program = cam_program(load_program(cls), MeshIndex(surf.mesh), cutter, TOLERANCE)
+    res = smooth(program, surf, machine, cutter, feed=2000.0,
                  lead_range=tuple(np.radians([2.0, 20.0])), tilt_range=tuple(np.radians([-15.0, 15.0])),
                  method="nlp", tolerance=TOLERANCE)
     out = []
@@ -79,7 +110,7 @@ def run(sample: str, rows: int, methods: list[str], keep: Path | None) -> list[d
         r = res.methods[m]
         with tempfile.TemporaryDirectory() as tmp:
             ngc = Path(tmp) / f"{sample}_{m}.ngc"
-            write_gcode(ngc, r, machine, res.cutter, 2000.0, tolerance=TOLERANCE)
+            write_gcode(ngc, r, machine, cutter, 2000.0, tolerance=TOLERANCE)
             t0 = time.time()
             sim = simulate(ngc, machine, keep=(keep / f"{sample}_{m}") if keep else None)
             wall = time.time() - t0
@@ -109,7 +140,8 @@ def main() -> None:
     ap.add_argument("--samples", default="blade,wave,ridge",
                     help="comma-separated samples in surfaces/ or surface definitions in benchmarks/data/")
     ap.add_argument("--rows", type=int, default=3, help="rows per sample (from the middle of the path)")
-    ap.add_argument("--methods", default="none,spline,nlp", help="comma-separated methods")
+    ap.add_argument("--methods", default="cam,none,spline,nlp",
+                    help="comma-separated methods (cam: the rows as a CL program with a constant 11 deg lead)")
     ap.add_argument("--keep", type=Path, default=None, help="folder to keep the simulations' files in")
     args = ap.parse_args()
     missing = linuxcnc_missing()
