@@ -138,7 +138,7 @@ def test_smooth_of_camsmooth_gcode_takes_the_tool_from_its_header(generic, tmp_p
     tool = prog.toolpaths[0].tool
     assert (tool.diameter, tool.corner_radius, tool.ring_radius) == (10.0, 1.0, 4.0)
     assert prog.written.method == "nlp" and prog.written.tolerance == 0.005
-    rc = main(["smooth", str(nc), "--surface", str(ROOT / "blade.ply"), "--lead", "2:20", "--tilt", "-15:15",
+    rc = main(["smooth", str(nc), "--surface", str(ROOT / "blade.ply"), "--lead", "2:20", "--tilt=-15:15",
                "--method", "none", "-o", str(tmp_path / "again.csv"), "--quiet"])
     assert rc == 0, capsys.readouterr().err
     assert (tmp_path / "again.csv").exists()
@@ -180,3 +180,79 @@ def test_times_that_do_not_increase_are_not_a_time_base(generic, tmp_path):
     r = dataclasses.replace(generic.result, t=np.zeros(len(generic.result)), plan=None)
     nc = write_gcode(tmp_path / "z.nc", r, generic.machine, generic.cutter, 2000.0)
     assert load_program(nc).written.t is None
+
+
+def _smooth_cli(argv: list[str]):
+    """What ``camsmooth smooth ARGV`` computes (its parser, input loader and pipeline), and the
+    outputs it writes (-o, --gcode)."""
+    from camsmooth.cli.main import build_parser, load_error_model, load_input
+    from camsmooth.geometry.surfaces import load_surface
+    from camsmooth.machine.kinematics import load_machine
+    from camsmooth.smoothing.pipeline import smooth
+
+    args = build_parser().parse_args(["smooth", *argv])
+    surface, machine = load_surface(args.surface), load_machine(args.machine)
+    program, cutter = load_input(args, surface, machine)
+    res = smooth(program, surface, machine, cutter, feed=args.feed, lead_range=tuple(np.radians(args.lead)),
+                 tilt_range=tuple(np.radians(args.tilt)), model=load_error_model(args.model),
+                 compensate=args.compensate, tolerance=args.tolerance)
+    _write_outputs(res, Path(args.output), Path(args.gcode), None, args.feed)
+    return res
+
+
+@pytest.fixture(scope="module")
+def cam_inputs(tmp_path_factory):
+    """Two blade rows as a CAM system writes them: NX CLSF (constant 11 deg lead), the same as a CL
+    CSV, and camsmooth's own G-code of them."""
+    from camsmooth.geometry.cutter import cc_to_cl
+    from camsmooth.geometry.frames import axis_from_lead_tilt, local_frames
+    from camsmooth.io.ccpath import read_cc_csv
+
+    folder = tmp_path_factory.mktemp("cam")
+    path = read_cc_csv(ROOT / "blade_path.csv")
+    k = np.isin(path.rows, np.unique(path.rows)[12:14])
+    pts, nrm, fd, rows = path.points[k], path.normals[k], path.feed_dirs[k], path.rows[k]
+    cutter = ToroidalCutter(R=4.0, r=1.0)
+    T = axis_from_lead_tilt(np.full(len(pts), np.radians(11.0)), np.zeros(len(pts)), local_frames(nrm, fd))
+    tip = cc_to_cl(cutter, pts, nrm, T)
+    lines = ["TOOL PATH/FINISH,TOOL,MILL", "TLDATA/MILL,10.0000,1.0000,60.0000,0.0000,0.0000", "LOAD/TOOL,1",
+             "FEDRAT/MMPM,2000.0000"]
+    csv = ["x,y,z,i,j,k,row,feed"]
+    for r in np.unique(rows):
+        s = rows == r
+        up = tip[s][0] + 10 * T[s][0]
+        lines += ["RAPID", "GOTO/" + ",".join(f"{v:.6f}" for v in (*up, *T[s][0]))]
+        lines += ["GOTO/" + ",".join(f"{v:.6f}" for v in (*p, *a)) for p, a in zip(tip[s], T[s], strict=True)]
+        csv += [",".join(f"{v:.6f}" for v in (*p, *a)) + f",{int(r)},2000" for p, a in zip(tip[s], T[s], strict=True)]
+    (folder / "p.cls").write_text("\n".join(lines + ["END-OF-PATH"]) + "\n")
+    (folder / "p_cl.csv").write_text("\n".join(csv) + "\n")
+    _smooth_cli([str(folder / "p.cls"), "--surface", str(ROOT / "blade.ply"), "--lead", "2:20", "--tilt=-15:15",
+                 "-o", str(folder / "first.csv"), "--gcode", str(folder / "p.nc")])
+    return folder
+
+
+MODEL = Path(__file__).resolve().parent.parent / "examples" / "data" / "demo_model.json"
+
+
+@pytest.mark.parametrize("model", [None, MODEL], ids=["nominal", "error-model"])
+@pytest.mark.parametrize("source", ["p.cls", "p_cl.csv", "p.nc"])
+def test_analyze_reproduces_smooth_for_every_input_format_with_and_without_the_error_model(cam_inputs, source,
+                                                                                          model, tmp_path):
+    """smooth of an APT/CLSF program, a CL CSV and camsmooth's own G-code, nominal and with an
+    error model (the program as the real machine executes it): analyze of the nlp result CSV and
+    G-code (with the same model and the surface) reproduces Gamma, the cycle time, the violation
+    counts and the worst clearance smooth computed."""
+    extra = ["--model", str(model)] if model else []
+    tool = ["--cutter-radius", "4", "--corner-radius", "1"] if source.endswith(".csv") else []  # a CL CSV has none
+    out_csv, out_nc = tmp_path / "o.csv", tmp_path / "o.nc"
+    res = _smooth_cli([str(cam_inputs / source), "--surface", str(ROOT / "blade.ply"), "--lead", "2:20",
+                       "--tilt=-15:15", "-o", str(out_csv), "--gcode", str(out_nc), *tool, *extra])
+    assert "cam" in res.methods  # a CL program is also analysed as it is
+    m = res.result.metrics
+    for file in (out_csv, out_nc):
+        tp = _analyze(file, tmp_path, "--surface", str(ROOT / "blade.ply"), *extra)
+        assert tp["gamma"] == pytest.approx(m.gamma, rel=1e-3), file.name
+        assert tp["cycle_time_s"] == pytest.approx(m.cycle_time_s, rel=1e-3), file.name
+        assert {k: tp["violations"][k] for k in AXES} == {k: m.violations[k] for k in AXES}, file.name
+        assert tp["violations"]["interference"] == m.violations["interference"], file.name
+        assert tp["clearance"]["min_mm"] == pytest.approx(m.min_delta, abs=1e-4), file.name

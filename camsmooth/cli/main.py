@@ -310,7 +310,9 @@ def run_analyze(args: argparse.Namespace) -> int:
 
     _check_outputs_options(args)
     machine = load_machine(args.machine)
-    inputs = [p for p in (args.program, args.surface, args.machine) if p]
+    if args.model:  # the program as the real machine executes it, as smooth --model evaluates it
+        machine = load_error_model(args.model).apply(machine)
+    inputs = [p for p in (args.program, args.surface, args.machine, args.model) if p]
     with output_transaction() as tx:
         out_json = tx.file(args.json) if args.json else None
         report = tx.folder(args.report, replace=args.force, keep=inputs) if args.report else None
@@ -471,6 +473,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "result CSV, recognised by its header)")
     p.add_argument("--machine", default=None, help="machine TOML (default: the built-in AB head)")
     p.add_argument("--surface", default=None, help="surface mesh or definition: adds the clearance of every pose")
+    p.add_argument("--model", default=None, metavar="MODEL.json",
+                   help="the machine's error model (calibrate): evaluate the program on the tool pose the real "
+                        "machine executes, as smooth --model does")
     _add_cutter_args(p, required=False)
     p.add_argument("--tolerance", type=_POSITIVE_MM, default=None, metavar="MM",
                    help=f"clearance tolerance (mm; default the one a camsmooth program was written with, else "
