@@ -1,9 +1,9 @@
 """Command line: a thin layer over the Python API (degrees and mm/min here, radians inside).
 
 Verbs: smooth, path, demo (this module); calibrate, simulate, predict (camsmooth.cli.model);
-diagnose (camsmooth.cli.diagnose). Every numeric option is range-checked while the command line
-is parsed. All outputs of a command are one transaction (camsmooth.io.atomic.output_transaction):
-they appear together at the end or not at all.
+diagnose (camsmooth.cli.diagnose); iso230 (camsmooth.cli.iso230). Every numeric option is
+range-checked while the command line is parsed. All outputs of a command are one transaction
+(camsmooth.io.atomic.output_transaction): they appear together at the end or not at all.
 
 Exit status: 0 done; 1 with --strict when a point was lifted along the normal beyond the
 tolerance, gouges beyond it or is unreachable (one message naming the rows, nothing written); 2
@@ -501,10 +501,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=run_demo)
 
-    from camsmooth.cli import diagnose, model
+    from camsmooth.cli import diagnose, iso230, model
 
     model.register(sub)
     diagnose.register(sub)
+    iso230.register(sub)
     return parser
 
 

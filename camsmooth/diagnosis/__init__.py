@@ -9,4 +9,6 @@
   term only when it is physics the user can act on;
 - ``findings``: ``diagnose``, ``validate`` and the typed findings (FINDINGS.json);
 - ``model_io``: the model JSON; ``engine``: the public names gathered in one place.
+- ``iso230``: ISO 230-2 figures of a bidirectional positioning run and the LinuxCNC pitch-error
+  compensation table (``camsmooth iso230``).
 """
