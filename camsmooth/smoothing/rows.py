@@ -28,6 +28,13 @@ results (camsmooth.smoothing.parallel). Per row:
 3. Verify with the exact clearance only the poses that moved: a pose whose tool moved by less
    than MOVE_TOL (a bound over the whole tool solid: tip displacement plus axis rotation times
    the tool's reach) keeps its clearance; the first round checks every pose.
+   If IPOPT finds the row infeasible with the map's constraints, an elastic re-solve with the
+   floor and ceiling soft (camsmooth.smoothing.nlp.clearance_elastic) names the points whose clear
+   region the limits keep the axis from (a floor climbing to the window's top faster than B may
+   turn, before a blocked stretch): their floor (ceiling) is moved to what the limits allow,
+   they are not refined again and fall back to the lift (``unreachable_clear``); the row is
+   re-solved from the elastic program. Only when the limits and windows alone admit no program
+   is the row refused, naming the binding limit (the user's windows first).
 4. Refine: points that gouge and were not mapped are mapped (step 1); mapped points that still
    gouge (the map is a sampled approximation between its samples) get their floor or ceiling
    moved to the exact boundary at the solution's tilt. Re-solve, from the last solution.
@@ -78,9 +85,9 @@ KNOT_BACKOFF = 0.02  # limits backed off by this fraction when the NLP runs on k
 KNOT_MARGIN = 1.0
 MAP_FRACTION = 0.5  # the map calls an orientation clear at delta >= -MAP_FRACTION * tolerance
 REFINE_MARGIN = np.radians(0.05)  # rad: a floor moved to the exact boundary goes this much beyond
-LIFT_STEPS = 12
-MAX_RELIEFS = 2  # soft-clearance re-solves per row (step 2b of the module docstring)
-RELIEF_TOL = 1e-7  # rad: a point whose lead stays this far outside its clear region gives it up  # re-checks of the fallback lift along the normal (secant steps after the first)
+LIFT_STEPS = 12  # re-checks of the fallback lift along the normal (secant steps after the first)
+MAX_RELIEFS = 2  # soft-clearance re-solves per row (module docstring, step 2)
+RELIEF_TOL = 1e-7  # rad: a point whose lead stays this far outside its clear region gives it up
 
 
 @dataclass(frozen=True)
