@@ -349,14 +349,18 @@ def _signals_deferred() -> Iterator[None]:
         return
     pending: list[int] = []
     old = {}
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        if signal.getsignal(sig) is not None:  # None: a handler not set from Python, left alone
-            old[sig] = signal.signal(sig, lambda signum, frame: pending.append(signum))
+    # the OS holds the signals arriving now (pthread_sigmask); the Python handlers are swapped
+    # too, for a signal the C level caught just before the mask whose handler has yet to run
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, _SIGNALS)
     try:
+        for sig in _SIGNALS:
+            if signal.getsignal(sig) is not None:  # None: a handler not set from Python, left alone
+                old[sig] = signal.signal(sig, lambda signum, frame: pending.append(signum))
         yield
     finally:
         for sig, handler in old.items():
             signal.signal(sig, handler)
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)  # held signals reach the restored handlers
         for sig in dict.fromkeys(pending):
             signal.raise_signal(sig)
 
@@ -432,6 +436,7 @@ def output_transaction() -> Iterator[OutputTransaction]:
         restore = signal.signal(signal.SIGTERM, raise_terminated)
     try:
         yield tx
+        raise_if_signalled()  # a signal whose exception a library swallowed still cancels the outputs
         tx.commit()
     except OSError as exc:
         if exc.filename is None and exc.errno is not None and tx.staged:
@@ -449,3 +454,56 @@ def output_transaction() -> Iterator[OutputTransaction]:
 def raise_terminated(signum: int, frame: object) -> None:
     """Signal handler: SIGTERM -> ``Terminated``."""
     raise Terminated(f"terminated by signal {signum}")
+
+
+# ----------------------------------------------------------------------------------------------
+# the command line's signals: one exception, in the main process only
+_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+_received: list[int] = []  # the first SIGINT / SIGTERM since install_signal_handlers (at most one)
+_installed: dict[int, object] = {}  # signal -> the handler it replaced, while ours are installed
+
+
+def interruption(signum: int) -> KeyboardInterrupt:
+    """The exception a signal becomes: KeyboardInterrupt for SIGINT, Terminated for SIGTERM."""
+    return Terminated(f"terminated by signal {signum}") if signum == signal.SIGTERM else KeyboardInterrupt()
+
+
+def _on_signal(signum: int, frame: object) -> None:
+    """The first SIGINT or SIGTERM raises its ``interruption`` where the main thread is; later ones
+    are only recorded (the cleanup the first started is not interrupted)."""
+    if _received:
+        return
+    _received.append(signum)
+    raise interruption(signum)
+
+
+def install_signal_handlers() -> bool:
+    """SIGINT and SIGTERM raise one exception (``_on_signal``) from now on, even where SIGINT was
+    inherited ignored; forget any signal received before. False (nothing done) outside the main
+    thread or when installed already."""
+    if _installed or threading.current_thread() is not threading.main_thread():
+        return False
+    _received.clear()
+    for sig in _SIGNALS:
+        _installed[sig] = signal.signal(sig, _on_signal)
+    return True
+
+
+def restore_signal_handlers() -> None:
+    """Put back the handlers ``install_signal_handlers`` replaced."""
+    for sig, old in _installed.items():
+        signal.signal(sig, old if old is not None else signal.SIG_DFL)
+    _installed.clear()
+
+
+def signal_received() -> int | None:
+    """The SIGINT or SIGTERM received since ``install_signal_handlers`` (None: none). A signal
+    caught but whose handler has not run yet runs it here (raising its exception)."""
+    return _received[0] if _received else None
+
+
+def raise_if_signalled() -> None:
+    """Raise the interruption of a signal received since ``install_signal_handlers``, also when
+    its first exception was swallowed somewhere (a library's broad ``except``)."""
+    if _received:
+        raise interruption(_received[0])
