@@ -282,7 +282,10 @@ def run_path(args: argparse.Namespace) -> int:
             axis = axis / np.linalg.norm(axis)
             size = float(np.ptp(np.asarray(surf.mesh.vertices), axis=0).max())
             _check_path_size(size / args.stepover + 1, size / args.spacing + 1)
-            cc = raster_path_on_mesh(surf.mesh, _cutter(args), axis, args.stepover, args.spacing, axial_drop)
+            try:
+                cc = raster_path_on_mesh(surf.mesh, _cutter(args), axis, args.stepover, args.spacing, axial_drop)
+            except InputError as exc:
+                raise InputError(exc.message, file=args.surface) from None
             if len(cc.points) == 0:
                 raise InputError(f"the cutter touches the mesh nowhere along --axis {args.axis}: no CC points",
                                  file=args.surface)
