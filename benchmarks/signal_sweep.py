@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -106,8 +107,8 @@ def run_once(argv: list[str], delay: float, signum: int, group: bool, timeout: f
             if proc.poll() is None:
                 os.killpg(proc.pid, signal.SIGKILL)
                 proc.wait()
-        stray = _group_alive(proc.pid, 10.0)  # the fork server and workers follow their parent out
-        if stray:
+        left = _group_alive(proc.pid, 10.0)  # the fork server and workers follow their parent out
+        if left:
             os.killpg(proc.pid, signal.SIGKILL)
         out = Outcome(delay, int(signum), group, proc.returncode, finished_first, stderr=err)
         code = proc.returncode
@@ -122,6 +123,10 @@ def run_once(argv: list[str], delay: float, signum: int, group: bool, timeout: f
             out.problems.append("signal ignored")
         if "Traceback" in err:
             out.problems.append("traceback")
+        stray = [ln for ln in err.replace("\r", "\n").splitlines()
+                 if ln.strip() and not ln.startswith("camsmooth") and not re.match(r"^\w+ rows:", ln)]
+        if stray and "Traceback" not in err:
+            out.problems.append("stray output")
         msgs = [ln for ln in err.replace("\r", "\n").splitlines() if ln.startswith("camsmooth")]
         if code not in (0, None) and len(msgs) != 1:
             out.problems.append("not one message")
@@ -134,7 +139,7 @@ def run_once(argv: list[str], delay: float, signum: int, group: bool, timeout: f
             out.problems.append("outputs missing after success")
         elif code != 0 and not intact and not (replaced and code in EXPECTED.values()):
             out.problems.append("earlier outputs damaged")
-        if stray:
+        if left:
             out.problems.append("processes left running")
         return out
 
@@ -156,8 +161,8 @@ def summary(outcomes: list[Outcome]) -> str:
     counts = Counter(p for o in outcomes for p in o.problems)
     lines = [f"runs {len(outcomes)}, finished before the signal {sum(o.finished_first for o in outcomes)}, "
              f"with a problem {sum(bool(o.problems) for o in outcomes)}"]
-    for name in ("traceback", "crash", "internal error", "leftover files", "wrong exit status", "signal ignored",
-                 "not one message", "earlier outputs damaged", "outputs missing after success",
+    for name in ("traceback", "stray output", "crash", "internal error", "leftover files", "wrong exit status",
+                 "signal ignored", "not one message", "earlier outputs damaged", "outputs missing after success",
                  "processes left running"):
         lines.append(f"  {name:32s} {counts.get(name, 0)}")
     for o in outcomes:

@@ -27,6 +27,7 @@ from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 _TMP_TAG = ".camsmooth-"
 
@@ -468,10 +469,39 @@ def interruption(signum: int) -> KeyboardInterrupt:
     return Terminated(f"terminated by signal {signum}") if signum == signal.SIGTERM else KeyboardInterrupt()
 
 
-def _on_signal(signum: int, frame: object) -> None:
-    """The first SIGINT or SIGTERM raises its ``interruption`` where the main thread is; later ones
-    are only recorded (the cleanup the first started is not interrupted)."""
+# Code an exception must not be raised into: numba's dispatcher and compiler and llvmlite (Python
+# called back from C through ctypes: an exception there left LLVM with a bad pointer, SIGSEGV, or
+# a SystemError), and the start of a worker process (a process started but not yet registered
+# with its pool would be left running). A signal arriving there is sent again a moment later.
+_HOLD_IN = ("numba", "llvmlite", "multiprocessing.popen_forkserver", "multiprocessing.forkserver",
+            "multiprocessing.process", "multiprocessing.context", "concurrent.futures.process")
+_RETRY_S = 0.02
+
+
+def _held_in(frame: Any) -> bool:
+    """Whether the main thread's stack at ``frame`` runs code of _HOLD_IN."""
+    while frame is not None:
+        name = frame.f_globals.get("__name__", "") or ""
+        if name.startswith(_HOLD_IN):
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _send_again(signum: int) -> None:
+    timer = threading.Timer(_RETRY_S, os.kill, (os.getpid(), signum))
+    timer.daemon = True
+    timer.start()
+
+
+def _on_signal(signum: int, frame: Any) -> None:
+    """The first SIGINT or SIGTERM raises its ``interruption`` where the main thread is (outside
+    _HOLD_IN: there it is sent again in _RETRY_S s); later ones are ignored (the cleanup the first
+    started is not interrupted)."""
     if _received:
+        return
+    if _held_in(frame):
+        _send_again(signum)
         return
     _received.append(signum)
     raise interruption(signum)
