@@ -462,6 +462,7 @@ def raise_terminated(signum: int, frame: object) -> None:
 _SIGNALS = (signal.SIGINT, signal.SIGTERM)
 _received: list[int] = []  # the first SIGINT / SIGTERM since install_signal_handlers (at most one)
 _installed: dict[int, object] = {}  # signal -> the handler it replaced, while ours are installed
+_held: list[int] = []  # signals held in _HOLD_IN code, to be sent again
 
 
 def interruption(signum: int) -> KeyboardInterrupt:
@@ -501,6 +502,7 @@ def _on_signal(signum: int, frame: Any) -> None:
     if _received:
         return
     if _held_in(frame):
+        _held.append(signum)  # an error it causes meanwhile (a worker gone) is still this signal's
         _send_again(signum)
         return
     _received.append(signum)
@@ -514,6 +516,7 @@ def install_signal_handlers() -> bool:
     if _installed or threading.current_thread() is not threading.main_thread():
         return False
     _received.clear()
+    _held.clear()
     for sig in _SIGNALS:
         _installed[sig] = signal.signal(sig, _on_signal)
     return True
@@ -529,11 +532,14 @@ def restore_signal_handlers() -> None:
 def signal_received() -> int | None:
     """The SIGINT or SIGTERM received since ``install_signal_handlers`` (None: none). A signal
     caught but whose handler has not run yet runs it here (raising its exception)."""
+    if not _received and _held:
+        _received.append(_held[0])
     return _received[0] if _received else None
 
 
 def raise_if_signalled() -> None:
     """Raise the interruption of a signal received since ``install_signal_handlers``, also when
     its first exception was swallowed somewhere (a library's broad ``except``)."""
-    if _received:
-        raise interruption(_received[0])
+    signum = signal_received()
+    if signum is not None:
+        raise interruption(signum)
