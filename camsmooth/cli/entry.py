@@ -44,8 +44,12 @@ def entry(argv: Sequence[str] | None = None) -> int:
         code = main(argv)
     except KeyboardInterrupt as exc:  # during the imports (main() handles its own)
         code = interrupted(signal_received() or signum_of(exc))
-    # what arrives from here on is held: the command is over
-    signal.pthread_sigmask(signal.SIG_BLOCK, (signal.SIGINT, signal.SIGTERM))
+    # the command is over (its outputs committed or removed): a signal from here on is ignored;
+    # left to the interpreter's finalisation (which resets Python's handlers to the default
+    # action) it would kill the process with the outputs in place
+    signal.setitimer(signal.ITIMER_REAL, 0)
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGALRM):
+        signal.signal(sig, signal.SIG_IGN)
     if code not in (EXIT_SIGINT, EXIT_SIGTERM):
         return int(code or 0)
     for stream in (sys.stdout, sys.stderr):

@@ -462,7 +462,7 @@ def raise_terminated(signum: int, frame: object) -> None:
 _SIGNALS = (signal.SIGINT, signal.SIGTERM)
 _received: list[int] = []  # the first SIGINT / SIGTERM since install_signal_handlers (at most one)
 _installed: dict[int, object] = {}  # signal -> the handler it replaced, while ours are installed
-_held: list[int] = []  # signals held in _HOLD_IN code, to be sent again
+_held: list[int] = []  # a signal held in _HOLD_IN code, taken up again by _on_alarm
 
 
 def interruption(signum: int) -> KeyboardInterrupt:
@@ -473,7 +473,7 @@ def interruption(signum: int) -> KeyboardInterrupt:
 # Code an exception must not be raised into: numba's dispatcher and compiler and llvmlite (Python
 # called back from C through ctypes: an exception there left LLVM with a bad pointer, SIGSEGV, or
 # a SystemError), and the start of a worker process (a process started but not yet registered
-# with its pool would be left running). A signal arriving there is sent again a moment later.
+# with its pool would be left running). A signal arriving there is taken up again a moment later (SIGALRM, _on_alarm).
 _HOLD_IN = ("numba", "llvmlite", "multiprocessing.popen_forkserver", "multiprocessing.forkserver",
             "multiprocessing.process", "multiprocessing.context", "concurrent.futures.process")
 _RETRY_S = 0.02
@@ -489,21 +489,24 @@ def _held_in(frame: Any) -> bool:
     return False
 
 
-def _send_again(signum: int) -> None:
-    timer = threading.Timer(_RETRY_S, os.kill, (os.getpid(), signum))
-    timer.daemon = True
-    timer.start()
+def _on_alarm(signum: int, frame: Any) -> None:
+    """SIGALRM of the retry timer: the held signal's turn again (held again while still in
+    _HOLD_IN). A timer signal, not a thread: a handler must not take locks the interrupted code
+    may hold (starting a thread inside threading's own code deadlocked)."""
+    if _held and not _received:
+        _on_signal(_held[0], frame)
 
 
 def _on_signal(signum: int, frame: Any) -> None:
     """The first SIGINT or SIGTERM raises its ``interruption`` where the main thread is (outside
-    _HOLD_IN: there it is sent again in _RETRY_S s); later ones are ignored (the cleanup the first
+    _HOLD_IN: there it is taken up again in _RETRY_S s); later ones are ignored (the cleanup the first
     started is not interrupted)."""
     if _received:
         return
     if _held_in(frame):
-        _held.append(signum)  # an error it causes meanwhile (a worker gone) is still this signal's
-        _send_again(signum)
+        if not _held:
+            _held.append(signum)  # an error it causes meanwhile (a worker gone) is still this signal's
+        signal.setitimer(signal.ITIMER_REAL, _RETRY_S)
         return
     _received.append(signum)
     raise interruption(signum)
@@ -519,11 +522,14 @@ def install_signal_handlers() -> bool:
     _held.clear()
     for sig in _SIGNALS:
         _installed[sig] = signal.signal(sig, _on_signal)
+    _installed[signal.SIGALRM] = signal.signal(signal.SIGALRM, _on_alarm)
     return True
 
 
 def restore_signal_handlers() -> None:
     """Put back the handlers ``install_signal_handlers`` replaced."""
+    if _installed:
+        signal.setitimer(signal.ITIMER_REAL, 0)
     for sig, old in _installed.items():
         signal.signal(sig, old if old is not None else signal.SIG_DFL)
     _installed.clear()
