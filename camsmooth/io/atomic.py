@@ -473,7 +473,8 @@ def interruption(signum: int) -> KeyboardInterrupt:
 # Code an exception must not be raised into: numba's dispatcher and compiler and llvmlite (Python
 # called back from C through ctypes: an exception there left LLVM with a bad pointer, SIGSEGV, or
 # a SystemError), and the start of a worker process (a process started but not yet registered
-# with its pool would be left running). A signal arriving there is taken up again a moment later (SIGALRM, _on_alarm).
+# with its pool would be left running). A signal arriving there is taken up again a moment later
+# (SIGALRM, _on_alarm).
 _HOLD_IN = ("numba", "llvmlite", "multiprocessing.popen_forkserver", "multiprocessing.forkserver",
             "multiprocessing.process", "multiprocessing.context", "concurrent.futures.process")
 _RETRY_S = 0.02
@@ -499,8 +500,8 @@ def _on_alarm(signum: int, frame: Any) -> None:
 
 def _on_signal(signum: int, frame: Any) -> None:
     """The first SIGINT or SIGTERM raises its ``interruption`` where the main thread is (outside
-    _HOLD_IN: there it is taken up again in _RETRY_S s); later ones are ignored (the cleanup the first
-    started is not interrupted)."""
+    _HOLD_IN: there it is taken up again in _RETRY_S s); later ones are ignored (the cleanup the
+    first started is not interrupted)."""
     if _received:
         return
     if _held_in(frame):

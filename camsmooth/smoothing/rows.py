@@ -523,33 +523,32 @@ def _raise_infeasible(ctx: RowContext, task: RowTask, nlp: RowNLP, lw: np.ndarra
     if not own:
         b = elastic_diagnosis(machine, task.t, task.frames, lw, tw, task.A0, task.B0, backoff=nlp.backoff)
     i = min(b.point, len(task.t) - 1)
-    if own:
-        lo_l, hi_l = np.degrees(task.lead_window[i])
-        lo_t, hi_t = np.degrees(task.tilt_window[i])
-        with_map = False
-        hint = (f" (the lead window {lo_l:g}:{hi_l:g} deg and tilt window {lo_t:g}:{hi_t:g} deg there: widen them or "
-                "lower the feed)")
-    else:
-        hint = " (lower the feed, widen the lead/tilt windows, or use a smaller cutter)"
     margin = "" if b.past_machine_limit else (
         " (inside the machine's limit, but past the margin the optimiser keeps from it: "
         + (f"{50 * nlp.backoff:g}% of the span at each end)" if b.constraint.endswith("travel")
            else f"{100 * nlp.backoff:g}% of the limit)"))
-    windows = "lead/tilt windows" + (" and the clear regions of the accessibility map" if with_map else "")
+    if own:  # name the user's windows there; a rate limit can also be met at a lower feed
+        lo_l, hi_l = np.degrees(task.lead_window[i])
+        lo_t, hi_t = np.degrees(task.tilt_window[i])
+        windows = f"lead window {lo_l:g}:{hi_l:g} deg and tilt window {lo_t:g}:{hi_t:g} deg"
+        hint = "" if b.constraint.endswith("travel") else "; widen the windows or lower the feed"
+    else:
+        windows = "lead/tilt windows" + (" and the clear regions of the accessibility map" if with_map else "")
+        hint = "" if b.constraint.endswith("travel") else "; lower the feed or widen the windows"
     if b.constraint.endswith("travel"):
         detail = (f"{b.constraint} {np.degrees(machine.limits[b.constraint[0]].min):g}..."
                   f"{np.degrees(machine.limits[b.constraint[0]].max):g} deg: the {windows} need "
                   f"{b.constraint[0]} = {b.need:.6g} deg near point {i}{margin}")
     else:
         detail = (f"{b.constraint} limit {b.limit:g} {b.unit} near point {i} (t = {task.t[i]:.3f} s): the {windows} "
-                  f"need at least {b.need:.4g} {b.unit} there{margin}")
+                  f"need at least {b.need:.4g} {b.unit} there{margin}{hint}")
     if b.binds:
-        raise InfeasibleError(f"{where}row id {task.row}: no program meets the limits; binding constraint: {detail}"
-                              f"{hint}")
+        raise InfeasibleError(f"{where}row id {task.row}: no program meets the limits; binding constraint: {detail}")
     raise InfeasibleError(f"{where}row id {task.row}: the NLP solver failed ({status}) although no limit binds (the "
                           "largest "
                           f"need, {b.need:.4g} {b.unit} of {b.constraint}, is within its limit {b.limit:g}); "
                           "please report this row as a bug")
+
 
 def chunk_clearance(ctx: RowContext, poses: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
     """Exact clearance (mm) of a chunk of poses (tips (N, 3) mm, unit axes (N, 3)) against the
