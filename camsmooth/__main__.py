@@ -1,7 +1,8 @@
-"""``python -m camsmooth``: the command line."""
+"""``python -m camsmooth``: the command line (signal handlers first: camsmooth.cli.entry)."""
 
 import sys
 
-from camsmooth.cli.main import main
+from camsmooth.cli.entry import entry
 
-sys.exit(main())
+if __name__ == "__main__":
+    sys.exit(entry())

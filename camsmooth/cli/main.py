@@ -16,22 +16,26 @@ from __future__ import annotations
 
 import argparse
 import re
-import signal
 import sys
-import threading
 import traceback
 import warnings
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from camsmooth.cli.entry import interrupted, signum_of
 from camsmooth.cli.options import CliParser, angle_range, number, vector3
 from camsmooth.constants import DEFAULT_TOLERANCE_MM
 from camsmooth.errors import CamsmoothError, InputError
-from camsmooth.io.atomic import Terminated, output_transaction, raise_terminated
+from camsmooth.io.atomic import (
+    install_signal_handlers,
+    output_transaction,
+    raise_if_signalled,
+    restore_signal_handlers,
+    signal_received,
+)
 
 SAMPLES_DIR = Path(__file__).resolve().parents[2] / "surfaces"
 
@@ -285,7 +289,10 @@ def run_path(args: argparse.Namespace) -> int:
             axis = axis / np.linalg.norm(axis)
             size = float(np.ptp(np.asarray(surf.mesh.vertices), axis=0).max())
             _check_path_size(size / args.stepover + 1, size / args.spacing + 1)
-            cc = raster_path_on_mesh(surf.mesh, _cutter(args), axis, args.stepover, args.spacing, axial_drop)
+            try:
+                cc = raster_path_on_mesh(surf.mesh, _cutter(args), axis, args.stepover, args.spacing, axial_drop)
+            except InputError as exc:
+                raise InputError(exc.message, file=args.surface) from None
             if len(cc.points) == 0:
                 raise InputError(f"the cutter touches the mesh nowhere along --axis {args.axis}: no CC points",
                                  file=args.surface)
@@ -552,58 +559,54 @@ def _show_warning(message: Any, category: type, filename: str, lineno: int, file
     print(f"camsmooth: warning: {error_message(Exception(str(message)))}", file=sys.stderr if file is None else file)
 
 
-@contextmanager
-def _sigterm_raises() -> Iterator[None]:
-    """SIGTERM raises Terminated while the command runs, so outputs in progress are cleaned up."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    old = signal.signal(signal.SIGTERM, raise_terminated)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, old)
-
-
 def run(args: argparse.Namespace, debug: bool = False) -> int:
-    """Run a parsed command inside the error boundary; return the exit status (module docstring)."""
-    with _sigterm_raises(), warnings.catch_warnings():
+    """Run a parsed command inside the error boundary; return the exit status (module docstring).
+    A signal (SIGINT, SIGTERM) wins over whatever error it caused (a worker gone, a library's
+    SystemError): the interruption escapes to ``main``, which prints its one message."""
+    with warnings.catch_warnings():
         warnings.showwarning = _show_warning
         try:
-            return int(args.func(args) or 0)
+            code = int(args.func(args) or 0)
         except StrictFailure as exc:
+            raise_if_signalled()
             print(f"camsmooth: error: {error_message(exc)}", file=sys.stderr)
             return EXIT_STRICT
-        except Terminated:
-            print("camsmooth: terminated (SIGTERM); outputs not completed were removed", file=sys.stderr)
-            return EXIT_SIGTERM
-        except KeyboardInterrupt:
-            print("camsmooth: interrupted (Ctrl-C); outputs not completed were removed", file=sys.stderr)
-            return EXIT_SIGINT
         except (CamsmoothError, OSError, UnicodeDecodeError, MemoryError) as exc:
+            raise_if_signalled()
             if debug:
                 traceback.print_exc()
             print(f"camsmooth: error: {error_message(exc)}", file=sys.stderr)
             return EXIT_INPUT
         except Exception as exc:
+            raise_if_signalled()
             if debug:
                 traceback.print_exc()
             hint = "" if debug else " (run with --debug for the traceback)"
             print(f"camsmooth: internal error: {type(exc).__name__}: {error_message(exc)}. This is a bug in "
                   f"camsmooth: please report it with the command line and the input files{hint}", file=sys.stderr)
             return EXIT_BUG
+        raise_if_signalled()
+        return code
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """The `camsmooth` command: parse ``argv`` (default sys.argv[1:]), run, return the exit status."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    debug = "--debug" in argv
-    argv = [a for a in argv if a != "--debug"]
+    installed = install_signal_handlers()  # done already by camsmooth.cli.entry for the command
     try:
-        args = build_parser().parse_args(_join_ranges(argv))
-    except SystemExit as exc:  # --help (0) or a bad option (2; CliParser printed one line)
-        return exc.code if isinstance(exc.code, int) else EXIT_INPUT
-    return run(args, debug=debug)
+        argv = list(sys.argv[1:] if argv is None else argv)
+        debug = "--debug" in argv
+        argv = [a for a in argv if a != "--debug"]
+        try:
+            args = build_parser().parse_args(_join_ranges(argv))
+        except SystemExit as exc:  # --help (0) or a bad option (2; CliParser printed one line)
+            raise_if_signalled()
+            return exc.code if isinstance(exc.code, int) else EXIT_INPUT
+        return run(args, debug=debug)
+    except KeyboardInterrupt as exc:  # SIGINT or SIGTERM (Terminated), wherever it arrived
+        return interrupted(signal_received() or signum_of(exc))
+    finally:
+        if installed:
+            restore_signal_handlers()
 
 
 if __name__ == "__main__":

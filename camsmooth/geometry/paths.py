@@ -342,6 +342,27 @@ DropFunction = Callable[[trimesh.Trimesh, Any, np.ndarray, np.ndarray],
                         tuple[np.ndarray, np.ndarray, np.ndarray]]
 
 
+INCH_MM = 25.4
+
+
+def _no_raster_rows(cutter: Any, across1: float, across2: float, stepover: float, spacing: float) -> str:
+    """Why a raster found no row of MIN_ROW_POINTS points, and what to change: a part narrower
+    than the cutter that would fit it 25.4x larger is most likely a mesh in inches."""
+    R, r = float(getattr(cutter, "R", 0.0)), float(getattr(cutter, "r", 0.0))
+    diameter = 2.0 * (R + r)
+    size = (f"the part is {across1:.4g} x {across2:.4g} mm across the tool axis (cutter diameter {diameter:g} mm, "
+            f"--stepover {stepover:g}, --spacing {spacing:g} mm)")
+    if max(across1, across2) < diameter <= INCH_MM * max(across1, across2):
+        return (f"the cutter touches the mesh in no raster row: {size}; the part looks {INCH_MM:g}x smaller than the "
+                "cutter and the steps expect (a mesh in inches?): scale the mesh to mm, or give --cutter-radius, "
+                "--corner-radius, --stepover and --spacing in the mesh's units")
+    if max(across1, across2) < diameter:
+        return (f"the cutter touches the mesh in no raster row: {size}; the part is smaller than the cutter: "
+                "use a smaller cutter, or check the mesh's units")
+    return (f"the cutter touches the mesh in no raster row of {MIN_ROW_POINTS} points: {size}: use a smaller "
+            "--spacing or --stepover, or check --axis (the side of the part the tool comes from)")
+
+
 def raster_path_on_mesh(mesh: trimesh.Trimesh, cutter: Any, axis: Any, stepover: float, spacing: float,
                         drop: DropFunction, feed: float | None = None) -> CCPath:
     """Zig-zag raster CC path on a mesh by dropping the cutter along a fixed tool axis.
@@ -405,7 +426,7 @@ def raster_path_on_mesh(mesh: trimesh.Trimesh, cutter: Any, axis: Any, stepover:
             fdirs.append(f)
             rows.append(np.full(len(c), len(rows)))
     if not pts:
-        raise ValueError("the cutter missed the mesh everywhere: no raster rows")
+        raise InputError(_no_raster_rows(cutter, np.ptp(p1), np.ptp(p2), stepover, spacing))
     points, normals, rr = np.concatenate(pts), np.concatenate(nrm), np.concatenate(rows)
     f = np.concatenate(fdirs)
     bad = ~np.all(np.isfinite(f), axis=1)

@@ -1005,7 +1005,12 @@ def load_surface(path: str | Path, chord_tol: float = 2e-4, max_points: int = 25
         param = load_definition(p)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            mesh = tessellate_to_tolerance(param, chord_tol=chord_tol, max_points=max_points)
+            try:
+                mesh = tessellate_to_tolerance(param, chord_tol=chord_tol, max_points=max_points)
+            except ValueError as exc:  # a definition whose surface degenerates (a singular normal)
+                raise InputError(f"[surface]: the definition gives no proper surface to tessellate ({exc}): check "
+                                 "its parameters (coinciding control points, a range past the surface's end)",
+                                 file=str(path)) from None
         notes = [f"{path}: {w.message}" for w in caught]
         for note in notes:
             warnings.warn(note, RuntimeWarning, stacklevel=2)

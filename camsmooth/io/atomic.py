@@ -27,6 +27,7 @@ from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 _TMP_TAG = ".camsmooth-"
 
@@ -349,14 +350,18 @@ def _signals_deferred() -> Iterator[None]:
         return
     pending: list[int] = []
     old = {}
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        if signal.getsignal(sig) is not None:  # None: a handler not set from Python, left alone
-            old[sig] = signal.signal(sig, lambda signum, frame: pending.append(signum))
+    # the OS holds the signals arriving now (pthread_sigmask); the Python handlers are swapped
+    # too, for a signal the C level caught just before the mask whose handler has yet to run
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, _SIGNALS)
     try:
+        for sig in _SIGNALS:
+            if signal.getsignal(sig) is not None:  # None: a handler not set from Python, left alone
+                old[sig] = signal.signal(sig, lambda signum, frame: pending.append(signum))
         yield
     finally:
         for sig, handler in old.items():
             signal.signal(sig, handler)
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)  # held signals reach the restored handlers
         for sig in dict.fromkeys(pending):
             signal.raise_signal(sig)
 
@@ -432,6 +437,7 @@ def output_transaction() -> Iterator[OutputTransaction]:
         restore = signal.signal(signal.SIGTERM, raise_terminated)
     try:
         yield tx
+        raise_if_signalled()  # a signal whose exception a library swallowed still cancels the outputs
         tx.commit()
     except OSError as exc:
         if exc.filename is None and exc.errno is not None and tx.staged:
@@ -449,3 +455,98 @@ def output_transaction() -> Iterator[OutputTransaction]:
 def raise_terminated(signum: int, frame: object) -> None:
     """Signal handler: SIGTERM -> ``Terminated``."""
     raise Terminated(f"terminated by signal {signum}")
+
+
+# ----------------------------------------------------------------------------------------------
+# the command line's signals: one exception, in the main process only
+_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+_received: list[int] = []  # the first SIGINT / SIGTERM since install_signal_handlers (at most one)
+_installed: dict[int, object] = {}  # signal -> the handler it replaced, while ours are installed
+_held: list[int] = []  # a signal held in _HOLD_IN code, taken up again by _on_alarm
+
+
+def interruption(signum: int) -> KeyboardInterrupt:
+    """The exception a signal becomes: KeyboardInterrupt for SIGINT, Terminated for SIGTERM."""
+    return Terminated(f"terminated by signal {signum}") if signum == signal.SIGTERM else KeyboardInterrupt()
+
+
+# Code an exception must not be raised into: numba's dispatcher and compiler and llvmlite (Python
+# called back from C through ctypes: an exception there left LLVM with a bad pointer, SIGSEGV, or
+# a SystemError), and the start of a worker process (a process started but not yet registered
+# with its pool would be left running). A signal arriving there is taken up again a moment later
+# (SIGALRM, _on_alarm).
+_HOLD_IN = ("numba", "llvmlite", "multiprocessing.popen_forkserver", "multiprocessing.forkserver",
+            "multiprocessing.process", "multiprocessing.context", "concurrent.futures.process")
+_RETRY_S = 0.02
+
+
+def _held_in(frame: Any) -> bool:
+    """Whether the main thread's stack at ``frame`` runs code of _HOLD_IN."""
+    while frame is not None:
+        name = frame.f_globals.get("__name__", "") or ""
+        if name.startswith(_HOLD_IN):
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _on_alarm(signum: int, frame: Any) -> None:
+    """SIGALRM of the retry timer: the held signal's turn again (held again while still in
+    _HOLD_IN). A timer signal, not a thread: a handler must not take locks the interrupted code
+    may hold (starting a thread inside threading's own code deadlocked)."""
+    if _held and not _received:
+        _on_signal(_held[0], frame)
+
+
+def _on_signal(signum: int, frame: Any) -> None:
+    """The first SIGINT or SIGTERM raises its ``interruption`` where the main thread is (outside
+    _HOLD_IN: there it is taken up again in _RETRY_S s); later ones are ignored (the cleanup the
+    first started is not interrupted)."""
+    if _received:
+        return
+    if _held_in(frame):
+        if not _held:
+            _held.append(signum)  # an error it causes meanwhile (a worker gone) is still this signal's
+        signal.setitimer(signal.ITIMER_REAL, _RETRY_S)
+        return
+    _received.append(signum)
+    raise interruption(signum)
+
+
+def install_signal_handlers() -> bool:
+    """SIGINT and SIGTERM raise one exception (``_on_signal``) from now on, even where SIGINT was
+    inherited ignored; forget any signal received before. False (nothing done) outside the main
+    thread or when installed already."""
+    if _installed or threading.current_thread() is not threading.main_thread():
+        return False
+    _received.clear()
+    _held.clear()
+    for sig in _SIGNALS:
+        _installed[sig] = signal.signal(sig, _on_signal)
+    _installed[signal.SIGALRM] = signal.signal(signal.SIGALRM, _on_alarm)
+    return True
+
+
+def restore_signal_handlers() -> None:
+    """Put back the handlers ``install_signal_handlers`` replaced."""
+    if _installed:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+    for sig, old in _installed.items():
+        signal.signal(sig, old if old is not None else signal.SIG_DFL)
+    _installed.clear()
+
+
+def signal_received() -> int | None:
+    """The SIGINT or SIGTERM received since ``install_signal_handlers`` (None: none). A signal
+    caught but whose handler has not run yet runs it here (raising its exception)."""
+    if not _received and _held:
+        _received.append(_held[0])
+    return _received[0] if _received else None
+
+
+def raise_if_signalled() -> None:
+    """Raise the interruption of a signal received since ``install_signal_handlers``, also when
+    its first exception was swallowed somewhere (a library's broad ``except``)."""
+    signum = signal_received()
+    if signum is not None:
+        raise interruption(signum)

@@ -777,3 +777,76 @@ def elastic_diagnosis(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_
     i = int(np.argmax(vals)) + (0 if k < 2 else 1)
     return Binding(names[k], i, float(np.degrees(vals.max())), float(np.degrees(M.vmax if k < 2 else M.amax)),
                    "deg/s" if k < 2 else "deg/s^2", enforced=float(np.degrees(L.vmax if k < 2 else L.amax)))
+
+
+@dataclass(frozen=True)
+class ClearanceRelief:
+    """What an elastic re-solve with soft clearance constraints found (``clearance_elastic``):
+    ``feasible`` whether the limits and the windows alone admit a program (when not, the binding
+    limit is ``elastic_diagnosis``'s to name); ``floor_short`` and ``ceiling_short`` (N,) rad, how
+    far below its clear floor (above its ceiling) each point's lead had to stay; A, B (rad) that
+    program (a warm start that meets the limits and windows)."""
+
+    feasible: bool
+    floor_short: np.ndarray
+    ceiling_short: np.ndarray
+    A: np.ndarray
+    B: np.ndarray
+
+
+def clearance_elastic(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_window: np.ndarray,
+                      tilt_window: np.ndarray, bounds: LeadBounds, A0: np.ndarray, B0: np.ndarray,
+                      backoff: float = BACKOFF) -> ClearanceRelief:
+    """The row of RowNLP with its limits and windows hard (as enforced) and the accessibility
+    map's floor and ceiling soft: minimise the sum of the per-point amounts (rad) by which the lead
+    stays outside its clear region. Points with a positive amount are those the machine's limits
+    keep out of their clear region. Angles rad, times s."""
+    n = len(t)
+    D1, D2 = fd_operators(t)
+    lim = enforced_limits(machine, backoff)
+    lead_window, tilt_window = narrowed(lead_window), narrowed(tilt_window)
+    fl, ce = np.flatnonzero(bounds.has_floor), np.flatnonzero(bounds.has_ceiling)
+    x = ca.SX.sym("x", 2 * n)
+    s = ca.SX.sym("s", len(fl) + len(ce))
+    A, B = x[0::2], x[1::2]
+    Tx, Ty, Tz = machine.tool_axis(A, B)
+    X, Y, Z = frames[:, :, 0], frames[:, :, 1], frames[:, :, 2]
+    tmin, tmax = tilt_window[:, 0:1], tilt_window[:, 1:2]
+    cmin = Y * np.cos(tmin) - X * np.sin(tmin)
+    cmax = X * np.sin(tmax) - Y * np.cos(tmax)
+    dotc = lambda C: C[:, 0] * Tx + C[:, 1] * Ty + C[:, 2] * Tz  # noqa: E731
+    lx, ly, lz = dotc(X), dotc(Y), dotc(Z)
+    tilt = ca.atan2(ly, lx)
+    lead = ca.atan2(ca.sqrt(lx ** 2 + ly ** 2 + 1e-24), lz)
+    poly = lambda c, k: c[k, 0] + c[k, 1] * tilt[k.tolist()] + c[k, 2] * tilt[k.tolist()] ** 2  # noqa: E731
+    d1, d2 = _dm_sparse(D1), _dm_sparse(D2)
+    g = ca.vertcat(ca.mtimes(d1, A), ca.mtimes(d1, B), ca.mtimes(d2, A), ca.mtimes(d2, B), lz, dotc(cmin),
+                   dotc(cmax), lead[fl.tolist()] - poly(bounds.floor, fl) + s[:len(fl)],
+                   poly(bounds.ceiling, ce) - lead[ce.tolist()] + s[len(fl):])
+    m1, m2, inf = n - 1, n - 2, np.inf
+    full = np.full
+    lbg = np.concatenate([full(m1, -lim["A"].vmax), full(m1, -lim["B"].vmax), full(m2, -lim["A"].amax),
+                          full(m2, -lim["B"].amax), np.cos(lead_window[:, 1]), np.zeros(2 * n),
+                          full(len(fl) + len(ce), WINDOW_BACKOFF)])
+    ubg = np.concatenate([full(m1, lim["A"].vmax), full(m1, lim["B"].vmax), full(m2, lim["A"].amax),
+                          full(m2, lim["B"].amax), np.cos(lead_window[:, 0]), full(2 * n, inf),
+                          full(len(fl) + len(ce), inf)])
+    lbx = np.concatenate([np.ravel(np.column_stack([full(n, lim["A"].min), full(n, lim["B"].min)])),
+                          np.zeros(len(s.nz))])
+    ubx = np.concatenate([np.ravel(np.column_stack([full(n, lim["A"].max), full(n, lim["B"].max)])),
+                          full(len(s.nz), inf)])
+    solver = ca.nlpsol("clearance_elastic", "ipopt", {"x": ca.vertcat(x, s), "f": ca.sum1(s), "g": g},
+                       {"ipopt.print_level": 0, "print_time": 0, "ipopt.sb": "yes", "ipopt.max_iter": 1000,
+                        "ipopt.tol": 1e-10, "ipopt.constr_viol_tol": 1e-10})
+    x0 = np.concatenate([np.clip(np.ravel(np.column_stack([A0, B0])), lbx[:2 * n], ubx[:2 * n]),
+                         full(len(s.nz), 0.1)])
+    sol = solver(x0=x0, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+    xs = np.asarray(sol["x"]).ravel()
+    gs = np.asarray(sol["g"]).ravel()
+    ok = bool(np.all(np.isfinite(xs)) and np.all(gs[:-len(s.nz) or None] >= lbg[:len(gs) - len(s.nz)] - 1e-8)
+              and np.all(gs[:len(gs) - len(s.nz)] <= ubg[:len(gs) - len(s.nz)] + 1e-8))
+    floor_short, ceiling_short = np.zeros(n), np.zeros(n)
+    floor_short[fl] = np.maximum(xs[2 * n:2 * n + len(fl)], 0.0)
+    ceiling_short[ce] = np.maximum(xs[2 * n + len(fl):], 0.0)
+    return ClearanceRelief(feasible=ok, floor_short=floor_short, ceiling_short=ceiling_short, A=xs[0:2 * n:2],
+                           B=xs[1:2 * n:2])

@@ -7,7 +7,9 @@ task. Backends:
 
 - serial (``workers=1``);
 - processes on this machine (``workers > 1``; a forkserver pool, so the workers never inherit a
-  parent's threads mid-flight);
+  parent's threads mid-flight). The fork server and the workers ignore SIGINT from their first
+  instruction (a Ctrl-C reaches the whole process group): the parent decides, and terminates
+  them when it is interrupted or fails;
 - Dask (``dask="local"`` for a LocalCluster of ``workers`` single-threaded processes, or a
   scheduler address such as ``"tcp://10.0.0.5:8786"``). Dask is an optional extra:
   ``pip install camsmooth[dask]``.
@@ -17,6 +19,8 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import os
+import signal
+import threading
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any, TypeVar
@@ -39,7 +43,28 @@ def default_workers() -> int:
 
 
 def _init(ctx: Any) -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides (module docstring)
     _SHARED["ctx"] = ctx
+
+
+def _start_forkserver(mpc: Any, preload: list[str]) -> None:
+    """Start the fork server (if not running) with SIGINT ignored, a disposition it and every
+    worker it forks inherit, so a Ctrl-C to the process group never interrupts them half-way
+    (importing the preload, unpickling a task). SIGINT is held meanwhile, so one arriving
+    now reaches this process's own handler afterwards."""
+    from multiprocessing import forkserver
+
+    mpc.set_forkserver_preload(preload)
+    if threading.current_thread() is not threading.main_thread():
+        forkserver.ensure_running()
+        return
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, (signal.SIGINT,))
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        forkserver.ensure_running()
+    finally:
+        signal.signal(signal.SIGINT, old if old is not None else signal.SIG_DFL)
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
 
 
 def _call(fn: Callable[[Any, Any], Any], task: Any) -> Any:
@@ -75,11 +100,17 @@ class RowPool:
     def __enter__(self) -> RowPool:
         return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.close()
+    def __exit__(self, exc_type: type[BaseException] | None, *exc: object) -> None:
+        self.close(abort=exc_type is not None)
 
-    def close(self) -> None:
+    def close(self, abort: bool = False) -> None:
+        """Stop the workers: after the running tasks end, or at once when ``abort`` (an error or
+        an interruption: nothing they compute is wanted)."""
         if self._pool is not None:
+            if abort:
+                for proc in list(getattr(self._pool, "_processes", {}).values()):
+                    if proc.is_alive():
+                        proc.terminate()
             self._pool.shutdown(cancel_futures=True)
             self._pool = None
         if self._client is not None:
@@ -96,15 +127,18 @@ class RowPool:
             return [fn(self.ctx, t) for t in _progress(tasks, len(tasks), progress)]
         if self._pool is None:
             mpc = mp.get_context("forkserver")
-            mpc.set_forkserver_preload(["camsmooth.smoothing.rows"])
+            _start_forkserver(mpc, ["camsmooth.smoothing.rows"])
             self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=mpc, initializer=_init,
                                              initargs=(self.ctx,))
         futures = [self._pool.submit(_call, fn, t) for t in tasks]
         if progress is not None:
             from concurrent.futures import as_completed
 
-            for _ in _progress(as_completed(futures), len(futures), progress):
-                pass
+            for f in _progress(as_completed(futures), len(futures), progress):
+                if f.exception() is not None:  # the first failure ends the map (the rest is not wanted)
+                    for g in futures:
+                        g.cancel()
+                    f.result()
         return [f.result() for f in futures]
 
     def _map_dask(self, fn: Callable[[C, T], R], tasks: Sequence[T], progress: str | None) -> list[R]:

@@ -238,8 +238,8 @@ class ProgramSmoother:
     def __enter__(self) -> ProgramSmoother:
         return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.pool.close()
+    def __exit__(self, exc_type: type[BaseException] | None, *exc: object) -> None:
+        self.pool.close(abort=exc_type is not None)
 
     # ---- building blocks ------------------------------------------------------------------------
     def ik(self, axes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

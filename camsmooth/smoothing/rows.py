@@ -28,6 +28,13 @@ results (camsmooth.smoothing.parallel). Per row:
 3. Verify with the exact clearance only the poses that moved: a pose whose tool moved by less
    than MOVE_TOL (a bound over the whole tool solid: tip displacement plus axis rotation times
    the tool's reach) keeps its clearance; the first round checks every pose.
+   If IPOPT finds the row infeasible with the map's constraints, an elastic re-solve with the
+   floor and ceiling soft (camsmooth.smoothing.nlp.clearance_elastic) names the points whose clear
+   region the limits keep the axis from (a floor climbing to the window's top faster than B may
+   turn, before a blocked stretch): their floor (ceiling) is moved to what the limits allow,
+   they are not refined again and fall back to the lift (``unreachable_clear``); the row is
+   re-solved from the elastic program. Only when the limits and windows alone admit no program
+   is the row refused, naming the binding limit (the user's windows first).
 4. Refine: points that gouge and were not mapped are mapped (step 1); mapped points that still
    gouge (the map is a sampled approximation between its samples) get their floor or ceiling
    moved to the exact boundary at the solution's tilt. Re-solve, from the last solution.
@@ -53,7 +60,14 @@ from camsmooth.geometry.clearance import MeshIndex, clearance
 from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl
 from camsmooth.geometry.frames import lead_tilt_from_axis
 from camsmooth.machine.kinematics import Machine
-from camsmooth.smoothing.nlp import BACKOFF, LeadBounds, RowNLP, elastic_diagnosis, fd_operators
+from camsmooth.smoothing.nlp import (
+    BACKOFF,
+    LeadBounds,
+    RowNLP,
+    clearance_elastic,
+    elastic_diagnosis,
+    fd_operators,
+)
 
 __all__ = ["RowContext", "RowOptions", "RowSolution", "RowTask", "solve_row"]
 
@@ -72,6 +86,8 @@ KNOT_MARGIN = 1.0
 MAP_FRACTION = 0.5  # the map calls an orientation clear at delta >= -MAP_FRACTION * tolerance
 REFINE_MARGIN = np.radians(0.05)  # rad: a floor moved to the exact boundary goes this much beyond
 LIFT_STEPS = 12  # re-checks of the fallback lift along the normal (secant steps after the first)
+MAX_RELIEFS = 2  # soft-clearance re-solves per row (module docstring, step 2)
+RELIEF_TOL = 1e-7  # rad: a point whose lead stays this far outside its clear region gives it up
 
 
 @dataclass(frozen=True)
@@ -244,6 +260,8 @@ def solve_row(ctx: RowContext, task: RowTask) -> RowSolution:
     t_solve = t_map = t_check = 0.0
     to_map = _neighbours(task.risk, task.cc, cut.R + cut.r)
     refine = np.zeros(n, bool)
+    gave_up = np.zeros(n, bool)  # mapped points whose clear region the limits keep the axis out of
+    reliefs = 0
     for rounds in range(1, opts.max_rounds + 1):  # noqa: B007
         t0 = time.perf_counter()
         if to_map.any():
@@ -280,6 +298,23 @@ def solve_row(ctx: RowContext, task: RowTask) -> RowSolution:
         if not st.success and len(kk) < n:
             knots[:], backoff = True, BACKOFF  # the knots' wider back-off may be what binds: solve whole
             continue
+        if not st.success and reliefs < MAX_RELIEFS:
+            # the clear regions of the map may be what no program within the limits reaches (a
+            # floor climbing to the window's top before a blocked stretch): soft clearance names
+            # those points, which keep only the windows and fall back to the lift
+            reliefs += 1
+            relief = clearance_elastic(mach, task.t, task.frames, lw, tw,
+                                       LeadBounds(floor, ceiling, has_floor, has_ceiling), A, B, backoff=nlp.backoff)
+            if relief.feasible:
+                # those points keep the clear side as near as the limits allow: their floor
+                # (ceiling) moves down (up) by what the limits keep the lead from
+                short = (relief.floor_short > RELIEF_TOL) | (relief.ceiling_short > RELIEF_TOL)
+                gave_up |= short
+                floor[:, 0] -= np.where(relief.floor_short > RELIEF_TOL, relief.floor_short + RELIEF_TOL, 0.0)
+                ceiling[:, 0] += np.where(relief.ceiling_short > RELIEF_TOL, relief.ceiling_short + RELIEF_TOL, 0.0)
+                A, B = relief.A, relief.B  # meets the limits and windows: a start IPOPT can leave
+                to_map[:] = refine[:] = False
+                continue
         if not st.success:
             if good is None:
                 _raise_infeasible(ctx, task, nlp, lw, tw, A_k, B_k, st.status, mapped.any())
@@ -305,7 +340,7 @@ def solve_row(ctx: RowContext, task: RowTask) -> RowSolution:
             evals += int(check.sum())
         t_check += time.perf_counter() - t0
         good = (A, B)
-        bad = (delta < -tol) & ~blocked
+        bad = (delta < -tol) & ~blocked & ~gave_up
         if not bad.any():
             break
         to_map = _neighbours(bad & ~mapped, task.cc, cut.R + cut.r) & ~mapped
@@ -481,26 +516,39 @@ def _raise_infeasible(ctx: RowContext, task: RowTask, nlp: RowNLP, lw: np.ndarra
     binds, say that the solver failed."""
     machine = ctx.machines[task.machine]
     where = f"{ctx.source}: " if ctx.source else ""
-    b = elastic_diagnosis(machine, task.t, task.frames, lw, tw, task.A0, task.B0, backoff=nlp.backoff)
+    # the user's windows alone first: what to change is then the windows (or the feed)
+    b = elastic_diagnosis(machine, task.t, task.frames, task.lead_window, task.tilt_window, task.A0, task.B0,
+                          backoff=nlp.backoff)
+    own = b.binds
+    if not own:
+        b = elastic_diagnosis(machine, task.t, task.frames, lw, tw, task.A0, task.B0, backoff=nlp.backoff)
     i = min(b.point, len(task.t) - 1)
     margin = "" if b.past_machine_limit else (
         " (inside the machine's limit, but past the margin the optimiser keeps from it: "
         + (f"{50 * nlp.backoff:g}% of the span at each end)" if b.constraint.endswith("travel")
            else f"{100 * nlp.backoff:g}% of the limit)"))
-    windows = "lead/tilt windows" + (" and the clear regions of the accessibility map" if with_map else "")
+    if own:  # name the user's windows there; a rate limit can also be met at a lower feed
+        lo_l, hi_l = np.degrees(task.lead_window[i])
+        lo_t, hi_t = np.degrees(task.tilt_window[i])
+        windows = f"lead window {lo_l:g}:{hi_l:g} deg and tilt window {lo_t:g}:{hi_t:g} deg"
+        hint = "" if b.constraint.endswith("travel") else "; widen the windows or lower the feed"
+    else:
+        windows = "lead/tilt windows" + (" and the clear regions of the accessibility map" if with_map else "")
+        hint = "" if b.constraint.endswith("travel") else "; lower the feed or widen the windows"
     if b.constraint.endswith("travel"):
         detail = (f"{b.constraint} {np.degrees(machine.limits[b.constraint[0]].min):g}..."
                   f"{np.degrees(machine.limits[b.constraint[0]].max):g} deg: the {windows} need "
                   f"{b.constraint[0]} = {b.need:.6g} deg near point {i}{margin}")
     else:
         detail = (f"{b.constraint} limit {b.limit:g} {b.unit} near point {i} (t = {task.t[i]:.3f} s): the {windows} "
-                  f"need at least {b.need:.4g} {b.unit} there{margin}")
+                  f"need at least {b.need:.4g} {b.unit} there{margin}{hint}")
     if b.binds:
         raise InfeasibleError(f"{where}row id {task.row}: no program meets the limits; binding constraint: {detail}")
     raise InfeasibleError(f"{where}row id {task.row}: the NLP solver failed ({status}) although no limit binds (the "
                           "largest "
                           f"need, {b.need:.4g} {b.unit} of {b.constraint}, is within its limit {b.limit:g}); "
                           "please report this row as a bug")
+
 
 def chunk_clearance(ctx: RowContext, poses: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
     """Exact clearance (mm) of a chunk of poses (tips (N, 3) mm, unit axes (N, 3)) against the

@@ -1,0 +1,60 @@
+"""The ``camsmooth`` command's entry (``python -m camsmooth`` and the installed script).
+
+SIGINT and SIGTERM handlers are installed here before anything heavy is imported (numpy, numba's
+cache, CasADi), so a signal at any moment from start-up to the final rename becomes one exception
+in this process (camsmooth.io.atomic.install_signal_handlers), one message and exit status 130
+(SIGINT) or 143 (SIGTERM). This module imports only the standard library and camsmooth.io.atomic.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+from collections.abc import Sequence
+
+from camsmooth.io.atomic import Terminated, install_signal_handlers, signal_received
+
+EXIT_SIGINT, EXIT_SIGTERM = 130, 143
+
+
+def interrupted(signum: int | None) -> int:
+    """Print the one message of an interrupted command; return its exit status."""
+    if signum == signal.SIGTERM:
+        print("camsmooth: terminated (SIGTERM); outputs not completed were removed", file=sys.stderr)
+        return EXIT_SIGTERM
+    print("camsmooth: interrupted (Ctrl-C); outputs not completed were removed", file=sys.stderr)
+    return EXIT_SIGINT
+
+
+def signum_of(exc: BaseException) -> int:
+    """The signal an interruption stands for (camsmooth.io.atomic.interruption)."""
+    return signal.SIGTERM if isinstance(exc, Terminated) else signal.SIGINT
+
+
+def entry(argv: Sequence[str] | None = None) -> int:
+    """Install the signal handlers, then import and run the command line; after a signal, leave
+    without the interpreter's finalisation (half-initialised extension state must not crash
+    the exit)."""
+    install_signal_handlers()
+    code: int | None = None
+    try:
+        from camsmooth.cli.main import main
+
+        code = main(argv)
+    except KeyboardInterrupt as exc:  # during the imports (main() handles its own)
+        code = interrupted(signal_received() or signum_of(exc))
+    # the command is over (its outputs committed or removed): a signal from here on is ignored;
+    # left to the interpreter's finalisation (which resets Python's handlers to the default
+    # action) it would kill the process with the outputs in place
+    signal.setitimer(signal.ITIMER_REAL, 0)
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGALRM):
+        signal.signal(sig, signal.SIG_IGN)
+    if code not in (EXIT_SIGINT, EXIT_SIGTERM):
+        return int(code or 0)
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(code)
