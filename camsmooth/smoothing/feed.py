@@ -180,7 +180,8 @@ class RowPath:
     (``keep``; ``owner`` maps every input point to its distinct point), the scaled path parameter
     s at the distinct points (``s_mm / scale``), the spline (scipy CubicSpline, not-a-knot) and its
     derivatives dq = q'(s), ddq = q''(s) (M, 5), the tip's |p'(s)| (M,), the feed bound per point
-    (mm/s) and the s'^2 bounds from the tip feed (x_feed) and the five axes' limits."""
+    (mm/s) and the s'^2 bounds from the tip feed and the chords' velocities (x_feed: every axis's
+    and the tip's average speed over each block within its limit) and the five axes' limits."""
 
     n: int
     keep: np.ndarray
@@ -235,6 +236,14 @@ def row_path(machine: Machine, q: np.ndarray, tip: np.ndarray, feed: np.ndarray)
     x_feed = np.full(m, _UNLIMITED)
     moving = dp * np.sqrt(_UNLIMITED) > fpt
     x_feed[moving] = (fpt[moving] / dp[moving]) ** 2
+    # the same bounds on the chords between the points: a block's average speed is its chord over
+    # its time, (chord / ds) (s'_i + s'_(i+1)) / 2, so s' at both its ends within limit / (chord /
+    # ds) keeps every axis's block velocity and the tip's block speed (the G-code's) within limits
+    with np.errstate(divide="ignore", invalid="ignore"):
+        seg = np.column_stack([np.abs(np.diff(qk, axis=0)) / vmax, np.linalg.norm(np.diff(pk, axis=0), axis=1) / fseg])
+        slope = np.max(np.nan_to_num(seg / np.diff(s)[:, None], nan=0.0), axis=1)  # per segment, s' <= 1 / slope
+    x_seg = np.where(slope > 0, 1.0 / np.maximum(slope, 1e-300) ** 2, _UNLIMITED)
+    x_feed = np.minimum(x_feed, np.minimum(np.r_[x_seg, _UNLIMITED], np.r_[_UNLIMITED, x_seg]))
     return RowPath(n=len(q), keep=keep, owner=np.cumsum(keep) - 1, s=s, scale=scale, spline=spline, q=qk,
                    dq=spline(s, 1), ddq=spline(s, 2), dp=dp, feed_bound=fpt, x_feed=x_feed,
                    vmax=np.minimum(vmax, _UNLIMITED), amax=np.minimum(amax, _UNLIMITED), jmax=jmax)
