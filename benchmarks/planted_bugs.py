@@ -133,6 +133,12 @@ BUGS: tuple[Bug, ...] = (
           "    if failure:  # after the transaction: the outputs are in place\n"
           "        raise StrictFailure(failure)\n    if not args.quiet:\n"),),
         ("tests/test_cli_verbs.py",)),
+    # ---- issue 21 item 5: the classes the whole suite missed ----------------------------------------
+    Bug("branch-count-side", "`analysis` branch label (class c)",
+        "points past |B| = 90 deg counted on the +B side only",
+        (("camsmooth/smoothing/analysis.py", "at {int(np.sum(np.abs(B) > np.pi / 2))} points",
+          "at {int(np.sum(B > np.pi / 2))} points"),),
+        ("tests/test_analysis.py",)),
 )
 
 

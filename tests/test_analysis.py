@@ -67,3 +67,32 @@ def test_cli_json_is_pinned_and_names_the_air_moves(tmp_path, capsys):
     # the poses touch the plane (the CAM's own program) except the two approach points in the air
     assert tp["clearance"]["air"] == 2 and tp["clearance"]["gouges"] == 0 and tp["cycle_time_s"] > 0
     assert (tmp_path / "rep" / "report.html").exists()
+
+
+def _angles_program(B_deg):
+    """A row along +x with the commanded angles A = 0 and the given B (as a G-code reader gives them)."""
+    from camsmooth.io.program import CLProgram, ToolPath
+
+    m = load_machine()
+    B = np.radians(np.asarray(B_deg, float))
+    A = np.zeros_like(B)
+    n = len(B)
+    tip = np.column_stack([np.arange(n, dtype=float), np.zeros(n), np.zeros(n)])
+    prog = CLProgram(tip=tip, axis=m.tool_axis_np(A, B), rows=np.zeros(n), feed=np.full(n, 60.0),
+                     rapid=np.zeros(n, bool), line=np.arange(1, n + 1), toolpaths=[ToolPath(None, None, 0, n)],
+                     angles=np.column_stack([A, B]))
+    return m, prog
+
+
+def test_branch_text_counts_both_sides_past_90_deg():
+    """The branch label past |B| = 90 deg: counted by hand on each side (issue 21 item 5 (c)). The
+    negative side: -92, -96, -92 are beyond (3 points); the positive side: 91, 95 (2 points); a
+    program within +-90 (-90 itself included) is the first branch."""
+    for B, beyond in (([-84.0, -88.0, -92.0, -96.0, -92.0, -88.0], 3), ([88.0, 91.0, 95.0, 89.0], 2),
+                      ([-91.0, 85.0, 92.0, -93.0], 3)):
+        m, prog = _angles_program(B)
+        (tp,) = analyze_program(prog, m).toolpaths
+        assert tp.branch == f"B beyond +-90 deg at {beyond} points (the second branch)", (B, tp.branch)
+    m, prog = _angles_program([-90.0, -80.0, 0.0, 90.0])
+    (tp,) = analyze_program(prog, m).toolpaths
+    assert tp.branch.startswith("B in [-90, 90] deg"), tp.branch
