@@ -139,6 +139,11 @@ BUGS: tuple[Bug, ...] = (
         (("camsmooth/smoothing/analysis.py", "at {int(np.sum(np.abs(B) > np.pi / 2))} points",
           "at {int(np.sum(B > np.pi / 2))} points"),),
         ("tests/test_analysis.py",)),
+    Bug("gcode-end-g94", "G-code writer, program end (class e)",
+        "machine mode leaves the controller in G93 (the G94 back put in TCP mode's end instead)",
+        (("camsmooth/io/gcode.py", '    if mode == "machine" and d.per_minute:\n',
+          '    if mode == "tcp" and d.per_minute:\n'),),
+        ("tests/test_gcode.py",)),
 )
 
 

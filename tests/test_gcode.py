@@ -263,3 +263,37 @@ def test_read_gcode_header_pivot_and_bad_file(tmp_path):
     (tmp_path / "empty.nc").write_text("G21\nG90\nM30\n")
     with pytest.raises(InputError, match="no motion block"):
         read_gcode(tmp_path / "empty.nc")
+
+
+#: each dialect's frame spelled by hand (issue 21 item 5 (e)): the statements before the first
+#: motion block and after the last one, comments left out and Heidenhain's block numbers stripped.
+#: Machine mode programs G93 before the moves and G94 back after them (a controller left in
+#: inverse time reads the next program's F words as 1/min); TCP mode switches TCP on and off.
+_FRAMES = {
+    ("generic", "machine"): (["G21", "G90", "G17", "G93"], ["G94", "M30"]),
+    ("linuxcnc", "machine"): (["G21", "G90", "G17", "G40", "G49", "G93"], ["G94", "G53 G00 Z0", "M30"]),
+    ("linuxcnc", "tcp"): (["G21", "G90", "G17", "G40", "G49", "G94", "M428"], ["M429", "G53 G00 Z0", "M30"]),
+    ("fanuc", "machine"): (["%", "O0001 (CAMSMOOTH)", "G21", "G90", "G17", "G40", "G49", "G80", "G93"],
+                           ["G94", "G91 G28 Z0.", "G90", "M30", "%"]),
+    ("fanuc", "tcp"): (["%", "O0001 (CAMSMOOTH)", "G21", "G90", "G17", "G40", "G49", "G80", "G94", "G43.4 H1"],
+                       ["G49", "G91 G28 Z0.", "G90", "M30", "%"]),
+    ("siemens", "machine"): (["G71", "G90", "G17", "G40", "G93"], ["G94", "M30"]),
+    ("siemens", "tcp"): (["G71", "G90", "G17", "G40", "G94", "TRAORI"], ["TRAFOOF", "M30"]),
+    ("heidenhain", "tcp"): (["BEGIN PGM CAMSMOOTH MM", "TOOL CALL 1 Z", "FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS"],
+                            ["FUNCTION RESET TCPM", "M140 MB MAX", "M30", "END PGM CAMSMOOTH MM"]),
+}
+
+
+@pytest.mark.parametrize("dialect, mode", COMBOS)
+def test_program_frame_before_and_after_the_moves(tmp_path, dialect, mode):
+    assert set(_FRAMES) == set(COMBOS)
+    m, feed = _method()
+    text = write_gcode(tmp_path / "p.nc", m, MACHINE, CUTTER, feed, safe_height=H, dialect=dialect,
+                       mode=mode).read_text()
+    bare = [re.sub(r"^\d+\s+", "", ln).strip() for ln in text.splitlines()] if dialect == "heidenhain" \
+        else [ln.strip() for ln in text.splitlines()]
+    bare = [ln for ln in bare if ln and not ln.startswith(("(", ";"))]
+    moves = [k for k, ln in enumerate(bare) if re.match(r"(G0[01]|L) ", ln)]
+    head, tail = _FRAMES[(dialect, mode)]
+    assert bare[:moves[0]] == head
+    assert bare[moves[-1] + 1:] == tail
