@@ -144,6 +144,10 @@ BUGS: tuple[Bug, ...] = (
         (("camsmooth/io/gcode.py", '    if mode == "machine" and d.per_minute:\n',
           '    if mode == "tcp" and d.per_minute:\n'),),
         ("tests/test_gcode.py",)),
+    Bug("analysis-times-feed", "`analysis._times` (class d)",
+        "each block timed at the feed of the block before it (the feed that starts at the point)",
+        (("camsmooth/smoothing/analysis.py", "/ (feed[1:] / 60.0)]", "/ (feed[:-1] / 60.0)]"),),
+        ("tests/test_analysis.py",)),
 )
 
 

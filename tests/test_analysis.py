@@ -14,12 +14,14 @@ from camsmooth.smoothing.analysis import analyze_program
 
 
 def _cl_csv(path, B_deg, feed=600.0):
-    """A straight row along +x, 1 mm apart, tool tip on z = 0, axis from A = 0 and the given B."""
+    """A straight row along +x, 1 mm apart, tool tip on z = 0, axis from A = 0 and the given B; feed
+    (mm/min) one value or one per point (of the block that ends there)."""
     B = np.radians(np.asarray(B_deg, float))
     T = np.column_stack([np.sin(B), np.zeros_like(B), np.cos(B)])
     x = np.arange(len(B), dtype=float)
-    rows = ["x,y,z,i,j,k,feed"] + [f"{xi},0,0,{t[0]:.17g},{t[1]:.17g},{t[2]:.17g},{feed}"
-                                   for xi, t in zip(x, T, strict=True)]
+    feed = np.broadcast_to(np.asarray(feed, float), B.shape)
+    rows = ["x,y,z,i,j,k,feed"] + [f"{xi},0,0,{t[0]:.17g},{t[1]:.17g},{t[2]:.17g},{f:g}"
+                                   for xi, t, f in zip(x, T, feed, strict=True)]
     path.write_text("\n".join(rows) + "\n")
 
 
@@ -39,6 +41,22 @@ def test_violation_counts_of_a_hand_made_program(tmp_path):
     assert tp.violations["B velocity"] == 0 and tp.peaks["B velocity"] <= 60.0 * (1 + 1e-6)
     np.testing.assert_allclose(tp.B_range_deg, [0.0, 7.0], atol=1e-9)
     assert tp.singular == {"points": 0, "passes": 0}
+
+
+def test_programmed_time_takes_each_block_at_its_own_feed(tmp_path):
+    """A varying feed (issue 21 item 5 (d): at a constant feed every block's feed is the same): the
+    7 deg B jump is the block to point 6, programmed at 300 mm/min (5 mm/s), its neighbours at
+    600. Worked out here: the jump takes 1 mm / 5 mm/s = 0.2 s, B velocity 35 deg/s (< 60, no
+    violation); the program 10 blocks x 0.1 s + 0.2 s = 1.2 s."""
+    B = [0.0] * 6 + [7.0] * 6
+    feed = [600.0] * 6 + [300.0] + [600.0] * 5
+    _cl_csv(tmp_path / "p.csv", B, feed=feed)
+    a = analyze_program(load_program(tmp_path / "p.csv"), load_machine())
+    (tp,) = a.toolpaths
+    np.testing.assert_allclose(tp.peaks_programmed["B velocity"], 35.0, rtol=1e-9)
+    assert tp.violations_programmed["B velocity"] == 0
+    np.testing.assert_allclose(np.diff(a.series["t"]), [0.1] * 5 + [0.2] + [0.1] * 5, rtol=1e-9)
+    assert tp.feed == [300.0, 600.0]
 
 
 def test_singular_passes_are_counted(tmp_path):
