@@ -148,6 +148,9 @@ BUGS: tuple[Bug, ...] = (
         "each block timed at the feed of the block before it (the feed that starts at the point)",
         (("camsmooth/smoothing/analysis.py", "/ (feed[1:] / 60.0)]", "/ (feed[:-1] / 60.0)]"),),
         ("tests/test_analysis.py",)),
+    Bug("apt-bulk-inches", "APT reader, the bulk GOTO path (class b)", "runs of 16+ GOTOs not converted from inches",
+        (("camsmooth/io/apt.py", "    return P * scale, T\n", "    return P, T\n"),),
+        ("tests/test_apt_records.py",)),
 )
 
 

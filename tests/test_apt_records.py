@@ -191,3 +191,19 @@ def test_latin1_text_records_do_not_cost_the_file(tmp_path):
         q = tmp_path / "u16.apt"
         q.write_bytes(text.encode("utf-16"))
         read_apt(q)
+
+
+@pytest.mark.parametrize("n", [5, 40])
+def test_inches_on_the_record_path_and_the_bulk_path(tmp_path, n):
+    """UNITS/INCHES converts every point to mm whether the GOTO run is short (record by record) or
+    long (the bulk parser takes runs of 16 and more): issue 21 item 5 (b). Points 0.1 in apart along
+    x, at y = 2 in, z = 0.5 in, the axis (0, 0.6, 0.8) on every fourth point, else the modal one;
+    expected values worked out here (1 in = 25.4 mm), the feed 20 in/min = 508 mm/min."""
+    k = np.arange(n)
+    recs = [f"GOTO/{0.1 * i:.1f},2,0.5" + (",0,0.6,0.8" if i % 4 == 0 else "") for i in k]
+    text = "UNITS/INCHES\nMULTAX/ON\nFEDRAT/20\n" + "\n".join(recs) + "\n"
+    prog = read_apt(_write(tmp_path, "inch.apt", text))
+    np.testing.assert_allclose(prog.tip, np.column_stack([2.54 * k, np.full(n, 50.8), np.full(n, 12.7)]),
+                               rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(prog.axis, np.tile([0.0, 0.6, 0.8], (n, 1)), atol=1e-12)
+    np.testing.assert_allclose(prog.feed, 508.0, rtol=1e-12)
