@@ -151,6 +151,10 @@ BUGS: tuple[Bug, ...] = (
     Bug("apt-bulk-inches", "APT reader, the bulk GOTO path (class b)", "runs of 16+ GOTOs not converted from inches",
         (("camsmooth/io/apt.py", "    return P * scale, T\n", "    return P, T\n"),),
         ("tests/test_apt_records.py",)),
+    Bug("travel-max-slack", "`nlp.limit_violations` travel (class a)",
+        "the resolution slack subtracted at the travel max (copied from the min side)",
+        (("camsmooth/smoothing/nlp.py", "(q > lim.max + 1e-9 + e)", "(q > lim.max - 1e-9 - e)"),),
+        ("tests/test_nlp.py",)),
 )
 
 

@@ -464,3 +464,21 @@ def test_limit_violation_peaks_are_the_largest_rates_even_below_one():
 def test_rows_from_a_thousand_points_are_screened_by_default():
     assert RowNLP(M0, nlp_mod.SCREEN_MIN_POINTS).screening
     assert not RowNLP(M0, nlp_mod.SCREEN_MIN_POINTS - 1).screening
+
+
+def test_travel_is_counted_alike_at_both_ends():
+    """Travel violations at the min and at the max, mirror images (issue 21 item 5 (a)): travel
+    [-1, 1], the counts worked out here. Without a resolution a point at either end is inside and
+    a point 1e-6 past either end is out; with the written resolution e = 0.01 only points more than
+    e past an end count, at both ends alike."""
+    from camsmooth.machine.kinematics import AxisLimits
+
+    lim = {"A": AxisLimits(-1.0, 1.0, 1e9, 1e12)}
+    q = np.array([-1.02, -1.005, -1.0, -1.000001, 0.0, 0.995, 1.0, 1.000001, 1.005, 1.02])
+    t, rows = np.arange(len(q), dtype=float), np.zeros(len(q), np.int64)
+    for sel, plain, resolved in (([0, 1, 2, 4], 2, 1), ([4, 5, 6, 8, 9], 2, 1), ([2, 3, 4, 6, 7], 2, 0),
+                                 (list(range(len(q))), 6, 2)):
+        viol, _ = nlp_mod.limit_violations(lim, {"A": q[sel]}, t[:len(sel)], rows[:len(sel)])
+        assert viol["A travel"] == plain, (q[sel], viol)
+        viol, _ = nlp_mod.limit_violations(lim, {"A": q[sel]}, t[:len(sel)], rows[:len(sel)], resolution={"A": 0.01})
+        assert viol["A travel"] == resolved, (q[sel], viol)
