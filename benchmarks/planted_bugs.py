@@ -155,6 +155,10 @@ BUGS: tuple[Bug, ...] = (
         "the resolution slack subtracted at the travel max (copied from the min side)",
         (("camsmooth/smoothing/nlp.py", "(q > lim.max + 1e-9 + e)", "(q > lim.max - 1e-9 - e)"),),
         ("tests/test_nlp.py",)),
+    Bug("ceiling-shift-up", "accessibility `_fit_bound` (class a)",
+        "the fitted lead ceiling shifted up onto its samples like the floor, so it cuts below them",
+        (("camsmooth/geometry/accessibility.py", "c[:, 0] += -shift if upper else shift", "c[:, 0] += shift"),),
+        ("tests/test_accessibility.py",)),
 )
 
 

@@ -197,3 +197,25 @@ def test_serial_processes_and_dask_give_identical_rows(channel_program):
     for other in (procs, dask):
         for name in ("A", "B", "delta", "lift", "lead_window", "tilt_window"):
             assert np.array_equal(getattr(serial, name), getattr(other, name)), name
+
+
+def test_fitted_floor_and_ceiling_each_stay_on_their_safe_side():
+    """The floor fit lies on or above every sample it uses, the ceiling fit on or below (issue 21
+    item 5 (a): the floor was tested through a closed form, its mirror the ceiling nowhere). Samples
+    that are no quadratic (|tilt|-like kinks, a cubic, noise), some columns unused; each bound
+    evaluated here from its coefficients and touching its samples (the shift is the least one)."""
+    from camsmooth.geometry.accessibility import _fit_bound
+
+    rng = np.random.default_rng(3)
+    tilt = np.tile(np.radians(np.linspace(-20.0, 20.0, 9)), (4, 1))
+    values = np.stack([np.radians(30.0) + 0.8 * np.abs(tilt[0]), np.radians(50.0) - 2.0 * tilt[1] ** 3,
+                       np.radians(40.0) + 0.05 * rng.standard_normal(9), np.radians(35.0) + 0.3 * tilt[3]])
+    use = np.ones_like(tilt, bool)
+    use[1, :3] = use[2, ::4] = False
+    for upper in (False, True):
+        c = _fit_bound(tilt, values, use, upper=upper)
+        fit = c[:, :1] + c[:, 1:2] * tilt + c[:, 2:3] * tilt ** 2
+        gap = np.where(use, (values - fit) if upper else (fit - values), np.inf)  # >= 0: the safe side
+        assert gap.min() >= -1e-12, (upper, gap.min(axis=1))
+        np.testing.assert_allclose(gap.min(axis=1), 0.0, atol=1e-12)  # touches a sample: no extra shift
+    np.testing.assert_allclose(_fit_bound(tilt, values, use, upper=True)[3], [np.radians(35.0), 0.3, 0.0], atol=1e-9)
