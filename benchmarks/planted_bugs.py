@@ -159,6 +159,9 @@ BUGS: tuple[Bug, ...] = (
         "the fitted lead ceiling shifted up onto its samples like the floor, so it cuts below them",
         (("camsmooth/geometry/accessibility.py", "c[:, 0] += -shift if upper else shift", "c[:, 0] += shift"),),
         ("tests/test_accessibility.py",)),
+    Bug("row-times-shift", "`pipeline.row_times` (class d)", "each block timed at the feed of the block before it",
+        (("camsmooth/smoothing/pipeline.py", "seg / (feed_mm_min[1:] / 60.0)", "seg / (feed_mm_min[:-1] / 60.0)"),),
+        ("tests/test_pipeline.py",)),
 )
 
 

@@ -271,3 +271,14 @@ def test_tool_length_error_metrics_in_closed_form(wavy, compensate):
     assert m.tip_error_um_max_uncompensated == pytest.approx(20.0, abs=1e-6)
     assert m.axis_error_urad_max == pytest.approx(0.0, abs=1e-3)
     assert m.tip_error_um_max == pytest.approx(0.0 if compensate else 20.0, abs=1e-6)
+
+
+def test_row_times_take_each_block_at_its_own_feed():
+    """t_i - t_(i-1) = |CC_i - CC_(i-1)| / F_i with F_i the feed of the block that ends at point i
+    (issue 21 item 5 (d): at a constant feed any block's feed gives the same times). Blocks of 1,
+    2 and 0.5 mm at 600, 300 and 1200 mm/min (10, 5, 20 mm/s): 0.1, 0.4 and 0.025 s, by hand."""
+    from camsmooth.smoothing.pipeline import row_times
+
+    pts = np.array([[0.0, 0, 0], [1.0, 0, 0], [1.0, 2.0, 0], [1.0, 2.0, 0.5]])
+    t = row_times(pts, np.array([900.0, 600.0, 300.0, 1200.0]))  # feed[0]: the rapid's, not used
+    np.testing.assert_allclose(t, [0.0, 0.1, 0.5, 0.525], rtol=1e-12)
