@@ -279,3 +279,18 @@ def test_blade_rows_on_linuxcnc_take_the_predicted_time_and_stay_within_the_tole
         first = np.flatnonzero(sel)[0]
         path = programmed_tip_path(m, q[sel], r.cl[first] + DEFAULT_SAFE_HEIGHT_MM * r.axis[first])
         assert tip_deviation(tip[k[0]:k[-1] + 1], path).max() <= 0.005, rid
+
+
+def test_a_block_that_does_not_move_takes_no_time_as_linuxcnc_drops_it():
+    """A repeated point (zero length, dropped by LinuxCNC's planner) ends when the block before
+    it ends, and the program takes as long as without it."""
+    m = _machine()
+    p = LinuxCNCPlanner()
+    joints = np.array([[1.0, 0, 0, 0, 0.5], [1.0, 0, 0, 0, 0.5], [2.0, 0, 0, 0, 1.0]])
+    seg = p.segments(m, np.zeros(5), joints, np.zeros(3, bool), np.full(3, 600.0), np.ones(3, bool))
+    assert seg.length[1] == 0
+    t = p.run(seg)
+    without = p.run(p.segments(m, np.zeros(5), joints[[0, 2]], np.zeros(2, bool), np.full(2, 600.0),
+                               np.ones(2, bool)))
+    assert t.end[1] == t.end[0] and t.end[2] == pytest.approx(without.end[1])
+    assert np.all(np.diff(t.end) >= 0)

@@ -26,6 +26,7 @@ from typing import Protocol
 
 import numpy as np
 
+from camsmooth.geometry.paths import _row_runs
 from camsmooth.machine.kinematics import Machine
 
 __all__ = ["BLOCK_TOLERANCE_SHARE", "MAX_BLOCK_POINTS", "decimate", "ControllerPlan", "Planner", "predict"]
@@ -38,7 +39,8 @@ MAX_BLOCK_POINTS = 16
 _CURVE_SAMPLES = 16
 
 
-def _fk(machine: Machine, q: np.ndarray) -> np.ndarray:
+def tool_tips(machine: Machine, q: np.ndarray) -> np.ndarray:
+    """Tool tips (..., 3) mm of joints q (..., 5) X Y Z mm A B rad (the machine's forward kinematics)."""
     tip, _ = machine.tool_pose_np(q[..., 3], q[..., 4], q[..., 0], q[..., 1], q[..., 2])
     return np.asarray(tip)
 
@@ -55,9 +57,9 @@ def _polyline_distance(pts: np.ndarray, curve: np.ndarray) -> np.ndarray:
 
 
 def _row_bounds(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    rows = np.asarray(rows)
-    starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
-    return starts, np.r_[starts[1:], len(rows)]
+    """Start and end (exclusive) index of every row (geometry.paths' row splitter)."""
+    starts, _ = _row_runs(np.asarray(rows))
+    return starts, np.r_[starts[1:], len(np.asarray(rows))]
 
 
 def decimate(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray, tolerance: float) -> np.ndarray:
@@ -80,7 +82,7 @@ def decimate(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
     K = MAX_BLOCK_POINTS
     ok = np.zeros((n, K), bool)
     ok[:, 0] = True
-    mid = _fk(machine, 0.5 * (q[1:] + q[:-1])) if n > 1 else np.zeros((0, 3))
+    mid = tool_tips(machine, 0.5 * (q[1:] + q[:-1])) if n > 1 else np.zeros((0, 3))
     a_idx = np.arange(n)
     alive = np.ones(n, bool)
     s = np.linspace(0.0, 1.0, _CURVE_SAMPLES + 1)
@@ -91,7 +93,7 @@ def decimate(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
         a = a_idx[alive]
         bb = a + k
         # the tip curve of the block (the joints interpolated linearly), as a fine polyline
-        curve = _fk(machine, q[a][:, None, :] + s[None, :, None] * (q[bb] - q[a])[:, None, :])
+        curve = tool_tips(machine, q[a][:, None, :] + s[None, :, None] * (q[bb] - q[a])[:, None, :])
         pts = np.concatenate([tip[a[:, None] + np.arange(1, k)[None, :]],
                               mid[a[:, None] + np.arange(0, k)[None, :]]], axis=1)
         good = _polyline_distance(pts, curve).max(axis=1) <= tol

@@ -42,7 +42,9 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from camsmooth.controller.blocks import tool_tips
 from camsmooth.machine.kinematics import Machine
+from camsmooth.smoothing.feed import axis_limits
 
 __all__ = ["LinuxCNCPlanner", "Segments", "canon_segments", "SERVO_PERIOD_S"]
 
@@ -83,20 +85,11 @@ class Segments:
     tolerance: float = 0.0
 
 
-def _tip(machine: Machine, q: np.ndarray) -> np.ndarray:
-    tip, _ = machine.tool_pose_np(q[:, 3], q[:, 4], q[:, 0], q[:, 1], q[:, 2])
-    return np.asarray(tip)
-
-
 def _limits(machine: Machine) -> tuple[np.ndarray, np.ndarray]:
     """(vmax, amax) per joint X Y Z A B in program units (mm/s, mm/s^2, deg/s, deg/s^2)."""
-    v, a = np.full(5, np.inf), np.full(5, np.inf)
-    for k, name in enumerate("XYZAB"):
-        lim = machine.limits.get(name)
-        if lim is not None:
-            conv = np.degrees if name in "AB" else float
-            v[k], a[k] = conv(lim.vmax), conv(lim.amax)
-    return v, a
+    vmax, amax, _ = axis_limits(machine)
+    deg = np.array([1.0, 1.0, 1.0, 180.0 / np.pi, 180.0 / np.pi])
+    return vmax * deg, amax * deg
 
 
 def canon_segments(start: np.ndarray, joints: np.ndarray, rapid: np.ndarray, fword: np.ndarray,
@@ -344,9 +337,9 @@ class LinuxCNCPlanner:
         jq = q[1:-1]  # corners between block k and k + 1
         step = 0.01  # mm of d for the finite step (the error is linear in d)
         dw = 0.25 * (w[1:] - w[:-1])
-        tip0 = _tip(machine, jq)
-        err = (_tip(machine, jq + step * dw) - tip0) / step
-        tangent = _tip(machine, jq + step * w[1:]) - _tip(machine, jq - step * w[:-1])
+        tip0 = tool_tips(machine, jq)
+        err = (tool_tips(machine, jq + step * dw) - tip0) / step
+        tangent = tool_tips(machine, jq + step * w[1:]) - tool_tips(machine, jq - step * w[:-1])
         tangent /= np.maximum(np.linalg.norm(tangent, axis=1), 1e-300)[:, None]
         err -= np.sum(err * tangent, axis=1)[:, None] * tangent
         per_d = np.linalg.norm(err, axis=1)  # mm of tip error per mm of d
@@ -370,16 +363,14 @@ class LinuxCNCPlanner:
         """Start and end time of every segment (s); a segment of zero length (LinuxCNC drops it)
         takes no time."""
         moving = seg.length > 0
-        if not moving.all():
+        if not moving.all():  # run the moving segments; a dropped one ends when the one before it does
             idx = np.flatnonzero(moving)
-            sub = Segments(length=seg.length[idx], reqvel=seg.reqvel[idx], maxvel=seg.maxvel[idx], acc=seg.acc[idx],
-                           rapid=seg.rapid[idx], pure_rotary=seg.pure_rotary[idx], stop_after=seg.stop_after[idx],
-                           direction=seg.direction[idx], tolerance=seg.tolerance)
-            inner = self.run(sub) if len(idx) else BlockTimes(start=np.zeros(0), end=np.zeros(0))
-            pos = np.searchsorted(idx, np.arange(len(moving)), side="right") - 1  # last moving at or before
-            end = np.where(pos >= 0, inner.end[np.maximum(pos, 0)] if len(idx) else 0.0, 0.0)
-            return BlockTimes(start=np.where(moving, 0.0, end), end=end) if not len(idx) else BlockTimes(
-                start=np.where(moving, inner.start[np.maximum(pos, 0)], end), end=end)
+            inner = self.run(Segments(**{f: (v[idx] if isinstance(v, np.ndarray) else v)
+                                         for f, v in vars(seg).items()}))
+            before = np.searchsorted(idx, np.arange(len(moving)), side="right") - 1
+            end = np.where(before >= 0, np.r_[inner.end, 0.0][before], 0.0)
+            start = np.where(moving, np.r_[inner.start, 0.0][np.maximum(before, 0)], end)
+            return BlockTimes(start=start, end=end)
         parabolic = ~seg.stop_after
         expect = float(np.sum(seg.length / np.maximum(np.minimum(seg.reqvel, seg.maxvel), 1e-9)))
         max_cycles = int(10 * expect / self.servo_period + 10 * len(seg.length) + 1e5)

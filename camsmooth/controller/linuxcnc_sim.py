@@ -117,10 +117,6 @@ def parse_canon(text: str) -> Canon:
             inv.append(inverse)
         elif name == "SET_FEED_RATE":
             f_now = float(args)
-        elif name == "SET_FEED_MODE":
-            # SET_FEED_MODE(spindle, mode): 0 units/min, 1 inverse time in this build's numbering,
-            # told apart by the interpreter's comment that precedes it
-            pass
         elif name == "COMMENT":
             c = args.strip().strip('"')
             comments.append(c)
@@ -148,18 +144,6 @@ class SimRun:
     joints: np.ndarray
     line: np.ndarray
     servo_period: float
-
-    def line_times(self) -> dict[int, tuple[float, float]]:
-        """Per program line, the first and last sample time (s) it was the executing line."""
-        out: dict[int, tuple[float, float]] = {}
-        ln = self.line
-        change = np.flatnonzero(np.r_[True, ln[1:] != ln[:-1]])
-        for k, a in enumerate(change):
-            b = change[k + 1] - 1 if k + 1 < len(change) else len(ln) - 1
-            key = int(ln[a])
-            first = out.get(key, (self.t[a], self.t[b]))[0]
-            out[key] = (first, float(self.t[b]))
-        return out
 
 
 def _fmt(x: float) -> str:
