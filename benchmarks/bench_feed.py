@@ -119,8 +119,7 @@ def wave_row(n: int, spacing: float = 0.1) -> tuple[np.ndarray, np.ndarray, np.n
     s = np.arange(n) * spacing
     tip = np.column_stack([s, 5 * np.sin(s / 7), 3 * np.cos(s / 11)])
     A, B = np.radians(20 * np.sin(s / 9)), np.radians(25 * np.cos(s / 13))
-    T = machine.tool_axis_np(A, B)
-    q = np.column_stack([machine.linear_axes(tip, T), A, B])
+    q = np.column_stack([machine.linear_axes(tip, A, B), A, B])
     feed = np.where((s // 50) % 2 == 0, 3000.0, 1500.0)
     return q, tip, feed
 

@@ -73,7 +73,7 @@ def main(n: int = 1_000_000, m: int = 100_000) -> None:
         z0 = np.zeros(m)
         res = MethodResult(method="nlp", rows=r, idx=k % 500, t=z0, cc=tip, normals=T, cl=tip, axis=T,
                            lead=z0, tilt=z0, A=a, B=b, A_vel=z0, B_vel=z0, A_acc=z0, B_acc=z0,
-                           xyz=machine.linear_axes(tip, T), delta=z0, lift=z0, lead_window=np.zeros((m, 2)),
+                           xyz=machine.linear_axes(tip, a, b), delta=z0, lift=z0, lead_window=np.zeros((m, 2)),
                            tilt_window=np.zeros((m, 2)), compound_acc=z0)
         cutter = type("C", (), {"R": 3.0, "r": 1.0})()
         for mode in ("machine", "tcp"):

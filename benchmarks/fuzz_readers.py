@@ -90,7 +90,7 @@ def _gcode_seeds(folder: Path) -> list[tuple[str, bytes]]:
     T = machine.tool_axis_np(a, b)
     z0 = np.zeros(m)
     res = MethodResult(method="nlp", rows=k // 5, idx=k % 5, t=z0, cc=tip, normals=T, cl=tip, axis=T, lead=z0,
-                       tilt=z0, A=a, B=b, A_vel=z0, B_vel=z0, A_acc=z0, B_acc=z0, xyz=machine.linear_axes(tip, T),
+                       tilt=z0, A=a, B=b, A_vel=z0, B_vel=z0, A_acc=z0, B_acc=z0, xyz=machine.linear_axes(tip, a, b),
                        delta=z0, lift=z0, lead_window=np.zeros((m, 2)), tilt_window=np.zeros((m, 2)),
                        compound_acc=z0)
     cutter = type("C", (), {"R": 3.0, "r": 1.0})()

@@ -105,7 +105,7 @@ TARGETS: dict[str, Target] = {
         "--deselect", "tests/test_pipeline.py::test_cli_bad_input_names_file_row_column_and_writes_nothing",
         "--deselect", "tests/test_pipeline.py::test_cli_smooth_writes_csv_gcode_report"),
                        functions=("row_times", "Program.name", "prepare", "ProgramSmoother.metrics",
-                                  "ProgramSmoother._result", "_linear_axes_for_tip")),
+                                  "ProgramSmoother._result")),
     # the NLP against the fast tests that certify its results with the independent reference formulation
     # (benchmarks/reference_nlp.py: KKT residual by automatic differentiation), check its derivatives against
     # automatic differentiation and recompute every limit (30-point rows; a second each)

@@ -221,11 +221,19 @@ def wave() -> Sinusoid:
                     v_range=(20.0, 60.0), center=(0.0, 0.0, 10.0))
 
 
-SAMPLES = {"blade": blade, "saddle": saddle, "mould": mould, "wave": wave}
+def dome() -> Saddle:
+    """z = 10 - (x^2 + y^2) / 200 on 60 x 60 mm: a dome (radius of curvature 100 mm at the top),
+    convex both ways, like an impeller hub or a mould's crown. Machined on a table-table machine
+    (surfaces/dome_machine.toml, an A/C trunnion with the C axis through the top), the rows near
+    the top carry the tool axis past the C axis: the pole of the C axis."""
+    return Saddle(a=-1 / 200, b=1 / 200, u_range=(-30.0, 30.0), v_range=(-30.0, 30.0), center=(0.0, 0.0, 10.0))
+
+
+SAMPLES = {"blade": blade, "saddle": saddle, "mould": mould, "wave": wave, "dome": dome}
 #: Samples whose mesh is a uniform grid exported like a CAD system's STL (triangles of about
 #: MESH_STEP mm, not aligned with the path, chord error what that step gives): the case the
 #: pipeline meets in practice, unlike the row-aligned PLYs of the other samples.
-STL_SAMPLES = {"wave": 0.3}
+STL_SAMPLES = {"wave": 0.3, "dome": 0.4}
 
 
 def grid_mesh(surface: ParametricSurface, us: np.ndarray, vs: np.ndarray) -> trimesh.Trimesh:

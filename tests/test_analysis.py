@@ -39,7 +39,7 @@ def test_violation_counts_of_a_hand_made_program(tmp_path):
     np.testing.assert_allclose(tp.peaks_programmed["B acceleration"], 700.0, rtol=1e-9)
     # the planned time law slows the jump down to the limits: no velocity violation under it
     assert tp.violations["B velocity"] == 0 and tp.peaks["B velocity"] <= 60.0 * (1 + 1e-6)
-    np.testing.assert_allclose(tp.B_range_deg, [0.0, 7.0], atol=1e-9)
+    np.testing.assert_allclose(tp.range_deg["B"], [0.0, 7.0], atol=1e-9)
     assert tp.singular == {"points": 0, "passes": 0}
 
 

@@ -39,8 +39,7 @@ def _limits(m):
 
 
 def _row(m, tip, A, B):
-    T = m.tool_axis_np(A, B)
-    return np.column_stack([m.linear_axes(tip, T), A, B])
+    return np.column_stack([m.linear_axes(tip, A, B), A, B])
 
 
 def _trapezoid(s, L, v, a):
@@ -244,7 +243,7 @@ def test_near_singular_orientation_against_independent_solve():
     T = np.column_stack([np.cos(beta), np.sin(beta) * np.sin(phi), np.sin(beta) * np.cos(phi)])
     ik = m.solve_row(T)
     assert np.degrees(ik.B).max() > 87.9 and len(ik.unreachable) == 0
-    q = np.column_stack([m.linear_axes(tip, T), ik.A, ik.B])
+    q = np.column_stack([m.linear_axes(tip, ik.A, ik.B), ik.A, ik.B])
     feed = np.full(n, 3000.0)
     plan = plan_row(m, q, tip, feed)
     t_ref = reference_time(m, q, tip, feed)

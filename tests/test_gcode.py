@@ -69,7 +69,7 @@ def _method(seed: int = 3) -> tuple[MethodResult, np.ndarray]:
     idx = np.concatenate([np.arange(np.sum(rows == k)) for k in range(3)])
     z0 = np.zeros(n)
     m = MethodResult(method="nlp", rows=rows, idx=idx, t=z0, cc=cl, normals=T, cl=cl, axis=T, lead=z0, tilt=z0, A=A,
-                     B=B, A_vel=z0, B_vel=z0, A_acc=z0, B_acc=z0, xyz=MACHINE.linear_axes(cl, T), delta=z0, lift=z0,
+                     B=B, A_vel=z0, B_vel=z0, A_acc=z0, B_acc=z0, xyz=MACHINE.linear_axes(cl, A, B), delta=z0, lift=z0,
                      lead_window=np.zeros((n, 2)), tilt_window=np.zeros((n, 2)), compound_acc=z0)
     feed = 600.0 + 900.0 * rng.random(n)
     return m, feed

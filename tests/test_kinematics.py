@@ -108,7 +108,8 @@ def test_numpy_and_casadi_share_one_chain():
 
 
 @pytest.mark.parametrize("patch, words", [
-    ({"machine": {"kind": "AC-table", "pivot": 100.0}}, "not supported"),
+    ({"machine": {"kind": "XY-table", "pivot": 100.0}}, "not supported"),
+    ({"machine": {"kind": "AC-table", "pivot": 100.0}}, "no head pivot"),
     ({"machine": {"kind": "AB-head", "pivot": -5.0}}, "pivot"),
     ({"axis": {"A": {"min": 10.0, "max": -10.0, "vmax": 1.0, "amax": 1.0}}}, "min"),
     ({"axis": {"B": {"min": -10.0, "max": 10.0, "vmax": 0.0, "amax": 1.0}}}, "vmax"),

@@ -100,7 +100,9 @@ def test_pivot_placement_and_default_linear_axes():
     m = load_machine()  # pivot 150 mm
     cl = np.array([[1.0, 2.0, 3.0], [0.0, 0.0, 0.0]])
     T = np.array([[0.0, 0.6, 0.8], [1.0, 0.0, 0.0]])
-    np.testing.assert_allclose(m.linear_axes(cl, T), cl + 150.0 * T, atol=1e-13)   # pivot = CL + L_p T
+    ang = m.inverse_axis(T)[:, 0]
+    # pivot = CL + L_p T
+    np.testing.assert_allclose(m.linear_axes(cl, ang[:, 0], ang[:, 1]), cl + 150.0 * T, atol=1e-13)
     # X = Y = Z = 0 by default: the pivot at the origin, the tip pivot length below it along -T
     A, B = 0.3, -0.2
     tip, axis = m.tool_pose_np(A, B, 0.0, 0.0, 0.0)

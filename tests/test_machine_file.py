@@ -62,13 +62,16 @@ def test_post_table_values_and_defaults():
     assert (p.dialect, p.mode, p.tool, p.tcp_on, p.tcp_off) == ("heidenhain", "tcp", 0, "M128", "M129")
 
 
+KINDS = '"AB-head", "AC-table", "BC-table", "BC-head-table")'
+
+
 @pytest.mark.parametrize("path,value,message", [
     ("machine", None, "missing [machine] table"),
     ("machine", 3, "machine = 3: [machine] must be a table, not a value"),
-    ("machine.kind", None, '[machine] kind = missing is not supported (supported: "AB-head")'),
-    ("machine.kind", "AC-table", '[machine] kind = "AC-table" is not supported (supported: "AB-head")'),
-    ("machine.kind", True, '[machine] kind = true is not supported (supported: "AB-head")'),
-    ("machine.kind", False, '[machine] kind = false is not supported (supported: "AB-head")'),
+    ("machine.kind", None, '[machine] kind = missing is not supported (supported: ' + KINDS),
+    ("machine.kind", "AC-trunnion", '[machine] kind = "AC-trunnion" is not supported (supported: ' + KINDS),
+    ("machine.kind", True, '[machine] kind = true is not supported (supported: ' + KINDS),
+    ("machine.kind", False, '[machine] kind = false is not supported (supported: ' + KINDS),
     ("machine.pivot", None, "missing key 'pivot' in [machine]"),
     ("machine.pivot", "150", '[machine] pivot must be a finite number, got "150"'),
     ("machine.pivot", True, "[machine] pivot must be a finite number, got true"),
@@ -79,8 +82,8 @@ def test_post_table_values_and_defaults():
     ("machine.name", 7, "[machine] name must be a string, got 7"),
     ("axis", "none", "axis = \"none\": [axis] must be a table, not a value"),
     ("axis", None, "missing [axis.A] table"),
-    ("axis.C", {"min": 0.0}, "unknown axis table(s) C (an AB head has A, B, X, Y, Z)"),
-    ("axis.W", {"min": 0.0}, "unknown axis table(s) C, W (an AB head has A, B, X, Y, Z)"),
+    ("axis.C", {"min": 0.0}, "unknown axis table(s) C (an AB-head machine has A, B, X, Y, Z)"),
+    ("axis.W", {"min": 0.0}, "unknown axis table(s) C, W (an AB-head machine has A, B, X, Y, Z)"),
     ("axis.A", None, "missing [axis.A] table"),
     ("axis.B", 1.5, "[axis] B = 1.5: [axis.B] must be a table, not a value"),
     ("axis.A.speed", 1.0, "unknown key(s) speed in [axis.A] (known: min, max, vmax, amax, jmax)"),
@@ -103,9 +106,9 @@ def test_post_table_values_and_defaults():
     ("posts", {"dialect": "fanuc"}, "unknown table(s) [posts] (known: [machine], [axis], [post])"),
     ("machin", {"kind": "AB-head"}, "unknown table(s) [machin] (known: [machine], [axis], [post])"),
     ("pivot", 150.0, "unknown table(s) pivot = 150.0 (known: [machine], [axis], [post])"),
-    ("machine.pivto", 150.0, "unknown key(s) pivto in [machine] (known: name, kind, pivot)"),
-    ("machine.post", {"dialect": "fanuc"}, "unknown key(s) post in [machine] (known: name, kind, pivot)"),
-    ("axis.Q", {"min": 0.0}, "unknown axis table(s) Q (an AB head has A, B, X, Y, Z)"),
+    ("machine.pivto", 150.0, "unknown key(s) pivto in [machine] (known: name, kind, pivot, table_centre)"),
+    ("machine.post", {"dialect": "fanuc"}, "unknown key(s) post in [machine] (known: name, kind, pivot, table_centre)"),
+    ("axis.Q", {"min": 0.0}, "unknown axis table(s) Q (an AB-head machine has A, B, X, Y, Z)"),
     ("post", "fanuc", "[post] must be a table"),
     ("post", {"dialect": "fanuc", "colour": 1, "brand": 2},
      "unknown key(s) ['brand', 'colour'] in [post] (known: dialect, mode, tool, tcp_on, tcp_off)"),
@@ -176,7 +179,7 @@ def test_machine_file_on_disk(tmp_path):
         assert exc.value.message == f"not valid TOML: {e}"
     # contents errors name the file too
     wrong = tmp_path / "wrong.toml"
-    wrong.write_text(DEFAULT_MACHINE_TOML.replace('kind = "AB-head"', 'kind = "AC-table"'))
+    wrong.write_text(DEFAULT_MACHINE_TOML.replace('kind = "AB-head"', 'kind = "AC-table"'))  # pivot, no C
     with pytest.raises(InputError) as exc:
         load_machine(str(wrong))
     assert exc.value.file == str(wrong) and "AC-table" in exc.value.message

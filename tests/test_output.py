@@ -50,7 +50,7 @@ def make_method(name: str, n_rows: int = 2, n_pts: int = 50, amp: float = 0.3, s
                       min_delta=float(delta.min()), violations={"A_acc": 0}, lifted_points=0, max_lift_mm=0.0,
                       lifted_beyond_tolerance=0, unclean_rows=[], unreachable=[], tolerance_mm=1e-3, runtime_s=0.1)
     return MethodResult(method=name, rows=rows, idx=idx, t=t, cc=cc, normals=normals, cl=cl, axis=T, lead=lead,
-                        tilt=tilt, A=A, B=B, A_vel=Av, B_vel=Bv, A_acc=Aa, B_acc=Ba, xyz=MACHINE.linear_axes(cl, T),
+                        tilt=tilt, A=A, B=B, A_vel=Av, B_vel=Bv, A_acc=Aa, B_acc=Ba, xyz=MACHINE.linear_axes(cl, A, B),
                         delta=delta, lift=lift, lead_window=np.column_stack([lead - 0.1, lead + 0.1]),
                         tilt_window=np.column_stack([tilt - 0.1, tilt + 0.1]), compound_acc=np.abs(Aa) + np.abs(Ba),
                         metrics=metrics)

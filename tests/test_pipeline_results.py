@@ -16,7 +16,7 @@ from camsmooth.geometry.paths import CCPath
 from camsmooth.machine.kinematics import load_machine
 from camsmooth.machine.model import ErrorModel
 from camsmooth.smoothing.nlp import program_rates
-from camsmooth.smoothing.pipeline import _linear_axes_for_tip, prepare
+from camsmooth.smoothing.pipeline import prepare
 from tests.test_oracles import _counter_setup
 
 
@@ -98,8 +98,8 @@ def test_linear_axes_put_a_modelled_tip_on_target():
     rng = np.random.default_rng(5)
     A, B = rng.uniform(-0.5, 0.5, 6), rng.uniform(-0.5, 0.5, 6)
     tip = rng.uniform(-50, 50, (6, 3))
-    xyz = _linear_axes_for_tip(real, A, B, tip)
+    xyz = real.linear_axes(tip, A, B)
     np.testing.assert_allclose(real.tool_pose_np(A, B, *xyz.T)[0], tip, atol=1e-9)
     # on the nominal machine it is the pivot placement
     T = machine.tool_axis_np(A, B)
-    np.testing.assert_allclose(_linear_axes_for_tip(machine, A, B, tip), tip + machine.pivot * T, atol=1e-9)
+    np.testing.assert_allclose(machine.linear_axes(tip, A, B), tip + machine.pivot * T, atol=1e-9)

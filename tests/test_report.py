@@ -56,7 +56,7 @@ def make_method(name: str, n_rows: int = 2, n_pts: int = 50, seed: int = 0) -> M
     lead_w, tilt_w = np.column_stack([lead - 0.05, lead + 0.05]), np.column_stack([tilt - 0.1, tilt + 0.1])
     return MethodResult(method=name, rows=rows, idx=idx, t=t, cc=cc, normals=normals, cl=cc.copy(), axis=T,
                         lead=lead, tilt=tilt, A=A, B=B, A_vel=Av, B_vel=Bv, A_acc=Aa, B_acc=Ba,
-                        xyz=MACHINE.linear_axes(cc, T), delta=delta, lift=np.zeros(len(t)), lead_window=lead_w,
+                        xyz=MACHINE.linear_axes(cc, A, B), delta=delta, lift=np.zeros(len(t)), lead_window=lead_w,
                         tilt_window=tilt_w, compound_acc=np.abs(Aa) + np.abs(Ba) + 1e-3, metrics=metrics)
 
 

@@ -47,7 +47,9 @@ def closest_on_mesh(mesh: trimesh.Trimesh, points: np.ndarray, k: int = 32) -> t
 
 
 def test_the_shipped_set():
-    assert sorted(p.stem for p in HERE.glob("*.toml")) == sorted(SAMPLES + ("wave",))
+    assert sorted(p.stem for p in HERE.glob("*.toml")) == sorted(SAMPLES + ("wave", "dome", "dome_machine"))
+    for f in ("dome.toml", "dome.stl", "dome_path.csv", "dome_machine.toml"):
+        assert 0 < (HERE / f).stat().st_size < MAX_BYTES, f
     for name in SAMPLES:
         for f in (f"{name}.toml", f"{name}.ply", f"{name}_path.csv"):
             assert 0 < (HERE / f).stat().st_size < MAX_BYTES, f
@@ -167,3 +169,31 @@ def test_design_figures(name, min_concave, swing):
     assert 1 / k1.max() >= min_concave
     s = row_swings(read_cc_csv(HERE / f"{name}_path.csv"))
     assert swing[0] <= s.min() and s.max() <= swing[1], (name, s.min(), s.max())
+
+
+def test_dome_sample_passes_the_pole_of_its_machines_c_axis():
+    """The dome ships an A/C trunnion machine whose C axis runs through the dome's top: the CAM-style
+    orientation (lead 11 deg) of the middle rows passes within 1 deg of the pole, where the exact
+    inverse turns C more than five times faster than its limit at the programmed feed."""
+    from camsmooth.geometry.frames import axis_from_lead_tilt, local_frames
+    from camsmooth.machine.kinematics import load_machine
+    from camsmooth.smoothing.pole import find_passages
+
+    m = load_machine(HERE / "dome_machine.toml")
+    assert m.kind == "AC-table" and m.rotary == ("A", "C") and not np.isfinite(m.limits["C"].max)
+    path = read_cc_csv(HERE / "dome_path.csv")
+    T = axis_from_lead_tilt(np.full(len(path), np.radians(11.0)), np.zeros(len(path)),
+                            local_frames(path.normals, path.feed_dirs))
+    rows = path.rows
+    seg = np.r_[0.0, np.linalg.norm(np.diff(path.points, axis=0), axis=1)]
+    seg[np.r_[True, rows[1:] != rows[:-1]]] = 0.0
+    t = np.zeros(len(rows))
+    for s in path.row_slices():
+        t[s] = np.cumsum(seg[s]) / (2000.0 / 60.0)
+    ang = np.zeros((len(rows), 2))
+    for s in path.row_slices():
+        r = m.solve_row(T[s])
+        ang[s] = np.column_stack([r.A, r.B])
+    passages = find_passages(m, T, rows, t, ang)
+    assert min(q.closest_deg for q in passages) < 1.0
+    assert max(q.outer_peak_speed for q in passages) > 5 * np.degrees(m.limits["C"].vmax)

@@ -222,7 +222,8 @@ def _write_outputs(result: Any, out_csv: Path, gcode: Path | None, report: Path 
 def _print_summary(result) -> None:
     m = result.result.metrics
     ctrl = m.controller or "axes"
-    head = ("method", "Gamma", "peak|A''|", "peak|B''|", "min delta", "violations", "at feed", "optimal s",
+    r1, r2 = result.machine.rotary
+    head = ("method", "Gamma", f"peak|{r1}''|", f"peak|{r2}''|", "min delta", "violations", "at feed", "optimal s",
             f"{ctrl} s", "limited by", "time s")
     print("{:8s} {:>12s} {:>10s} {:>10s} {:>10s} {:>10s} {:>8s} {:>9s} {:>11s} {:>16s} {:>8s}".format(*head))
     for name, r in result.methods.items():
@@ -237,6 +238,8 @@ def _print_summary(result) -> None:
     if m.controller:
         print(f"cycle times: 'optimal' is the time-optimal law under the axes' limits; '{ctrl}' what the {ctrl} "
               f"controller's planner makes of the program as written ({m.blocks} cut blocks)")
+    if m.pole:
+        _print_pole(result)
     for w in result.warnings:
         print(f"camsmooth: warning: {w}", file=sys.stderr)
     if m.blocked:
@@ -259,6 +262,24 @@ def _print_summary(result) -> None:
     if m.unreachable:
         print(f"camsmooth: warning: {len(m.unreachable)} unreachable points, first {m.unreachable[:5]}",
               file=sys.stderr)
+
+
+def _print_pole(result) -> None:
+    """Every passage near the pole of the outer rotary axis (camsmooth.smoothing.pole)."""
+    from camsmooth.smoothing.pole import POLE_CONE_DEG
+
+    m = result.result.metrics
+    q0 = m.pole[0]
+    print(f"pole passages: {len(m.pole)} (tool axis within {POLE_CONE_DEG:g} deg of the {q0.outer} axis; the exact "
+          f"inverse turns {q0.outer} up to {max(q.outer_peak_speed for q in m.pole):.4g} deg/s at the programmed "
+          f"feed, limit {q0.outer_vmax:.4g} deg/s)")
+    print(f"{'row':>5s} {'points':>11s} {'closest deg':>11s} {q0.outer + ' turn deg':>11s} "
+          f"{'exact ' + q0.outer + ' deg/s':>14s} {'Gamma cost':>11s}")
+    for q in m.pole:
+        cost = "-" if q.gamma_cost is None else f"{q.gamma_cost:+.4g}"
+        print(f"{q.row:5d} {q.first:5d}..{q.last:<5d} {q.closest_deg:11.3g} {q.outer_turn_deg:11.4g} "
+              f"{q.outer_peak_speed:14.4g} {cost:>11s}")
+    print(f"Gamma cost: sum of |T''|^2 (1/s^4) over the passage, {result.primary} minus the programmed orientation")
 
 
 def _check_path_size(n_rows: float, n_points: float) -> None:
@@ -341,14 +362,15 @@ def run_analyze(args: argparse.Namespace) -> int:
     if not args.quiet:
         print(f"{analysis.source} ({analysis.format}): {analysis.points} cutting points, "
               f"{len(analysis.toolpaths)} tool path(s)")
-        head = ("tool path", "points", "A deg", "B deg", "Gamma", "violations", "at feed", "cycle s", "limited by",
-                "min delta")
+        head = ("tool path", "points", *(f"{r} deg" for r in machine.rotary), "Gamma", "violations", "at feed",
+                "cycle s", "limited by", "min delta")
         print("{:24s} {:>7s} {:>17s} {:>17s} {:>10s} {:>10s} {:>11s} {:>9s} {:>16s} {:>10s}".format(*head))
         for tp in analysis.toolpaths:
             md = "-" if tp.clearance is None else f"{tp.clearance['min_mm']:.4g}"
             ctrl = f" {tp.controller} {tp.cycle_time_s:.2f} s" if tp.controller else ""
-            print(f"{tp.name[:24]:24s} {tp.points:7d} {tp.A_range_deg[0]:8.2f}..{tp.A_range_deg[1]:<7.2f} "
-                  f"{tp.B_range_deg[0]:8.2f}..{tp.B_range_deg[1]:<7.2f} {tp.gamma:10.4g} "
+            r1, r2 = (tp.range_deg[r] for r in machine.rotary)
+            print(f"{tp.name[:24]:24s} {tp.points:7d} {r1[0]:8.2f}..{r1[1]:<7.2f} "
+                  f"{r2[0]:8.2f}..{r2[1]:<7.2f} {tp.gamma:10.4g} "
                   f"{sum(tp.violations.values()):10d} {sum(tp.violations_programmed.values()):11d} "
                   f"{tp.cycle_time_optimal_s:9.2f} {tp.limiting or '-':>16s} {md:>10s}{ctrl}")
         print("violations: under the planned time law (what the program's F words command); 'at feed': at the "
@@ -382,16 +404,21 @@ def run_demo(args: argparse.Namespace) -> int:
     out = Path(args.out)
     csv, nc, rep = demo_outputs(out, name)
     cutter = ToroidalCutter(R=4.0, r=1.0)
+    machine_file = samples / f"{name}_machine.toml"  # a sample made for another machine ships its machine
+    from camsmooth.machine.kinematics import load_machine
+
+    machine = load_machine(machine_file if machine_file.is_file() else None)
     with output_transaction() as tx:
         tmp_csv, tmp_nc = tx.file(csv), tx.file(nc)
         tmp_rep = tx.folder(rep, replace=args.force, keep=(path, mesh))
         if not args.quiet:
+            on = f"{machine.name}, {machine_file}" if machine_file.is_file() else "default AB head"
             print(f"camsmooth demo: smoothing {path} on {mesh} (toroidal cutter R=4 r=1 mm, lead 2:20, "
-                  f"tilt -15:15 deg, default AB head) -> {out}/")
+                  f"tilt -15:15 deg, {on}) -> {out}/")
         from camsmooth.geometry.surfaces import load_surface
         from camsmooth.io.ccpath import read_cc_csv
 
-        result = smooth(read_cc_csv(path), load_surface(mesh), None, cutter, feed=2000.0,
+        result = smooth(read_cc_csv(path), load_surface(mesh), machine, cutter, feed=2000.0,
                         lead_range=tuple(np.radians([2.0, 20.0])), tilt_range=tuple(np.radians([-15.0, 15.0])),
                         method="nlp", options=SmoothOptions(workers=None), progress=not args.quiet)
         _write_outputs(result, tmp_csv, tmp_nc, tmp_rep, 2000.0)
@@ -502,7 +529,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("demo", help="smooth a shipped sample and write the CSV, G-code and report")
     p.add_argument("--out", default="demo_out", help="output folder (default demo_out): OUT/SAMPLE_smoothed.csv, "
                    "OUT/SAMPLE_smoothed.nc and the report in OUT/SAMPLE_report, so samples do not replace each other")
-    p.add_argument("--sample", default="blade", help="sample name in surfaces/ (blade, saddle, mould, wave)")
+    p.add_argument("--sample", default="blade", help="sample name in surfaces/ (blade, saddle, mould, wave; dome: "
+                   "an A/C trunnion "
+                   "table through the pole of its C axis)")
     p.add_argument("--samples", default=None, help="folder of the samples (default: the repository's surfaces/)")
     p.add_argument("--force", action="store_true", help="replace the folder OUT/SAMPLE_report whole")
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary")

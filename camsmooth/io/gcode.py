@@ -130,6 +130,9 @@ DIALECTS: dict[str, Dialect] = {
                                           "CYCL DEF 32.2 HSC-MODE:0")),
 }
 _POST_TAG = "camsmooth post:"
+#: the tool axis of each machine kind (camsmooth.machine.kinematics.Machine), for the header
+_AXIS_FORMULA = {"AB-head": "T = Rx(A) Ry(B) e_z", "AC-table": "T = Rz(C) Rx(A) e_z", "BC-table": "T = Rz(C) Ry(B) e_z",
+                 "BC-head-table": "T = Rz(C) Ry(B) e_z"}
 
 
 # ----------------------------------------------------------------------------------------------
@@ -214,16 +217,18 @@ class _Moves:
 
 def _check_travel(machine: Any, rows: np.ndarray, idx: np.ndarray, A: np.ndarray, B: np.ndarray, xyz: np.ndarray,
                   what: str) -> None:
-    """InfeasibleError naming axis, limit, row and point when a commanded value is out of travel."""
+    """InfeasibleError naming axis, limit, row and point when a commanded value is out of travel
+    (A, B: the machine's first and second rotary axis, ``Machine.rotary``)."""
     limits = getattr(machine, "limits", {}) or {}
-    for name, values in (("A", A), ("B", B), ("X", xyz[:, 0]), ("Y", xyz[:, 1]), ("Z", xyz[:, 2])):
+    names = getattr(machine, "rotary", ("A", "B"))
+    for name, values in ((names[0], A), (names[1], B), ("X", xyz[:, 0]), ("Y", xyz[:, 1]), ("Z", xyz[:, 2])):
         lim = limits.get(name)
         if lim is None:
             continue
         bad = (values < lim.min - 1e-9) | (values > lim.max + 1e-9)
         if bad.any():
             i = int(np.argmax(bad))
-            rotary = name in "AB"
+            rotary = name in names
             conv = math.degrees if rotary else float
             unit = "deg" if rotary else "mm"
             raise InfeasibleError(
@@ -241,25 +246,20 @@ def _row_slices(rows: np.ndarray) -> list[slice]:
 
 
 def _moves(rows: np.ndarray, joints: np.ndarray, tips: np.ndarray, T: np.ndarray, feed: np.ndarray,
-           h: float, block_time: np.ndarray | None = None, t_prog: np.ndarray | None = None,
+           h: float, lifted: np.ndarray, block_time: np.ndarray | None = None, t_prog: np.ndarray | None = None,
            f_prog: np.ndarray | None = None, t_opt: np.ndarray | None = None) -> _Moves:
-    """Entry rapid, row points, exit rapid per row (loop over rows, not points). block_time: (N,)
+    """Entry rapid, row points, exit rapid per row (loop over rows, not points). lifted: (N, 5)
+    the joints with the tip ``h`` mm up the tool axis T (the retract poses). block_time: (N,)
     s per point, the commanded time of the block ending there (nan where the feed decides);
     t_prog: (N,) s from the row's start at the programmed feed (written beside each block); t_opt:
     (N,) s from the row's start under the time-optimal law, written beside each block where the
     block times are the controller plan's (they no longer tell the time-optimal law)."""
     J, P, R, F, starts, BT, TP, FP, TO = [], [], [], [], [], [], [], [], []
-    up = np.zeros((1, 5))
     count = 0
     for sl in _row_slices(rows):
         first, last = sl.start, sl.stop - 1
         n = sl.stop - sl.start
-        up[0, :3] = h * T[first]
-        lift_first = joints[first:first + 1] + up
-        up_last = np.zeros((1, 5))
-        up_last[0, :3] = h * T[last]
-        lift_last = joints[last:last + 1] + up_last
-        J += [lift_first, joints[sl], lift_last]
+        J += [lifted[first:first + 1], joints[sl], lifted[last:last + 1]]
         P += [tips[first:first + 1] + h * T[first], tips[sl], tips[last:last + 1] + h * T[last]]
         R += [np.array([True]), np.zeros(n, bool), np.array([True])]
         F += [np.array([np.nan]), feed[sl], np.array([np.nan])]
@@ -301,7 +301,7 @@ def _block_feeds(machine: Any, mv: _Moves, mode: str) -> tuple[np.ndarray, int]:
     if still.any():
         limits = getattr(machine, "limits", {}) or {}
         rot = np.zeros(int(still.sum()))
-        for k, name in ((3, "A"), (4, "B")):
+        for k, name in ((3, getattr(machine, "rotary", "AB")[0]), (4, getattr(machine, "rotary", "AB")[1])):
             lim = limits.get(name)
             if lim is not None and np.isfinite(lim.vmax):
                 rot = np.maximum(rot, np.abs(q1[still, k] - q0[still, k]) / lim.vmax / 60.0)
@@ -332,14 +332,23 @@ def _header(dialect: Dialect, mode: str, machine: Any, cutter: Any, method: str,
     head.extend(c(f"input {k}: {v}") for k, v in _simple_items(inputs))
     tol = "" if tolerance is None else f" tolerance={float(tolerance):.6g}"
     head.append(c(f"{_POST_TAG} dialect={dialect.name} mode={mode} units=mm pivot={pivot:.6f} method={method}{tol}"))
+    r1, r2 = getattr(machine, "rotary", ("A", "B"))
+    kind = getattr(machine, "kind", "AB-head")
     if mode == "machine":
-        head.append(c("X Y Z: head pivot position mm (no tool length compensation); A B: degrees"))
+        if kind == "AB-head":
+            head.append(c(f"X Y Z: head pivot position mm (no tool length compensation); {r1} {r2}: degrees"))
+        else:
+            head.append(c(f"X Y Z: machine linear axes mm ({kind}: the table turns the workpiece about "
+                          f"table_centre; tool length by the controller); {r1} {r2}: degrees"))
         head.append(c("F: inverse time 1/min (G93), so the tool tip moves at the planned feed"))
         if still:
-            head.append(c(f"{still} block(s) turn A/B without moving the tip: timed by the rotary speed limits"))
+            head.append(c(f"{still} block(s) turn {r1}/{r2} without moving the tip: timed by the rotary speed limits"))
     else:
-        head.append(c("X Y Z: tool tip mm, workpiece frame; A B: rotary axis positions, degrees; F: tip feed mm/min"))
-    head.append(c("A B: right-hand rule about +X / +Y, tool relative to workpiece: T = Rx(A) Ry(B) e_z"))
+        head.append(c(f"X Y Z: tool tip mm, workpiece frame; {r1} {r2}: rotary axis positions, degrees; "
+                      "F: tip feed mm/min"))
+    about = " / ".join("+" + {"A": "X", "B": "Y", "C": "Z"}[r] for r in (r1, r2))
+    head.append(c(f"{r1} {r2}: right-hand rule about {about}, tool relative to workpiece: "
+                  f"{_AXIS_FORMULA.get(kind, 'T = Rx(A) Ry(B) e_z')}"))
     head.append(c(f"rows are entered and left by rapids {h:.4f} mm up along the tool axis"))
     head.append(c("t= beside a block: s from the row's start at the programmed feed f= (mm/min, given where it "
                   "changes)"))
@@ -443,12 +452,15 @@ def write_gcode(path: str | os.PathLike, result: SmoothResult | MethodResult, ma
     if not finite.all():
         i = int(np.argmin(finite))
         raise InputError(f"non-finite axis value at row {int(rows[i])}, point {int(idx[i])}; cannot write G-code")
+    # the retract poses: the tip h mm up its tool axis, the angles held (on a head the pivot moves
+    # by h T; on a table the linear axes move along the machine's tool axis)
+    up = machine.linear_axes(tip + h * T, A, B) if hasattr(machine, "linear_axes") else xyz + h * T
     if check_limits:
         _check_travel(machine, rows, idx, A, B, xyz, "point")
-        _check_travel(machine, rows, idx, A, B, xyz + h * T, f"retract ({h:g} mm along the tool axis)")
+        _check_travel(machine, rows, idx, A, B, up, f"retract ({h:g} mm along the tool axis)")
 
     joints = np.column_stack([xyz, A, B])
-    mv = _moves(rows, joints, tip, T, feed, h, block_time, t_prog, f_prog, t_opt)
+    mv = _moves(rows, joints, tip, T, feed, h, np.column_stack([up, A, B]), block_time, t_prog, f_prog, t_opt)
     # the controller runs the values as written (4 decimals, mm and degrees): time the blocks on those
     mv.joints = written_joints(mv.joints)
     mv.tips = np.round(mv.tips, WRITTEN_DECIMALS)
@@ -458,7 +470,7 @@ def write_gcode(path: str | os.PathLike, result: SmoothResult | MethodResult, ma
     lines += _program_start(d, mode, tcp_on, tool_no, tolerance)
     deg = np.degrees
     coords = np.column_stack([mv.joints[:, :3] if mode == "machine" else mv.tips, deg(mv.joints[:, 3:])])
-    lines += _blocks(d, mode, mv, coords, F)
+    lines += _blocks(d, mode, mv, coords, F, "XYZ" + "".join(getattr(machine, "rotary", ("A", "B"))))
     lines += _program_end(d, mode, tcp_off, program_name)
     if d.klartext:
         lines = [f"{k} {ln}" for k, ln in enumerate(lines)]
@@ -468,9 +480,10 @@ def write_gcode(path: str | os.PathLike, result: SmoothResult | MethodResult, ma
     return path
 
 
-def _blocks(d: Dialect, mode: str, mv: Any, coords: np.ndarray, F: np.ndarray) -> list[str]:
+def _blocks(d: Dialect, mode: str, mv: Any, coords: np.ndarray, F: np.ndarray, letters: str = "XYZAB") -> list[str]:
     """One formatted line per block (numbers formatted as whole columns by polars, not one by
-    one), with a comment line at each row's start. F is modal in G94 and in Klartext: written when
+    one), with a comment line at each row's start; ``letters`` the address of each coordinate
+    column (X Y Z and the machine's rotary axes). F is modal in G94 and in Klartext: written when
     it changes or after a rapid; in G93 every feed block carries its own."""
     import polars as pl
 
@@ -488,9 +501,9 @@ def _blocks(d: Dialect, mode: str, mv: Any, coords: np.ndarray, F: np.ndarray) -
         f_text[k] = _fixed_sig(f_vals[k]) if mode == "machine" else _fixed(f_vals[k], 1).to_numpy()
         f_text[k] = " F" + f_text[k]
     f_text = f_text + _annotations(d, mv, rapid)
-    cols = {c: _fixed(coords[:, j], sign=d.klartext) for j, c in enumerate("XYZAB")}
+    cols = {c: _fixed(coords[:, j], sign=d.klartext) for j, c in enumerate(letters)}
     df = pl.DataFrame({**cols, "rapid": rapid, "f": f_text.astype(str)})
-    words = [pl.lit(c) + pl.col(c) for c in "XYZAB"]
+    words = [pl.lit(c) + pl.col(c) for c in letters]
     if d.klartext:
         head, tail = pl.lit("L"), pl.when(pl.col("rapid")).then(pl.lit(" R0 FMAX")).otherwise(pl.col("f"))
     else:

@@ -16,7 +16,7 @@ import numpy as np
 from camsmooth.constants import DEFAULT_TOLERANCE_MM
 from camsmooth.io.gcode import DEFAULT_SAFE_HEIGHT_MM, write_gcode
 from camsmooth.io.table import read_table, write_table
-from camsmooth.smoothing.result import OUTPUT_COLUMNS, MethodResult, SmoothResult, interferes
+from camsmooth.smoothing.result import OUTPUT_COLUMNS, MethodResult, SmoothResult, interferes, output_columns
 
 __all__ = ["RESULT_CSV_COLUMNS", "STATUSES", "DEFAULT_SAFE_HEIGHT_MM", "point_status",
            "write_result_csv", "read_result_csv", "write_gcode"]
@@ -81,10 +81,11 @@ def write_result_csv(path: str | os.PathLike, result: SmoothResult) -> Path:
     """
     r = result.result
     table = result.table()
-    if table.shape[1] != len(OUTPUT_COLUMNS):
-        raise ValueError(f"SmoothResult.table() has {table.shape[1]} columns, expected {len(OUTPUT_COLUMNS)}")
+    names = output_columns(result.machine.rotary)
+    if table.shape[1] != len(names):
+        raise ValueError(f"SmoothResult.table() has {table.shape[1]} columns, expected {len(names)}")
     columns: dict[str, np.ndarray] = {}
-    for k, name in enumerate(OUTPUT_COLUMNS):
+    for k, name in enumerate(names):
         columns[name] = table[:, k].astype(np.int64) if name in _INT_COLUMNS else table[:, k]
     columns["lift"] = np.asarray(r.lift, float)
     columns["status"] = point_status(r)
@@ -101,7 +102,7 @@ def write_result_csv(path: str | os.PathLike, result: SmoothResult) -> Path:
     return write_table(path, columns)
 
 
-def read_result_csv(path: str | os.PathLike, required: Sequence[str] = OUTPUT_COLUMNS
+def read_result_csv(path: str | os.PathLike, required: Sequence[str] | None = None
                     ) -> dict[str, np.ndarray]:
     """Read a result CSV (as written by ``write_result_csv``) into column arrays.
 
@@ -109,10 +110,30 @@ def read_result_csv(path: str | os.PathLike, required: Sequence[str] = OUTPUT_CO
     str, all others float (NaN allowed: an unknown clearance is written as nan; units as in the
     file: mm, s, degrees). Read by ``camsmooth.io.table.read_table``: InputError naming the file,
     row and column when the file is missing or empty, a ``required`` column is absent, a row has
-    the wrong number of fields or a value is not a number / not an integer.
+    the wrong number of fields or a value is not a number / not an integer. required: None for
+    the output columns of any machine kind (``output_columns`` with the rotary pair the header
+    names: A,B or A,C or B,C).
     """
+    if required is None:
+        required = output_columns(result_rotary(path))
     declared = tuple(dict.fromkeys(list(required) + list(_INT_COLUMNS) + list(_STR_COLUMNS)))
     table = read_table(path, required, [c for c in declared if c not in required], integer=_INT_COLUMNS,
                        text=_STR_COLUMNS, nonfinite=[c for c in declared if c not in _INT_COLUMNS],
                        others="float", min_rows=0, what="result file")
     return dict(table.columns)
+
+
+def result_rotary(path: str | os.PathLike) -> tuple[str, str]:
+    """The rotary columns a result CSV's header names (("A", "B") on an AB head, ("A", "C") on an
+    AC table, ...; MACHINE_KINDS): the first pair of the kinds whose both names are columns; ("A",
+    "B") when none is (the reader then names the missing columns)."""
+    from camsmooth.io.table import read_text_file
+    from camsmooth.machine.kinematics import MACHINE_KINDS
+
+    text = read_text_file(path, "result file")
+    first = next((ln for ln in text.splitlines() if ln.strip()), "")
+    names = {h.strip().strip('"') for h in first.split(",")}
+    for pair in dict.fromkeys(MACHINE_KINDS.values()):
+        if set(pair) <= names:
+            return pair
+    return ("A", "B")

@@ -128,8 +128,10 @@ class CLProgram:
     -1. feed: (N,) mm/min of the move that ends at the point (NaN at rapid points and where the
     file sets no feed). rapid: (N,) bool, the point is reached by a rapid move. line: (N,) int64
     the line (data row for CSV) of the record that produced the point. toolpaths: contiguous
-    point ranges with name and tool. angles: (N, 2) commanded rotary angles A, B (rad) when the
-    file commands them (G-code) else None. source: the file; format: the reader's format name;
+    point ranges with name and tool. angles: (N, 2) commanded rotary angles (rad) when the
+    file commands them (G-code, a result CSV) else None, in the order ``rotary`` names them (the
+    axes of the machine the file was written for: ("A", "B"), ("A", "C"), ("B", "C")). source: the
+    file; format: the reader's format name;
     warnings: messages naming lines (records ignored, assumptions made). written: what camsmooth
     wrote beside the poses when the file is camsmooth's own output (``Written``), else None.
     """
@@ -146,6 +148,7 @@ class CLProgram:
     warnings: list[str] = field(default_factory=list)
     angles: np.ndarray | None = None
     written: Written | None = None
+    rotary: tuple[str, str] = ("A", "B")
 
     def __post_init__(self) -> None:
         self.tip = np.asarray(self.tip, dtype=float).reshape(-1, 3)
@@ -226,7 +229,7 @@ _ALIASES = {"cls": "apt", "clsf": "apt", "cldata": "apt", "apt": "apt", "cl": "c
             "cc": "cc-csv", "cc-csv": "cc-csv", "gcode": "gcode", "nc": "gcode", "g-code": "gcode",
             "result": "result-csv", "result-csv": "result-csv"}
 #: header columns that make a CSV camsmooth's own result CSV (camsmooth.io.output.write_result_csv)
-RESULT_MARK = ("row", "idx", "t", "clx", "cly", "clz", "i", "j", "k", "a", "b", "x", "y", "z", "delta", "status")
+RESULT_MARK = ("row", "idx", "t", "clx", "cly", "clz", "i", "j", "k", "x", "y", "z", "delta", "status")
 _APT_RECORD = re.compile(r"^\s*(TOOL PATH/|GOTO/|TLDATA/|CUTTER/|MSYS/|FEDRAT/|RAPID\s*$|LOADTL/|LOAD/|PARTNO|"
                          r"UNITS/|MULTAX/|CIRCLE/|MOVARC/|END-OF-PATH|FROM/|\$\$)", re.IGNORECASE | re.MULTILINE)
 _GCODE_LINE = re.compile(r"^\s*(%|O\d+|N\d+|G\d|M\d|\(|;|\d+\s+BEGIN PGM|BEGIN PGM|T\d|TRAORI)",
@@ -309,12 +312,14 @@ LOADERS: dict[str, Callable[..., CLProgram | CCPath]] = {
 
 def read_result_program(path: str | os.PathLike) -> CLProgram:
     """camsmooth's result CSV (camsmooth.io.output.write_result_csv) as the program it describes:
-    tool tips ``clx,cly,clz``, axes ``i,j,k``, the commanded A, B and the pivot X Y Z, one row per
+    tool tips ``clx,cly,clz``, axes ``i,j,k``, the commanded rotary angles (A,B or A,C or B,C:
+    ``CLProgram.rotary``) and the linear axes X Y Z, one row per
     ``row`` id, and beside them (``Written``) the programmed-feed time ``t``, the programmed feed
     (``feed``, or from t and the CC points in files without it), the time-optimal law ``t_opt``,
     the CC points, normals, clearance and status."""
-    from camsmooth.io.output import read_result_csv
+    from camsmooth.io.output import read_result_csv, result_rotary
 
+    rotary = result_rotary(path)
     c = read_result_csv(path)
     rows_id = np.asarray(c["row"], np.int64)
     n = len(rows_id)
@@ -331,7 +336,7 @@ def read_result_program(path: str | os.PathLike) -> CLProgram:
             feed = np.where(starts, np.nan, 60.0 * seg / dt)
         nxt = np.minimum(np.flatnonzero(starts) + 1, max(n - 1, 0))
         feed[starts] = feed[nxt]
-    ang = np.radians(np.column_stack([c["A"], c["B"]]))
+    ang = np.radians(np.column_stack([c[rotary[0]], c[rotary[1]]]))
     written = Written(method=None, tolerance=None, every_point=True, t=t, feed=feed,
                       t_plan=np.asarray(c["t_opt"], float) if "t_opt" in c else None, row_id=rows_id,
                       idx=np.asarray(c["idx"], np.int64), cc=cc,
@@ -341,7 +346,7 @@ def read_result_program(path: str | os.PathLike) -> CLProgram:
     return CLProgram(tip=np.column_stack([c["clx"], c["cly"], c["clz"]]),
                      axis=np.column_stack([c["i"], c["j"], c["k"]]), rows=rows, feed=feed,
                      rapid=np.zeros(n, bool), line=np.arange(1, n + 1), toolpaths=[tp],
-                     source=str(path), format="result-csv", angles=ang, written=written)
+                     source=str(path), format="result-csv", angles=ang, written=written, rotary=rotary)
 
 
 def load_program(source: str | os.PathLike, format: str | None = None, **options: Any) -> CLProgram | CCPath:

@@ -232,10 +232,36 @@ class PostConfig:
     tcp_off: str | None = None
 
 
+#: machine kinds (``[machine] kind``): the chain of each is ``kind_chain``; the rotary axes of each,
+#: in the order of the output columns (the tilt axis first, C last)
+MACHINE_KINDS: dict[str, tuple[str, str]] = {
+    "AB-head": ("A", "B"),
+    "AC-table": ("A", "C"),
+    "BC-table": ("B", "C"),
+    "BC-head-table": ("B", "C"),
+}
+#: the first and second inverse branch of each kind (``Machine.branch_of``), in words
+FIRST_BRANCH = {"AB-head": "B in [-90, 90] deg", "AC-table": "A in [-180, 0] deg", "BC-table": "B in [-180, 0] deg",
+                "BC-head-table": "B in [-180, 0] deg"}
+SECOND_BRANCH = {"AB-head": "B beyond +-90 deg", "AC-table": "A in (0, 180) deg", "BC-table": "B in (0, 180) deg",
+                 "BC-head-table": "B in (0, 180) deg"}
+#: angle (rad) from the pole below which the outer rotary angle is undefined (held at its previous
+#: value by ``solve_row``): far below any angle a program resolves (1e-9 rad = 2e-7 deg)
+POLE_EPS = 1e-9
+
+
 @dataclass(frozen=True)
 class Machine:
-    """A five-axis machine: its name, kind, pivot length (mm, head pivot to tool tip), the
-    chain, the limits per axis (radians inside the code) and the G-code post settings."""
+    """A five-axis machine: its name, kind (MACHINE_KINDS), pivot length (mm, head pivot to tool
+    tip; 0 on a table-table machine, whose tool length the controller applies), the chain, the
+    limits per axis (radians inside the code), the G-code post settings and the table centre (mm,
+    workpiece frame at zero angles: where the table's C axis crosses its tilt axis).
+
+    The two rotary axes are ``rotary`` (e.g. ("A", "C")); every method that takes two angles
+    (q1, q2) takes them in that order, in radians, as the tool's rotation relative to the
+    workpiece (ISO 841 sense; a table turns the workpiece the opposite way), right-hand rule:
+    AB-head T = Rx(A) Ry(B) e_z; AC-table T = Rz(C) Rx(A) e_z; BC-table and BC-head-table
+    T = Rz(C) Ry(B) e_z (docs/CONVENTIONS.md)."""
 
     name: str
     kind: str
@@ -243,50 +269,153 @@ class Machine:
     chain: Chain
     limits: Mapping[str, AxisLimits] = field(default_factory=dict)
     post: PostConfig = field(default_factory=PostConfig)
+    table_centre: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    # ---- the rotary axes -------------------------------------------------------------------
+    @property
+    def rotary(self) -> tuple[str, str]:
+        """Names of the two rotary axes, in the order every two-angle method takes them."""
+        return MACHINE_KINDS[self.kind]
+
+    @property
+    def joint_names(self) -> tuple[str, str, str, str, str]:
+        """X, Y, Z and the rotary axes: the order of a joint row ``q`` (N, 5) everywhere."""
+        return ("X", "Y", "Z") + self.rotary
+
+    def rotary_limits(self) -> tuple[AxisLimits, AxisLimits]:
+        """The limits of the two rotary axes (rad), in ``rotary`` order."""
+        return self.limits[self.rotary[0]], self.limits[self.rotary[1]]
+
+    @property
+    def outer_index(self) -> int:
+        """Position (0 or 1) in ``rotary`` of the outer rotary axis: the one whose pole it is (C on
+        a table machine, A on the AB head)."""
+        return 0 if self._outer_inner()[2].name == self.rotary[0] else 1
+
+    def _outer_inner(self) -> tuple[int, int, Joint, Joint]:
+        """Chain indices and joints of the outer (nearer the workpiece) and inner rotary joint."""
+        idx = [i for i, j in enumerate(self.chain.joints) if j.kind == "revolute"]
+        return idx[0], idx[1], self.chain.joints[idx[0]], self.chain.joints[idx[1]]
 
     # ---- forward kinematics ----------------------------------------------------------------
-    def tool_pose(self, A: Entry, B: Entry, X: Entry = 0.0, Y: Entry = 0.0, Z: Entry = 0.0
+    def tool_pose(self, q1: Entry, q2: Entry, X: Entry = 0.0, Y: Entry = 0.0, Z: Entry = 0.0
                   ) -> tuple[tuple[Entry, Entry, Entry], tuple[Entry, Entry, Entry]]:
-        """(tip, axis) in the workpiece frame for commanded axes (A, B rad; X, Y, Z mm).
-        tip: the tool tip (CL point), axis: unit tool axis T (tip toward spindle). Entries are
-        numpy arrays or CasADi expressions, as given."""
-        f = self.chain.forward({"X": X, "Y": Y, "Z": Z, "A": A, "B": B})
+        """(tip, axis) in the workpiece frame for commanded axes (q1, q2 rad in ``rotary`` order;
+        X, Y, Z mm). tip: the tool tip (CL point), axis: unit tool axis T (tip toward spindle).
+        Entries are numpy arrays or CasADi expressions, as given."""
+        r1, r2 = self.rotary
+        f = self.chain.forward({"X": X, "Y": Y, "Z": Z, r1: q1, r2: q2})
         return f.p, (f.R[0][2], f.R[1][2], f.R[2][2])
 
-    def tool_axis(self, A: Entry, B: Entry) -> tuple[Entry, Entry, Entry]:
-        """Unit tool axis T(A, B) in the workpiece frame (METHODS section 1 for the nominal AB
-        head: (sin B, -sin A cos B, cos A cos B))."""
-        return self.tool_pose(A, B)[1]
+    def tool_axis(self, q1: Entry, q2: Entry) -> tuple[Entry, Entry, Entry]:
+        """Unit tool axis T(q1, q2) in the workpiece frame (class docstring; METHODS section 1 for
+        the AB head: (sin B, -sin A cos B, cos A cos B))."""
+        return self.tool_pose(q1, q2)[1]
 
-    def tool_axis_np(self, A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    def tool_axis_np(self, q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
         """tool_axis for numpy arrays, as an (N, 3) array."""
-        A = np.asarray(A, dtype=float)
-        B = np.asarray(B, dtype=float)
-        return np.stack(np.broadcast_arrays(*self.tool_axis(A, B)), axis=-1)
+        q1 = np.asarray(q1, dtype=float)
+        q2 = np.asarray(q2, dtype=float)
+        return np.stack(np.broadcast_arrays(*self.tool_axis(q1, q2)), axis=-1)
 
-    def tool_pose_np(self, A: np.ndarray, B: np.ndarray, X: np.ndarray, Y: np.ndarray, Z: np.ndarray
+    def tool_pose_np(self, q1: np.ndarray, q2: np.ndarray, X: np.ndarray, Y: np.ndarray, Z: np.ndarray
                      ) -> tuple[np.ndarray, np.ndarray]:
         """tool_pose for numpy arrays: (tip (N,3) mm, axis (N,3))."""
-        args = [np.asarray(a, dtype=float) for a in (A, B, X, Y, Z)]
+        args = [np.asarray(a, dtype=float) for a in (q1, q2, X, Y, Z)]
         tip, axis = self.tool_pose(*args)
         return (np.stack(np.broadcast_arrays(*tip), axis=-1), np.stack(np.broadcast_arrays(*axis), axis=-1))
 
-    def linear_axes(self, cl: np.ndarray, T: np.ndarray) -> np.ndarray:
-        """(X, Y, Z) mm that put the tool tip at cl with axis T on the nominal AB head:
-        pivot = CL + L_p T (METHODS section 1)."""
-        return np.asarray(cl, float) + self.pivot * np.asarray(T, float)
+    def linear_axes(self, cl: np.ndarray, q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
+        """(X, Y, Z) mm that put the tool tip at cl (N, 3, workpiece frame) at rotary angles
+        (q1, q2) rad. The linear axes enter the chain as prismatic joints, so at fixed angles the
+        tip is affine in them: tip = tip0 + J (X, Y, Z), with J's columns the tip's unit steps
+        from the chain itself; solved per point (J is a rotation on the nominal machine: identity
+        on a head, the table's rotation on a table; near one on an error model's, whose linear axes
+        may be out of square). Nominal closed forms (issue 18): AB head pivot = CL + L_p T; table
+        c + R_wp (CL - c); BC head-table c + Rz(-C)(CL - c) + L_p Ry(B) e_z."""
+        cl = np.atleast_2d(np.asarray(cl, float))
+        n = len(cl)
+        q1 = np.broadcast_to(np.asarray(q1, float), (n,))
+        q2 = np.broadcast_to(np.asarray(q2, float), (n,))
+        zero = np.zeros(n)
+        tip0 = self.tool_pose_np(q1, q2, zero, zero, zero)[0]
+        cols = [self.tool_pose_np(q1, q2, *(np.full(n, float(k == j)) for k in range(3)))[0] - tip0
+                for j in range(3)]
+        J = np.stack(cols, axis=-1)  # (n, 3, 3): columns d tip / d (X, Y, Z)
+        return np.linalg.solve(J, (cl - tip0)[..., None])[..., 0]
 
     # ---- inverse kinematics ----------------------------------------------------------------
+    def pole_angle(self, T: np.ndarray) -> np.ndarray:
+        """Angle (rad) between unit tool axes T (N, 3, workpiece frame) and the nearest pole: the
+        directions where the outer rotary axis is parallel to the tool axis and its angle is
+        undefined (the C axis of a table machine at tilt 0; B = +-90 deg on the AB head). Measured
+        at the home configuration, where the outer axis has its nominal direction."""
+        T = np.atleast_2d(np.asarray(T, float))
+        w1, _ = self.chain.joint_screws()[self._outer_inner()[0]]
+        return np.arccos(np.clip(np.abs(T @ w1), 0.0, 1.0))
+
     def inverse_axis(self, T: np.ndarray) -> np.ndarray:
-        """Both inverse branches of the nominal AB head for unit axes T (N,3): (N, 2, 2) array
-        [point, branch, (A, B)] in radians. Branch 0: B = asin(i), A = atan2(-j, k); branch 1:
-        B' = pi - B, A' = A + pi (METHODS section 1). Angles wrapped to (-pi, pi]."""
+        """Both inverse branches for unit tool axes T (N, 3, workpiece frame): (N, 2, 2) array
+        [point, branch, (q1, q2) in ``rotary`` order], radians wrapped to (-pi, pi].
+
+        Paden-Kahan subproblem 2 (Murray, Li & Sastry 1994, section 3.2.3; docs/METHODS.md
+        section 1) on the chain's own rotary screws: exp([w1] th1) exp([w2] th2) h = T with w1
+        the outer and w2 the inner rotary axis and h the home tool axis; the intermediate
+        direction z = a w1 + b w2 + g (w1 x w2) has two solutions +-g, the two branches (AB head:
+        B = asin(i), A = atan2(-j, k) and B' = pi - B, A' = A + pi; tables: tilt' = -tilt,
+        C' = C + pi). At the pole the outer angle is undefined; it is returned as 0."""
         T = np.atleast_2d(np.asarray(T, dtype=float))
-        B0 = np.arcsin(np.clip(T[:, 0], -1.0, 1.0))
-        A0 = np.arctan2(-T[:, 1], T[:, 2])
-        B1 = _wrap(np.pi - B0)
-        A1 = _wrap(A0 + np.pi)
-        return np.stack([np.stack([A0, B0], -1), np.stack([A1, B1], -1)], axis=1)
+        i1, i2, j1, j2 = self._outer_inner()
+        screws = self.chain.joint_screws()
+        w1, w2 = (np.asarray(screws[i][0], float) for i in (i1, i2))
+        h = np.asarray(self.chain.home, float)[:3, 2]
+        a = float(w1 @ w2)
+        c12 = np.cross(w1, w2)
+        den = a * a - 1.0
+        alpha = (a * (w2 @ h) - T @ w1) / den
+        beta = (a * (T @ w1) - w2 @ h) / den
+        g2 = (h @ h - alpha ** 2 - beta ** 2 - 2 * alpha * beta * a) / (c12 @ c12)
+        gam = np.sqrt(np.clip(g2, 0.0, None))
+        out = np.empty((len(T), 2, 2))
+        order = (0, 1) if (j1.name, j2.name) == self.rotary else (1, 0)
+        for branch, sign in enumerate((1.0, -1.0)):
+            z = alpha[:, None] * w1 + beta[:, None] * w2 + (sign * gam)[:, None] * c12
+            th2 = _subproblem1(w2, np.broadcast_to(h, z.shape), z)
+            th1 = _subproblem1(w1, z, T)
+            pair = (th1, th2)
+            out[:, branch, 0] = _wrap(pair[order[0]])
+            out[:, branch, 1] = _wrap(pair[order[1]])
+        return out
+
+    def nearest_with_outer(self, T: np.ndarray, outer: np.ndarray) -> np.ndarray:
+        """The angles (N, 2) rad in ``rotary`` order with the outer rotary axis (the C axis of a
+        table) held at ``outer`` (N,) rad whose tool axis is nearest T (N, 3, unit, workpiece
+        frame): the inner angle turns the home axis h to the projection of exp(-[w1] outer) T on
+        the inner axis' circle (Paden-Kahan subproblem 1). The tool axis then leaves T by at most
+        the angle between T and the inner axis' circle: near the pole, at most the pole angle.
+        How the singularity cone of a CAM system linearises the pole (camsmooth.smoothing.pole)."""
+        T = np.atleast_2d(np.asarray(T, float))
+        outer = np.broadcast_to(np.asarray(outer, float), (len(T),))
+        i1, i2, j1, _ = self._outer_inner()
+        screws = self.chain.joint_screws()
+        w1, w2 = (np.asarray(screws[i][0], float) for i in (i1, i2))
+        h = np.asarray(self.chain.home, float)[:3, 2]
+        back = exp_twist(w1, np.zeros(3), -outer).to_numpy(len(T))[:, :3, :3] @ T[:, :, None]
+        inner = _subproblem1(w2, np.broadcast_to(h, T.shape), back[:, :, 0])
+        return np.column_stack([outer, inner] if j1.name == self.rotary[0] else [inner, outer])
+
+    def branch_of(self, q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
+        """Which inverse branch (0 or 1, as ``inverse_axis`` numbers them) the angles (q1, q2) rad
+        are on: the sign of the +-g component of subproblem 2, read from the inner axis alone
+        (exp([w2] th2) h . (w1 x w2) >= 0: branch 0). Branch 0 is FIRST_BRANCH[kind]; points
+        within 1e-12 of the boundary count as branch 0."""
+        i1, i2, _, j2 = self._outer_inner()
+        screws = self.chain.joint_screws()
+        w1, w2 = (np.asarray(screws[i][0], float) for i in (i1, i2))
+        h = np.asarray(self.chain.home, float)[:3, 2]
+        inner = np.atleast_1d(np.asarray(q1 if j2.name == self.rotary[0] else q2, float))
+        z = exp_twist(w2, np.zeros(3), inner).to_numpy(len(inner))[:, :3, :3] @ h
+        return (z @ np.cross(w1, w2) < -1e-12).astype(int)
 
     def within(self, name: str, values: np.ndarray, tol: float = 1e-9) -> np.ndarray:
         """Mask of values within the travel of axis `name` (True when the axis has no limits)."""
@@ -297,56 +426,79 @@ class Machine:
         return (values >= lim.min - tol) & (values <= lim.max + tol)
 
     def inverse_candidates(self, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Every (A, B) reaching unit axes T (N, 3): both branches of ``inverse_axis`` with A and
-        B shifted by -2 pi, 0 and +2 pi. Returns candidates (N, 18, 2) rad and a mask (N, 18) of
-        those within the A and B travel: every solution within limits, per point."""
+        """Every (q1, q2) reaching unit axes T (N, 3) within +-2 turns: both branches of
+        ``inverse_axis`` with each angle shifted by -4 pi ... +4 pi. Returns candidates (N, 50, 2)
+        rad and a mask (N, 50) of those within the travel: every solution within limits, per point
+        (an axis without travel limits, a continuous C, is unwound by ``solve_row`` instead)."""
         sols = self.inverse_axis(T)
-        shifts = np.array([-2 * np.pi, 0.0, 2 * np.pi])
-        grid = np.stack(np.meshgrid(shifts, shifts, indexing="ij"), -1)
-        cand = (sols[:, :, None, None, :] + grid[None, None]).reshape(len(sols), -1, 2)
-        return cand, self.within("A", cand[..., 0]) & self.within("B", cand[..., 1])
+        shifts = 2 * np.pi * np.arange(-2, 3)
+        grid = np.stack(np.meshgrid(shifts, shifts, indexing="ij"), -1).reshape(-1, 2)
+        cand = (sols[:, :, None, :] + grid[None, None]).reshape(len(sols), -1, 2)
+        r1, r2 = self.rotary
+        return cand, self.within(r1, cand[..., 0]) & self.within(r2, cand[..., 1])
 
     def solve_row(self, T: np.ndarray, cl: np.ndarray | None = None,
                   previous: tuple[float, float] | None = None) -> IKResult:
-        """Inverse kinematics along one row: for every point the (A, B) solution within the
-        travel limits nearest the previous point's solution, with A and B unwrapped by 2 pi to
-        stay continuous; the first point takes the solution nearest ``previous`` (default
-        (0, 0)). Points with no solution in limits are listed in ``unreachable`` (indices) and
-        carry the nearest out-of-limit branch so the row stays continuous.
+        """Inverse kinematics along one row: for every point the (q1, q2) solution within the
+        travel limits nearest the previous point's solution (both branches, every turn within
+        the travel; an axis without travel limits, a continuous C, is unwound to the turn nearest
+        the previous point, so it may pass any number of turns); the first point takes the
+        solution nearest ``previous`` (default (0, 0)). At the pole (``pole_angle`` < POLE_EPS)
+        the outer angle is held at the previous point's. Points with no solution in limits are
+        listed in ``unreachable`` (indices) and carry the nearest out-of-limit branch so the row
+        stays continuous.
 
         T: (N,3) unit tool axes, workpiece frame; cl: (N,3) tool tips, mm (for X, Y, Z).
-        """
+        Returns angles in ``rotary`` order as IKResult.A (q1) and IKResult.B (q2)."""
         T = np.atleast_2d(np.asarray(T, dtype=float))
         n = len(T)
         prev = np.array(previous if previous is not None else (0.0, 0.0), dtype=float)
         cand, ok = self.inverse_candidates(T)
+        free = np.array([not np.isfinite(lim.max - lim.min) for lim in self.rotary_limits()])
+        pole = self.pole_angle(T) < POLE_EPS
+        outer = self.outer_index
         out = np.empty((n, 2))
         reach = ok.any(axis=1)
         # A sequential choice is needed only where the reachable set is ambiguous; the usual case
-        # (exactly one reachable candidate at every point) is vectorised.
+        # on a machine with limited travel (exactly one reachable candidate at every point, no
+        # pole) is vectorised.
         unique = ok.sum(axis=1) == 1
-        if np.all(unique):
+        if np.all(unique) and not free.any() and not pole.any():
             out[:] = cand[np.arange(n), ok.argmax(axis=1)]
         else:
+            two_pi = 2 * np.pi
             ref = prev
             for i in range(n):
-                c = cand[i]
+                c = cand[i].copy()
+                if pole[i]:
+                    c[:, outer] = ref[outer]
+                for k in np.flatnonzero(free):
+                    c[:, k] += two_pi * np.round((ref[k] - c[:, k]) / two_pi)
                 mask = ok[i] if reach[i] else np.ones(len(c), bool)
                 d = np.where(mask, np.linalg.norm(c - ref, axis=1), np.inf)
                 out[i] = c[int(np.argmin(d))]
                 ref = out[i]
         xyz = None
         if cl is not None:
-            xyz = self.linear_axes(cl, T)
+            xyz = self.linear_axes(cl, out[:, 0], out[:, 1])
             for k, name in enumerate("XYZ"):
                 reach &= self.within(name, xyz[:, k])
         return IKResult(A=out[:, 0], B=out[:, 1], xyz=xyz, unreachable=np.flatnonzero(~reach))
 
 
+def _subproblem1(w: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Paden-Kahan subproblem 1 for directions: the angle th (rad, right-hand about the unit axis
+    w) with exp([w] th) u = v, for rows of u, v (N, 3); 0 where u or v is parallel to w."""
+    up = u - np.outer(u @ w, w)
+    vp = v - np.outer(v @ w, w)
+    return np.arctan2(np.cross(up, vp) @ w, np.einsum("ij,ij->i", up, vp))
+
+
 @dataclass(frozen=True)
 class IKResult:
-    """Inverse-kinematics result along a row: A, B (rad), xyz (N,3) mm or None, and the
-    indices of the points with no solution within the limits."""
+    """Inverse-kinematics result along a row: A, B (rad) the machine's first and second rotary
+    axis (``Machine.rotary``: A and C on an AC table), xyz (N,3) mm or None, and the indices of the
+    points with no solution within the limits."""
 
     A: np.ndarray
     B: np.ndarray
@@ -373,6 +525,53 @@ def ab_head_chain(pivot: float) -> Chain:
     home = np.eye(4)
     home[2, 3] = -pivot
     return Chain(joints, home)
+
+
+def table_chain(tilt: str, centre: Sequence[float]) -> Chain:
+    """A trunnion table (AC-table: tilt = "A" about x; BC-table: tilt = "B" about y) seen from the
+    workpiece: the workpiece frame W is carried by the table, so the chain from W to the tool tip
+    runs C (about z through the table centre c, outer), the tilt axis (through c, carried by C),
+    then X, Y, Z, which carry the tool tip in the machine frame. Home: tip at the origin, axis +z.
+    Tip = c + Rz(C) R_tilt (P - c) for P = (X, Y, Z): the inverse of the machine's
+    P = c + R_wp (CL - c), R_wp = R_tilt(-tilt) Rz(-C) (issue 18)."""
+    c = tuple(float(v) for v in centre)
+    d = (1.0, 0.0, 0.0) if tilt == "A" else (0.0, 1.0, 0.0)
+    joints = (
+        Joint("C", "revolute", (0.0, 0.0, 1.0), c),
+        Joint(tilt, "revolute", d, c),
+        Joint("X", "prismatic", (1.0, 0.0, 0.0)),
+        Joint("Y", "prismatic", (0.0, 1.0, 0.0)),
+        Joint("Z", "prismatic", (0.0, 0.0, 1.0)),
+    )
+    return Chain(joints, np.eye(4))
+
+
+def head_table_chain(pivot: float, centre: Sequence[float]) -> Chain:
+    """A B head over a C table (BC-head-table): C about z through the table centre c (outer,
+    carries the workpiece), then X, Y, Z carrying the head's pivot, then B about y through the
+    pivot. Home: tip at (0, 0, -pivot), axis +z. Tip = c + Rz(C)(P - L_p Ry(B) e_z - c)."""
+    c = tuple(float(v) for v in centre)
+    joints = (
+        Joint("C", "revolute", (0.0, 0.0, 1.0), c),
+        Joint("X", "prismatic", (1.0, 0.0, 0.0)),
+        Joint("Y", "prismatic", (0.0, 1.0, 0.0)),
+        Joint("Z", "prismatic", (0.0, 0.0, 1.0)),
+        Joint("B", "revolute", (0.0, 1.0, 0.0), (0.0, 0.0, 0.0)),
+    )
+    home = np.eye(4)
+    home[2, 3] = -pivot
+    return Chain(joints, home)
+
+
+def kind_chain(kind: str, pivot: float, centre: Sequence[float] = (0.0, 0.0, 0.0)) -> Chain:
+    """The nominal chain of a machine kind (MACHINE_KINDS): the one place a kind becomes a chain."""
+    if kind == "AB-head":
+        return ab_head_chain(pivot)
+    if kind in ("AC-table", "BC-table"):
+        return table_chain(kind[0], centre)
+    if kind == "BC-head-table":
+        return head_table_chain(pivot, centre)
+    raise ValueError(f"unknown machine kind {kind!r}")
 
 
 #: dynamics of the linear axes when a machine file does not give them (mm/s, mm/s^2, mm/s^3): a
@@ -487,10 +686,12 @@ def machine_from_dict(data: Mapping[str, Any], source: str = "<machine>") -> Mac
 
     InputError naming ``source`` and the key for: a missing or wrongly typed table or key (a value
     where a table belongs, a string or boolean where a number belongs), non-finite numbers, an
-    unsupported kind, pivot < 0, min >= max, vmax, amax or jmax <= 0, unknown tables (top level or axis)
-    or keys.
+    unsupported kind, pivot < 0 (or a pivot on a table-table machine), min >= max, vmax, amax or
+    jmax <= 0, a C axis with only one of min and max, unknown tables (top level or axis) or keys.
+    The rotary axes ``[axis.*]`` are those of the kind (MACHINE_KINDS); a C axis without min and
+    max is continuous. ``table_centre`` (mm, default the origin) places the table's axes.
     X, Y, Z: vmax, amax, jmax default to LINEAR_DEFAULTS and a missing table to unlimited travel
-    with those dynamics; A, B: jmax defaults to ROTARY_JMAX_DEFAULT.
+    with those dynamics; rotary axes: jmax defaults to ROTARY_JMAX_DEFAULT.
     """
     from camsmooth.errors import InputError
 
@@ -501,25 +702,56 @@ def machine_from_dict(data: Mapping[str, Any], source: str = "<machine>") -> Mac
         raise InputError(f"unknown key(s) {', '.join(unknown)} in [machine] (known: {', '.join(_MACHINE_KEYS)})",
                          file=source)
     kind = m.get("kind")
-    if kind != "AB-head":
+    if kind not in MACHINE_KINDS:
         shown = _toml_repr(kind) if kind is not None else "missing"
-        raise InputError(f"[machine] kind = {shown} is not supported (supported: \"AB-head\")", file=source)
-    pivot = _number(m, "pivot", "machine", source)
-    if pivot < 0:
-        raise InputError(f"[machine] pivot must be >= 0 mm, got {pivot:g}", file=source)
-    name = m.get("name", "AB head")
+        known = ", ".join(f'"{k}"' for k in MACHINE_KINDS)
+        raise InputError(f"[machine] kind = {shown} is not supported (supported: {known})", file=source)
+    rotary = MACHINE_KINDS[kind]
+    head = kind in ("AB-head", "BC-head-table")
+    if head:
+        pivot = _number(m, "pivot", "machine", source)
+        if pivot < 0:
+            raise InputError(f"[machine] pivot must be >= 0 mm, got {pivot:g}", file=source)
+    else:
+        if "pivot" in m:
+            raise InputError(f"[machine] pivot: a table-table machine ({kind}) has no head pivot (its tool length is "
+                             "the "
+                             "controller's); remove the key", file=source)
+        pivot = 0.0
+    centre = (0.0, 0.0, 0.0)
+    if "table_centre" in m:
+        if kind == "AB-head":
+            raise InputError("[machine] table_centre: an AB-head machine has no rotary table; remove the key",
+                             file=source)
+        tc = m["table_centre"]
+        if (not isinstance(tc, list) or len(tc) != 3
+                or any(isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) for v in tc)):
+            raise InputError(f"[machine] table_centre must be three finite numbers [x, y, z] (mm), got "
+                             f"{_toml_repr(tc)}", file=source)
+        centre = tuple(float(v) for v in tc)
+    name = m.get("name", kind.replace("-", " "))
     if not isinstance(name, str):
         raise InputError(f"[machine] name must be a string, got {_toml_repr(name)}", file=source)
     axes = _table(data, "axis", "axis", source, required=False) or {}
-    unknown = set(axes) - {"A", "B", "X", "Y", "Z"}
+    allowed = set(rotary) | {"X", "Y", "Z"}
+    unknown = set(axes) - allowed
     if unknown:
-        raise InputError(f"unknown axis table(s) {', '.join(sorted(unknown))} (an AB head has A, B, X, Y, Z)",
-                         file=source)
+        raise InputError(f"unknown axis table(s) {', '.join(sorted(unknown))} (an {kind} machine has "
+                         f"{', '.join(rotary)}, X, Y, Z)", file=source)
     limits: dict[str, AxisLimits] = {}
-    for ax in ("A", "B"):
+    for ax in rotary:
         t = _table(axes, ax, f"axis.{ax}", source)
         _known_keys(t, ax, source)
-        vals = {k: _number(t, k, f"axis.{ax}", source) for k in ("min", "max", "vmax", "amax")}
+        travel = ("min", "max")
+        if ax == "C" and not any(k in t for k in travel):
+            travel = ()  # a continuous C: no travel limits
+        elif ax == "C" and sum(k in t for k in travel) == 1:
+            given = "min" if "min" in t else "max"
+            raise InputError(f"[axis.C] gives {given} but not {'max' if given == 'min' else 'min'}: give both "
+                             "or neither (a continuous C)", file=source)
+        vals = {k: _number(t, k, f"axis.{ax}", source) for k in travel + ("vmax", "amax")}
+        vals.setdefault("min", -np.inf)
+        vals.setdefault("max", np.inf)
         vals["jmax"] = _number(t, "jmax", f"axis.{ax}", source) if "jmax" in t else ROTARY_JMAX_DEFAULT
         if vals["min"] >= vals["max"]:
             raise InputError(f"[axis.{ax}] min {vals['min']:g} must be below max {vals['max']:g}", file=source)
@@ -537,13 +769,13 @@ def machine_from_dict(data: Mapping[str, Any], source: str = "<machine>") -> Mac
         vals = {k: _number(t, k, f"axis.{ax}", source) if k in t else d for k, d in LINEAR_DEFAULTS.items()}
         _positive(vals, ax, source)
         limits[ax] = AxisLimits(lo, hi, **vals)
-    return Machine(name, kind, pivot, ab_head_chain(pivot), limits,
-                   post_from_dict(data.get("post", {}), source))
+    return Machine(name, kind, pivot, kind_chain(kind, pivot, centre), limits,
+                   post_from_dict(data.get("post", {}), source), table_centre=centre)
 
 
 _AXIS_KEYS = ("min", "max", "vmax", "amax", "jmax")
 _TOP_TABLES = ("machine", "axis", "post")
-_MACHINE_KEYS = ("name", "kind", "pivot")
+_MACHINE_KEYS = ("name", "kind", "pivot", "table_centre")
 
 
 def _known_tables(data: Mapping[str, Any], source: str) -> None:

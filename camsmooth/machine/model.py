@@ -976,8 +976,8 @@ def compensate(model: ErrorModel, machine: Machine, tip: np.ndarray, axis: np.nd
     axis = np.atleast_2d(np.asarray(axis, float))
     axis = axis / np.linalg.norm(axis, axis=1, keepdims=True)
     n = len(tip)
-    q = np.column_stack([np.broadcast_to(np.asarray(A0, float), (n,)),
-                         np.broadcast_to(np.asarray(B0, float), (n,)), machine.linear_axes(tip, axis)])
+    A0, B0 = np.broadcast_to(np.asarray(A0, float), (n,)), np.broadcast_to(np.asarray(B0, float), (n,))
+    q = np.column_stack([A0, B0, machine.linear_axes(tip, A0, B0)])
     thermal = model._thermal(t, spindle_rpm, n)
     chain = model.chain(machine)
     w = max(machine.pivot, 1.0)

@@ -26,7 +26,7 @@ def _plot(series: dict[str, np.ndarray], machine: Any) -> Any:
     t = series["t"]
     for ax, key, unit, lim in ((axs[0], "angle", "deg", None), (axs[1], "velocity", "deg/s", "vmax"),
                                (axs[2], "acceleration", "deg/s\u00b2", "amax")):
-        for name, colour in (("A", "#1f77b4"), ("B", "#d62728")):
+        for name, colour in zip(machine.rotary, ("#1f77b4", "#d62728"), strict=True):
             ax.plot(t, series[f"{name} {key}"], color=colour, linewidth=0.8, label=name)
             if lim is not None:
                 v = np.degrees(getattr(machine.limits[name], lim))
@@ -36,7 +36,7 @@ def _plot(series: dict[str, np.ndarray], machine: Any) -> Any:
         ax.grid(True, alpha=0.3)
         ax.legend(loc="upper right", fontsize=7)
     axs[2].set_xlabel("program time at the programmed feed (s, rows concatenated)")
-    fig.suptitle("The program as it is: rotary axes A and B; dashed: the machine's limits")
+    fig.suptitle(f"The program as it is: rotary axes {' and '.join(machine.rotary)}; dashed: the machine's limits")
     return fig
 
 

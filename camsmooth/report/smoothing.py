@@ -244,13 +244,17 @@ def _decimation_note(series: Sequence[_Series]) -> str:
 
 
 def _plot_axes(series: list[_Series], colours: dict[str, str], machine: Any, quantity: str) -> Any:
-    """A and B per method (columns): angle, velocity or acceleration with its limits."""
+    """The two rotary axes per method (columns): angle, velocity or acceleration with its limits.
+    The results hold them as A and B (the machine's first and second rotary axis); they are
+    labelled and limited by the machine's names (A and C on an AC table)."""
+    r1, r2 = getattr(machine, "rotary", ("A", "B"))
     spec = {
-        "angle": ("A", "B", "deg", "travel", lambda m, ax: getattr(m, ax)),
-        "velocity": ("A'", "B'", "deg/s", "\u00b1vmax", lambda m, ax: getattr(m, f"{ax}_vel")),
-        "acceleration": ("A''", "B''", "deg/s\u00b2", "\u00b1amax", lambda m, ax: getattr(m, f"{ax}_acc")),
+        "angle": (r1, r2, "deg", "travel", lambda m, ax: getattr(m, ax)),
+        "velocity": (f"{r1}'", f"{r2}'", "deg/s", "\u00b1vmax", lambda m, ax: getattr(m, f"{ax}_vel")),
+        "acceleration": (f"{r1}''", f"{r2}''", "deg/s\u00b2", "\u00b1amax", lambda m, ax: getattr(m, f"{ax}_acc")),
     }[quantity]
     lab_a, lab_b, unit, limit_label, get = spec
+    machine_name = {"A": r1, "B": r2}
     title = f"Rotary axes: {quantity} per method ({unit}){_decimation_note(series)}"
     fig, axes = _figure(2, len(series), title, sharey="row")
     # one scale per axis across the methods: the travel lines are drawn for all or for none
@@ -269,10 +273,12 @@ def _plot_axes(series: list[_Series], colours: dict[str, str], machine: Any, qua
                 y = np.degrees(np.asarray(get(s.m, axis_name), dtype=float))
             x, yy = s.line(y)
             ax.plot(x, yy, color=colours[s.m.method], linewidth=0.9, label=s.m.method)
-            lim = _axis_limits(machine, axis_name)
+            lim = _axis_limits(machine, machine_name[axis_name])
             if lim is not None:
                 if quantity == "angle":
-                    _limit_lines(ax, np.degrees([lim.min, lim.max]), "travel", union[axis_name], always=False)
+                    if np.isfinite(lim.max - lim.min):  # a continuous C has no travel to draw
+                        _limit_lines(ax, np.degrees([lim.min, lim.max]), "travel", union[axis_name],
+                                     always=False)
                 else:
                     vmax = lim.vmax if quantity == "velocity" else lim.amax
                     if np.isfinite(vmax):
@@ -851,14 +857,17 @@ def _setup_html(result: SmoothResult) -> str:
     if m is not None:
         rows.append(("machine", f"{getattr(m, 'name', '?')} (kind {getattr(m, 'kind', '?')}, "
                                 f"pivot {_fmt(getattr(m, 'pivot', None))} mm)"))
-        for ax in ("A", "B", "X", "Y", "Z"):
+        rotary = tuple(getattr(m, "rotary", ("A", "B")))
+        for ax in (*rotary, "X", "Y", "Z"):
             lim = _axis_limits(m, ax)
             if lim is None:
                 continue
-            rot = ax in "AB"
+            rot = ax in rotary
             conv = np.degrees if rot else float
             u = "deg" if rot else "mm"
-            rows.append((f"axis {ax}", f"travel {_fmt(conv(lim.min))} to {_fmt(conv(lim.max))} {u}, "
+            travel = (f"travel {_fmt(conv(lim.min))} to {_fmt(conv(lim.max))} {u}" if np.isfinite(lim.max - lim.min)
+                      else "continuous" if rot else "travel not given")
+            rows.append((f"axis {ax}", f"{travel}, "
                                        f"vmax {_fmt(conv(lim.vmax))} {u}/s, amax {_fmt(conv(lim.amax))} {u}/s\u00b2"))
         post = getattr(m, "post", None)
         if post is not None:

@@ -25,24 +25,26 @@ from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl
 from camsmooth.geometry.frames import axis_from_lead_tilt, local_frames
 from camsmooth.geometry.paths import CCPath, estimate_feed_dirs
 from camsmooth.io.program import CLProgram, Tool, Written
-from camsmooth.machine.kinematics import Machine
+from camsmooth.machine.kinematics import FIRST_BRANCH, SECOND_BRANCH, Machine
 from camsmooth.smoothing.evaluate import evaluate_program
 from camsmooth.smoothing.nlp import program_rates
 from camsmooth.smoothing.result import interferes
 
 __all__ = ["SINGULAR_DEG", "ProgramAnalysis", "ToolpathAnalysis", "analyze_program"]
 
-SINGULAR_DEG = 5.0  # |B| within this of 90 deg: near the AB head's singularity
+SINGULAR_DEG = 5.0  # tool axis within this of the pole (Machine.pole_angle): near the singularity
 
 
 @dataclass(frozen=True)
 class ToolpathAnalysis:
     """One tool path (module docstring). tool: diameter, corner_radius (mm), kind (None when the
-    program declares none); feed: the programmed feeds (mm/min) as [min, max]; A_range_deg,
-    B_range_deg: [min, max]; branch: which inverse-kinematics branch the program runs on;
+    program declares none); feed: the programmed feeds (mm/min) as [min, max]; range_deg: rotary
+    axis name -> [min, max] (deg; ``<axis>_range_deg`` in the JSON); branch: which inverse-kinematics
+    branch the program runs on (``Machine.branch_of``);
     violations: count of samples over each limit; gamma (1/s^4); peaks: largest |velocity| and
     |acceleration| per axis (deg/s, deg/s^2, mm/s, mm/s^2); singular: points and passes within
-    SINGULAR_DEG of |B| = 90 deg; clearance: min, gouges (below -tolerance), air points (above it)
+    SINGULAR_DEG of the pole (``Machine.pole_angle``: the C axis of a table, |B| = 90 deg on the AB
+    head); clearance: min, gouges (below -tolerance), air points (above it)
     or None without a mesh (camsmooth's result CSV: as it was written); violations and peaks under
     the planned time law (the headline, as ``smooth`` counts them; 'interference' when the clearance
     is known), violations_programmed and peaks_programmed at the programmed feed;
@@ -55,8 +57,7 @@ class ToolpathAnalysis:
     tool: dict[str, Any] | None
     points: int
     feed: list[float]
-    A_range_deg: list[float]
-    B_range_deg: list[float]
+    range_deg: dict[str, list[float]]
     branch: str
     violations: dict[str, int]
     gamma: float
@@ -92,7 +93,18 @@ class ProgramAnalysis:
 
     def to_json(self) -> dict[str, Any]:
         return {"units": "mm", "angles": "deg", "source": self.source, "format": self.format, "points": self.points,
-                "warnings": list(self.warnings), "toolpaths": [asdict(t) for t in self.toolpaths]}
+                "warnings": list(self.warnings), "toolpaths": [_toolpath_json(t) for t in self.toolpaths]}
+
+
+def _toolpath_json(tp: ToolpathAnalysis) -> dict[str, Any]:
+    """A ToolpathAnalysis as the pinned JSON: its fields, the rotary ranges as ``<axis>_range_deg``."""
+    out: dict[str, Any] = {}
+    for k, v in asdict(tp).items():
+        if k == "range_deg":
+            out.update({f"{axis}_range_deg": rng for axis, rng in v.items()})
+        else:
+            out[k] = v
+    return out
 
 
 def _tool_json(tool: Tool | None) -> dict[str, Any] | None:
@@ -131,7 +143,7 @@ def _toolpath(name: str, tool: Tool | None, machine: Machine, tip: np.ndarray, a
     for); own_blocks: the points are the controller's blocks already (camsmooth's G-code)."""
     A, B = (angles[:, 0], angles[:, 1]) if angles is not None else _ik(machine, axes, rows)
     T = machine.tool_axis_np(A, B)
-    xyz = machine.linear_axes(tip, T)
+    xyz = machine.linear_axes(tip, A, B)
     own = written is not None
     t = written.t if own and written.t is not None else _times(tip, feed, rows)
     f = written.feed if own and written.feed is not None else feed
@@ -140,18 +152,18 @@ def _toolpath(name: str, tool: Tool | None, machine: Machine, tip: np.ndarray, a
                           t_plan=written.t_plan if own else None,
                           keep=np.ones(len(rows), bool) if own_blocks else None)
     law = ev.law
-    deg = {k: (np.degrees(1.0) if k[0] in "AB" else 1.0) for k in ev.peaks}
+    deg = {k: (np.degrees(1.0) if k.split()[0] in machine.rotary else 1.0) for k in ev.peaks}
     peaks = {k: v * deg[k] for k, v in ev.peaks.items()}
     peaks_p = {k: v * deg[k] for k, v in ev.peaks_programmed.items()}
     starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
     ends = np.r_[starts[1:], len(t)] - 1
     offset = np.repeat(np.r_[0.0, np.cumsum(t[ends])[:-1]], np.diff(np.r_[starts, len(t)]))
     series = {"t": t + offset}
-    for name_, qq in (("A", A), ("B", B)):
+    for name_, qq in zip(machine.rotary, (A, B), strict=True):
         rq = program_rates(qq, t, rows)
         series[f"{name_} angle"], series[f"{name_} velocity"] = np.degrees(qq), np.degrees(rq.vel)
         series[f"{name_} acceleration"] = np.degrees(rq.acc)
-    near = np.abs(np.cos(B)) < np.sin(np.radians(SINGULAR_DEG))
+    near = machine.pole_angle(T) < np.radians(SINGULAR_DEG)
     passes = int(np.sum(np.diff(np.r_[0, near.astype(int)]) == 1))
     clear = None
     viol, viol_p = dict(ev.violations), dict(ev.violations_programmed)
@@ -166,15 +178,15 @@ def _toolpath(name: str, tool: Tool | None, machine: Machine, tip: np.ndarray, a
                  "tolerance_mm": float(tolerance)}
     if clear is not None:
         viol["interference"] = viol_p["interference"] = clear["gouges"]
-    branch = ("B in [-90, 90] deg (the first branch of docs/METHODS.md section 1.4)"
-              if np.all(np.abs(B) <= np.pi / 2 + 1e-12)
-              else f"B beyond +-90 deg at {int(np.sum(np.abs(B) > np.pi / 2))} points (the second branch)")
+    second = int(machine.branch_of(A, B).sum())
+    branch = (f"{FIRST_BRANCH[machine.kind]} (the first branch of docs/METHODS.md section 1.4)" if not second
+              else f"{SECOND_BRANCH[machine.kind]} at {second} points (the second branch)")
     row_ids = (written.row_id[starts] if own and written.row_id is not None else rows[starts]).tolist()
     ctrl = law.controller
     return ToolpathAnalysis(name=name, tool=_tool_json(tool), points=len(tip),
                             feed=[float(f[1:].min(initial=f[0])), float(f[1:].max(initial=f[0]))],
-                            A_range_deg=[float(np.degrees(A.min())), float(np.degrees(A.max()))],
-                            B_range_deg=[float(np.degrees(B.min())), float(np.degrees(B.max()))], branch=branch,
+                            range_deg={r: [float(np.degrees(q.min())), float(np.degrees(q.max()))]
+                                       for r, q in zip(machine.rotary, (A, B), strict=True)}, branch=branch,
                             violations=viol, gamma=ev.gamma, peaks=peaks, singular={"points": int(near.sum()),
                                                                                     "passes": passes},
                             clearance=clear, cycle_time_s=law.cycle_time, limiting=law.limiting,
@@ -221,6 +233,12 @@ def analyze_program(program: CLProgram | CCPath, machine: Machine, *, index: Mes
         return ProgramAnalysis(program.source, "cc-csv", len(tip), [tp], warnings, series)
     prog = program.cutting()
     axes = prog.require_axis()
+    if prog.angles is not None and tuple(prog.rotary) != machine.rotary:
+        from camsmooth.errors import InputError
+
+        raise InputError(f"the program commands rotary axes {','.join(prog.rotary)} but the machine ({machine.kind}) "
+                         f"has {','.join(machine.rotary)}: give the machine file it was written for (--machine)",
+                         file=program.source)
     f = np.where(np.isfinite(prog.feed), prog.feed, np.nan if feed is None else float(feed))
     f = _fill_starts(f, prog.rows)
     _check_feed(f, program.source, prog.line)

@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from camsmooth.machine.kinematics import Machine
-from camsmooth.smoothing.feed import FeedPlan, plan_program, row_slices
+from camsmooth.smoothing.feed import FeedPlan, machine_label, plan_program, row_slices
 from camsmooth.smoothing.nlp import limit_violations, program_rates
 
 __all__ = ["WRITTEN_DECIMALS", "TimeLaw", "Evaluation", "axis_violations", "evaluate_program", "gamma_of",
@@ -40,7 +40,7 @@ WRITTEN_DECIMALS = 4
 
 
 def written_joints(q: np.ndarray) -> np.ndarray:
-    """(N, 5) joints X Y Z (mm) A B (rad) rounded as the G-code writer writes them (X Y Z to
+    """(N, 5) joints X Y Z (mm) and two rotary axes (rad) rounded as the G-code writer writes them (X Y Z to
     WRITTEN_DECIMALS decimals of a mm, A B of a degree), back in mm and rad."""
     q = np.array(q, dtype=float).reshape(-1, 5)
     q[:, :3] = np.round(q[:, :3], WRITTEN_DECIMALS)
@@ -48,16 +48,17 @@ def written_joints(q: np.ndarray) -> np.ndarray:
     return q
 
 
-def written_resolution() -> dict[str, float]:
-    """Half the unit of the last written decimal per axis (mm; rad for A and B)."""
+def written_resolution(machine: Machine) -> dict[str, float]:
+    """Half the unit of the last written decimal per axis (mm; rad for the rotary axes)."""
     e = 0.5 * 10.0 ** -WRITTEN_DECIMALS
-    return {"X": e, "Y": e, "Z": e, "A": float(np.radians(e)), "B": float(np.radians(e))}
+    return {"X": e, "Y": e, "Z": e} | {r: float(np.radians(e)) for r in machine.rotary}
 
 
-def joints(q: np.ndarray) -> dict[str, np.ndarray]:
-    """Axis name -> column of (N, 5) joints X Y Z A B."""
+def joints(q: np.ndarray, machine: Machine) -> dict[str, np.ndarray]:
+    """Axis name -> column of (N, 5) joints X Y Z and the machine's rotary axes
+    (``Machine.joint_names``)."""
     q = np.asarray(q, float).reshape(-1, 5)
-    return {name: q[:, k] for k, name in enumerate("XYZAB")}
+    return {name: q[:, k] for k, name in enumerate(machine.joint_names)}
 
 
 def gamma_of(T: np.ndarray, t: np.ndarray, rows: np.ndarray) -> float:
@@ -72,8 +73,9 @@ def axis_violations(machine: Machine, q: np.ndarray, t: np.ndarray, rows: np.nda
     peaks (internal units). written: judge the positions as camsmooth writes them (module
     docstring); False: as given, 1e-9 relative slack (a program read from another system)."""
     if written:
-        return limit_violations(machine.limits, joints(written_joints(q)), t, rows, resolution=written_resolution())
-    return limit_violations(machine.limits, joints(q), t, rows)
+        return limit_violations(machine.limits, joints(written_joints(q), machine), t, rows,
+                                resolution=written_resolution(machine))
+    return limit_violations(machine.limits, joints(q, machine), t, rows)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -122,7 +124,7 @@ def time_law(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
     t_plan = np.asarray(t_plan, float)
     row_opt = _row_ends(t_plan, rows)
     law = dict(plan=plan, t_plan=t_plan, row_cycle_time_optimal=row_opt, cycle_time_optimal=float(row_opt.sum()),
-               limiting=plan.limiting if plan is not None else "", controller=None,
+               limiting=machine_label(plan.limiting, machine) if plan is not None else "", controller=None,
                cycle_time=float(row_opt.sum()), row_cycle_time=row_opt)
     planner = planner_for(machine, tolerance)
     if planner is not None and len(rows):

@@ -57,7 +57,8 @@ from camsmooth.errors import InputError
 from camsmooth.geometry.paths import _row_runs
 from camsmooth.machine.kinematics import Machine
 
-#: joint order of ``q`` (X Y Z mm: the pivot; A B rad)
+#: joint order of ``q`` (X Y Z mm: the linear axes; "A" "B": the machine's first and second rotary
+#: axis, rad, ``Machine.rotary``; names in CONSTRAINTS are mapped by ``machine_label``)
 AXES = ("X", "Y", "Z", "A", "B")
 #: constraint names, indexed by ``RowPlan.limit`` and ``limit_time``
 CONSTRAINTS = ("feed",) + tuple(f"{a} velocity" for a in AXES) + tuple(f"{a} acceleration" for a in AXES)
@@ -128,6 +129,15 @@ class FeedPlan:
         return [limiting_name(lt) for lt in self.row_limit_time]
 
 
+def machine_label(name: str, machine: Machine) -> str:
+    """A CONSTRAINTS name with the joint position ("A", "B": the first and second rotary axis)
+    replaced by the machine's own axis name ("B velocity" is "C velocity" on an AC table)."""
+    head, _, rest = name.partition(" ")
+    if rest and head in AXES:
+        return f"{machine.joint_names[AXES.index(head)]} {rest}"
+    return name
+
+
 def limiting_name(limit_time: np.ndarray) -> str:
     """The name in CONSTRAINTS with the largest time, 'none' when all are 0."""
     limit_time = np.asarray(limit_time, float)
@@ -135,9 +145,9 @@ def limiting_name(limit_time: np.ndarray) -> str:
 
 
 def axis_limits(machine: Machine) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(vmax, amax, jmax) per axis in AXES order (mm/s, mm/s^2, mm/s^3 for X Y Z; rad/s, rad/s^2,
-    rad/s^3 for A B); inf where the machine gives no limit."""
-    lims = [machine.limits.get(a) for a in AXES]
+    """(vmax, amax, jmax) per joint in ``machine.joint_names`` order (X Y Z: mm/s, mm/s^2, mm/s^3;
+    the rotary axes: rad/s, rad/s^2, rad/s^3); inf where the machine gives no limit."""
+    lims = [machine.limits.get(a) for a in machine.joint_names]
     out = [np.array([getattr(lim, k, np.inf) if lim is not None else np.inf for lim in lims], float)
            for k in ("vmax", "amax", "jmax")]
     return out[0], out[1], out[2]

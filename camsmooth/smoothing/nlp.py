@@ -43,12 +43,13 @@ WINDOW_BACKOFF = 2e-6  # rad (0.4 arc-seconds): far below any machine error a mo
 
 
 def enforced_limits(machine: Machine, backoff: float = BACKOFF) -> dict[str, AxisLimits]:
-    """The A and B limits the NLP enforces (rad, rad/s, rad/s^2): the machine's travel shrunk by
-    backoff / 2 of its span at each end, velocity and acceleration limits by the fraction backoff."""
+    """The rotary axes' limits the NLP enforces (rad, rad/s, rad/s^2), keyed by name
+    (``Machine.rotary``): the machine's travel shrunk by backoff / 2 of its span at each end (a
+    continuous axis keeps no travel limit), velocity and acceleration limits by the fraction backoff."""
     out = {}
-    for name in "AB":
+    for name in machine.rotary:
         L = machine.limits[name]
-        w = (L.max - L.min) * backoff * 0.5
+        w = (L.max - L.min) * backoff * 0.5 if np.isfinite(L.max - L.min) else 0.0
         out[name] = AxisLimits(L.min + w, L.max - w, L.vmax * (1 - backoff), L.amax * (1 - backoff))
     return out
 
@@ -224,9 +225,9 @@ class NLPStatus:
     total_rows: int = 0
 
 
-# Constraint groups of one row, in the order of the NLP's g: segment velocities of A and B
-# (N-1 each), second differences of A and B (N-2 each), the lead window n.T and the two tilt
-# half-planes (N each).
+# Constraint groups of one row, in the order of the NLP's g: segment velocities of the first ("A")
+# and second ("B") rotary axis (N-1 each), second differences of A and B (N-2 each), the lead
+# window n.T and the two tilt half-planes (N each).
 GROUPS = ("A velocity", "B velocity", "A acceleration", "B acceleration", "lead window", "tilt min", "tilt max",
           "clear floor", "clear ceiling")
 N_LINEAR = 4  # the first groups are linear in (A, B); the rest are per-point functions of the tool axis
@@ -537,7 +538,7 @@ class RowNLP:
         """lbx, ubx, lbg, ubg (every row of GROUPS) for the current windows: ``enforced_limits``
         with the fraction ``backoff`` (BACKOFF by default) and the ``narrowed`` windows."""
         n = self.n
-        la, lb = (enforced_limits(self.machine, self.backoff)[k] for k in "AB")
+        la, lb = (enforced_limits(self.machine, self.backoff)[k] for k in self.machine.rotary)
         lbx = np.empty(2 * n)
         ubx = np.empty(2 * n)
         lbx[0::2], ubx[0::2], lbx[1::2], ubx[1::2] = la.min, la.max, lb.min, lb.max
@@ -558,13 +559,13 @@ class RowNLP:
         """Rows within the screening margin of a bound, or past it: velocity and acceleration
         rows within SCREEN_MARGIN of the limit, tilt rows within SCREEN_TILT_MARGIN (rad; a tilt
         row's value is sin(tilt - bound) times sin(lead))."""
-        lim = self.machine.limits
+        la, lb = self.machine.rotary_limits()
         gl = self._split(g)[4]
         rho = np.maximum(np.sqrt(np.clip(1 - gl ** 2, 0, 1)), np.sin(np.radians(0.5)))
-        scale = np.concatenate([np.full(self.sizes[0], lim["A"].vmax * SCREEN_MARGIN),
-                                np.full(self.sizes[1], lim["B"].vmax * SCREEN_MARGIN),
-                                np.full(self.sizes[2], lim["A"].amax * SCREEN_MARGIN),
-                                np.full(self.sizes[3], lim["B"].amax * SCREEN_MARGIN),
+        scale = np.concatenate([np.full(self.sizes[0], la.vmax * SCREEN_MARGIN),
+                                np.full(self.sizes[1], lb.vmax * SCREEN_MARGIN),
+                                np.full(self.sizes[2], la.amax * SCREEN_MARGIN),
+                                np.full(self.sizes[3], lb.amax * SCREEN_MARGIN),
                                 np.full(self.sizes[4], np.inf), rho * SCREEN_TILT_MARGIN, rho * SCREEN_TILT_MARGIN,
                                 np.full(2 * self.n, np.inf)])
         with np.errstate(invalid="ignore"):
@@ -667,7 +668,7 @@ class RowNLP:
         out: list[tuple[str, int, float]] = []
         lim = self.machine.limits
         D1, D2 = fd_operators(t)
-        for name, q in (("A", A), ("B", B)):
+        for name, q in zip(self.machine.rotary, (A, B), strict=True):
             L = lim[name]
             over = np.maximum(q - L.max, L.min - q)
             if np.any(over > 1e-9):
@@ -737,11 +738,16 @@ def elastic_diagnosis(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_
     cmin = Y * np.cos(tmin) - X * np.sin(tmin)
     cmax = X * np.sin(tmax) - Y * np.cos(tmax)
     dotc = lambda C: C[:, 0] * Tx + C[:, 1] * Ty + C[:, 2] * Tz  # noqa: E731
-    va, vb = ca.mtimes(d1, A) / lim["A"].vmax, ca.mtimes(d1, B) / lim["B"].vmax
-    aa, ab = ca.mtimes(d2, A) / lim["A"].amax, ca.mtimes(d2, B) / lim["B"].amax
-    wa, wb = lim["A"].max - lim["A"].min, lim["B"].max - lim["B"].min
-    ta = (A - 0.5 * (lim["A"].max + lim["A"].min)) / wa  # within +-1/2 inside the travel
-    tb = (B - 0.5 * (lim["B"].max + lim["B"].min)) / wb
+    r1, r2 = machine.rotary
+    L1, L2 = lim[r1], lim[r2]
+    va, vb = ca.mtimes(d1, A) / L1.vmax, ca.mtimes(d1, B) / L2.vmax
+    aa, ab = ca.mtimes(d2, A) / L1.amax, ca.mtimes(d2, B) / L2.amax
+
+    def travel(q: ca.SX, L: AxisLimits) -> ca.SX:  # within +-1/2 inside the travel; 0 when continuous
+        w = L.max - L.min
+        return (q - 0.5 * (L.max + L.min)) / w if np.isfinite(w) else 0 * q
+
+    ta, tb = travel(A, L1), travel(B, L2)
     g = ca.vertcat(va - s[0], va + s[0], vb - s[1], vb + s[1], aa - s[2], aa + s[2], ab - s[3], ab + s[3],
                    ta - s[4], ta + s[4], tb - s[5], tb + s[5], dotc(Z), dotc(cmin), dotc(cmax))
     m1, m2 = n - 1, n - 2
@@ -763,9 +769,10 @@ def elastic_diagnosis(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_
     slack = xs[2 * n:]
     k = int(np.argmax(slack))
     Aopt, Bopt = xs[0:2 * n:2], xs[1:2 * n:2]
-    names = ("A velocity", "B velocity", "A acceleration", "B acceleration", "A travel", "B travel")
-    axis = names[k][0]
-    q = Aopt if axis == "A" else Bopt
+    names = (f"{r1} velocity", f"{r2} velocity", f"{r1} acceleration", f"{r2} acceleration", f"{r1} travel",
+             f"{r2} travel")
+    axis = names[k].split()[0]
+    q = Aopt if axis == r1 else Bopt
     L, M = lim[axis], machine.limits[axis]
     if k >= 4:  # travel: the point furthest outside, and the angle it needs
         over = np.maximum(q - L.max, L.min - q)
@@ -825,15 +832,16 @@ def clearance_elastic(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_
                    poly(bounds.ceiling, ce) - lead[ce.tolist()] + s[len(fl):])
     m1, m2, inf = n - 1, n - 2, np.inf
     full = np.full
-    lbg = np.concatenate([full(m1, -lim["A"].vmax), full(m1, -lim["B"].vmax), full(m2, -lim["A"].amax),
-                          full(m2, -lim["B"].amax), np.cos(lead_window[:, 1]), np.zeros(2 * n),
+    L1, L2 = (lim[r] for r in machine.rotary)
+    lbg = np.concatenate([full(m1, -L1.vmax), full(m1, -L2.vmax), full(m2, -L1.amax),
+                          full(m2, -L2.amax), np.cos(lead_window[:, 1]), np.zeros(2 * n),
                           full(len(fl) + len(ce), WINDOW_BACKOFF)])
-    ubg = np.concatenate([full(m1, lim["A"].vmax), full(m1, lim["B"].vmax), full(m2, lim["A"].amax),
-                          full(m2, lim["B"].amax), np.cos(lead_window[:, 0]), full(2 * n, inf),
+    ubg = np.concatenate([full(m1, L1.vmax), full(m1, L2.vmax), full(m2, L1.amax),
+                          full(m2, L2.amax), np.cos(lead_window[:, 0]), full(2 * n, inf),
                           full(len(fl) + len(ce), inf)])
-    lbx = np.concatenate([np.ravel(np.column_stack([full(n, lim["A"].min), full(n, lim["B"].min)])),
+    lbx = np.concatenate([np.ravel(np.column_stack([full(n, L1.min), full(n, L2.min)])),
                           np.zeros(len(s.nz))])
-    ubx = np.concatenate([np.ravel(np.column_stack([full(n, lim["A"].max), full(n, lim["B"].max)])),
+    ubx = np.concatenate([np.ravel(np.column_stack([full(n, L1.max), full(n, L2.max)])),
                           full(len(s.nz), inf)])
     solver = ca.nlpsol("clearance_elastic", "ipopt", {"x": ca.vertcat(x, s), "f": ca.sum1(s), "g": g},
                        {"ipopt.print_level": 0, "print_time": 0, "ipopt.sb": "yes", "ipopt.max_iter": 1000,

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import time
 import uuid
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -46,6 +46,7 @@ from camsmooth.smoothing.orientation import (
     surface_curvature_tensors,
 )
 from camsmooth.smoothing.parallel import RowPool, default_workers
+from camsmooth.smoothing.pole import PolePassage, find_passages, pole_start
 from camsmooth.smoothing.result import MethodResult, Metrics, PointNote, SmoothResult, interferes
 from camsmooth.smoothing.rows import (
     RowContext,
@@ -202,9 +203,9 @@ def smooth(path: CCPath | CamProgram, surface: Surface, machine: Machine | None 
             results["spline"], spline_gouge = sm.spline(none)
         if method == "nlp":
             risk = (none.delta < -tolerance) | spline_gouge
-            results["nlp"] = sm.nlp(results["spline"], risk, "nlp", progress)
+            results["nlp"] = sm.nlp(results["spline"], risk, "nlp", progress, exact=none)
             if model is not None:
-                results["nlp-ideal"] = sm.nlp(results["spline"], risk, "nlp-ideal", progress)
+                results["nlp-ideal"] = sm.nlp(results["spline"], risk, "nlp-ideal", progress, exact=none)
         for r in results.values():
             sm.plan(r)
     for r in results.values():
@@ -308,15 +309,27 @@ class ProgramSmoother:
                            runtime=time.perf_counter() - t0)
         return res, gouge
 
-    def nlp(self, warm: MethodResult, risk: np.ndarray, label: str, progress: bool = False) -> MethodResult:
+    def nlp(self, warm: MethodResult, risk: np.ndarray, label: str, progress: bool = False,
+            exact: MethodResult | None = None) -> MethodResult:
         """The NLP over every row (camsmooth.smoothing.rows.solve_row) on the real machine
-        (``label`` 'nlp') or the nominal one ('nlp-ideal'), warm-started from ``warm``."""
+        (``label`` 'nlp') or the nominal one ('nlp-ideal'), warm-started from ``warm``; rows that
+        pass the pole start from ``camsmooth.smoothing.pole.pole_start`` on ``exact`` (the exact
+        inverse, the 'none' program), and the result names every passage (``Metrics.pole``)."""
         t0 = time.perf_counter()
         p, o = self.program, self.program.orientation
         machine = 0 if label == "nlp" else 1
+        A0, B0 = warm.A, warm.B
+        passages = []
+        if exact is not None:
+            exact_q = np.column_stack([exact.A, exact.B])
+            passages = find_passages(self.nominal, o.axis, p.path.rows, p.t, exact_q)
+            if passages:
+                start = pole_start(self.nominal, o.axis, p.path.rows, p.t, exact_q)
+                pole_rows = np.isin(p.path.rows, [q.row for q in passages])
+                A0, B0 = np.where(pole_rows, start[:, 0], A0), np.where(pole_rows, start[:, 1], B0)
         tasks = [RowTask(row=int(p.path.rows[s.start]), t=p.t[s], frames=p.frames[s], cc=p.path.points[s],
                          normals=p.path.normals[s], lead_window=o.lead_window[s], tilt_window=o.tilt_window[s],
-                         A0=warm.A[s], B0=warm.B[s], risk=risk[s], machine=machine) for s in p.slices]
+                         A0=A0[s], B0=B0[s], risk=risk[s], machine=machine) for s in p.slices]
         sols: list[RowSolution] = self.pool.map(solve_row, tasks, progress=f"{label} rows" if progress else None)
         cat = lambda name: np.concatenate([getattr(s, name) for s in sols])  # noqa: E731
         A, B, delta, lift = cat("A"), cat("B"), cat("delta"), cat("lift")
@@ -341,7 +354,24 @@ class ProgramSmoother:
                                best_clearance_mm=float(best[i])) for i in np.flatnonzero(blocked & (lift > 0))]
         m.unreachable_clear = [PointNote(point=name(i), row=int(p.path.rows[i]), idx=int(p.idx[i]),
                                          lift_mm=float(lift[i])) for i in np.flatnonzero(unreach)]
+        if passages:
+            m.pole = self._pole_costs(passages, res.axis, exact.axis)
         return res
+
+    def _pole_costs(self, passages: list[PolePassage], T: np.ndarray, T_exact: np.ndarray) -> list[PolePassage]:
+        """Each passage with its cost in Gamma: sum of |T''|^2 (1/s^4, programmed-feed time) over
+        its points, the smoothed program's T minus the exact inverse's (camsmooth.smoothing.pole)."""
+        p = self.program
+        sec = program_rates(T, p.t, p.path.rows)
+        sec0 = program_rates(T_exact, p.t, p.path.rows)
+        g, g0 = np.zeros(len(p)), np.zeros(len(p))
+        g[sec.mid], g0[sec0.mid] = np.sum(sec.sec ** 2, axis=1), np.sum(sec0.sec ** 2, axis=1)
+        out = []
+        starts = {int(p.path.rows[s.start]): s.start for s in p.slices}
+        for q in passages:
+            k = slice(starts[q.row] + q.first, starts[q.row] + q.last + 1)
+            out.append(replace(q, gamma_cost=float(g[k].sum() - g0[k].sum())))
+        return out
 
     def plan(self, r: MethodResult) -> None:
         """The time-optimal time law of a method's program under every axis's limits and the
@@ -377,8 +407,9 @@ class ProgramSmoother:
             m.blocks = law.controller.blocks
         viol, peaks = axis_violations(self.nominal, q, law.t_plan, p.path.rows)
         m.violations = {**viol, **{k: v for k, v in m.violations_programmed.items() if k not in viol}}
-        m.peak_A_acc_plan = float(np.degrees(peaks["A acceleration"]))
-        m.peak_B_acc_plan = float(np.degrees(peaks["B acceleration"]))
+        r1, r2 = self.nominal.rotary
+        m.peak_A_acc_plan = float(np.degrees(peaks[f"{r1} acceleration"]))
+        m.peak_B_acc_plan = float(np.degrees(peaks[f"{r2} acceleration"]))
 
     def _point_names(self, i: int) -> str:
         return self.program.name(i)
@@ -395,9 +426,9 @@ class ProgramSmoother:
         T = self.real.tool_axis_np(A, B)
         cc, nrm = p.path.points, p.path.normals
         cl = (self.cl_points(T) if cl is None else cl) + lift[:, None] * nrm
-        xyz_nominal = self.nominal.linear_axes(cl, self.nominal.tool_axis_np(A, B))
+        xyz_nominal = self.nominal.linear_axes(cl, A, B)
         modelled = self.model is not None
-        xyz = _linear_axes_for_tip(self.real, A, B, cl) if (self.compensate and modelled) else xyz_nominal
+        xyz = self.real.linear_axes(cl, A, B) if (self.compensate and modelled) else xyz_nominal
         if delta is None:  # the tool really sits at the predicted real tip: check clearance there
             tip = self.real.tool_pose_np(A, B, *xyz.T)[0] if modelled else cl
             delta = self.clearance(tip, T)
@@ -449,14 +480,3 @@ class ProgramSmoother:
                        lifted_beyond_tolerance=int(np.sum(r.lift > self.tolerance)), unclean_rows=unclean,
                        unreachable=[(int(r.rows[i]), int(r.idx[i])) for i in unreachable],
                        tolerance_mm=self.tolerance, runtime_s=runtime)
-
-
-def _linear_axes_for_tip(machine: Machine, A: np.ndarray, B: np.ndarray, tip: np.ndarray) -> np.ndarray:
-    """X, Y, Z (mm) that put the predicted tool tip of ``machine`` at ``tip`` for the given
-    A, B. The linear axes enter the POE chain as prismatic joints, so the tip is affine in
-    (X, Y, Z): solve the 3x3 system per point from the chain itself (columns by unit steps)."""
-    z = np.zeros_like(A)
-    p0, _ = machine.tool_pose_np(A, B, z, z, z)
-    cols = [machine.tool_pose_np(A, B, *(z + (k == j) for j in range(3)))[0] - p0 for k in range(3)]
-    J = np.stack(cols, axis=-1)  # (N, 3, 3)
-    return np.linalg.solve(J, (tip - p0)[..., None])[..., 0]

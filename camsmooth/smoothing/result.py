@@ -7,6 +7,7 @@ the CSV and the report convert angles to degrees.
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -22,8 +23,18 @@ def interferes(delta: np.ndarray, tolerance: float) -> np.ndarray:
         return np.asarray(delta, dtype=float) < -float(tolerance)
 
 
+#: columns of the output CSV on an AB head; on another machine the rotary columns carry its axes'
+#: names (``output_columns``)
 OUTPUT_COLUMNS = ("row", "idx", "t", "x", "y", "z", "nx", "ny", "nz", "clx", "cly", "clz", "i", "j", "k",
                   "lead", "tilt", "A", "B", "X", "Y", "Z", "delta")
+#: where the two rotary columns sit in OUTPUT_COLUMNS
+_ROTARY_AT = OUTPUT_COLUMNS.index("A")
+
+
+def output_columns(rotary: Sequence[str] = ("A", "B")) -> tuple[str, ...]:
+    """The output CSV's columns for a machine with rotary axes ``rotary`` (``Machine.rotary``:
+    ("A", "C") on an AC table): OUTPUT_COLUMNS with its rotary columns named by the machine."""
+    return OUTPUT_COLUMNS[:_ROTARY_AT] + tuple(rotary) + OUTPUT_COLUMNS[_ROTARY_AT + 2:]
 
 
 @dataclass(kw_only=True)
@@ -59,7 +70,9 @@ class Metrics:
     methods): IPOPT iterations, rounds, points mapped, clearance evaluations, times (s), the
     points lifted because their whole window is blocked or the limits kept them out of their
     clear region. With an error model: the largest tip error (um) with and without compensation
-    and the axis error (urad). chord_deviation_mm: the mesh's estimated chord deviation."""
+    and the axis error (urad). chord_deviation_mm: the mesh's estimated chord deviation. pole: the
+    passages near the pole of the outer rotary axis (camsmooth.smoothing.pole.PolePassage, nlp
+    methods; with what each cost in Gamma)."""
 
     gamma: float
     peak_A_acc: float
@@ -97,6 +110,7 @@ class Metrics:
     axis_error_urad_max: float | None = None
     compensated: bool | None = None
     chord_deviation_mm: float | None = None
+    pole: list[Any] = field(default_factory=list)
 
 
 @dataclass(kw_only=True)
@@ -168,7 +182,8 @@ class SmoothResult:
         return self.methods[self.primary]
 
     def table(self) -> np.ndarray:
-        """The output CSV table (columns OUTPUT_COLUMNS) of the primary method, angles in deg."""
+        """The output CSV table (columns ``output_columns(machine.rotary)``) of the primary method,
+        angles in deg."""
         r = self.result
         deg = np.degrees
         return np.column_stack([r.rows, r.idx, r.t, r.cc, r.normals, r.cl, r.axis, deg(r.lead), deg(r.tilt),

@@ -287,7 +287,7 @@ def solve_row(ctx: RowContext, task: RowTask) -> RowSolution:
         nlp = w.nlp(ctx, task.machine, len(kk), backoff)
         bounds = LeadBounds(floor[kk], ceiling[kk], has_floor[kk], has_ceiling[kk])
         if len(kk) < n:  # each knot holds the tightest window of the points around it, narrowed
-            eps = KNOT_MARGIN * _knot_margin(task, kk, max(mach.limits["A"].amax, mach.limits["B"].amax))
+            eps = KNOT_MARGIN * _knot_margin(task, kk, max(L.amax for L in mach.rotary_limits()))
             lw_k = _narrowed(_around(lw, kk), eps)
             tw_k = _narrowed(_around(tw, kk), eps / np.sin(np.maximum(lw_k[:, 0], np.radians(0.5))))
         else:
@@ -298,7 +298,7 @@ def solve_row(ctx: RowContext, task: RowTask) -> RowSolution:
         if not st.success and len(kk) < n:
             knots[:], backoff = True, BACKOFF  # the knots' wider back-off may be what binds: solve whole
             continue
-        if not st.success and reliefs < MAX_RELIEFS:
+        if not st.success and reliefs < MAX_RELIEFS and (has_floor.any() or has_ceiling.any()):
             # the clear regions of the map may be what no program within the limits reaches (a
             # floor climbing to the window's top before a blocked stretch): soft clearance names
             # those points, which keep only the windows and fall back to the lift
@@ -420,8 +420,7 @@ def _off_limits(machine: Machine, task: RowTask, A: np.ndarray, B: np.ndarray, l
     windows (rad)."""
     D1, D2 = fd_operators(task.t)
     off = np.zeros(len(A), bool)
-    for name, q in (("A", A), ("B", B)):
-        L = machine.limits[name]
+    for L, q in zip(machine.rotary_limits(), (A, B), strict=True):
         off |= (q < L.min) | (q > L.max)
         v = np.abs(D1 @ q) > L.vmax
         off[:-1] |= v
