@@ -12,7 +12,7 @@ camsmooth.smoothing.nlp (structured derivatives, screening, knots, convexified c
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import casadi as ca
 import numpy as np
@@ -58,8 +58,10 @@ class Formulation:
 
 def formulate(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_w: np.ndarray, tilt_w: np.ndarray,
               floor: np.ndarray | None = None, ceiling: np.ndarray | None = None, has_floor: np.ndarray | None = None,
-              has_ceiling: np.ndarray | None = None) -> Formulation:
-    """The plain NLP of one row (module docstring)."""
+              has_ceiling: np.ndarray | None = None, rate_scale: float = 1.0) -> Formulation:
+    """The plain NLP of one row (module docstring); the rotary axes by the machine's names (a
+    continuous C has no travel bounds); rate_scale multiplies their velocity and acceleration
+    limits (the continuation of ``continuation_start``)."""
     n = len(t)
     x = ca.SX.sym("x", 2 * n)
     A, B = x[0::2], x[1::2]
@@ -77,12 +79,12 @@ def formulate(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_w: np.nd
     xl, yl, zl = (ca.sum2(T * ca.DM(frames[:, :, j])) for j in range(3))
     tilt = ca.atan2(yl, xl)
     lead = ca.atan2(ca.sqrt(xl ** 2 + yl ** 2), zl)
-    lim = machine.limits
+    la, lb = (replace(L, vmax=L.vmax * rate_scale, amax=L.amax * rate_scale) for L in machine.rotary_limits())
     g = [vel(A), vel(B), acc(A), acc(B), lead, tilt]
-    lbg = [np.full(n - 1, -lim["A"].vmax), np.full(n - 1, -lim["B"].vmax), np.full(n - 2, -lim["A"].amax),
-           np.full(n - 2, -lim["B"].amax), lead_w[:, 0], tilt_w[:, 0]]
-    ubg = [np.full(n - 1, lim["A"].vmax), np.full(n - 1, lim["B"].vmax), np.full(n - 2, lim["A"].amax),
-           np.full(n - 2, lim["B"].amax), lead_w[:, 1], tilt_w[:, 1]]
+    lbg = [np.full(n - 1, -la.vmax), np.full(n - 1, -lb.vmax), np.full(n - 2, -la.amax),
+           np.full(n - 2, -lb.amax), lead_w[:, 0], tilt_w[:, 0]]
+    ubg = [np.full(n - 1, la.vmax), np.full(n - 1, lb.vmax), np.full(n - 2, la.amax),
+           np.full(n - 2, lb.amax), lead_w[:, 1], tilt_w[:, 1]]
     for coef, has, upper in ((floor, has_floor, False), (ceiling, has_ceiling, True)):
         if coef is None or not np.any(has):
             continue
@@ -91,16 +93,17 @@ def formulate(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_w: np.nd
         g.append(lead[k.tolist()] - bound)
         lbg.append(np.full(len(k), -np.inf if upper else 0.0))
         ubg.append(np.full(len(k), 0.0 if upper else np.inf))
-    lbx = np.tile([lim["A"].min, lim["B"].min], n)
-    ubx = np.tile([lim["A"].max, lim["B"].max], n)
+    lbx = np.tile([la.min, lb.min], n)
+    ubx = np.tile([la.max, lb.max], n)
     return Formulation(x, f, ca.vertcat(*g), lbx, ubx, np.concatenate(lbg), np.concatenate(ubg))
 
 
 def build(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_w: np.ndarray, tilt_w: np.ndarray,
           floor: np.ndarray | None = None, ceiling: np.ndarray | None = None, has_floor: np.ndarray | None = None,
-          has_ceiling: np.ndarray | None = None, tol: float = 1e-8) -> tuple[ca.Function, np.ndarray, ...]:
+          has_ceiling: np.ndarray | None = None, tol: float = 1e-8, rate_scale: float = 1.0
+          ) -> tuple[ca.Function, np.ndarray, ...]:
     """The plain NLP of one row (module docstring) as an IPOPT solver and its bounds."""
-    fm = formulate(machine, t, frames, lead_w, tilt_w, floor, ceiling, has_floor, has_ceiling)
+    fm = formulate(machine, t, frames, lead_w, tilt_w, floor, ceiling, has_floor, has_ceiling, rate_scale)
     solver = ca.nlpsol("reference", "ipopt", {"x": fm.x, "f": fm.f, "g": fm.g},
                        {"ipopt.print_level": 0, "print_time": 0, "ipopt.sb": "yes", "ipopt.tol": tol,
                         "ipopt.max_iter": 3000})
@@ -169,3 +172,21 @@ def solve(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_w: np.ndarra
     if best is None:
         return ReferenceRow(A0, B0, np.inf, "none feasible", False, build_s, solve_s)
     return ReferenceRow(best.A, best.B, best.gamma, best.start, True, build_s, solve_s)
+
+
+#: the rotary axes' velocity and acceleration limits of the continuation, as multiples of the
+#: machine's: the exact inverse passes a pole far beyond them, so the first problem accepts it
+CONTINUATION = (1000.0, 100.0, 30.0, 10.0, 3.0, 1.0)
+
+
+def continuation_start(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_w: np.ndarray,
+                       tilt_w: np.ndarray, A0: np.ndarray, B0: np.ndarray, **bounds) -> tuple[np.ndarray, np.ndarray]:
+    """A start for the rows that pass the pole of the outer axis, independent of camsmooth's pole
+    start: the plain NLP solved from (A0, B0) (the exact inverse) with the rotary limits relaxed by
+    CONTINUATION's factors, each solve starting from the last, down to the machine's own."""
+    x = np.empty(2 * len(t))
+    x[0::2], x[1::2] = A0, B0
+    for k in CONTINUATION:
+        solver, lbx, ubx, lbg, ubg = build(machine, t, frames, lead_w, tilt_w, rate_scale=k, **bounds)
+        x = np.asarray(solver(x0=np.clip(x, lbx, ubx), lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)["x"]).ravel()
+    return x[0::2], x[1::2]

@@ -474,9 +474,27 @@ def make(name: str, surface: ParametricSurface) -> dict:
                 xy=np.ptp(mesh.vertices[:, :2], axis=0).tolist())
 
 
+#: samples that ship a CAM program too (NAME.cls, NX CLSF): constant lead (deg), no tilt, as CAM
+#: lead/tilt axis control writes it; the demo smooths it and shows its axes as the method 'cam'
+CL_SAMPLES = {"dome": 11.0}
+
+
+def make_cls(name: str, lead_deg: float) -> None:
+    sys.path.insert(0, str(HERE.parent / "benchmarks"))
+    from bench_controller import cam_clsf
+
+    from camsmooth.geometry.cutter import ToroidalCutter
+
+    text = cam_clsf(read_cc_csv(HERE / f"{name}_path.csv"), ToroidalCutter(R=4.0, r=1.0), lead_deg)
+    (HERE / f"{name}.cls").write_text(text)
+    print(f"  CAM program {name}.cls: constant lead {lead_deg:g} deg, {len(text) / 1e6:.2f} MB")
+
+
 def main(names: list[str]) -> None:
     for name in names or list(SAMPLES):
         r = make(name, SAMPLES[name]())
+        if name in CL_SAMPLES:
+            make_cls(name, CL_SAMPLES[name])
         print(f"{r['name']}: {r['xy'][0]:.1f} x {r['xy'][1]:.1f} mm, z {r['z'][0]:.2f}..{r['z'][1]:.2f} mm")
         print(f"  path: {r['rows']} rows x {r['pts'][0]}..{r['pts'][1]} points ({r['n']} points)")
         print(f"  mesh: grid {r['grid'][0]} x {r['grid'][1]}, {r['verts']} vertices, {r['faces']} faces, "

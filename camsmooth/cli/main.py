@@ -413,12 +413,23 @@ def run_demo(args: argparse.Namespace) -> int:
         tmp_rep = tx.folder(rep, replace=args.force, keep=(path, mesh))
         if not args.quiet:
             on = f"{machine.name}, {machine_file}" if machine_file.is_file() else "default AB head"
-            print(f"camsmooth demo: smoothing {path} on {mesh} (toroidal cutter R=4 r=1 mm, lead 2:20, "
+            src = samples / f"{name}.cls" if (samples / f"{name}.cls").is_file() else path
+            print(f"camsmooth demo: smoothing {src} on {mesh} (toroidal cutter R=4 r=1 mm, lead 2:20, "
                   f"tilt -15:15 deg, {on}) -> {out}/")
         from camsmooth.geometry.surfaces import load_surface
         from camsmooth.io.ccpath import read_cc_csv
 
-        result = smooth(read_cc_csv(path), load_surface(mesh), machine, cutter, feed=2000.0,
+        surface = load_surface(mesh)
+        program = read_cc_csv(path)
+        cls = samples / f"{name}.cls"
+        if cls.is_file():  # a sample that ships its CAM program: smoothed from it, its axes shown as 'cam'
+            from camsmooth.geometry.clearance import MeshIndex
+            from camsmooth.io.program import load_program
+            from camsmooth.smoothing.cam import cam_program
+
+            program = cam_program(load_program(cls), MeshIndex(surface.mesh), cutter, DEFAULT_TOLERANCE_MM,
+                                  mesh=surface.mesh)
+        result = smooth(program, surface, machine, cutter, feed=2000.0,
                         lead_range=tuple(np.radians([2.0, 20.0])), tilt_range=tuple(np.radians([-15.0, 15.0])),
                         method="nlp", options=SmoothOptions(workers=None), progress=not args.quiet)
         _write_outputs(result, tmp_csv, tmp_nc, tmp_rep, 2000.0)

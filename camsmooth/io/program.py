@@ -190,7 +190,7 @@ class CLProgram:
                          rows=self.rows[keep], feed=self.feed[keep], rapid=self.rapid[keep], line=self.line[keep],
                          toolpaths=tps, source=self.source, format=self.format, warnings=list(self.warnings),
                          angles=None if self.angles is None else self.angles[keep],
-                         written=None if self.written is None else self.written.take(keep))
+                         written=None if self.written is None else self.written.take(keep), rotary=self.rotary)
 
     def toolpath_of(self, index: int) -> ToolPath | None:
         """The tool path holding point ``index`` (None if none does)."""

@@ -713,9 +713,10 @@ def _summary_table(order: list[str], summaries: dict[str, dict[str, Any]], prima
 MAX_TABLE_ROWS = 60
 
 
-def _rows_html(m: MethodResult) -> str:
-    """Per row of one method: points, cycle time (time-optimal, controller's), peak rates under
-    the planned law (deg/s, deg/s^2) and the smallest clearance (um) with its point."""
+def _rows_html(m: MethodResult, rotary: Sequence[str] = ("A", "B")) -> str:
+    """Per row of one method: points, cycle time (time-optimal, controller's), peak rates of the
+    rotary axes (named ``rotary``) under the planned law (deg/s, deg/s^2) and the smallest
+    clearance (um) with its point."""
     from camsmooth.smoothing.nlp import program_rates
 
     starts = _row_starts(m.rows)
@@ -736,7 +737,8 @@ def _rows_html(m: MethodResult) -> str:
         note = f"<p class='small'>{n} rows: the {MAX_TABLE_ROWS} slowest are listed.</p>"
     head = ["row", "points", "cycle time optimal (s)"] + (
         [f"cycle time {mt.controller} (s)"] if ctl else []) + [
-        f"peak |A'| / |B'| (deg/s), {law}", f"peak |A''| / |B''| (deg/s\u00b2), {law}",
+        f"peak |{rotary[0]}'| / |{rotary[1]}'| (deg/s), {law}",
+        f"peak |{rotary[0]}''| / |{rotary[1]}''| (deg/s\u00b2), {law}",
         "min \u03b4 (\u00b5m) at point"]
     out = ["<table class='rows'>", "<tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr>"]
     deg = np.degrees
@@ -751,6 +753,35 @@ def _rows_html(m: MethodResult) -> str:
         out.append("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in cells) + "</tr>")
     out.append("</table>")
     return note + "\n".join(out)
+
+
+def _pole_html(result: SmoothResult) -> str:
+    """Every passage of the primary method near the pole of the outer rotary axis
+    (camsmooth.smoothing.pole.PolePassage)."""
+    from camsmooth.smoothing.pole import POLE_CONE_DEG
+
+    passages = result.result.metrics.pole
+    ax = passages[0].outer
+    head = ["row", "points", "closest to the pole (deg)", f"{ax} turn, exact inverse (deg)",
+            f"peak |{ax}'|, exact inverse (deg/s)", f"Gamma cost of {result.primary} (1/s\u2074)"]
+    out = ["<table class='rows'>", "<tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr>"]
+    for q in passages[:MAX_TABLE_ROWS]:
+        over = q.outer_peak_speed > q.outer_vmax
+        cells = [str(q.row), f"{q.first}..{q.last}", _fmt(q.closest_deg, ".3g"), _fmt(q.outer_turn_deg, ".4g"),
+                 _fmt(q.outer_peak_speed, ".4g"), "\u2014" if q.gamma_cost is None else f"{q.gamma_cost:+.4g}"]
+        tds = [f"<td{' class=bad' if (i == 4 and over) else ''}>{html.escape(c)}</td>" for i, c in enumerate(cells)]
+        out.append("<tr>" + "".join(tds) + "</tr>")
+    out.append("</table>")
+    more = f" ({len(passages) - MAX_TABLE_ROWS} more not listed)" if len(passages) > MAX_TABLE_ROWS else ""
+    nviol = sum(result.result.metrics.violations.values())
+    verdict = ("passes them within every limit" if nviol == 0
+               else f"keeps {nviol} violations (the summary names them)")
+    return (f"<p>{len(passages)} passages{more} of the tool axis within {POLE_CONE_DEG:g} deg of the {ax} axis, where "
+            f"the exact inverse kinematics turns {ax} fast (red: beyond its limit of "
+            f"{_fmt(passages[0].outer_vmax, '.4g')} deg/s at the programmed feed). The {html.escape(result.primary)} "
+            f"program {verdict}; the Gamma cost is the sum of |T''|\u00b2 over the passage, "
+            f"{html.escape(result.primary)} minus the programmed orientation (docs/METHODS.md section 1.4).</p>"
+            + "\n".join(out))
 
 
 def stepover_mm(cc: np.ndarray, rows: np.ndarray) -> float:
@@ -1027,7 +1058,8 @@ def _html(result: SmoothResult, order: list[str], folder: Path, title: str | Non
         ("Summary", _summary_table(order, summaries, primary)
          + f"<p class='small'>{law}Red cells need attention (a gouge below {1e3 * _gouge_line(result):.4g} "
            "\u00b5m, a violation under the planned law).</p>"),
-        (f"Per row ({html.escape(primary)})", _rows_html(result.result)),
+        (f"Per row ({html.escape(primary)})", _rows_html(result.result, getattr(result.machine, "rotary", "AB"))),
+        *([("Pole passages", _pole_html(result))] if result.result.metrics.pole else []),
         ("Cutting geometry: effective radius and scallop",
          _geometry_html(result, order)
          + "<p class='small'>What lead and tilt do across the feed: a toroidal cutter (ring radius R, corner "
