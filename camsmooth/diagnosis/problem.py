@@ -185,10 +185,11 @@ class Options:
     most this many of those (the chosen one is refitted and judged on all of them)."""
 
     folds: int = 5
-    rule: str = "standalone"
+    rule: str = "absolute"
     standalone_floors: float = 3.0
     margin: float = 0.02
     margin_floor2: float = 0.04
+    absolute_floor2: float = 0.25
     bic_margin: float = 6.0
     separate_z: float = 3.0
     separate_chi2: float = 10.0
