@@ -7,11 +7,16 @@ fit on the other folds' Jacobian rows, then simulated exactly). Greedy forward s
 backward check: each round every remaining term is screened jointly with the chosen ones (those
 linearised); the best is refitted exactly and joins when
 
-* the pooled held-out RMS falls in most folds, and either by a clear margin with BIC (sample
-  count reduced for the residual's lag-1 autocorrelation) falling by a clear margin and the
-  held-out chi-square fall beyond the noise, or the term is a clear effect on its own (a few
-  noise floors RMS, consistent across the folds), whatever else is left unexplained
-  (``Selector.judge``);
+* (``Options.rule`` 'absolute', the default; ``Selector._judge_absolute``) its size is resolved
+  whatever else is left unexplained: a main parameter differs from its base value by
+  ``Options.resolvable_sigma`` long-run standard uncertainties (``Fit.long_run_sd``: the
+  batch-means variance of the parameter's influence over time, camsmooth.diagnosis.significance,
+  so an autocorrelated residual counts through the correlation of what is summed) with one sign
+  in every fit that leaves a fold out; and the pooled held-out chi-square falls, in most folds, by
+  at least ``Options.absolute_floor2`` noise floors^2 a sample and by resolvable_sigma / 2 of its
+  long-run standard errors. The relative fall of the held-out RMS and BIC are reported, not used:
+  a margin that is a share of everything else left unexplained refuses real effects exactly when
+  the recording is rich. (Rules 'standalone' and 'margin' are the earlier ones, ``judge``.)
 * it is physics the user can act on (``Selector.measurable``): its effect on some channel reaches
   ``Options.min_effect_floors`` noise floors RMS (the floor is the larger of the white noise and
   the channel's resolution, q / sqrt(12)), its
@@ -690,7 +695,7 @@ class Selector:
         RMS falls, in most folds, and either
 
         * (share) by ``Options.margin`` of itself, BIC falls by ``bic_margin`` and - with
-          ``Options.rule`` 'standalone', the default - the held-out chi-square fall is beyond the
+          ``Options.rule`` 'standalone' - the held-out chi-square fall is beyond the
           noise (``compare``: ``separate_z`` standard errors under the residual's
           autocorrelation), or
         * (an effect on its own, rule 'standalone' only) the new term's effect reaches
@@ -704,7 +709,8 @@ class Selector:
         clearly worse on any channel (``worse_channels``); not asked when an earlier term is checked
         again beside later ones, where correlated terms trade channels between them.
 
-        Rule 'margin' is the earlier rule (the share alone, without the chi-square test)."""
+        Rule 'margin' is the earlier rule (the share alone, without the chi-square test). Rule
+        'absolute', the default, is ``_judge_absolute``."""
         opt = self.opt
         fit_change = math.sqrt(after.rss / max(before.rss, 1e-300)) - 1.0
         held_change = math.sqrt(after.heldout_rss / max(before.heldout_rss, 1e-300)) - 1.0
