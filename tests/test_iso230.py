@@ -143,3 +143,42 @@ def test_bad_input_names_file_row_column(tmp_path, capsys, text: str, where: str
     assert "run.csv" in str(exc.value)
     assert main(["iso230", str(path), "--comp", str(tmp_path / "x.comp")]) == 2
     assert not (tmp_path / "x.comp").exists()
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_table_from_fitted_terms_leaves_the_noise(seed: int) -> None:
+    """Issue 20 item 3: a bidirectional run with a known positioning error (20 um/m) and reversal
+    (18 um, the carriage stopping short: B = x̄↑ - x̄↓ = -18 um) and 1 um noise: both recovered
+    within 10%, the LinuxCNC table built from the fitted terms, and the RMS it leaves on runs it
+    was not built from (leave one run out) close to the noise."""
+    run = I.simulate_run(TARGETS, 5, pitch_um_per_m=20.0, periodic_um=0.0, reversal_um=18.0, noise_um=1.0, seed=seed)
+    terms = I.fit_terms(run)
+    assert terms.scale == pytest.approx(20e-6, rel=0.10)
+    assert terms.reversal == pytest.approx(-0.018, rel=0.10)
+    assert terms.sd_reversal < 0.001
+    table = I.compensation_from_terms(terms, TARGETS)
+    assert table.nominal == pytest.approx(tuple(TARGETS))
+    assert table.forward[-1] - table.reverse[-1] == pytest.approx(0.018, rel=0.10)  # the reversal, in the trims
+    cv = I.crossvalidate(run)
+    assert cv["folds"] == 5 and cv["before"] > 0.008
+    assert cv["noise"] == pytest.approx(0.001, rel=0.25)
+    assert cv["after"] < 1.3 * cv["noise"]
+    # a fresh run between the targets: the table interpolates the fitted line, so only the noise is left
+    before, after = I.heldout_rms(I.simulate_run(HELD, 5, periodic_um=0.0, noise_um=1.0, seed=seed + 20), table)
+    assert before > 0.008 and after < 0.0013
+
+
+def test_cli_prints_the_heldout_rms_of_the_fitted_table(tmp_path, capsys) -> None:
+    run = tmp_path / "run.csv"
+    I.write_run_csv(run, I.simulate_run(TARGETS, 5, periodic_um=0.0, seed=3, **{k: v for k, v in TRUTH.items()
+                                                                                 if k != "periodic_um"}))
+    js = tmp_path / "x.json"
+    assert main(["iso230", str(run), "--comp", str(tmp_path / "x.comp"), "--json", str(js)]) == 0
+    out = capsys.readouterr().out
+    assert "fitted terms" in out and "held out (leave one of 5 runs out)" in out
+    doc = json.loads(js.read_text())
+    assert doc["compensation"]["built_from"] == "terms"
+    assert doc["fitted_terms"]["reversal"] == pytest.approx(-0.018, rel=0.1)
+    assert doc["crossvalidated_rms"]["after"] < 1.3 * doc["crossvalidated_rms"]["noise"]
+    assert main(["iso230", str(run), "--table", "means", "--json", str(js), "--quiet"]) == 0
+    assert json.loads(js.read_text())["compensation"]["built_from"] == "means"

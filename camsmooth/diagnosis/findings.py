@@ -427,11 +427,18 @@ def _diagnose(program: Program, recording: Recording, machine: Machine | None, b
     if any(n in res["active"] for n in ("servo_lag", "time_offset")) and "time_offset" in res["applicable"] and \
             "servo_lag" in res["applicable"]:
         discrimination = discriminate_lag_offset(sel, res)
-    share = (f"it lowers the held-out RMS by {100 * opt.margin:.3g}% in most folds and BIC by {opt.bic_margin:g}"
-             + (f" with the held-out chi-square fall beyond {opt.separate_z:g} standard errors, or it is an effect on "
-                f"its own (at least {opt.standalone_floors:g} noise floors RMS, lowering the held-out mean square by "
-                f"{opt.margin_floor2:g} floors^2 in most folds, beyond the noise or consistent across the folds, "
-                "whatever else is left unexplained)" if opt.rule == "standalone" else ""))
+    if opt.rule == "absolute":
+        share = (f"a main parameter of it is beyond {opt.resolvable_sigma:g} long-run standard uncertainties (batch "
+                 "means over time, for autocorrelated residuals) with one sign in every fold fit, and the held-out "
+                 f"chi-square falls in most folds by at least {opt.absolute_floor2:g} floors^2 a sample and "
+                 f"{0.5 * opt.resolvable_sigma:g} long-run standard errors - whatever else is left unexplained (the "
+                 "relative held-out change and BIC are reported, not used)")
+    else:
+        share = (f"it lowers the held-out RMS by {100 * opt.margin:.3g}% in most folds and BIC by {opt.bic_margin:g}"
+                 + (f" with the held-out chi-square fall beyond {opt.separate_z:g} standard errors, or it is an effect "
+                    f"on its own (at least {opt.standalone_floors:g} noise floors RMS, lowering the held-out mean "
+                    f"square by {opt.margin_floor2:g} floors^2 in most folds, beyond the noise or consistent across "
+                    "the folds, whatever else is left unexplained)" if opt.rule == "standalone" else ""))
     rule = (f"a term is named only when {share}; its effect on some channel reaches {opt.min_effect_floors:g} noise "
             "floors RMS (a floor holds the channel's white noise and resolution), its parameters differ from their "
             f"base values by {opt.resolvable_sigma:g} standard uncertainties (a clock offset by "

@@ -48,6 +48,23 @@ moving in that direction**, i.e. minus the deviation: forward-trim = -x̄↑(P),
 mm). The loader stops at the first line that is not three numbers, so the file holds no header
 or comment lines. With a COMP_FILE LinuxCNC ignores ``BACKLASH``: the reversal is in the table.
 
+The table from fitted terms (``fit_terms``, ``compensation_from_terms``, ``crossvalidate``)
+-------------------------------------------------------------------------------------------
+The means at the targets carry each target's noise and any error between the targets into the
+table. The default table is built instead from two fitted terms, the ones the diagnosis library
+names for a linear axis: a linear positioning error (offset e0 and scale error k, mm/mm) and a
+reversal B, fitted by least squares to every approach,
+
+    deviation = e0 + k P + direction B / 2        (so B = x̄↑ - x̄↓, as ISO 230-2 signs it),
+
+with standard uncertainties from the residual's scatter. The trims are minus the fitted
+deviation at each nominal in each direction. What such a table leaves is measured on approaches
+it was not built from: leave-one-run-out (run r of the cycle, up and down, is held out; the terms
+are fitted on the other runs, the table is applied to run r), pooled over the runs - the
+held-out RMS the table leaves, beside the run's RMS without a table and the noise (the pooled
+within-target scatter s). Only the LinuxCNC format is written; other controllers (a Fanuc pitch
+error table in parameters, a Siemens or Heidenhain compensation table) are not.
+
 ``apply_compensation`` applies a table to another run the way the controller does (trim
 interpolated linearly between nominals, held at the ends, chosen by the approach direction) and
 ``heldout_rms`` gives the RMS deviation of that run before and after. ``simulate_run`` makes a
@@ -59,6 +76,7 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -66,7 +84,8 @@ import numpy as np
 
 from camsmooth.errors import InputError
 
-__all__ = ["Run", "Iso230Result", "CompTable", "read_run", "evaluate", "compensation_table", "comp_text",
+__all__ = ["Run", "Iso230Result", "CompTable", "FittedTerms", "read_run", "evaluate", "compensation_table",
+           "fit_terms", "compensation_from_terms", "crossvalidate", "comp_text",
            "write_comp_file", "read_comp_file", "apply_compensation", "heldout_rms", "simulate_run",
            "result_json", "LINUXCNC_MAX_LINES"]
 
@@ -211,12 +230,20 @@ def evaluate(run: Run, axis: str = "X") -> Iso230Result:
 
 
 def result_json(result: Iso230Result, comp: CompTable | None = None,
-                heldout: tuple[float, float] | None = None) -> str:
-    """The figures as JSON (units mm), with the table and the held-out RMS when given."""
+                heldout: tuple[float, float] | None = None, terms: FittedTerms | None = None,
+                crossval: dict[str, float | int] | None = None, table_from: str = "means") -> str:
+    """The figures as JSON (units mm), with the table (and what it was built from), the fitted
+    terms, the cross-validated held-out RMS and a held-out run's RMS when given."""
     doc: dict[str, object] = {"units": "mm", "standard": "ISO 230-2", **asdict(result)}
+    if terms is not None:
+        doc["fitted_terms"] = {"model": "deviation = offset + scale * P + direction * reversal / 2", **asdict(terms)}
+    if crossval is not None:
+        doc["crossvalidated_rms"] = {"method": "leave one run out: terms fitted on the other runs, table applied "
+                                               "to the held-out run", **crossval}
     if comp is not None:
         doc["compensation"] = {"format": "LinuxCNC COMP_FILE_TYPE 1 (nominal forward-trim reverse-trim; "
-                                         "trim = amount added to the command)", **asdict(comp)}
+                                         "trim = amount added to the command)", "built_from": table_from,
+                               **asdict(comp)}
     if heldout is not None:
         doc["heldout_rms"] = {"before": heldout[0], "after": heldout[1]}
     return json.dumps(doc, indent=2) + "\n"
@@ -232,6 +259,80 @@ def compensation_table(result: Iso230Result) -> CompTable:
                          f"{LINUXCNC_MAX_LINES} lines")
     return CompTable(nominal=result.targets, forward=tuple(-v for v in result.mean_up),
                      reverse=tuple(-v for v in result.mean_down))
+
+
+@dataclass(frozen=True)
+class FittedTerms:
+    """The terms fitted to a run (mm, mm/mm): deviation = offset + scale P + direction reversal / 2;
+    their standard uncertainties, the residual RMS and the number of approaches used."""
+
+    offset: float
+    scale: float
+    reversal: float
+    sd_offset: float
+    sd_scale: float
+    sd_reversal: float
+    residual_rms: float
+    n: int
+
+    def deviation(self, position: np.ndarray, direction: np.ndarray) -> np.ndarray:
+        """The fitted deviation (mm) at ``position`` approached in ``direction`` (+1 / -1)."""
+        p = np.asarray(position, float)
+        return self.offset + self.scale * p + np.asarray(direction, float) * self.reversal / 2
+
+
+def fit_terms(run: Run, keep: np.ndarray | None = None) -> FittedTerms:
+    """Least-squares fit of the linear positioning error and the reversal (module docstring) to the
+    approaches of ``run`` (those where ``keep`` is True when given)."""
+    sel = np.ones(run.target.size, bool) if keep is None else np.asarray(keep, bool)
+    p, d, y = run.target[sel], run.direction[sel].astype(float), run.deviation[sel]
+    A = np.column_stack([np.ones(p.size), p, d / 2])
+    if p.size < 4 or np.linalg.matrix_rank(A) < 3:
+        raise InputError("fitting the positioning error and the reversal needs approaches at 2 or more targets "
+                         "in both directions", file=run.file)
+    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+    r = y - A @ coef
+    s2 = float(r @ r) / max(p.size - 3, 1)
+    sd = np.sqrt(np.clip(np.diag(np.linalg.pinv(A.T @ A)) * s2, 0.0, None))
+    return FittedTerms(float(coef[0]), float(coef[1]), float(coef[2]), float(sd[0]), float(sd[1]), float(sd[2]),
+                       float(np.sqrt(np.mean(r * r))), int(p.size))
+
+
+def compensation_from_terms(terms: FittedTerms, nominal: Sequence[float]) -> CompTable:
+    """The LinuxCNC type-1 table of fitted ``terms`` at ``nominal`` positions (ascending, mm):
+    trim = minus the fitted deviation moving in that direction."""
+    nom = np.asarray(sorted(float(v) for v in nominal))
+    if nom.size > LINUXCNC_MAX_LINES:
+        raise InputError(f"{nom.size} nominal positions; a LinuxCNC compensation file holds at most "
+                         f"{LINUXCNC_MAX_LINES} lines")
+    fwd = -terms.deviation(nom, np.ones(nom.size))
+    rev = -terms.deviation(nom, -np.ones(nom.size))
+    return CompTable(tuple(float(v) for v in nom), tuple(float(v) for v in fwd), tuple(float(v) for v in rev))
+
+
+def crossvalidate(run: Run) -> dict[str, float | int]:
+    """The held-out RMS a table from fitted terms leaves (module docstring): each run number held
+    out in turn (the terms fitted on the others, the table at the run's targets applied to it),
+    pooled. Returns before / after (mm RMS over all held-out approaches), noise (pooled
+    within-target, within-direction sample standard deviation) and folds (runs held out)."""
+    runs = np.unique(run.run)
+    if runs.size < 2:
+        raise InputError("a held-out check needs at least 2 runs", file=run.file, column="run")
+    nominal = np.unique(run.target)
+    after = np.empty(run.deviation.size)
+    for k in runs:
+        out = run.run == k
+        table = compensation_from_terms(fit_terms(run, ~out), nominal)
+        after[out] = run.deviation[out] + trim(table, run.target[out], run.direction[out])
+    dev2, dof = 0.0, 0
+    for p in nominal:
+        for sgn in (1, -1):
+            v = run.deviation[(run.target == p) & (run.direction == sgn)]
+            if v.size > 1:
+                dev2 += float(np.sum((v - v.mean()) ** 2))
+                dof += v.size - 1
+    return {"before": float(np.sqrt(np.mean(run.deviation ** 2))), "after": float(np.sqrt(np.mean(after ** 2))),
+            "noise": math.sqrt(dev2 / dof) if dof else math.nan, "folds": int(runs.size)}
 
 
 def comp_text(table: CompTable) -> str:

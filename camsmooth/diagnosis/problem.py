@@ -166,12 +166,16 @@ def locate_intervals(t: np.ndarray, resid: np.ndarray, floor: np.ndarray, valid:
 
 @dataclass(frozen=True)
 class Options:
-    """Diagnosis settings. folds: blocked time folds for held-out scoring; margin: the relative
-    fall of the pooled held-out RMS a term must bring; bic_margin: the fall of BIC it must bring;
-    rule: 'standalone' (default: those, with the held-out chi-square fall beyond the noise, or
-    an effect of standalone_floors noise floors RMS that lowers the held-out mean square by
-    margin_floor2 floors^2 and is consistent across the folds, ``Selector.judge``) or 'margin'
-    (the earlier rule);
+    """Diagnosis settings. folds: blocked time folds for held-out scoring; rule: 'absolute' (the
+    default, ``Selector._judge_absolute``: a main parameter beyond resolvable_sigma long-run
+    standard uncertainties with one sign in every fold fit, the held-out chi-square falling in
+    most folds by absolute_floor2 floors^2 a sample and resolvable_sigma / 2 long-run standard
+    errors; nothing relative to what else is unexplained), 'standalone' (the rule of the first
+    issue-20 round: the relative margin, BIC and a held-out chi-square test, or an effect of
+    standalone_floors noise floors RMS lowering the held-out mean square by margin_floor2
+    floors^2, consistent across the folds) or 'margin' (the earlier rule); margin: the relative
+    fall of the pooled held-out RMS and bic_margin the fall of BIC the 'standalone' and 'margin'
+    rules ask for (reported under 'absolute');
     separate_z, separate_chi2: two candidates are told apart when their held-out chi-square
     difference (floors^2) exceeds separate_z of its standard errors and separate_chi2
     (``Selector.compare``), else they explain the residual equally; min_effect_floors: a term
@@ -185,10 +189,11 @@ class Options:
     most this many of those (the chosen one is refitted and judged on all of them)."""
 
     folds: int = 5
-    rule: str = "standalone"
+    rule: str = "absolute"
     standalone_floors: float = 3.0
     margin: float = 0.02
     margin_floor2: float = 0.04
+    absolute_floor2: float = 0.25
     bic_margin: float = 6.0
     separate_z: float = 3.0
     separate_chi2: float = 10.0

@@ -7,11 +7,16 @@ fit on the other folds' Jacobian rows, then simulated exactly). Greedy forward s
 backward check: each round every remaining term is screened jointly with the chosen ones (those
 linearised); the best is refitted exactly and joins when
 
-* the pooled held-out RMS falls in most folds, and either by a clear margin with BIC (sample
-  count reduced for the residual's lag-1 autocorrelation) falling by a clear margin and the
-  held-out chi-square fall beyond the noise, or the term is a clear effect on its own (a few
-  noise floors RMS, consistent across the folds), whatever else is left unexplained
-  (``Selector.judge``);
+* (``Options.rule`` 'absolute', the default; ``Selector._judge_absolute``) its size is resolved
+  whatever else is left unexplained: a main parameter differs from its base value by
+  ``Options.resolvable_sigma`` long-run standard uncertainties (``Fit.long_run_sd``: the
+  batch-means variance of the parameter's influence over time, camsmooth.diagnosis.significance,
+  so an autocorrelated residual counts through the correlation of what is summed) with one sign
+  in every fit that leaves a fold out; and the pooled held-out chi-square falls, in most folds, by
+  at least ``Options.absolute_floor2`` noise floors^2 a sample and by resolvable_sigma / 2 of its
+  long-run standard errors. The relative fall of the held-out RMS and BIC are reported, not used:
+  a margin that is a share of everything else left unexplained refuses real effects exactly when
+  the recording is rich. (Rules 'standalone' and 'margin' are the earlier ones, ``judge``.)
 * it is physics the user can act on (``Selector.measurable``): its effect on some channel reaches
   ``Options.min_effect_floors`` noise floors RMS (the floor is the larger of the white noise and
   the channel's resolution, q / sqrt(12)), its
@@ -36,6 +41,7 @@ from typing import Any
 
 import numpy as np
 
+from camsmooth.diagnosis import significance
 from camsmooth.diagnosis.problem import Options, Problem
 from camsmooth.diagnosis.terms import CANDIDATES, LIBRARY, Param, Term, separating_measurement, term
 from camsmooth.diagnosis.terms.thermal import ThermalDrift
@@ -67,6 +73,14 @@ class Fit:
     Jt: np.ndarray | None = None
     approximate: bool = False
     fold_x: np.ndarray | None = None  # (K, p): the parameters fitted without each fold
+    lr_sd: np.ndarray | None = None  # (p,): long-run (batch-means) standard uncertainty, internal units
+
+    def long_run_sd(self) -> np.ndarray:
+        """Standard uncertainty of each parameter from the batch-means variance of its influence
+        (camsmooth.diagnosis.significance): a sandwich H^-1 S H^-1 whose middle S is the long-run
+        covariance of the per-sample scores, so autocorrelated residuals are accounted for by the
+        correlation of what is summed, not by how much else is left unexplained."""
+        return np.full(len(self.x), np.inf) if self.lr_sd is None else self.lr_sd
 
     def jackknife_sd(self) -> np.ndarray:
         """Blocked jackknife standard uncertainty of each parameter from the fits that leave one
@@ -312,6 +326,10 @@ class Selector:
             fold_rss[k] = float(np.sum(np.where(test, rk, 0.0) ** 2))
             fold_n[k] = int(test.sum())
         resid_phys = held / P.w_fit
+        # influence of each sample on the parameters, H^+ J^T r summed over its channels
+        rows = np.nonzero(valid)[0]
+        u = significance.per_sample(Jt * r_valid, rows, len(valid)) @ np.linalg.pinv(H)
+        lr_sd = np.asarray(significance.batch_sum_sd(u), float).reshape(len(x))
         if not np.all(np.isfinite(fold_rss)):
             raise InternalError(f"the held-out scores of {', '.join(key) or 'no term'} are not finite "
                                 f"(fold RSS {fold_rss.tolist()})")
@@ -319,7 +337,7 @@ class Selector:
                    n_eff * math.log(max(rss, 1e-300) / n) + len(x) * math.log(n_eff),
                    channel_rms(r / P.w_fit, valid, P.channels), float(fold_rss.sum()),
                    channel_rms(resid_phys, valid, P.channels), fold_rss, fold_n, resid_phys, Jt, approximate,
-                   fold_x)
+                   fold_x, lr_sd)
 
     def screen(self, current: Fit, name: str) -> Fit:
         """A cheap joint fit of ``current`` plus term ``name``: the new parameters are simulated
@@ -417,6 +435,13 @@ class Selector:
         base = np.nan_to_num(np.asarray(t.read(P.base, names), float))
         params = {p.name: p for p in t.params(P)}
         sig = np.abs(x - base) > opt.resolvable_sigma * np.maximum(sd, 1e-300)
+        if opt.rule == "absolute" and f.fold_x is not None:
+            # or resolved against the long-run uncertainty (batch means: the autocorrelation of
+            # the parameter's own influence) with one sign in every fold; main parameters only
+            lr = f.long_run_sd()[sl]
+            same = np.all(np.sign(f.fold_x[:, sl] - base) == np.sign(x - base), axis=0)
+            main = np.array([not params[n].optional for n in names])
+            sig |= main & same & (np.abs(x - base) > opt.resolvable_sigma * np.maximum(lr, 1e-300))
         if opt.rule == "standalone" and f.fold_x is not None:
             # or resolved by the blocked jackknife with one sign in every fold (the covariance
             # inflated for a strongly autocorrelated rest can hide a clear, consistent effect);
@@ -670,7 +695,7 @@ class Selector:
         RMS falls, in most folds, and either
 
         * (share) by ``Options.margin`` of itself, BIC falls by ``bic_margin`` and - with
-          ``Options.rule`` 'standalone', the default - the held-out chi-square fall is beyond the
+          ``Options.rule`` 'standalone' - the held-out chi-square fall is beyond the
           noise (``compare``: ``separate_z`` standard errors under the residual's
           autocorrelation), or
         * (an effect on its own, rule 'standalone' only) the new term's effect reaches
@@ -684,7 +709,8 @@ class Selector:
         clearly worse on any channel (``worse_channels``); not asked when an earlier term is checked
         again beside later ones, where correlated terms trade channels between them.
 
-        Rule 'margin' is the earlier rule (the share alone, without the chi-square test)."""
+        Rule 'margin' is the earlier rule (the share alone, without the chi-square test). Rule
+        'absolute', the default, is ``_judge_absolute``."""
         opt = self.opt
         fit_change = math.sqrt(after.rss / max(before.rss, 1e-300)) - 1.0
         held_change = math.sqrt(after.heldout_rss / max(before.heldout_rss, 1e-300)) - 1.0
@@ -698,7 +724,9 @@ class Selector:
         n_held = max(int(after.fold_n.sum()), 1)
         out = {"fit_change_pct": 100 * fit_change, "heldout_change_pct": 100 * held_change, "delta_bic": dbic,
                "folds_better": per_fold_better, "folds": K, "heldout_chi2_fall": cmp["delta_chi2"],
-               "heldout_chi2_se": cmp["se"], "rule": opt.rule}
+               "heldout_chi2_se": cmp["se"], "heldout_chi2_se_long_run": cmp["se_lr"], "rule": opt.rule}
+        if opt.rule == "absolute":
+            return self._judge_absolute(before, after, out, channels)
         margin_why = None
         if held_change > -opt.margin:
             margin_why = (f"lowers the held-out RMS by only {-100 * held_change:.2g}% "
@@ -746,6 +774,101 @@ class Selector:
                        "accepted as an effect on its own (clear, consistent across the folds, whatever else is "
                        f"left unexplained; {margin_why})")
         return out
+
+    def _judge_absolute(self, before: Fit, after: Fit, out: dict[str, Any], channels: bool) -> dict[str, Any]:
+        """Rule 'absolute' (the default; ``judge``): every test is in noise floors or standard
+        uncertainties, none a share of what else is left unexplained. The term joins when
+
+        * the pooled held-out chi-square falls, and in most folds;
+        * it falls by at least ``separate_chi2`` floors^2 and ``absolute_floor2`` floors^2 a held-out
+          sample (an absolute size: about absolute_floor2^0.5 floors RMS of effect), and by more
+          than resolvable_sigma / 2 of its long-run standard errors (batch means of the per-sample
+          chi-square change, camsmooth.diagnosis.significance; for one added parameter the
+          held-out fall is about b^2 / sd^2 with a standard error of about 2 b / sd, so a
+          parameter resolved at resolvable_sigma uncertainties brings a fall of about half as
+          many standard errors);
+        * a main parameter of the term is resolved and consistent (``resolved_consistent``): it
+          keeps the sign of its change from the base value in every fit that leaves a fold out,
+          and the change exceeds ``resolvable_sigma`` long-run standard uncertainties (a parameter
+          on a bound, such as a time constant run onto its limit, does not count);
+        * with ``channels``, the held-out residual gets clearly worse on no channel.
+
+        The relative held-out change (against ``Options.margin``) and BIC are reported, not used."""
+        opt = self.opt
+        K = out["folds"]
+        fall, se_lr = out["heldout_chi2_fall"], out["heldout_chi2_se_long_run"]
+        n_held = max(int(after.fold_n.sum()), 1)
+        held = -out["heldout_change_pct"]
+        fit = -out["fit_change_pct"]
+        out["heldout_chi2_z"] = fall / se_lr if se_lr > 0 and math.isfinite(se_lr) else 0.0
+        out["heldout_fall_per_sample"] = fall / n_held
+        out["effect_floors"] = self.new_effect(before, after)
+        size = self.resolved_consistent(before, after)
+        out["size_sigma"] = size[1] if size else 0.0
+        out["size_parameter"] = size[0] if size else None
+        worse = self.worse_channels(before, after) if channels else []
+        if held <= 0:
+            why = (f"improves the fit RMS by {fit:.2g}% but the held-out RMS rises by {-held:.2g}%" if fit > 0 else
+                   "does not lower the fit RMS")
+        elif out["folds_better"] <= K // 2:
+            why = f"lowers the pooled held-out RMS by {held:.2g}% but only in {out['folds_better']} of {K} folds"
+        elif worse:
+            c, dc, se = worse[0]
+            out["worse_channels"] = [w[0] for w in worse]
+            why = (f"lowers the held-out RMS by {held:.2g}% but makes it worse on {c} (held-out chi-square up "
+                   f"{-dc:.3g} floors^2, {-dc / max(se, 1e-300):.2g} standard errors): it does not explain its share "
+                   "consistently across the channels it moves - a stand-in for an effect outside the library")
+        elif fall < max(opt.separate_chi2, opt.absolute_floor2 * n_held):
+            why = (f"it lowers the held-out chi-square by only {fall:.3g} floors^2 ({fall / n_held:.2g} a sample; at "
+                   f"least {opt.separate_chi2:g} and {opt.absolute_floor2:g} a sample)")
+        elif not fall > 0.5 * opt.resolvable_sigma * se_lr:
+            why = (f"its held-out chi-square fall ({fall:.3g} floors^2) is within {0.5 * opt.resolvable_sigma:g} "
+                   f"long-run standard errors ({se_lr:.3g}, batch means over time): less than a term resolved at "
+                   f"{opt.resolvable_sigma:g} uncertainties brings")
+        elif size is None:
+            why = (f"no parameter of it keeps one sign in all {K} fold fits with a size beyond "
+                   f"{opt.resolvable_sigma:g} long-run standard uncertainties")
+        else:
+            why = None
+        if why is not None:
+            return {**out, "ok": False, "reason": why}
+        return {**out, "ok": True,
+                "reason": f"accepted: the held-out chi-square falls by {fall:.3g} floors^2 "
+                          f"({out['heldout_chi2_z']:.3g} long-run standard errors, in {out['folds_better']} of {K} "
+                          f"folds); {size[0]} is {size[1]:.3g} standard uncertainties from its base value with one "
+                          f"sign in every fold, whatever else is left unexplained (held-out RMS {-held:+.2g}%)"}
+
+    def resolved_consistent(self, before: Fit, after: Fit) -> tuple[str, float] | None:
+        """The main parameter of a term ``after`` adds to ``before`` that is furthest from its base
+        value in long-run standard uncertainties (``Fit.long_run_sd``), among those that keep the
+        sign of that change in every fit leaving a fold out and exceed ``resolvable_sigma``
+        of them: (name, size in uncertainties); None when there is none."""
+        if after.fold_x is None:
+            return None
+        P, opt = self.P, self.opt
+        lr = after.long_run_sd()
+        best: tuple[str, float] | None = None
+        for name in after.active:
+            if name in before.active or not after.pnames[name]:
+                continue
+            t = term(name)
+            sl = after.slice(name)
+            names = after.pnames[name]
+            base = np.nan_to_num(np.asarray(t.read(P.base, names), float))
+            params = {p.name: p for p in t.params(P)}
+            dx = after.x[sl] - base
+            dk = after.fold_x[:, sl] - base
+            for i, n in enumerate(names):
+                if (n in params and params[n].optional) or dx[i] == 0:
+                    continue
+                p = params.get(n)
+                if p is not None and min(after.x[sl][i] - p.lo, p.hi - after.x[sl][i]) <= 1e-3 * (p.hi - p.lo):
+                    continue  # on (or at) a bound: no uncertainty to measure it against
+                z = abs(float(dx[i])) / max(float(lr[sl][i]), 1e-300)
+                if np.all(np.sign(dk[:, i]) == np.sign(dx[i])) and z > opt.resolvable_sigma and \
+                        (best is None or z > best[1]):
+                    best = (n, z)
+        return best
 
     def worse_channels(self, before: Fit, after: Fit) -> list[tuple[str, float, float]]:
         """Channels on which ``after`` predicts the held-out samples clearly worse than ``before``:
@@ -825,7 +948,8 @@ class Selector:
         P, opt = self.P, self.opt
         valid = P.valid_fit
         if a.heldout_resid is None or b.heldout_resid is None:
-            return {"delta_chi2": 0.0, "se": math.inf, "resolved": False, "better": None, "folds_better": 0}
+            return {"delta_chi2": 0.0, "se": math.inf, "se_lr": math.inf, "resolved": False, "better": None,
+                    "folds_better": 0}
         ea = np.where(valid, a.heldout_resid * P.w_fit, 0.0)
         eb = np.where(valid, b.heldout_resid * P.w_fit, 0.0)
         d = (eb * eb - ea * ea)[valid]
@@ -840,7 +964,10 @@ class Selector:
         else:
             folds_better = int(np.sum(b.fold_rss < a.fold_rss))
         resolved = abs(delta) > max(opt.separate_z * se, opt.separate_chi2) and folds_better > K // 2
-        return {"delta_chi2": delta, "se": se, "resolved": bool(resolved),
+        # the same sum's standard error from the correlation of the per-sample differences
+        # themselves (batch means over time), not from the residual's lag-1 correlation
+        se_lr = significance.batch_sum_sd((eb * eb - ea * ea).sum(axis=1)) if n > 1 else math.inf
+        return {"delta_chi2": delta, "se": se, "se_lr": float(se_lr), "resolved": bool(resolved),
                 "better": (a.active if delta > 0 else b.active), "folds_better": folds_better, "folds": K}
 
     def equivalent(self, a: Fit, b: Fit) -> bool:
