@@ -634,7 +634,17 @@ def _clearance_text(worst: tuple[float, int, int] | None) -> str:
     return f"worst clearance {1e3 * d:.3g} \u00b5m at row {row}, point {idx}"
 
 
-def _verdict_html(order: list[str], summaries: dict[str, dict[str, Any]], primary: str) -> str:
+def _named(text: str, rotary: Sequence[str]) -> str:
+    """Text about "A and B" (the results' first and second rotary axis) with the machine's names."""
+    r1, r2 = rotary
+    for a, b in (("A'' and B''", f"{r1}'' and {r2}''"), ("A' and B'", f"{r1}' and {r2}'"),
+                 ("A and B", f"{r1} and {r2}"), ("|A''| / |B''|", f"|{r1}''| / |{r2}''|")):
+        text = text.replace(a, b)
+    return text
+
+
+def _verdict_html(order: list[str], summaries: dict[str, dict[str, Any]], primary: str,
+                  rotary: Sequence[str] = ("A", "B")) -> str:
     """One line per method, primary first: the answers a CAM programmer looks for first."""
     items = []
     for name in sorted(order, key=lambda n: n != primary):
@@ -650,7 +660,7 @@ def _verdict_html(order: list[str], summaries: dict[str, dict[str, Any]], primar
         law = "under the planned law" if s["planned"] else "at the programmed feed"
         pa = s["peak_A_acc_plan"] if s["planned"] else s["peak_A_acc_deg"]
         pb = s["peak_B_acc_plan"] if s["planned"] else s["peak_B_acc_deg"]
-        peaks = f"peak B'' {_fmt(pb, '.4g')} and A'' {_fmt(pa, '.4g')} deg/s\u00b2 {law}"
+        peaks = f"peak {rotary[1]}'' {_fmt(pb, '.4g')} and {rotary[0]}'' {_fmt(pa, '.4g')} deg/s\u00b2 {law}"
         total, named = _total(s["violations"])
         viol = f"{total} violation{'s' * (total != 1)} {law}" + (f" ({html.escape(named)})" if named else "")
         if s["planned"]:
@@ -662,7 +672,8 @@ def _verdict_html(order: list[str], summaries: dict[str, dict[str, Any]], primar
     return "<ul class='verdict'>" + "".join(items) + "</ul>"
 
 
-def _summary_table(order: list[str], summaries: dict[str, dict[str, Any]], primary: str) -> str:
+def _summary_table(order: list[str], summaries: dict[str, dict[str, Any]], primary: str,
+                   rotary: Sequence[str] = ("A", "B")) -> str:
     """At most ten columns: the per-axis violation counts collapsed into one total with the
     non-zero ones named."""
     any_ctrl = any(summaries[n]["controller"] for n in order)
@@ -670,7 +681,8 @@ def _summary_table(order: list[str], summaries: dict[str, dict[str, Any]], prima
     head = ["method", "points / rows", "\u0393 (1/s\u2074)", "cycle time optimal (s)"]
     if any_ctrl:
         head.append(f"cycle time {ctrl_name} (s)")
-    head += ["binds most (time-optimal law)" if any_ctrl else "binds most", "peak |A''| / |B''| (deg/s\u00b2)",
+    head += ["binds most (time-optimal law)" if any_ctrl else "binds most",
+             _named("peak |A''| / |B''| (deg/s\u00b2)", rotary),
              "violations, planned law",
              "violations at the programmed feed", "min \u03b4 (\u00b5m)"]
     if not any_ctrl:
@@ -886,8 +898,11 @@ def _setup_html(result: SmoothResult) -> str:
     m, c = result.machine, result.cutter
     rows: list[tuple[str, str]] = []
     if m is not None:
-        rows.append(("machine", f"{getattr(m, 'name', '?')} (kind {getattr(m, 'kind', '?')}, "
-                                f"pivot {_fmt(getattr(m, 'pivot', None))} mm)"))
+        kind = getattr(m, "kind", "?")
+        where = [f"pivot {_fmt(getattr(m, 'pivot', None))} mm"] if kind in ("AB-head", "BC-head-table", "?") else []
+        if kind != "AB-head" and getattr(m, "table_centre", None) is not None:
+            where.append("table centre [" + ", ".join(_fmt(v) for v in m.table_centre) + "] mm")
+        rows.append(("machine", f"{getattr(m, 'name', '?')} (kind {kind}, {', '.join(where)})"))
         rotary = tuple(getattr(m, "rotary", ("A", "B")))
         for ax in (*rotary, "X", "Y", "Z"):
             lim = _axis_limits(m, ax)
@@ -1047,6 +1062,7 @@ def _html(result: SmoothResult, order: list[str], folder: Path, title: str | Non
           scene_detail: str, series: list[_Series], elapsed: float) -> str:
     summaries = {name: method_summary(result.methods[name]) for name in order}
     primary = result.primary
+    rotary = tuple(getattr(result.machine, "rotary", ("A", "B")))
     n = len(result.result)
     title = title or f"camsmooth report \u2014 {primary}, {n} points, {summaries[primary]['rows']} rows"
     planned = any(s.planned for s in series)
@@ -1054,11 +1070,11 @@ def _html(result: SmoothResult, order: list[str], folder: Path, title: str | Non
            "law the program's F words command); counts at the programmed feed are the motion before planning. "
            if planned else "")
     sections: list[tuple[str, str]] = [
-        ("Verdict", _verdict_html(order, summaries, primary)),
-        ("Summary", _summary_table(order, summaries, primary)
+        ("Verdict", _verdict_html(order, summaries, primary, rotary)),
+        ("Summary", _summary_table(order, summaries, primary, rotary)
          + f"<p class='small'>{law}Red cells need attention (a gouge below {1e3 * _gouge_line(result):.4g} "
            "\u00b5m, a violation under the planned law).</p>"),
-        (f"Per row ({html.escape(primary)})", _rows_html(result.result, getattr(result.machine, "rotary", "AB"))),
+        (f"Per row ({html.escape(primary)})", _rows_html(result.result, rotary)),
         *([("Pole passages", _pole_html(result))] if result.result.metrics.pole else []),
         ("Cutting geometry: effective radius and scallop",
          _geometry_html(result, order)
@@ -1081,7 +1097,7 @@ def _html(result: SmoothResult, order: list[str], folder: Path, title: str | Non
         parts.append(f"<h2>{k}. {head}</h2>{body}")
     note = _decimation_note(series)
     for name in PLOT_FILES + ((FEED_PLOT,) if (folder / FEED_PLOT).exists() else ()):
-        head, cap = _CAPTIONS[name]
+        head, cap = (_named(x, rotary) for x in _CAPTIONS[name])
         k += 1
         if name != FEED_PLOT:
             cap += (" Time is cumulative over the program (rows concatenated; faint vertical lines at row starts)"
