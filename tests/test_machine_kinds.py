@@ -180,28 +180,57 @@ def test_machine_file_errors_for_the_new_keys():
             "B": {"min": -1.0, "max": 1.0, "vmax": 1.0, "amax": 1.0}}})
 
 
+def _saddle_rows(tmp_path, rows):
+    from pathlib import Path
+
+    samples = Path(__file__).resolve().parents[1] / "surfaces"
+    lines = (samples / "saddle_path.csv").read_text().splitlines()
+    col = lines[0].split(",").index("row")
+    keep = [ln for ln in lines[1:] if int(float(ln.split(",")[col])) in rows]
+    path = tmp_path / "rows.csv"
+    path.write_text("\n".join([lines[0], *keep]) + "\n")
+    return path, samples / "saddle.ply"
+
+
+BC_TABLE = {"machine": {"kind": "BC-table", "table_centre": [5.0, -3.0, -50.0]}, "axis": {
+    "B": {"min": -30.0, "max": 110.0, "vmax": 50.0, "amax": 250.0}, "C": {"vmax": 120.0, "amax": 600.0}}}
+
+
+def test_a_pole_passage_the_windows_cannot_contain_is_named_with_its_size(tmp_path):
+    """Narrow windows (lead 9:13, tilt -2:2 deg) keep the tool axis 1.4 deg from the pole: no
+    program meets C's limits; the error names C's binding limit with the need, and the passage."""
+    from camsmooth.errors import InfeasibleError
+    from camsmooth.geometry.cutter import ToroidalCutter
+    from camsmooth.geometry.surfaces import load_surface
+    from camsmooth.io.ccpath import read_cc_csv
+    from camsmooth.smoothing.pipeline import SmoothOptions, smooth
+
+    path, mesh = _saddle_rows(tmp_path, (13,))
+    with pytest.raises(InfeasibleError) as exc:
+        smooth(read_cc_csv(path), load_surface(mesh), machine_from_dict(BC_TABLE), ToroidalCutter(R=4.0, r=1.0),
+               feed=2000.0, lead_range=tuple(np.radians([9.0, 13.0])), tilt_range=tuple(np.radians([-2.0, 2.0])),
+               method="nlp", options=SmoothOptions(workers=1), progress=False)
+    msg = str(exc.value)
+    assert "row id 13" in msg and "binding constraint: C " in msg and "pole passage" in msg, msg
+    need = float(msg.split("need at least ")[1].split()[0])
+    limit = float(msg.split(" limit ")[1].split()[0])
+    assert need > 10 * limit
+
+
 def test_nlp_passes_the_pole_within_every_limit_on_an_untuned_case(tmp_path):
     """Two middle rows of the saddle sample on a B/C trunnion (not the dome sample the pole code was
     built on): the exact inverse turns C more than ten times faster than its limit at the
     programmed feed; the NLP program meets C's and B's velocity, acceleration and travel limits and
     the lead/tilt windows at every sample, recomputed here from the output arrays by plain finite
     differences, and the passages are named."""
-    from pathlib import Path
-
     from camsmooth.geometry.cutter import ToroidalCutter
     from camsmooth.geometry.surfaces import load_surface
     from camsmooth.io.ccpath import read_cc_csv
     from camsmooth.smoothing.pipeline import SmoothOptions, smooth
 
-    samples = Path(__file__).resolve().parents[1] / "surfaces"
-    lines = (samples / "saddle_path.csv").read_text().splitlines()
-    col = lines[0].split(",").index("row")
-    keep = [ln for ln in lines[1:] if int(float(ln.split(",")[col])) in (14, 15)]
-    path = tmp_path / "rows.csv"
-    path.write_text("\n".join([lines[0], *keep]) + "\n")
-    m = machine_from_dict({"machine": {"kind": "BC-table", "table_centre": [5.0, -3.0, -50.0]}, "axis": {
-        "B": {"min": -30.0, "max": 110.0, "vmax": 50.0, "amax": 250.0}, "C": {"vmax": 120.0, "amax": 600.0}}})
-    res = smooth(read_cc_csv(path), load_surface(samples / "saddle.ply"), m, ToroidalCutter(R=4.0, r=1.0),
+    path, mesh = _saddle_rows(tmp_path, (14, 15))
+    m = machine_from_dict(BC_TABLE)
+    res = smooth(read_cc_csv(path), load_surface(mesh), m, ToroidalCutter(R=4.0, r=1.0),
                  feed=2000.0, lead_range=tuple(np.radians([2.0, 20.0])), tilt_range=tuple(np.radians([-15.0, 15.0])),
                  method="nlp", options=SmoothOptions(workers=1), progress=False)
     none, nlp = res.methods["none"], res.methods["nlp"]

@@ -319,6 +319,7 @@ class ProgramSmoother:
         p, o = self.program, self.program.orientation
         machine = 0 if label == "nlp" else 1
         A0, B0 = warm.A, warm.B
+        pole = self.nominal.pole_angle(o.axis)
         passages = []
         if exact is not None:
             exact_q = np.column_stack([exact.A, exact.B])
@@ -329,7 +330,7 @@ class ProgramSmoother:
                 A0, B0 = np.where(pole_rows, start[:, 0], A0), np.where(pole_rows, start[:, 1], B0)
         tasks = [RowTask(row=int(p.path.rows[s.start]), t=p.t[s], frames=p.frames[s], cc=p.path.points[s],
                          normals=p.path.normals[s], lead_window=o.lead_window[s], tilt_window=o.tilt_window[s],
-                         A0=A0[s], B0=B0[s], risk=risk[s], machine=machine) for s in p.slices]
+                         A0=A0[s], B0=B0[s], risk=risk[s], machine=machine, pole=pole[s]) for s in p.slices]
         sols: list[RowSolution] = self.pool.map(solve_row, tasks, progress=f"{label} rows" if progress else None)
         cat = lambda name: np.concatenate([getattr(s, name) for s in sols])  # noqa: E731
         A, B, delta, lift = cat("A"), cat("B"), cat("delta"), cat("lift")

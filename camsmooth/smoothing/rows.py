@@ -68,6 +68,7 @@ from camsmooth.smoothing.nlp import (
     elastic_diagnosis,
     fd_operators,
 )
+from camsmooth.smoothing.pole import POLE_CONE_DEG
 
 __all__ = ["RowContext", "RowOptions", "RowSolution", "RowTask", "solve_row"]
 
@@ -126,7 +127,8 @@ class RowTask:
     """One row: its id, time stamps t (N,) s, local frames (N, 3, 3), CC points and unit normals
     (N, 3), lead/tilt windows (N, 2) rad, warm start (A0, B0) rad and the points where an
     orientation evaluated before gouged (``risk``, (N,) bool); ``machine`` indexes
-    RowContext.machines."""
+    RowContext.machines; ``pole`` the programmed tool axis' angle from the pole of the outer
+    rotary axis (N,) rad, for naming a passage the windows cannot contain (None: not known)."""
 
     row: int
     t: np.ndarray
@@ -139,6 +141,7 @@ class RowTask:
     B0: np.ndarray
     risk: np.ndarray
     machine: int = 0
+    pole: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -541,6 +544,12 @@ def _raise_infeasible(ctx: RowContext, task: RowTask, nlp: RowNLP, lw: np.ndarra
     else:
         detail = (f"{b.constraint} limit {b.limit:g} {b.unit} near point {i} (t = {task.t[i]:.3f} s): the {windows} "
                   f"need at least {b.need:.4g} {b.unit} there{margin}{hint}")
+    outer = machine.rotary[machine.outer_index]
+    pole = task.pole
+    if pole is not None and b.constraint.split()[0] == outer and pole.min() < np.radians(POLE_CONE_DEG):
+        k = int(np.argmin(pole))  # a pole passage: say so, with how close it comes
+        detail += (f" (a pole passage: the row's tool axis passes {np.degrees(pole[k]):.3g} deg from the {outer} axis "
+                   f"at point {k}, and the windows keep it from passing through or far enough around)")
     if b.binds:
         raise InfeasibleError(f"{where}row id {task.row}: no program meets the limits; binding constraint: {detail}")
     raise InfeasibleError(f"{where}row id {task.row}: the NLP solver failed ({status}) although no limit binds (the "
