@@ -32,7 +32,9 @@ from camsmooth.io.atomic import atomic_path
 from camsmooth.io.table import number_text, read_table
 
 LINEAR_AXES = ("X", "Y", "Z")
-ROTARY_AXES = ("A", "B")
+#: the rotary axes a program or recording may carry: two of them on any machine kind (A B on an AB
+#: head, A C or B C on a table-table machine; camsmooth.machine.kinematics.MACHINE_KINDS)
+ROTARY_AXES = ("A", "B", "C")
 AXES = LINEAR_AXES + ROTARY_AXES
 AXIS_CHANNELS = tuple(f"{a}_act" for a in AXES)
 TIP_CHANNELS = ("tip_x", "tip_y", "tip_z")
@@ -41,7 +43,7 @@ DIR_CHANNELS = ("axis_i", "axis_j", "axis_k")
 CHANNELS = AXIS_CHANNELS + TIP_CHANNELS + DIR_CHANNELS
 PROGRAM_COLUMNS = ("t",) + AXES + ("S", "segment")
 #: channels whose file unit is degrees
-DEGREE_COLUMNS = ("A", "B", "A_act", "B_act")
+DEGREE_COLUMNS = ROTARY_AXES + tuple(f"{a}_act" for a in ROTARY_AXES)
 
 UMICH_PERIOD_S = 0.1
 

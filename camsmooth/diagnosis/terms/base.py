@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from camsmooth.diagnosis.recordings import DIR_CHANNELS, TIP_CHANNELS
+from camsmooth.diagnosis.recordings import DIR_CHANNELS, ROTARY_AXES, TIP_CHANNELS
 from camsmooth.machine import fitting
 from camsmooth.machine.model import ErrorModel
 
@@ -243,7 +243,7 @@ def channel_is_length(c: str) -> bool:
 
 
 def rotary_state(P: Problem) -> tuple[str, np.ndarray, str]:
-    for a in ("A", "B"):
+    for a in ROTARY_AXES:
         if P.knots.moves(a):
             return f"rotary axis {a} (deg)", np.degrees(P.states[f"pos_{a}"]), "deg"
     return "elapsed time (s)", P.states["elapsed"], "s"
