@@ -22,9 +22,9 @@ Modes (``[post] mode``):
   iTNC 530 / TNC 640 user's manuals, "Miscellaneous functions for rotary axes, M116"); the
   writer refuses machine mode for Heidenhain: use mode = "tcp".
 - ``tcp``: every block commands the tool tip X Y Z (workpiece frame, mm) and the rotary axis
-  positions (A B, A C or B C) under the controller's tool-centre-point function, with F = the programmed tip
-  feed (G94, mm/min): Fanuc ``G43.4 H<tool>`` ... ``G49`` (type 1: rotary axis positions);
-  Siemens ``TRAORI`` ... ``TRAFOOF``; Heidenhain ``FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS``
+  positions (A B, A C or B C) under the controller's tool-centre-point function, with F = the
+  programmed tip feed (G94, mm/min): Fanuc ``G43.4 H<tool>`` ... ``G49`` (type 1: rotary axis
+  positions); Siemens ``TRAORI`` ... ``TRAFOOF``; Heidenhain ``FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS``
   ... ``FUNCTION RESET TCPM`` (the successor of M128, which HEIDENHAIN recommends instead);
   LinuxCNC has no standard G-code for TCP: it switches kinematics (switchkins) by M-codes that
   the configuration remaps; the writer follows LinuxCNC's shipped five-axis configurations
@@ -163,10 +163,10 @@ def tip_path_lengths(machine: Any, q0: np.ndarray, q1: np.ndarray, substeps: int
 
     q0, q1: (M, 5) joints (X, Y, Z mm: the linear axes; the two rotary axes in ``machine.rotary``
     order, rad). The tip path tip(s) = machine.tool_pose_np(q0 + s (q1 - q0)), s in [0, 1], is
-    sampled at ``substeps`` and ``substeps / 2`` intervals; the polyline lengths are Richardson-extrapolated (L = L_n +
-    (L_n - L_n/2) / 3) since a polyline's length error falls as 1 / n^2. Blocks whose tip path is
-    straight to 1e-6 relative on two intervals against one (short blocks with little rotation,
-    the usual case) are not sampled further.
+    sampled at ``substeps`` and ``substeps / 2`` intervals; the polyline lengths are
+    Richardson-extrapolated (L = L_n + (L_n - L_n/2) / 3) since a polyline's length error falls
+    as 1 / n^2. Blocks whose tip path is straight to 1e-6 relative on two intervals against one
+    (short blocks with little rotation, the usual case) are not sampled further.
     """
     q0 = np.atleast_2d(np.asarray(q0, float))
     q1 = np.atleast_2d(np.asarray(q1, float))
@@ -365,9 +365,13 @@ def _header(dialect: Dialect, mode: str, machine: Any, cutter: Any, method: str,
     if mode == "machine":
         if kind == "AB-head":
             head.append(c(f"X Y Z: head pivot position mm (no tool length compensation); {r1} {r2}: degrees"))
+        elif kind == "BC-head-table":
+            head.append(c(f"X Y Z: head pivot position mm, machine frame (the C table turns the workpiece about "
+                          f"the table centre; no tool length compensation); {r1} {r2}: degrees"))
         else:
-            head.append(c(f"X Y Z: machine linear axes mm ({kind}: the table turns the workpiece about "
-                          f"table_centre; tool length by the controller); {r1} {r2}: degrees"))
+            head.append(c(f"X Y Z: machine linear axes mm, the tool tip in the machine frame ({kind}: the table "
+                          f"turns the workpiece about the table centre; tool length by the controller); {r1} {r2}: "
+                          "degrees"))
         head.append(c("F: inverse time 1/min (G93), so the tool tip moves at the planned feed"))
         if still:
             head.append(c(f"{still} block(s) turn {r1}/{r2} without moving the tip: timed by the rotary speed limits"))
