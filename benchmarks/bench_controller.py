@@ -2,16 +2,21 @@
 
 For each sample and method: smooth a few rows (the simulation runs in real time), write the
 LinuxCNC program (machine mode, G93, the blocks of camsmooth.controller.blocks), run it on
-LinuxCNC (camsmooth.controller.linuxcnc_sim.simulate: trivkins XYZAB, the machine file's limits,
-1 ms servo period) and print per row: the executed cut time (first to last servo sample of the
-row's cut blocks), camsmooth's prediction (camsmooth.controller.linuxcnc, the controller's
-t_plan), the time-optimal law (t_opt), and the tool tip's largest distance, over every servo
-sample of the row, from the path the method commands (the tips of the full-density program,
-each block's tip curve sampled at 16 steps), by the machine's forward kinematics of the
-recorded joints (the programmed path includes the entry feed move onto the row, which LinuxCNC
-blends into the row's first block).
+LinuxCNC (camsmooth.controller.linuxcnc_sim.simulate: trivkins with the machine's axes, XYZAB on
+the AB head, XYZAC on the dome's A/C trunnion; the machine file's limits, 1 ms servo period) and
+print per row: the executed cut time (first to last servo sample of the row's cut blocks),
+camsmooth's prediction (camsmooth.controller.linuxcnc, the controller's t_plan), the
+time-optimal law (t_opt), and the tool tip's largest distance, over every servo sample of the
+row, from the path the method commands (the tips of the full-density program, each block's tip
+curve sampled at 16 steps), by the machine's forward kinematics of the recorded joints
+(LinuxCNC's sense of a table axis undone; the programmed path includes the entry feed move onto
+the row, which LinuxCNC blends into the row's first block).
 
     .venv/bin/python benchmarks/bench_controller.py [--samples blade,wave] [--rows 3] [--methods none,spline,nlp]
+    .venv/bin/python benchmarks/bench_controller.py --sample dome    (the A/C trunnion of surfaces/dome_machine.toml)
+
+A sample with a machine file beside it (``surfaces/<sample>_machine.toml``) runs on that machine
+(its post set to linuxcnc, machine mode); the others on the default AB head.
 
 Needs linuxcnc-uspace (apt-get install linuxcnc-uspace); run as root it creates an unprivileged
 user for the simulation.
@@ -31,6 +36,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from camsmooth.controller.linuxcnc_sim import (  # noqa: E402
+    camsmooth_joints,
     linuxcnc_missing,
     programmed_tip_path,
     row_samples,
@@ -45,16 +51,27 @@ from camsmooth.geometry.surfaces import load_surface  # noqa: E402
 from camsmooth.io.ccpath import read_cc_csv  # noqa: E402
 from camsmooth.io.gcode import DEFAULT_SAFE_HEIGHT_MM, write_gcode  # noqa: E402
 from camsmooth.io.program import load_program  # noqa: E402
-from camsmooth.machine.kinematics import DEFAULT_MACHINE_TOML, machine_from_dict  # noqa: E402
+from camsmooth.machine.kinematics import (  # noqa: E402
+    DEFAULT_MACHINE_TOML,
+    PostConfig,
+    load_machine,
+    machine_from_dict,
+)
 from camsmooth.smoothing.cam import cam_program  # noqa: E402
 from camsmooth.smoothing.pipeline import smooth  # noqa: E402
 
 TOLERANCE = 0.005
 
 
-def linuxcnc_machine():
+def linuxcnc_machine(sample: str | None = None):
+    """The sample's own machine (``surfaces/<sample>_machine.toml``) when it has one, else the
+    default AB head; the post LinuxCNC's, machine mode."""
+    import dataclasses
     import tomllib
 
+    own = ROOT / "surfaces" / f"{sample}_machine.toml"
+    if sample is not None and own.is_file():
+        return dataclasses.replace(load_machine(str(own)), post=PostConfig(dialect="linuxcnc", mode="machine"))
     data = tomllib.loads(DEFAULT_MACHINE_TOML)
     data["post"] = {"dialect": "linuxcnc", "mode": "machine"}
     return machine_from_dict(data, "<bench machine>")
@@ -81,7 +98,7 @@ def cam_clsf(path: CCPath, cutter: ToroidalCutter, lead_deg: float = 11.0) -> st
 
 
 def run(sample: str, rows: int, methods: list[str], keep: Path | None) -> list[dict]:
-    machine = linuxcnc_machine()
+    machine = linuxcnc_machine(sample)
     shipped = ROOT / "surfaces" / f"{sample}.toml"
     if shipped.exists():
         surf = load_surface(shipped)
@@ -116,9 +133,8 @@ def run(sample: str, rows: int, methods: list[str], keep: Path | None) -> list[d
             wall = time.time() - t0
             text = ngc.read_text()
         samples = row_samples(text, sim)
-        joints = sim.joints
-        tip_sim, _ = machine.tool_pose_np(np.radians(joints[:, 3]), np.radians(joints[:, 4]), joints[:, 0],
-                                          joints[:, 1], joints[:, 2])
+        joints = camsmooth_joints(machine, sim.joints)
+        tip_sim, _ = machine.tool_pose_np(joints[:, 3], joints[:, 4], joints[:, 0], joints[:, 1], joints[:, 2])
         q = np.column_stack([r.xyz, r.A, r.B])
         for rid, k in samples.items():
             executed = (k[-1] - k[0] + 1) * sim.servo_period
@@ -137,7 +153,7 @@ def run(sample: str, rows: int, methods: list[str], keep: Path | None) -> list[d
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--samples", default="blade,wave,ridge",
+    ap.add_argument("--samples", "--sample", default="blade,wave,ridge",
                     help="comma-separated samples in surfaces/ or surface definitions in benchmarks/data/")
     ap.add_argument("--rows", type=int, default=3, help="rows per sample (from the middle of the path)")
     ap.add_argument("--methods", default="cam,none,spline,nlp",

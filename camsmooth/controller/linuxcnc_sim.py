@@ -7,8 +7,10 @@ Two tools for tests and benchmarks, both optional (they need the Debian package
   its canonical motion calls (STRAIGHT_FEED / STRAIGHT_TRAVERSE with X Y Z A B, the inverse-time
   feed of each block, the auxiliary outputs the switchkins M-codes set), so the positions and
   block times of a written program can be compared with what camsmooth planned.
-- ``simulate(program, machine)``: a headless LinuxCNC (trivkins, ``coordinates=XYZAB``, the machine
-  file's axis limits, a 1 ms servo period, the motion-controller's position commands looped back)
+- ``simulate(program, machine)``: a headless LinuxCNC (trivkins with the machine's axes,
+  ``coordinates=XYZAB`` on the AB head, ``XYZAC`` on an A/C table, ``XYZBC`` on a B/C machine: a
+  machine-mode program's joints; the machine file's axis limits in LinuxCNC's sense, a 1 ms servo
+  period, the motion-controller's position commands looped back)
   runs the program; the ``sampler`` HAL component records the commanded joint positions and the
   program line at every servo cycle. ``rtapi_app`` refuses to run as root, so the simulation runs
   as an unprivileged user (``LINUXCNC_USER``, created when missing and we are root). The
@@ -33,10 +35,11 @@ from pathlib import Path
 
 import numpy as np
 
+from camsmooth.controller.linuxcnc import linuxcnc_sense
 from camsmooth.machine.kinematics import Machine
 
 __all__ = ["linuxcnc_missing", "interpret", "Canon", "simulate", "SimRun", "LINUXCNC_USER", "programmed_tip_path",
-           "tip_deviation", "row_samples"]
+           "tip_deviation", "row_samples", "camsmooth_joints"]
 
 #: the unprivileged user the simulation runs as when we are root
 LINUXCNC_USER = "camsmooth-lcnc"
@@ -59,7 +62,8 @@ def linuxcnc_missing() -> str | None:
 class Canon:
     """The canonical motion of a program as LinuxCNC's interpreter emits it.
 
-    joints: (M, 5) X Y Z (mm) A B (deg) at the end of each motion call; rapid: (M,) bool;
+    joints: (M, 5) X Y Z (mm) A B (deg) at the end of each motion call; positions: (M, 6) X Y Z
+    (mm) A B C (deg), all of the interpreter's axes (``axes`` picks a machine's); rapid: (M,) bool;
     feed: (M,) the feed rate in force (SET_FEED_RATE; in inverse-time mode LinuxCNC reports the
     block's F as given); inverse_time: (M,) bool, G93 in force; aux: list of (call index, output
     index, value) from SET_AUX_OUTPUT_VALUE (M68), in program order (call index = number of motion
@@ -72,6 +76,15 @@ class Canon:
     inverse_time: np.ndarray
     aux: list[tuple[int, int, float]]
     comments: list[str]
+    positions: np.ndarray | None = None
+
+    def axes(self, names: str | tuple[str, ...]) -> np.ndarray:
+        """(M, len(names)) the positions of the named axes (letters of X Y Z A B C), e.g.
+        ``machine.joint_names``: X Y Z mm and the rotary axes in degrees, as the program gives them."""
+        pos = self.positions
+        if pos is None:
+            pos = np.column_stack([self.joints, np.zeros(len(self.joints))])
+        return pos[:, ["XYZABC".index(n) for n in names]]
 
 
 _NUM = r"([-+]?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)"
@@ -111,7 +124,7 @@ def parse_canon(text: str) -> Canon:
         name, args = m.group(1), m.group(2)
         if name in ("STRAIGHT_FEED", "STRAIGHT_TRAVERSE"):
             v = [float(x) for x in re.findall(_NUM, args)]
-            joints.append(v[:5])
+            joints.append((v + [0.0] * 6)[:6])
             rapid.append(name == "STRAIGHT_TRAVERSE")
             feed.append(f_now)
             inv.append(inverse)
@@ -125,8 +138,9 @@ def parse_canon(text: str) -> Canon:
         elif name == "SET_AUX_OUTPUT_VALUE":
             k, val = (float(x) for x in re.findall(_NUM, args)[:2])
             aux.append((len(joints), int(k), val))
-    return Canon(joints=np.asarray(joints, float).reshape(-1, 5), rapid=np.asarray(rapid, bool),
-                 feed=np.asarray(feed, float), inverse_time=np.asarray(inv, bool), aux=aux, comments=comments)
+    pos = np.asarray(joints, float).reshape(-1, 6)
+    return Canon(joints=pos[:, :5].copy(), rapid=np.asarray(rapid, bool), feed=np.asarray(feed, float),
+                 inverse_time=np.asarray(inv, bool), aux=aux, comments=comments, positions=pos)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -135,9 +149,10 @@ def parse_canon(text: str) -> Canon:
 class SimRun:
     """What the simulated controller commanded, one sample per servo cycle.
 
-    t: (K,) s from the first sample; joints: (K, 5) X Y Z (mm) A B (deg), the motion
-    controller's commanded joint positions; line: (K,) the program line being executed (0 when
-    none); servo_period: s.
+    t: (K,) s from the first sample; joints: (K, 5) X Y Z (mm) and the machine's rotary axes
+    (deg, ``Machine.rotary``, in LinuxCNC's sense: ``camsmooth_joints`` turns them into camsmooth's),
+    the motion controller's commanded joint positions; line: (K,) the program line being executed
+    (0 when none); servo_period: s.
     """
 
     t: np.ndarray
@@ -147,19 +162,32 @@ class SimRun:
 
 
 def _fmt(x: float) -> str:
-    return f"{x:.6g}" if np.isfinite(x) else "1e9"
+    return f"{x:.6g}" if np.isfinite(x) else ("-1e9" if x < 0 else "1e9")
+
+
+def camsmooth_joints(machine: Machine, joints: np.ndarray) -> np.ndarray:
+    """(K, 5) joints as LinuxCNC commands them (X Y Z mm, the rotary axes deg in LinuxCNC's sense)
+    as camsmooth's (X Y Z mm, the rotary axes rad, the tool's rotation: LINUXCNC_SENSE undone)."""
+    q = np.array(joints, float).reshape(-1, 5)
+    q[:, 3:] = np.radians(q[:, 3:]) * linuxcnc_sense(machine)
+    return q
 
 
 def _axis_limits_deg(machine: Machine) -> dict[str, tuple[float, float, float, float]]:
-    """(min, max, vmax, amax) per axis in the INI's units (mm, deg)."""
+    """(min, max, vmax, amax) per axis of ``machine.joint_names`` in the INI's units (mm, deg) and
+    LinuxCNC's sense (a table axis negated: its travel mirrored)."""
     out = {}
-    for name in "XYZAB":
+    sense = dict(zip(machine.rotary, linuxcnc_sense(machine), strict=True))
+    for name in machine.joint_names:
         lim = machine.limits.get(name)
-        conv = np.degrees if name in "AB" else (lambda v: v)
         if lim is None:
             out[name] = (-1e4, 1e4, 1e3, 1e4)
+            continue
+        if name in sense:
+            lo, hi = sorted((float(np.degrees(lim.min)) * sense[name], float(np.degrees(lim.max)) * sense[name]))
+            out[name] = (lo, hi, float(np.degrees(lim.vmax)), float(np.degrees(lim.amax)))
         else:
-            out[name] = tuple(float(conv(v)) for v in (lim.min, lim.max, lim.vmax, lim.amax))
+            out[name] = (float(lim.min), float(lim.max), float(lim.vmax), float(lim.amax))
     return out
 
 
@@ -206,10 +234,12 @@ sys.exit(0 if ok and not err else "program did not finish: " + str(err))
 
 def _ini(machine: Machine, folder: Path, extra_traj: dict[str, str] | None) -> Path:
     lims = _axis_limits_deg(machine)
+    names = machine.joint_names
+    coords = "".join(names)
     lin = [lims[a] for a in "XYZ"]
-    rot = [lims[a] for a in "AB"]
+    rot = [lims[a] for a in machine.rotary]
     traj = {
-        "COORDINATES": "XYZAB", "LINEAR_UNITS": "mm", "ANGULAR_UNITS": "degree",
+        "COORDINATES": coords, "LINEAR_UNITS": "mm", "ANGULAR_UNITS": "degree",
         "MAX_LINEAR_VELOCITY": _fmt(max(v[2] for v in lin)),
         "MAX_LINEAR_ACCELERATION": _fmt(max(v[3] for v in lin)),
         "MAX_ANGULAR_VELOCITY": _fmt(max(v[2] for v in rot)),
@@ -221,7 +251,7 @@ def _ini(machine: Machine, folder: Path, extra_traj: dict[str, str] | None) -> P
     parts = [
         "[EMC]\nVERSION = 1.1\nMACHINE = camsmooth-sim\n",
         f"[DISPLAY]\nDISPLAY = {folder / 'driver.py'}\nCYCLE_TIME = 0.1\n",
-        "[KINS]\nKINEMATICS = trivkins coordinates=XYZAB\nJOINTS = 5\n",
+        f"[KINS]\nKINEMATICS = trivkins coordinates={coords}\nJOINTS = 5\n",
         "[RS274NGC]\nPARAMETER_FILE = sim.var\n",
         f"[EMCMOT]\nEMCMOT = motmod\nCOMM_TIMEOUT = 1.0\nSERVO_PERIOD = {int(SERVO_PERIOD_S * 1e9)}\n",
         "[TASK]\nTASK = milltask\nCYCLE_TIME = 0.001\n",
@@ -229,12 +259,12 @@ def _ini(machine: Machine, folder: Path, extra_traj: dict[str, str] | None) -> P
         "[TRAJ]\n" + "".join(f"{k} = {v}\n" for k, v in traj.items()),
         "[EMCIO]\nEMCIO = io\nCYCLE_TIME = 0.100\nTOOL_TABLE = tool.tbl\n",
     ]
-    for j, name in enumerate("XYZAB"):
+    for j, name in enumerate(names):
         lo, hi, v, a = lims[name]
         body = (f"MIN_LIMIT = {_fmt(lo - 1.0)}\nMAX_LIMIT = {_fmt(hi + 1.0)}\nMAX_VELOCITY = {_fmt(v)}\n"
                 f"MAX_ACCELERATION = {_fmt(a)}\n")
         parts.append(f"[AXIS_{name}]\n{body}")
-        kind = "ANGULAR" if name in "AB" else "LINEAR"
+        kind = "ANGULAR" if name in machine.rotary else "LINEAR"
         parts.append(f"[JOINT_{j}]\nTYPE = {kind}\nHOME = 0\nHOME_SEARCH_VEL = 0\nHOME_SEQUENCE = 0\n"
                      f"FERROR = 1e9\nMIN_FERROR = 1e9\n{body}")
     ini = folder / "sim.ini"
@@ -330,9 +360,9 @@ def simulate(program: Path | str, machine: Machine, *, timeout: float = 600.0,
 # what the tool did
 def programmed_tip_path(machine: Machine, q: np.ndarray, entry: np.ndarray | None = None, sub: int = 16) -> np.ndarray:
     """The tool-tip path a row commands, as a polyline (mm, workpiece frame): the forward
-    kinematics of each block's joints interpolated linearly (q: (N, 5) X Y Z mm A B rad, the
-    full-density program) at ``sub`` steps, after the tip ``entry`` where the row's entry feed
-    move starts (LinuxCNC blends that move into the row)."""
+    kinematics of each block's joints interpolated linearly (q: (N, 5) X Y Z mm and the rotary
+    axes of ``machine.rotary`` rad, the full-density program) at ``sub`` steps, after the tip
+    ``entry`` where the row's entry feed move starts (LinuxCNC blends that move into the row)."""
     q = np.asarray(q, float)
     s = np.linspace(0.0, 1.0, sub, endpoint=False)
     qq = (q[:-1, None, :] + s[None, :, None] * np.diff(q, axis=0)[:, None, :]).reshape(-1, 5)

@@ -5,8 +5,12 @@ Dialects (``[post] dialect`` of the machine file, camsmooth.machine.kinematics.P
 generic, linuxcnc, fanuc, siemens (ISO G-code) and heidenhain (Klartext, ``L`` blocks).
 Modes (``[post] mode``):
 
-- ``machine``: every block commands the joints, X Y Z = the head pivot (METHODS section 1:
-  pivot = CL + L_p T, no tool length compensation active) and A B, with **inverse-time feed**
+- ``machine``: every block commands the joints, X Y Z = the machine's linear axes
+  (``Machine.linear_axes``: on the AB head the head pivot, METHODS section 1: pivot = CL + L_p T,
+  no tool length compensation active; on a table machine c + R_wp (CL - c), the tool tip in the
+  machine frame with the table turned, tool length by the controller; on the BC head-table
+  c + Rz(-C)(CL - c) + L_p Ry(B) e_z) and the two rotary axes by the machine's names
+  (``Machine.rotary``: A B, A C or B C), with **inverse-time feed**
   (G93: F = 1 / block time in 1/min). The block time is the length of the path the tool tip
   follows while the controller interpolates the joints linearly, divided by the programmed feed
   of the block, so the tip moves at the programmed feed (a controller in G94 applies F to the
@@ -18,9 +22,9 @@ Modes (``[post] mode``):
   iTNC 530 / TNC 640 user's manuals, "Miscellaneous functions for rotary axes, M116"); the
   writer refuses machine mode for Heidenhain: use mode = "tcp".
 - ``tcp``: every block commands the tool tip X Y Z (workpiece frame, mm) and the rotary axis
-  positions A B under the controller's tool-centre-point function, with F = the programmed tip
-  feed (G94, mm/min): Fanuc ``G43.4 H<tool>`` ... ``G49`` (type 1: rotary axis positions);
-  Siemens ``TRAORI`` ... ``TRAFOOF``; Heidenhain ``FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS``
+  positions (A B, A C or B C) under the controller's tool-centre-point function, with F = the
+  programmed tip feed (G94, mm/min): Fanuc ``G43.4 H<tool>`` ... ``G49`` (type 1: rotary axis
+  positions); Siemens ``TRAORI`` ... ``TRAFOOF``; Heidenhain ``FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS``
   ... ``FUNCTION RESET TCPM`` (the successor of M128, which HEIDENHAIN recommends instead);
   LinuxCNC has no standard G-code for TCP: it switches kinematics (switchkins) by M-codes that
   the configuration remaps; the writer follows LinuxCNC's shipped five-axis configurations
@@ -48,7 +52,24 @@ spindle toward -Y (T = (0, -0.5, 0.866)); A = 0, B = +30 deg toward +X (T = (0.5
 LinuxCNC issue #2435 lists kinematics modules that turn the other way; check a machine with a
 slow single-axis move before running a program.
 
-Program layout: header comments (machine, tool, method, inputs, post, conventions), the dialect's
+Table machines (``[machine] kind``, camsmooth.machine.kinematics): the angles are still the tool's
+rotation relative to the workpiece (ISO 841, right-hand rule): AC-table T = Rz(C) Rx(A) e_z,
+BC-table and BC-head-table T = Rz(C) Ry(B) e_z; the table turns the workpiece the other way,
+R_wp = Rx(-A) Rz(-C) (AC) or Ry(-B) Rz(-C) (BC), about the table centre c. Fanuc, Siemens,
+Heidenhain and generic programs write these angles as they are. **LinuxCNC's sign mapping**: its
+table-rotary-tilting kinematics (``xyzac-trt``, ``xyzbc-trt``) take a table axis' value as the
+table's own rotation, joints = r + Rx(a) Rz(c) (pos - r) (xyzac) or r + Ry(b) Rz(c) (pos - r)
+(xyzbc) with r the rot-point, which is camsmooth's c + R_wp (CL - c) with a = -A (b = -B),
+c = -C and r = c. So on a table machine the linuxcnc dialect writes a = -A, c = -C (b = -B) in
+both modes (a head's B of the BC head-table is the tool's rotation and keeps its sign;
+camsmooth.controller.linuxcnc.LINUXCNC_SENSE): machine mode then gives the joints of an xyzac-trt /
+xyzbc-trt configuration in identity kinematics (X Y Z = its joints, the tool tip), tcp mode
+(``M428``, the trt kinematics on) X Y Z = the tool tip in the workpiece frame, the rot-point pins
+set to the table centre. The header says so (``sense=linuxcnc`` in the post tag) and
+``read_gcode`` negates the angles back.
+
+Program layout: header comments (machine and its kind, the table centre of a table machine, tool,
+method, inputs, post, conventions), the dialect's
 program start (units mm, absolute, plane XY, offsets cancelled), then per row: rapid to a point
 ``safe_height`` mm above the row's first point along its tool axis, feed move onto it, the row at
 the programmed feed, rapid back out ``safe_height`` along the last point's axis (the tip backs
@@ -140,12 +161,12 @@ _AXIS_FORMULA = {"AB-head": "T = Rx(A) Ry(B) e_z", "AC-table": "T = Rz(C) Rx(A) 
 def tip_path_lengths(machine: Any, q0: np.ndarray, q1: np.ndarray, substeps: int = _SUBSTEPS) -> np.ndarray:
     """Length (mm) of the tool-tip path of each block when the joints move linearly from q0 to q1.
 
-    q0, q1: (M, 5) joints (X, Y, Z mm = pivot; A, B rad). The tip path tip(s) =
-    machine.tool_pose_np(q0 + s (q1 - q0)), s in [0, 1], is sampled at ``substeps`` and
-    ``substeps / 2`` intervals; the polyline lengths are Richardson-extrapolated (L = L_n +
-    (L_n - L_n/2) / 3) since a polyline's length error falls as 1 / n^2. Blocks whose tip path is
-    straight to 1e-6 relative on two intervals against one (short blocks with little rotation,
-    the usual case) are not sampled further.
+    q0, q1: (M, 5) joints (X, Y, Z mm: the linear axes; the two rotary axes in ``machine.rotary``
+    order, rad). The tip path tip(s) = machine.tool_pose_np(q0 + s (q1 - q0)), s in [0, 1], is
+    sampled at ``substeps`` and ``substeps / 2`` intervals; the polyline lengths are
+    Richardson-extrapolated (L = L_n + (L_n - L_n/2) / 3) since a polyline's length error falls
+    as 1 / n^2. Blocks whose tip path is straight to 1e-6 relative on two intervals against one
+    (short blocks with little rotation, the usual case) are not sampled further.
     """
     q0 = np.atleast_2d(np.asarray(q0, float))
     q1 = np.atleast_2d(np.asarray(q1, float))
@@ -323,23 +344,34 @@ def _header(dialect: Dialect, mode: str, machine: Any, cutter: Any, method: str,
     shank = getattr(cutter, "shank_length", None)
     shank_txt = "n/a" if shank is None else f"{float(shank):.4f} mm"
     pivot = float(getattr(machine, "pivot", float("nan")))
+    kind = getattr(machine, "kind", "AB-head")
+    centre = tuple(float(v) for v in getattr(machine, "table_centre", (0.0, 0.0, 0.0)))
+    table = kind != "AB-head"
+    centre_txt = f", table centre {centre[0]:.4f} {centre[1]:.4f} {centre[2]:.4f} mm" if table else ""
     head = [
         c(f"generated by camsmooth {__version__} - five-axis tool-axis smoothing"),
-        c(f"machine: {getattr(machine, 'name', '?')}, kind {getattr(machine, 'kind', '?')}, pivot {pivot:.4f} mm"),
+        c(f"machine: {getattr(machine, 'name', '?')}, kind {kind}, pivot {pivot:.4f} mm{centre_txt}"),
         c(f"tool: toroidal R {R:.4f} mm, r {r_c:.4f} mm, diameter {diameter:.4f} mm, shank {shank_txt}"),
         c(f"method: {method}; {n_points} points"),
     ]
     head.extend(c(f"input {k}: {v}") for k, v in _simple_items(inputs))
     tol = "" if tolerance is None else f" tolerance={float(tolerance):.6g}"
-    head.append(c(f"{_POST_TAG} dialect={dialect.name} mode={mode} units=mm pivot={pivot:.6f} method={method}{tol}"))
     r1, r2 = getattr(machine, "rotary", ("A", "B"))
-    kind = getattr(machine, "kind", "AB-head")
+    sign = _sense(dialect, machine)
+    sense = "linuxcnc" if (sign != 1.0).any() else "iso"
+    where = f" centre={centre[0]:.6f},{centre[1]:.6f},{centre[2]:.6f}" if table else ""
+    head.append(c(f"{_POST_TAG} dialect={dialect.name} mode={mode} units=mm pivot={pivot:.6f} method={method}{tol} "
+                  f"kind={kind} rotary={r1},{r2}{where} sense={sense}"))
     if mode == "machine":
         if kind == "AB-head":
             head.append(c(f"X Y Z: head pivot position mm (no tool length compensation); {r1} {r2}: degrees"))
+        elif kind == "BC-head-table":
+            head.append(c(f"X Y Z: head pivot position mm, machine frame (the C table turns the workpiece about "
+                          f"the table centre; no tool length compensation); {r1} {r2}: degrees"))
         else:
-            head.append(c(f"X Y Z: machine linear axes mm ({kind}: the table turns the workpiece about "
-                          f"table_centre; tool length by the controller); {r1} {r2}: degrees"))
+            head.append(c(f"X Y Z: machine linear axes mm, the tool tip in the machine frame ({kind}: the table "
+                          f"turns the workpiece about the table centre; tool length by the controller); {r1} {r2}: "
+                          "degrees"))
         head.append(c("F: inverse time 1/min (G93), so the tool tip moves at the planned feed"))
         if still:
             head.append(c(f"{still} block(s) turn {r1}/{r2} without moving the tip: timed by the rotary speed limits"))
@@ -347,12 +379,31 @@ def _header(dialect: Dialect, mode: str, machine: Any, cutter: Any, method: str,
         head.append(c(f"X Y Z: tool tip mm, workpiece frame; {r1} {r2}: rotary axis positions, degrees; "
                       "F: tip feed mm/min"))
     about = " / ".join("+" + {"A": "X", "B": "Y", "C": "Z"}[r] for r in (r1, r2))
-    head.append(c(f"{r1} {r2}: right-hand rule about {about}, tool relative to workpiece: "
-                  f"{_AXIS_FORMULA.get(kind, 'T = Rx(A) Ry(B) e_z')}"))
+    formula = _AXIS_FORMULA.get(kind, "T = Rx(A) Ry(B) e_z")
+    if sense == "iso":
+        head.append(c(f"{r1} {r2}: right-hand rule about {about}, tool relative to workpiece (ISO 841): {formula}"))
+    else:
+        flipped = [n for n, s_ in zip((r1, r2), sign, strict=True) if s_ < 0]
+        words = ", ".join(f"{n.lower()} = -{n}" for n in flipped)
+        head.append(c(f"{r1} {r2} written in LinuxCNC's sense (its trt kinematics: a table axis' value is the "
+                      f"table's rotation): {words}, where {r1} {r2} are the tool's rotation relative to the "
+                      f"workpiece (ISO 841), right-hand rule about {about}: {formula}"))
+    if table:
+        head.append(c(f"table centre {centre[0]:.4f} {centre[1]:.4f} {centre[2]:.4f} mm (workpiece frame at zero "
+                      "angles, where the table's axes cross"
+                      + ("; LinuxCNC: the rot-point of the trt kinematics)" if sense != "iso" else ")")))
     head.append(c(f"rows are entered and left by rapids {h:.4f} mm up along the tool axis"))
     head.append(c("t= beside a block: s from the row's start at the programmed feed f= (mm/min, given where it "
                   "changes)"))
     return head
+
+
+def _sense(dialect: Dialect, machine: Any) -> np.ndarray:
+    """(2,) the sign each rotary axis is written with: LinuxCNC's trt sense on its dialect
+    (camsmooth.controller.linuxcnc.LINUXCNC_SENSE: a table axis turns the other way), else 1."""
+    from camsmooth.controller.linuxcnc import linuxcnc_sense
+
+    return linuxcnc_sense(machine) if dialect.name == "linuxcnc" else np.ones(2)
 
 
 def _simple_items(inputs: dict[str, Any]) -> Iterable[tuple[str, str]]:
@@ -390,8 +441,9 @@ def write_gcode(path: str | os.PathLike, result: SmoothResult | MethodResult, ma
     tcp_on = (getattr(post, "tcp_on", None) if post is not None else None) or d.tcp_on
     tcp_off = (getattr(post, "tcp_off", None) if post is not None else None) or d.tcp_off
     if mode == "machine" and d.inverse_time is None:
-        raise InputError("Heidenhain controls have no inverse-time feed and M116 does not apply to swivel heads, "
-                         "so machine mode cannot hold the tip feed: set [post] mode = \"tcp\" (FUNCTION TCPM)")
+        raise InputError("Heidenhain controls have no inverse-time feed and M116 does not apply to swivel heads (on "
+                         "a rotary table it gives F in mm/min on the rotary axes, not the tool tip's feed), so machine "
+                         "mode cannot hold the tip feed: set [post] mode = \"tcp\" (FUNCTION TCPM)")
     if mode == "tcp" and tcp_on is None:
         raise InputError(f"the {dname} dialect has no tool-centre-point command: set [post] dialect to linuxcnc, "
                          "fanuc, heidenhain or siemens, or mode = \"machine\"")
@@ -469,7 +521,8 @@ def write_gcode(path: str | os.PathLike, result: SmoothResult | MethodResult, ma
                                                      tolerance)
     lines += _program_start(d, mode, tcp_on, tool_no, tolerance)
     deg = np.degrees
-    coords = np.column_stack([mv.joints[:, :3] if mode == "machine" else mv.tips, deg(mv.joints[:, 3:])])
+    coords = np.column_stack([mv.joints[:, :3] if mode == "machine" else mv.tips,
+                              deg(mv.joints[:, 3:]) * _sense(d, machine)])
     lines += _blocks(d, mode, mv, coords, F, "XYZ" + "".join(getattr(machine, "rotary", ("A", "B"))))
     lines += _program_end(d, mode, tcp_off, program_name)
     if d.klartext:
@@ -624,32 +677,87 @@ def _header_pivot(text: str | None, default: float, file: str, line: int | None)
     return pivot
 
 
+def _header_kind(info: dict[str, str], machine: Any, file: str, line: int | None) -> str:
+    """The machine kind the program was written for: the header's ``kind=`` (older headers and
+    other programs: the given machine's, else the AB head). InputError naming the line for an
+    unknown kind, or one the given machine is not (its rotary words would be other letters)."""
+    from camsmooth.machine.kinematics import MACHINE_KINDS
+
+    own = getattr(machine, "kind", None) if machine is not None else None
+    kind = info.get("kind") or own or "AB-head"
+    if kind not in MACHINE_KINDS:
+        raise InputError(f"the camsmooth post header gives kind={kind}: not a machine kind "
+                         f"({', '.join(MACHINE_KINDS)})", file=file, line=line)
+    if own is not None and own != kind and MACHINE_KINDS[own] != MACHINE_KINDS[kind]:
+        raise InputError(f"the program was written for an {kind} machine (rotary axes "
+                         f"{','.join(MACHINE_KINDS[kind])}) but the machine is an {own} "
+                         f"({','.join(MACHINE_KINDS[own])}): give the machine file it was written for (--machine)",
+                         file=file, line=line)
+    return kind
+
+
+def _header_centre(text: str | None, file: str, line: int | None) -> tuple[float, float, float]:
+    """The table centre of the camsmooth post header (``centre=x,y,z``, mm), the origin without
+    one; InputError naming the line when it is not three finite numbers."""
+    if text is None:
+        return (0.0, 0.0, 0.0)
+    try:
+        vals = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        vals = ()
+    if len(vals) != 3 or not all(abs(v) <= MAX_WORD for v in vals):
+        raise InputError(f"the camsmooth post header gives centre={text}: not three lengths x,y,z (mm)", file=file,
+                         line=line)
+    return vals  # type: ignore[return-value]
+
+
 def read_gcode(path: str | os.PathLike, machine: Any = None) -> CLProgram:
     """Read a program written by ``write_gcode`` (any dialect, either mode) as a CLProgram.
 
     Tips and axes come from the blocks through the machine's kinematics: machine mode
-    tip, axis = machine.tool_pose_np(A, B, X, Y, Z); tcp mode tip = (X, Y, Z), axis =
-    machine.tool_axis_np(A, B). machine: a camsmooth Machine; None builds the nominal AB head with
-    the pivot length named in the file's header. Feed per point: tcp mode F; machine mode the
-    block's tip path length x F (inverse time); a G94 machine-mode file (older camsmooth output)
-    gives F as written, with a warning. Rapid blocks split rows; their points have row -1.
+    tip, axis = machine.tool_pose_np(q1, q2, X, Y, Z); tcp mode tip = (X, Y, Z), axis =
+    machine.tool_axis_np(q1, q2), with q1 q2 the words of ``machine.rotary`` (A B, A C, B C; the
+    program's ``rotary``), negated back where the header says they are in LinuxCNC's sense
+    (module docstring). machine: a camsmooth Machine; None builds the nominal machine of the
+    header's kind with its pivot length and table centre (the AB head without a header).
+    InputError when the header names a kind whose rotary axes the given machine does not have.
+    Feed per point: tcp mode F; machine mode the block's tip path length x F (inverse time); a G94
+    machine-mode file (older camsmooth output) gives F as written, with a warning. Rapid blocks
+    split rows; their points have row -1.
     """
-    from camsmooth.machine.kinematics import Machine, ab_head_chain, load_machine
+    from camsmooth.machine.kinematics import Machine, ab_head_chain, kind_chain, load_machine
 
     file = str(path)
     text = read_text_file(path, "G-code file")
     lines = text.split("\n")
     tag = next((ln for ln in lines[:60] if _POST_TAG in ln), None)
-    info = dict(re.findall(r"(\w+)=([\w.+-]+)", tag.split(_POST_TAG, 1)[1])) if tag else {}
+    info = dict(re.findall(r"(\w+)=([\w.,+-]+)", tag.split(_POST_TAG, 1)[1])) if tag else {}
     klartext = any("BEGIN PGM" in ln for ln in lines[:5])
     dialect = info.get("dialect") or ("heidenhain" if klartext else "generic")
     warnings: list[str] = []
     if tag is None:
         warnings.append("no camsmooth post header: read as generic G-code")
+    tag_line = lines.index(tag) + 1 if tag else None
+    kind = _header_kind(info, machine, file, tag_line)
     if machine is None:
         base = load_machine(None)
-        pivot = _header_pivot(info.get("pivot"), base.pivot, file, lines.index(tag) + 1 if tag else None)
-        machine = Machine(base.name, base.kind, pivot, ab_head_chain(pivot), {}, base.post)
+        if kind == "AB-head":
+            pivot = _header_pivot(info.get("pivot"), base.pivot, file, tag_line)
+            machine = Machine(base.name, base.kind, pivot, ab_head_chain(pivot), {}, base.post)
+        else:
+            pivot = _header_pivot(info.get("pivot"), 0.0, file, tag_line) if kind == "BC-head-table" else 0.0
+            centre = _header_centre(info.get("centre"), file, tag_line)
+            machine = Machine(f"{kind} from the program header", kind, pivot, kind_chain(kind, pivot, centre), {},
+                              base.post, table_centre=centre)
+    letters = tuple(getattr(machine, "rotary", ("A", "B")))
+    sense = np.ones(2)
+    if info.get("sense") == "linuxcnc":
+        from camsmooth.controller.linuxcnc import linuxcnc_sense
+
+        sense = linuxcnc_sense(machine)
+    elif info.get("sense") not in (None, "iso"):
+        raise InputError(f"the camsmooth post header gives sense={info['sense']}: not iso or linuxcnc", file=file,
+                         line=tag_line)
     mode = info.get("mode")
     tcp_words = {d.tcp_on.split()[0] for d in DIALECTS.values() if d.tcp_on}
     joints: list[list[float]] = []
@@ -663,7 +771,7 @@ def read_gcode(path: str | os.PathLike, machine: Any = None) -> CLProgram:
     inverse = False
     inv_flag: list[bool] = []
     units_inch = False
-    state = {"X": math.nan, "Y": math.nan, "Z": math.nan, "A": math.nan, "B": math.nan}
+    state = {w: math.nan for w in ("X", "Y", "Z") + letters}
     motion = None
     f_modal = math.nan
     tcp_seen = False
@@ -724,7 +832,7 @@ def read_gcode(path: str | os.PathLike, machine: Any = None) -> CLProgram:
         if any(math.isnan(v) for v in state.values()):
             missing = [w for w, v in state.items() if math.isnan(v)]
             raise InputError(f"first motion block does not give {', '.join(missing)}", file=file, line=k)
-        joints.append([state[w] for w in ("X", "Y", "Z", "A", "B")])
+        joints.append([state[w] for w in ("X", "Y", "Z") + letters])
         ann = _ANNOT.search(raw) if tag is not None and not is_rapid else None
         t_ann.append(float(ann.group(1)) if ann else math.nan)
         f_ann.append(float(ann.group(2)) if ann and ann.group(2) else math.nan)
@@ -734,13 +842,13 @@ def read_gcode(path: str | os.PathLike, machine: Any = None) -> CLProgram:
         inv_flag.append(inverse)
         line_no.append(k)
     if not joints:
-        raise InputError("no motion block (G00/G01 or L with X Y Z A B)", file=file)
+        raise InputError(f"no motion block (G00/G01 or L with X Y Z {' '.join(letters)})", file=file)
     if units_inch:
         raise InputError("inch programs (G20) are not read: camsmooth writes mm", file=file)
     if mode is None:
         mode = "tcp" if tcp_seen else "machine"
     q = np.asarray(joints, dtype=float)
-    q[:, 3:] = np.radians(q[:, 3:])
+    q[:, 3:] = np.radians(q[:, 3:]) * sense  # back to the tool's rotation (ISO 841) where LinuxCNC's sense was written
     rap = np.asarray(rapid, dtype=bool)
     F = np.asarray(fword, dtype=float)
     if mode == "machine":
@@ -764,7 +872,8 @@ def read_gcode(path: str | os.PathLike, machine: Any = None) -> CLProgram:
                                 o_ann)
     tp = ToolPath(name=Path(file).stem, tool=tool, start=0, stop=len(q), line=None)
     prog = CLProgram(tip=tip, axis=axis, rows=rows, feed=feed, rapid=rap, line=np.asarray(line_no), toolpaths=[tp],
-                     source=file, format="gcode", warnings=warnings, angles=q[:, 3:], written=written)
+                     source=file, format="gcode", warnings=warnings, angles=q[:, 3:], written=written,
+                     rotary=letters)
     prog.warnings.append(f"dialect {dialect}, mode {mode}")
     return prog
 

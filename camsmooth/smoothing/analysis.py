@@ -233,10 +233,11 @@ def analyze_program(program: CLProgram | CCPath, machine: Machine, *, index: Mes
         return ProgramAnalysis(program.source, "cc-csv", len(tip), [tp], warnings, series)
     prog = program.cutting()
     axes = prog.require_axis()
-    if prog.angles is not None and tuple(prog.rotary) != machine.rotary:
+    rotary = tuple(program.rotary)  # the file's (CLProgram.cutting does not carry it)
+    if prog.angles is not None and rotary != machine.rotary:
         from camsmooth.errors import InputError
 
-        raise InputError(f"the program commands rotary axes {','.join(prog.rotary)} but the machine ({machine.kind}) "
+        raise InputError(f"the program commands rotary axes {','.join(rotary)} but the machine ({machine.kind}) "
                          f"has {','.join(machine.rotary)}: give the machine file it was written for (--machine)",
                          file=program.source)
     f = np.where(np.isfinite(prog.feed), prog.feed, np.nan if feed is None else float(feed))
