@@ -18,8 +18,8 @@ from camsmooth.machine.kinematics import exp_twist, load_machine
 from camsmooth.machine.model import (
     GEOMETRIC_NAMES,
     GEOMETRIC_PARAMETERS,
-    ErrorModel,
     TABLE_GEOMETRIC,
+    ErrorModel,
     SpindleScrew,
     compensate,
     first_order_response,

@@ -1201,9 +1201,10 @@ def compensate(model: ErrorModel, machine: Machine, tip: np.ndarray, axis: np.nd
     inverse kinematics (start and branch choice), the machine's two rotary axes in
     ``machine.rotary`` order (A, C on an AC table). Undamped Gauss-Newton on all points at once
     (each point an independent 6 x 5 least-squares problem, the axis residual weighted by the
-    pivot length, 1 mm on a table-table machine, so both are in mm); Jacobian from the chain's screws (space Jacobian, Modern
-    Robotics' JacobianSpace: d tip / d q_i = v_i + w_i x tip, d axis / d q_i = w_i x axis, with
-    the positioning and straightness derivatives of the linear axes).
+    pivot length, 1 mm on a table-table machine, so both are in mm); Jacobian from the chain's
+    screws (space Jacobian, Modern Robotics' JacobianSpace: d tip / d q_i = v_i + w_i x tip,
+    d axis / d q_i = w_i x axis, with the positioning and straightness derivatives of the linear
+    axes).
     Converges quadratically for small errors; the remaining residual is reported on the result.
     At the pole of the outer axis (B = +-90 deg on the AB head, tilt 0 on a table) the outer axis
     only turns the tool about itself, so it is not determined there (steps use the
