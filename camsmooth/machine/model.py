@@ -203,7 +203,7 @@ ROTARY_BY_KIND: dict[str, dict[str, tuple[str, str]]] = {
 _ROTARY_NAMES = frozenset(n for d in ROTARY_BY_KIND.values() for n in d)
 
 
-def _an(kind: str) -> str:
+def spoken_kind(kind: str) -> str:
     """The kind with its article, as spoken ("an AB-head", "a BC-table")."""
     return ("an " if kind[0] in "AEFHILMNORSX" else "a ") + kind
 
@@ -783,7 +783,7 @@ class ErrorModel:
         if self.kind is not None:
             foreign = [n for n in rotary if n not in ROTARY_BY_KIND[self.kind]]
             if foreign:
-                raise InputError(f"geometric error(s) {', '.join(foreign)} are not errors of {_an(self.kind)} "
+                raise InputError(f"geometric error(s) {', '.join(foreign)} are not errors of {spoken_kind(self.kind)} "
                                  f"machine (its rotary-axis errors: {', '.join(ROTARY_BY_KIND[self.kind])})")
 
     def machine_kind(self) -> str | None:
@@ -812,12 +812,12 @@ class ErrorModel:
                 return
             raise InputError(f"the error model's rotary-axis errors ({', '.join(rotary)}) are for a table machine "
                              f"(the model states no machine kind), but the machine is {machine.kind}: "
-                             f"{', '.join(foreign)} are not errors of {_an(machine.kind)} machine (its rotary-axis "
-                             f"errors: {', '.join(ROTARY_BY_KIND[machine.kind])})")
+                             f"{', '.join(foreign)} are not errors of {spoken_kind(machine.kind)} machine (its "
+                             f"rotary-axis errors: {', '.join(ROTARY_BY_KIND[machine.kind])})")
         stated = "" if self.kind is not None else " (the model states no machine kind, which means AB-head)"
-        raise InputError(f"the error model is for {_an(own)} machine{stated}, but the machine is {machine.kind}: "
-                         f"its rotary-axis errors ({', '.join(rotary)}) describe other axes; use a model made "
-                         f"for {_an(machine.kind)} machine (\"machine_kind\": \"{machine.kind}\")")
+        raise InputError(f"the error model is for {spoken_kind(own)} machine{stated}, but the machine is "
+                         f"{machine.kind}: its rotary-axis errors ({', '.join(rotary)}) describe other axes; use a "
+                         f"model made for {spoken_kind(machine.kind)} machine (\"machine_kind\": \"{machine.kind}\")")
 
     def get(self, name: str) -> float:
         """Geometric parameter value (0 when missing)."""
