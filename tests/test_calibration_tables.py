@@ -112,3 +112,23 @@ def test_rtest_bad_inputs():
     # the probe calibration (columns A, B) is the AB head's
     with pytest.raises(InputError, match="R-test"):
         cal.calibrate_probe(cal.ProbeData(*(np.zeros(3),) * 5, np.zeros((3, 3))), machine)
+
+
+def test_cli_simulate_and_calibrate_rtest_on_a_table(tmp_path, capsys):
+    from camsmooth.cli.main import main
+    from tests.conftest import ROOT
+
+    machine = str(ROOT / "surfaces" / "dome_machine.toml")  # an A/C trunnion table
+    ErrorModel(dict(TRUTH["AC-table"]), kind="AC-table").to_json(tmp_path / "m.json")
+    r, out = str(tmp_path / "r.csv"), str(tmp_path / "cal.json")
+    assert main(["simulate", "rtest", "--model", str(tmp_path / "m.json"), "--machine", machine, "--seed", "4",
+                 "-o", r]) == 0
+    assert main(["calibrate", "rtest", r, "--machine", machine, "-o", out]) == 0
+    text = capsys.readouterr().out
+    assert "EX0C" in text and "not determinable" in text
+    fitted = ErrorModel.from_json(out)
+    assert fitted.kind == "AC-table"
+    assert abs(fitted.get("EX0C") - 0.015) < 0.5e-3
+    # a table model on the default AB head is refused, naming both kinds
+    assert main(["simulate", "rtest", "--model", str(tmp_path / "m.json"), "-o", str(tmp_path / "x.csv")]) == 2
+    assert "for an AC-table machine, but the machine is AB-head" in capsys.readouterr().err
