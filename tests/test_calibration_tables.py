@@ -132,3 +132,22 @@ def test_cli_simulate_and_calibrate_rtest_on_a_table(tmp_path, capsys):
     # a table model on the default AB head is refused, naming both kinds
     assert main(["simulate", "rtest", "--model", str(tmp_path / "m.json"), "-o", str(tmp_path / "x.csv")]) == 2
     assert "for an AC-table machine, but the machine is AB-head" in capsys.readouterr().err
+
+
+def test_cli_predict_reads_the_table_machines_axes(tmp_path, capsys):
+    from camsmooth.cli.main import main
+    from tests.conftest import ROOT
+
+    machine_path = str(ROOT / "surfaces" / "dome_machine.toml")
+    model = ErrorModel(dict(TRUTH["AC-table"]), kind="AC-table")
+    model.to_json(tmp_path / "m.json")
+    (tmp_path / "out.csv").write_text("A,C,X,Y,Z\n-30,45,10,20,30\n-60,90,0,0,0\n")
+    assert main(["predict", str(tmp_path / "out.csv"), "--model", str(tmp_path / "m.json"), "--machine",
+                 machine_path, "-o", str(tmp_path / "p.csv")]) == 0
+    got = np.loadtxt(tmp_path / "p.csv", delimiter=",", skiprows=1)
+    from camsmooth.machine.kinematics import load_machine as load
+
+    m = load(machine_path)
+    pred = model.predict(m, np.radians([-30.0, -60.0]), np.radians([45.0, 90.0]), [10.0, 0.0], [20.0, 0.0],
+                         [30.0, 0.0])
+    assert np.allclose(got[:, 5:8], pred.tip, atol=1e-7) and np.allclose(got[:, 11], pred.tip_dev_um, atol=1e-6)

@@ -134,7 +134,8 @@ def register(subparsers: Any) -> None:
 
     pred = subparsers.add_parser("predict", help="predict the real tool tip and axis of a tool program",
                                  description="Real tool tip and axis for every commanded pose of a "
-                                 "smoothing output CSV (columns A, B in deg and X, Y, Z in mm at least), "
+                                 "smoothing output CSV (columns: the machine's rotary axes, e.g. A, B or A, C, in "
+                                 "deg and X, Y, Z in mm at least), "
                                  "their deviation from the ideal, and lead/tilt (and a first-order "
                                  "clearance estimate) re-evaluated on the real axis.")
     pred.add_argument("input", help="smoothing output CSV (camsmooth smooth -o)")
@@ -273,8 +274,9 @@ def predict_cli(args: argparse.Namespace) -> int:
 
     model = load_error_model(args.model)
     machine = _machine(args)
-    need = ("A", "B", "X", "Y", "Z") + (("t",) if args.rpm is not None else ())
-    cols = read_result_csv(args.input, required=("A", "B", "X", "Y", "Z"))
+    axes = (*machine.rotary, "X", "Y", "Z")
+    need = axes + (("t",) if args.rpm is not None else ())
+    cols = read_result_csv(args.input, required=axes)
     for name in need:
         if name not in cols:
             continue  # read_result_csv named the missing required columns; 't' is checked by predict_table
@@ -292,7 +294,7 @@ def predict_cli(args: argparse.Namespace) -> int:
         with open(tmp, "w", newline="") as fh:
             w = csv.writer(fh, lineterminator="\n")
             w.writerow(names)
-            for i in range(len(data["A"])):
+            for i in range(len(data["X"])):
                 w.writerow([_cell(data[k][i]) for k in names])
     dev, ang = table["tip_dev_um"], table["axis_dev_urad"]
     if len(dev):
@@ -315,14 +317,16 @@ def _cell(v: Any) -> str:
 
 def predict_table(model: Any, machine: Any, cols: dict[str, np.ndarray], rpm: float | None = None,
                   source: str | None = None) -> dict[str, np.ndarray]:
-    """Prediction columns for a result table (angles in deg as in the file): real tip (real_clx,
+    """Prediction columns for a result table (angles in deg as in the file, the machine's two
+    rotary axes ``machine.rotary``, e.g. A, C on an AC table): real tip (real_clx,
     real_cly, real_clz, mm), real axis (real_i, real_j, real_k), tip_dev_um, axis_dev_urad and,
     when the table has CC points, normals, lead and tilt: real_lead, real_tilt (deg) = the file's
     value plus the change of lead/tilt from the ideal to the real axis in the local frame
     (METHODS section 1; feed direction from the CC points along each row), and, with a
     ``delta`` column, real_delta_est = delta + (displacement of the cutter at the CC point) . n,
     a first-order clearance estimate valid where the closest approach is at the contact."""
-    A, B = np.radians(cols["A"]), np.radians(cols["B"])
+    r1, r2 = machine.rotary
+    A, B = np.radians(cols[r1]), np.radians(cols[r2])
     X, Y, Z = cols["X"], cols["Y"], cols["Z"]
     t = None
     if rpm is not None:
