@@ -777,7 +777,7 @@ class ErrorModel:
         if len(self.runout) != 2 or not all(_finite_number(v) for v in self.runout):
             raise InputError(f"runout must be two finite numbers (mm), got {self.runout!r}")
         self.runout = (float(self.runout[0]), float(self.runout[1]))
-        if self.kind is not None and self.kind not in MACHINE_KINDS:
+        if self.kind is not None and (not isinstance(self.kind, str) or self.kind not in MACHINE_KINDS):
             raise InputError(f"machine kind {self.kind!r} is not one of {', '.join(MACHINE_KINDS)}")
         rotary = [n for n in self.geometric if n in _ROTARY_NAMES]
         if self.kind is not None:
@@ -879,7 +879,7 @@ class ErrorModel:
                 raise InputError(f"unsupported model version {doc.get('version')!r} "
                                  f"(supported: {FORMAT_VERSION})", file=source, key="version")
         kind = doc.get("machine_kind")
-        if kind is not None and kind not in MACHINE_KINDS:
+        if kind is not None and (not isinstance(kind, str) or kind not in MACHINE_KINDS):
             raise InputError(f"machine_kind {kind!r} is not one of {', '.join(MACHINE_KINDS)}", file=source,
                              key="machine_kind")
         geo = {}
