@@ -5,9 +5,9 @@
 are thin calls into camsmooth.machine.calibration / simulate / errormodel. Bad input raises
 camsmooth.errors.InputError (the main CLI prints it). Units on the command line: mm, s, deg.
 
-    camsmooth calibrate probe|spindle|ballbar MEASUREMENT.csv [--machine M.toml] [--base MODEL.json]
-                        -o MODEL.json [--report REPORT.json]
-    camsmooth simulate probe|spindle|ballbar|recording --model MODEL.json [--machine M.toml]
+    camsmooth calibrate probe|rtest|spindle|ballbar MEASUREMENT.csv [--machine M.toml]
+                        [--base MODEL.json] -o MODEL.json [--report REPORT.json]
+    camsmooth simulate probe|rtest|spindle|ballbar|recording --model MODEL.json [--machine M.toml]
                        [--noise MM] [--seed N] -o OUT.csv
     camsmooth predict OUT.csv --model MODEL.json [--machine M.toml] [-o PREDICTED.csv]
                       [--rpm RPM]
@@ -31,6 +31,9 @@ from camsmooth.errors import InputError
 MEASUREMENT_COLUMNS = {
     "probe": "A, B (deg) commanded rotary axes; X, Y, Z (mm) commanded linear axes; sx, sy, sz (mm) the sphere "
              "centre the control computed with its nominal kinematics",
+    "rtest": "the machine's two rotary axes (deg; A, C on an AC table, B, C on a BC table, A, B on the AB head) "
+             "commanded; X, Y, Z (mm) commanded linear axes (the nominal tool tip kept on the sphere); dx, dy, dz "
+             "(mm) the sphere centre read by the R-test nest, along the spindle's x, y, z",
     "spindle": "theta (deg) spindle angle; ext (mm) ball distance beyond the collet centre (two or more "
                "values); x, y, z (mm) measured ball centre in the spindle frame",
     "ballbar": "t (s) time of the set; rpm (1/min) spindle speed until the next set; angle (deg) bar elevation; "
@@ -48,7 +51,8 @@ def register(subparsers: Any) -> None:
                                 "model JSON (prints parameters, uncertainties, residuals, Jacobian singular "
                                 "values and the parameters the data cannot determine).")
     csub = cal.add_subparsers(dest="calibrate_kind", metavar="KIND", required=True)
-    helps = {"probe": "rotary-axis errors from reference-sphere probing",
+    helps = {"probe": "rotary-axis errors from reference-sphere probing (AB head)",
+             "rtest": "rotary-axis location errors of any machine kind from an R-test (sphere on the table)",
              "spindle": "spindle screw from spindle-analyser data",
              "ballbar": "spindle thermal drift from a ballbar cone test"}
     for kind, text in helps.items():
@@ -66,8 +70,8 @@ def register(subparsers: Any) -> None:
 
     sim = subparsers.add_parser("simulate", help="write simulated measurement files from an error model")
     ssub = sim.add_subparsers(dest="simulate_kind", metavar="KIND", required=True)
-    for kind, text in (("probe", "reference-sphere probing"), ("spindle", "spindle-analyser data"),
-                       ("ballbar", "ballbar cone test")):
+    for kind, text in (("probe", "reference-sphere probing"), ("rtest", "an R-test (sphere on the table)"),
+                       ("spindle", "spindle-analyser data"), ("ballbar", "ballbar cone test")):
         p = ssub.add_parser(kind, help=text, description=f"Simulate {text} from an error model; the CSV has "
                             f"the columns of `camsmooth calibrate {kind}`: {MEASUREMENT_COLUMNS[kind]}.")
         p.add_argument("--model", required=True, help="error model JSON")
@@ -82,6 +86,16 @@ def register(subparsers: Any) -> None:
             p.add_argument("--max-angle", type=number(gt=0, unit="deg"), default=None, metavar="DEG",
                            help="grid extent +-DEG (deg, > 0, within the machine's A and B travel; default: "
                                 "the largest the travel allows)")
+        elif kind == "rtest":
+            p.add_argument("--tilt-angles", type=number(ge=3, integer=True), default=7, metavar="N",
+                           help="angles of the tilt axis (A on the AB head), spread over +-90 deg within its "
+                                "travel (>= 3, default 7)")
+            p.add_argument("--outer-angles", type=number(ge=3, integer=True), default=12, metavar="N",
+                           help="angles of the other rotary axis: a full turn for a C axis, else +-90 deg within "
+                                "its travel (>= 3, default 12)")
+            p.add_argument("--sphere", type=number_list(unit="mm"), default=None, metavar="X,Y,Z",
+                           help="nominal sphere centre, mm, workpiece frame (default: the table centre + "
+                                "(120, 60, 80))")
         elif kind == "spindle":
             p.add_argument("--exts", type=number_list(gt=0, unit="mm"), default=[50.0, 150.0], metavar="MM,MM",
                            help="ball extensions beyond the collet, mm (each > 0, two or more; default 50,150)")
@@ -120,7 +134,8 @@ def register(subparsers: Any) -> None:
 
     pred = subparsers.add_parser("predict", help="predict the real tool tip and axis of a tool program",
                                  description="Real tool tip and axis for every commanded pose of a "
-                                 "smoothing output CSV (columns A, B in deg and X, Y, Z in mm at least), "
+                                 "smoothing output CSV (columns: the machine's rotary axes, e.g. A, B or A, C, in "
+                                 "deg and X, Y, Z in mm at least), "
                                  "their deviation from the ideal, and lead/tilt (and a first-order "
                                  "clearance estimate) re-evaluated on the real axis.")
     pred.add_argument("input", help="smoothing output CSV (camsmooth smooth -o)")
@@ -171,6 +186,8 @@ def calibrate_cli(args: argparse.Namespace) -> int:
         rep = tx.file(args.report) if args.report else None
         if kind == "probe":
             report = calibration.calibrate_probe(args.measurement, _machine(args), base)
+        elif kind == "rtest":
+            report = calibration.calibrate_rtest(args.measurement, _machine(args), base)
         elif kind == "spindle":
             report = calibration.calibrate_spindle(args.measurement, base, pso_compare=not args.no_pso,
                                                    seed=args.seed)
@@ -222,6 +239,14 @@ def simulate_cli(args: argparse.Namespace) -> int:
             poses = simulate.default_probe_poses(machine, args.grid, _probe_extent(machine, args.max_angle))
             data = simulate.simulate_probe(model, machine, poses=poses, noise=noise, seed=args.seed)
             calibration.write_probe_csv(out, data)
+        elif kind == "rtest":
+            machine = _machine(args)
+            if args.sphere is not None and len(args.sphere) != 3:
+                raise InputError(f"--sphere needs three numbers x,y,z (mm), got {len(args.sphere)}")
+            poses = simulate.default_rtest_poses(machine, args.tilt_angles, args.outer_angles)
+            data = simulate.simulate_rtest(model, machine, poses=poses, sphere=args.sphere, noise=noise,
+                                           seed=args.seed)
+            calibration.write_rtest_csv(out, data, machine)
         elif kind == "spindle":
             data = simulate.simulate_spindle(model, exts=args.exts, revolutions=args.revolutions,
                                              samples_per_rev=args.samples, noise=noise, seed=args.seed)
@@ -249,8 +274,9 @@ def predict_cli(args: argparse.Namespace) -> int:
 
     model = load_error_model(args.model)
     machine = _machine(args)
-    need = ("A", "B", "X", "Y", "Z") + (("t",) if args.rpm is not None else ())
-    cols = read_result_csv(args.input, required=("A", "B", "X", "Y", "Z"))
+    axes = (*machine.rotary, "X", "Y", "Z")
+    need = axes + (("t",) if args.rpm is not None else ())
+    cols = read_result_csv(args.input, required=axes)
     for name in need:
         if name not in cols:
             continue  # read_result_csv named the missing required columns; 't' is checked by predict_table
@@ -268,7 +294,7 @@ def predict_cli(args: argparse.Namespace) -> int:
         with open(tmp, "w", newline="") as fh:
             w = csv.writer(fh, lineterminator="\n")
             w.writerow(names)
-            for i in range(len(data["A"])):
+            for i in range(len(data["X"])):
                 w.writerow([_cell(data[k][i]) for k in names])
     dev, ang = table["tip_dev_um"], table["axis_dev_urad"]
     if len(dev):
@@ -291,14 +317,16 @@ def _cell(v: Any) -> str:
 
 def predict_table(model: Any, machine: Any, cols: dict[str, np.ndarray], rpm: float | None = None,
                   source: str | None = None) -> dict[str, np.ndarray]:
-    """Prediction columns for a result table (angles in deg as in the file): real tip (real_clx,
+    """Prediction columns for a result table (angles in deg as in the file, the machine's two
+    rotary axes ``machine.rotary``, e.g. A, C on an AC table): real tip (real_clx,
     real_cly, real_clz, mm), real axis (real_i, real_j, real_k), tip_dev_um, axis_dev_urad and,
     when the table has CC points, normals, lead and tilt: real_lead, real_tilt (deg) = the file's
     value plus the change of lead/tilt from the ideal to the real axis in the local frame
     (METHODS section 1; feed direction from the CC points along each row), and, with a
     ``delta`` column, real_delta_est = delta + (displacement of the cutter at the CC point) . n,
     a first-order clearance estimate valid where the closest approach is at the contact."""
-    A, B = np.radians(cols["A"]), np.radians(cols["B"])
+    r1, r2 = machine.rotary
+    A, B = np.radians(cols[r1]), np.radians(cols[r2])
     X, Y, Z = cols["X"], cols["Y"], cols["Z"]
     t = None
     if rpm is not None:

@@ -51,11 +51,14 @@ from camsmooth.machine import fitting
 from camsmooth.machine.kinematics import Machine, load_machine
 from camsmooth.machine.model import (
     GEOMETRIC_PARAMETERS,
+    ROTARY_BY_KIND,
     SPINDLE_THERMAL,
     ErrorModel,
     SpindleScrew,
     first_order_response,
+    kind_parameters,
     spindle_forward,
+    spoken_kind,
 )
 
 RANK_TOL = fitting.RANK_TOL
@@ -341,6 +344,10 @@ def calibrate_probe(data: ProbeData | str | os.PathLike, machine: Machine | None
     if not isinstance(data, ProbeData):
         data = read_probe_csv(data)
     machine = machine or load_machine()
+    if machine.kind != "AB-head":
+        raise InputError(f"probe calibration (columns A, B) is for an AB-head machine; the machine is "
+                         f"{machine.kind}: calibrate its rotary axes from an R-test (calibrate_rtest, "
+                         f"`camsmooth calibrate rtest`)", file=data.source)
     base = base or ErrorModel()
     validate_probe(data)
     names = [p for p in (parameters or PROBE_PRIORITY)]
@@ -415,6 +422,223 @@ def calibrate_probe(data: ProbeData | str | os.PathLike, machine: Machine | None
         float(np.sqrt(np.mean(r_before ** 2))) * 1e-3, fit.rms * 1e-3, sv, cond, 3 * n_pose,
         details={"sphere_centre": fit.x[-3:] * 1e-3, "sphere_centre_uncertainty": sd[-3:] * 1e-3,
                  "singular_values_all": _sv(J_all)[0], "candidates": all_names})
+
+
+# ----------------------------------------------------------------------------------------------
+# R-test: rotary-axis location errors of any machine kind (tables included)
+#: the R-test file's columns after the two rotary axes (named by the machine: A, C on an AC table)
+RTEST_TAIL = ("X", "Y", "Z", "dx", "dy", "dz")
+#: Priority of the R-test parameters per machine kind (kept first = fitted): the rotary axis lines
+#: of the kind (ROTARY_BY_KIND), then the nest's offset from the nominal tool tip (EX0S, EY0S,
+#: EZ0T: a constant displacement in the spindle frame) and, on a machine with a head, the spindle
+#: tilt about the pivot (EA0S, EB0S: at the tip a displacement of pivot x angle). With one sphere
+#: these are confounded with the sphere position and the axis offsets (the rank analysis names
+#: the combinations). On a table-table machine the spindle tilt turns the spindle about the tool
+#: tip and has no first-order effect on a point measurement, so it is not tried there.
+RTEST_PRIORITY: dict[str, tuple[str, ...]] = {
+    kind: tuple(params) + ("EX0S", "EY0S", "EZ0T") + (("EA0S", "EB0S") if "head" in kind else ())
+    for kind, params in ROTARY_BY_KIND.items()}
+
+
+@dataclass
+class RTestData:
+    """R-test measurement (a precision sphere fixed on the table, a nest of three displacement
+    sensors in the spindle): q1, q2 (rad) the commanded rotary axes in ``Machine.rotary`` order
+    (A, C on an AC table), X, Y, Z (mm) the commanded linear axes (the nominal tool tip, the
+    nest's reference point, kept on the nominal sphere centre: tool-centre-point motion),
+    d (N,3) mm the measured displacement of the sphere centre from the nest's reference point,
+    in the spindle frame (the machine's X, Y, Z directions on a table machine)."""
+
+    q1: np.ndarray
+    q2: np.ndarray
+    X: np.ndarray
+    Y: np.ndarray
+    Z: np.ndarray
+    d: np.ndarray
+    source: str | None = None
+
+
+def rtest_columns(machine: Machine) -> tuple[str, ...]:
+    """The R-test CSV columns for a machine: its two rotary axes (deg), X, Y, Z (mm) and the
+    measured displacement dx, dy, dz (mm, spindle frame)."""
+    return (*machine.rotary, *RTEST_TAIL)
+
+
+def read_rtest_csv(path: str | os.PathLike, machine: Machine) -> RTestData:
+    """Read an R-test file (``rtest_columns``); degrees are converted to radians."""
+    r1, r2 = machine.rotary
+    d = read_table(path, rtest_columns(machine))
+    return RTestData(np.radians(d[r1]), np.radians(d[r2]), d["X"], d["Y"], d["Z"],
+                     np.column_stack([d["dx"], d["dy"], d["dz"]]), str(path))
+
+
+def write_rtest_csv(path: str | os.PathLike, data: RTestData, machine: Machine) -> Path:
+    """Write an R-test file (``rtest_columns`` of the machine)."""
+    return _write_csv(path, rtest_columns(machine), [np.degrees(data.q1), np.degrees(data.q2), data.X, data.Y,
+                                                     data.Z, *data.d.T], ["%.9f"] * 2 + ["%.7f"] * 3 + ["%.8f"] * 3)
+
+
+def rtest_displacement(model: ErrorModel, machine: Machine, data: RTestData, sphere: Sequence[float]
+                       ) -> np.ndarray:
+    """What an R-test reads (N,3) mm: the sphere centre ``sphere`` (mm, workpiece frame, i.e. on
+    the table) in the real tool frame at the data's commanded poses, d = R^T (s - p) with (R, p)
+    the real tool-tip frame (``ErrorModel.real_frame``): the sphere seen from the nest, along the
+    spindle's x, y, z."""
+    r1, r2 = machine.rotary
+    n = len(data.q1)
+    q = {r1: np.asarray(data.q1, float), r2: np.asarray(data.q2, float), "X": np.asarray(data.X, float),
+         "Y": np.asarray(data.Y, float), "Z": np.asarray(data.Z, float)}
+    T = model.real_frame(machine, q).to_numpy(n)
+    rel = np.asarray(sphere, float)[None, :] - T[:, :3, 3]
+    return np.einsum("nji,nj->ni", T[:, :3, :3], rel)
+
+
+def validate_rtest(data: RTestData, machine: Machine) -> None:
+    """Bad-input checks on R-test data (InputError naming rows and what cannot be determined)."""
+    src = data.source
+    cols = rtest_columns(machine)
+    arrays = [data.q1, data.q2, data.X, data.Y, data.Z, *np.asarray(data.d).T]
+    for name, a in zip(cols, arrays, strict=True):
+        bad = ~np.isfinite(np.asarray(a, float))
+        if bad.any():
+            raise InputError("not a finite number", file=src, row=int(np.argmax(bad)) + 1, column=name)
+    poses = np.round(np.column_stack([np.degrees(data.q1), np.degrees(data.q2), data.X, data.Y, data.Z]), 9)
+    _, inverse, counts = np.unique(poses, axis=0, return_inverse=True, return_counts=True)
+    if np.any(counts > 1):
+        rows = np.flatnonzero(counts[inverse.ravel()] > 1) + 1
+        raise InputError(f"duplicate poses: rows {rows[:6].tolist()} repeat the same {', '.join(cols[:5])} (each "
+                         "pose must be measured once; average repeated readings first)", file=src)
+    own = ROTARY_BY_KIND[machine.kind]
+    for k, (ax, vals) in enumerate(zip(machine.rotary, (data.q1, data.q2), strict=True)):
+        if len(np.unique(np.round(vals, 9))) < 3:
+            params = ", ".join(n for n in own if n.endswith(ax))
+            seen = ", ".join(f"{v:g}" for v in np.unique(np.round(np.degrees(vals), 6)))
+            raise InputError(f"the {ax} axis is at fewer than three distinct angles ({seen} deg): "
+                             f"the {ax}-axis errors {params} cannot be determined (a line needs the axis to "
+                             f"turn through three or more angles); measure at more {ax} angles", file=src,
+                             column=cols[k])
+
+
+def reference_rtest_poses(machine: Machine, n_tilt: int = 7, n_outer: int = 8, max_deg: float = 90.0
+                          ) -> tuple[np.ndarray, np.ndarray]:
+    """A rich grid of (q1, q2) rad in ``machine.rotary`` order within the travel: the tilt (or A
+    on the AB head) at n_tilt angles over +-max_deg clipped to its travel, the other axis at
+    n_outer angles (a full turn for a C axis, +-max_deg otherwise). Used for the structural
+    identifiability analysis and as the default R-test poses."""
+    lims = machine.rotary_limits()
+    axes = []
+    for name, lim, n in zip(machine.rotary, lims, (n_tilt, n_outer), strict=True):
+        if name == "C":
+            lo, hi = max(lim.min, -np.pi), min(lim.max, np.pi)
+            full = hi - lo >= 2 * np.pi - 1e-9
+            axes.append(np.linspace(lo, hi, n, endpoint=not full))
+        else:
+            lo, hi = max(lim.min, -np.radians(max_deg)), min(lim.max, np.radians(max_deg))
+            axes.append(np.linspace(lo, hi, n))
+    q1, q2 = (v.ravel() for v in np.meshgrid(*axes, indexing="ij"))
+    return q1, q2
+
+
+def _rtest_residual(x: np.ndarray, names: Sequence[str], scales: np.ndarray, base: ErrorModel,
+                    machine: Machine, data: RTestData, sphere0: np.ndarray) -> np.ndarray:
+    """Residual (um) of measured minus modelled R-test readings; x = parameters in um / urad,
+    then the sphere's offset from sphere0 in um."""
+    geo = dict(base.geometric)
+    geo.update({p: float(v) for p, v in zip(names, x[:-3] * scales, strict=True)})
+    model = replace(base, geometric=geo, kind=machine.kind)
+    return ((data.d - rtest_displacement(model, machine, data, sphere0 + x[-3:] * 1e-3)) * 1e3).ravel()
+
+
+def calibrate_rtest(data: RTestData | str | os.PathLike, machine: Machine | None = None,
+                    base: ErrorModel | None = None, parameters: Sequence[str] | None = None
+                    ) -> CalibrationReport:
+    """Identify the rotary-axis location errors of any machine kind from an R-test (RTestData;
+    METHODS section 3.1): the axis lines of the kind (ROTARY_BY_KIND) and the nest's offset, with
+    the sphere's position on the table (details['sphere'], mm, workpiece frame; nominally the
+    commanded tool tip) as a nuisance. The shared toolkit (camsmooth.machine.fitting): rank
+    analysis on a rich reference pose set (``reference_rtest_poses``) names what no R-test on
+    one sphere can separate (reported, held at the base value); a further loss on the given poses
+    is an InputError; then bounded Levenberg-Marquardt (central differences) with the covariance
+    s^2 (J^T J)^-1. parameters: the ones to try (default RTEST_PRIORITY[kind], also the order in
+    which confounded parameters are resolved: later ones are dropped). The result model states
+    the machine kind (ErrorModel.kind)."""
+    machine = machine or load_machine()
+    if not isinstance(data, RTestData):
+        data = read_rtest_csv(data, machine)
+    base = (base or ErrorModel())
+    base.check_machine(machine)
+    base = replace(base, kind=machine.kind)
+    validate_rtest(data, machine)
+    names = list(parameters or RTEST_PRIORITY[machine.kind])
+    allowed = set(kind_parameters(machine.kind))
+    wrong = [p for p in names if p not in allowed]
+    if wrong:
+        raise InputError(f"parameter(s) {', '.join(wrong)} are not errors of {spoken_kind(machine.kind)} machine "
+                         f"(its parameters: {', '.join(kind_parameters(machine.kind))})")
+    scales = np.array([_scale(p) for p in names])
+    n_pose = len(data.q1)
+    nominal_tip = machine.tool_pose_np(data.q1, data.q2, data.X, data.Y, data.Z)[0]
+    sphere0 = nominal_tip.mean(axis=0)
+    x_base = np.array([base.get(p) for p in names]) / scales
+    x0 = np.concatenate([x_base, np.zeros(3)])
+    all_names = names + ["sphere_x", "sphere_y", "sphere_z"]
+    units = [{"mm": "um", "rad": "urad"}[GEOMETRIC_PARAMETERS[p][0]] for p in names] + ["um"] * 3
+    nuisance = [len(names), len(names) + 1, len(names) + 2]
+    rq1, rq2 = reference_rtest_poses(machine)
+    rxyz = machine.linear_axes(np.broadcast_to(sphere0, (len(rq1), 3)), rq1, rq2)
+    ref = RTestData(rq1, rq2, rxyz[:, 0], rxyz[:, 1], rxyz[:, 2], np.zeros((len(rq1), 3)))
+    J_ref = _central_jacobian(lambda x: _rtest_residual(x, names, scales, base, machine, ref, sphere0), x0, 1e-3)
+    kept_ref, dropped = select_identifiable(J_ref, all_names, keep=nuisance, units=units)
+    candidates = [names[i] for i in sorted(kept_ref) if i < len(names)]
+    n_unknown = len(candidates) + 3
+    if 3 * n_pose <= n_unknown:
+        raise InputError(f"too few poses: {n_pose} poses give {3 * n_pose} equations for {n_unknown} "
+                         f"unknowns ({', '.join(candidates)} and the sphere position); at least "
+                         f"{n_unknown // 3 + 1} distinct poses are needed", file=data.source)
+    J_all = _central_jacobian(lambda x: _rtest_residual(x, names, scales, base, machine, data, sphere0), x0,
+                              1e-3)
+    kept, dropped_data = select_identifiable(J_all, all_names, keep=nuisance, units=units)
+    extra = {all_names[i]: why for i, why in dropped_data.items() if i not in dropped}
+    if extra:
+        why = "; ".join(f"{k}: {v}" for k, v in extra.items())
+        spread = " and ".join(f"{ax} at {len(np.unique(np.round(v, 9)))}"
+                              for ax, v in zip(machine.rotary, (data.q1, data.q2), strict=True))
+        raise InputError(f"these {n_pose} poses ({spread} distinct angles) cannot determine {', '.join(extra)} "
+                         f"({why}); measure at more, and more varied, {' and '.join(machine.rotary)} angles",
+                         file=data.source)
+    fit_idx = sorted(i for i in kept if i < len(names))
+    fit_names = [names[i] for i in fit_idx]
+    fit_scales = scales[fit_idx]
+
+    def fun(x: np.ndarray) -> np.ndarray:
+        return _rtest_residual(x, fit_names, fit_scales, base, machine, data, sphere0)
+
+    r_before = fitting.levenberg_marquardt(
+        lambda c: fun(np.concatenate([x_base[fit_idx], c])), np.zeros(3), step=1e-3, central=True, rtol=1e-15,
+        xtol=1e-12, scale=np.ones(3)).r
+    fit = _lsq(fun, np.concatenate([x_base[fit_idx], np.zeros(3)]))
+    sd = np.sqrt(np.diag(fit.cov))
+    params = {p: float(v) for p, v in zip(fit_names, fit.x[:-3] * fit_scales, strict=True)}
+    unc = {p: float(v) for p, v in zip(fit_names, sd[:-3] * fit_scales, strict=True)}
+    geo = dict(base.geometric)
+    geo.update(params)
+    unident = {}
+    for i, why in sorted(dropped.items()):
+        if i >= len(names):
+            continue
+        held, _, unit = _display(base.get(names[i]), 0.0, GEOMETRIC_PARAMETERS[names[i]][0])
+        unident[names[i]] = f"{why}; held at {held:g} {unit}"
+    sv, cond = _sv(fit.J)
+    meta = dict(base.meta)
+    meta["rtest"] = {"source": data.source, "poses": n_pose, "machine_kind": machine.kind, "fitted": fit_names,
+                     "unidentifiable": sorted(unident)}
+    model = replace(base, geometric=geo, meta=meta)
+    return CalibrationReport(
+        "rtest", model, params, unc, {p: GEOMETRIC_PARAMETERS[p][0] for p in fit_names}, unident,
+        float(np.sqrt(np.mean(r_before ** 2))) * 1e-3, fit.rms * 1e-3, sv, cond, 3 * n_pose,
+        details={"sphere": sphere0 + fit.x[-3:] * 1e-3, "sphere_uncertainty": sd[-3:] * 1e-3,
+                 "sphere_nominal": sphere0, "singular_values_all": _sv(J_all)[0], "candidates": all_names,
+                 "machine_kind": machine.kind})
 
 
 # ----------------------------------------------------------------------------------------------

@@ -37,6 +37,34 @@ and C rows agree with the exact POE error to O(S^2) as written. The stated A row
 any frame: its e_y term must read -S_az + S_az cos a - S_ay sin a (the sign of the S_ay sin a
 term is flipped in the source); e_z is as stated.
 
+Table machines (AC-table, BC-table, BC-head-table; METHODS.md section 3.1)
+-------------------------------------------------------------------------
+The same parameters describe the axis lines of a rotary table, located at the home
+configuration in the machine frame (which is the workpiece frame at C = tilt = 0), relative to
+the nominal lines through the table centre c (``Machine.table_centre``), ISO 230-1 / ISO 230-7
+style. Each axis line is given on its own (not relative to the other rotary axis):
+
+* C (nominal: the z axis through c): the line through c + (EX0C, EY0C, 0) with direction
+  w_C = Rx(EA0C) Ry(EB0C) e_z = (sin EB0C, -sin EA0C cos EB0C, cos EA0C cos EB0C). This is the
+  METHODS section 3 direction (-sin S_cx, -cos S_cx sin S_cy, cos S_cx cos S_cy) with
+  S_cx = -EB0C, S_cy = EA0C.
+* A tilt axis of an AC table (nominal: the x axis through c): the line through
+  c + (0, EY0A, EZ0A) with direction Rz(EC0A) Ry(EB0A) e_x (the head's A convention).
+* B tilt axis of a BC table (nominal: the y axis through c): the line through c + (EX0B, 0, EZ0B)
+  with direction Rx(EA0B) Rz(EC0B) e_y (the head's B convention without A errors).
+* B head axis of a BC-head-table (nominal: the y axis through the pivot): the line through
+  pivot + (EX0B, 0, EZ0B), direction Rx(EA0B) Rz(EC0B) e_y; C as on a table.
+
+A line has no location error along itself (no EZ0C, EX0A, EY0B) and an angular zero offset of
+an axis is not one of these parameters. The names of the tilt axis are those of the AB head's A
+or B, with another meaning, so a model states the machine kind it was made for
+(``ErrorModel.kind``, JSON ``machine_kind``); ROTARY_BY_KIND lists each kind's parameters. The
+spindle and tool errors and the linear-axis errors below mean the same on every kind (the
+spindle tilt turns about the pivot of a head, about the home tool tip on a table-table machine).
+Straightness and the machine-frame thermal growth are translations of the carriage in the
+machine frame; on a table machine they reach the workpiece frame turned by the table
+(``carriage_rotation``).
+
 Geometric errors of the linear axes (ISO 230-1: positioning, straightness, squareness)
 --------------------------------------------------------------------------------------
 For the linear axes X, Y, Z (positions q in mm, measured from the machine zero):
@@ -80,6 +108,7 @@ rows (``hold='linear'``); see ``ErrorModel.thermal_state``.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -94,7 +123,7 @@ from numba import njit
 from camsmooth.errors import InputError
 from camsmooth.io.atomic import write_text_atomic
 from camsmooth.io.table import read_text_file
-from camsmooth.machine.kinematics import IDENTITY, Chain, Frame, Machine
+from camsmooth.machine.kinematics import IDENTITY, MACHINE_KINDS, Chain, Frame, Machine, exp_twist
 
 # ----------------------------------------------------------------------------------------------
 # parameter tables
@@ -130,8 +159,63 @@ LINEAR_GEOMETRIC: dict[str, tuple[str, str]] = {
     "EB0Z": ("rad", "squareness of Z to X, rotation about y"),
     "EA0Z": ("rad", "squareness of Z to Y, rotation about x"),
 }
-GEOMETRIC_PARAMETERS: dict[str, tuple[str, str]] = {**ROTARY_GEOMETRIC, **LINEAR_GEOMETRIC}
+#: location and orientation errors of the C axis of a rotary table (AC-table, BC-table,
+#: BC-head-table; module docstring "Table machines"): ISO 230-1 names, machine frame at home
+TABLE_GEOMETRIC: dict[str, tuple[str, str]] = {
+    "EX0C": ("mm", "C axis line offset in x from the table centre"),
+    "EY0C": ("mm", "C axis line offset in y from the table centre"),
+    "EA0C": ("rad", "C axis squareness to Y, rotation about x"),
+    "EB0C": ("rad", "C axis squareness to X, rotation about y"),
+}
+GEOMETRIC_PARAMETERS: dict[str, tuple[str, str]] = {**ROTARY_GEOMETRIC, **TABLE_GEOMETRIC, **LINEAR_GEOMETRIC}
 GEOMETRIC_NAMES: tuple[str, ...] = tuple(GEOMETRIC_PARAMETERS)
+#: spindle and tool errors: the same meaning on every machine kind (relative to the ram or head
+#: that carries the spindle)
+SPINDLE_TOOL_GEOMETRIC = ("EX0S", "EY0S", "EA0S", "EB0S", "EZ0T")
+_A_TABLE = {
+    "EY0A": ("mm", "A (tilt) axis line offset in y from the table centre"),
+    "EZ0A": ("mm", "A (tilt) axis line offset in z from the table centre"),
+    "EB0A": ("rad", "A axis squareness to Z, rotation about y"),
+    "EC0A": ("rad", "A axis squareness to Y, rotation about z"),
+}
+_B_TABLE = {
+    "EX0B": ("mm", "B (tilt) axis line offset in x from the table centre"),
+    "EZ0B": ("mm", "B (tilt) axis line offset in z from the table centre"),
+    "EA0B": ("rad", "B axis squareness to Z, rotation about x"),
+    "EC0B": ("rad", "B axis squareness to X, rotation about z"),
+}
+_B_HEAD = {
+    "EX0B": ("mm", "B (head) axis line offset in x from the pivot"),
+    "EZ0B": ("mm", "B (head) axis line offset in z from the pivot"),
+    "EA0B": ("rad", "B axis squareness to Z, rotation about x"),
+    "EC0B": ("rad", "B axis squareness to X, rotation about z"),
+}
+#: the rotary-axis parameters of each machine kind (MACHINE_KINDS) with their meaning there: the
+#: same ISO 230-1 name means the same error of the same axis, located from that kind's nominal line
+#: (module docstring). A parameter of another kind is an InputError (``ErrorModel.kind``).
+ROTARY_BY_KIND: dict[str, dict[str, tuple[str, str]]] = {
+    "AB-head": {k: ROTARY_GEOMETRIC[k] for k in ("EY0A", "EZ0A", "EB0A", "EC0A", "EX0B", "EZ0B", "EA0B",
+                                                  "EC0B")},
+    "AC-table": {**TABLE_GEOMETRIC, **_A_TABLE},
+    "BC-table": {**TABLE_GEOMETRIC, **_B_TABLE},
+    "BC-head-table": {**TABLE_GEOMETRIC, **_B_HEAD},
+}
+_ROTARY_NAMES = frozenset(n for d in ROTARY_BY_KIND.values() for n in d)
+
+
+def spoken_kind(kind: str) -> str:
+    """The kind with its article, as spoken ("an AB-head", "a BC-table")."""
+    return ("an " if kind[0] in "AEFHILMNORSX" else "a ") + kind
+
+
+def kind_parameters(kind: str) -> tuple[str, ...]:
+    """The geometric parameters that apply to a machine kind (MACHINE_KINDS): its rotary-axis
+    errors (ROTARY_BY_KIND), the spindle and tool errors and the linear-axis errors, in
+    GEOMETRIC_NAMES order."""
+    if kind not in ROTARY_BY_KIND:
+        raise InputError(f"unknown machine kind {kind!r} (known: {', '.join(ROTARY_BY_KIND)})")
+    own = set(ROTARY_BY_KIND[kind]) | set(SPINDLE_TOOL_GEOMETRIC) | set(LINEAR_GEOMETRIC)
+    return tuple(n for n in GEOMETRIC_NAMES if n in own)
 
 SPINDLE_THERMAL: dict[str, str] = {"dx": "mm", "dy": "mm", "dz": "mm", "exz": "rad", "eyz": "rad"}
 MACHINE_THERMAL: dict[str, str] = {"mx": "mm", "my": "mm", "mz": "mm"}
@@ -558,11 +642,60 @@ class RealChain(Chain):
         return d
 
     def forward(self, q: Mapping[str, Any]) -> Frame:
-        f = Chain.forward(self, self.joint_values(q))
+        """Tool-tip frame in the workpiece frame (Chain.forward) with the carriage offset: added
+        in the workpiece frame when the linear axes come first (a head), else inserted before the
+        first linear joint, i.e. turned by the rotary joints before it (a table)."""
+        qj = self.joint_values(q)
         d = self.offset(q)
         if all(isinstance(v, float) and v == 0.0 for v in d):
-            return f
-        return Frame(f.R, tuple(f.p[i] + d[i] for i in range(3)))
+            return Chain.forward(self, qj)
+        k = carriage_index(self)
+        if k == 0:
+            f = Chain.forward(self, qj)
+            return Frame(f.R, tuple(f.p[i] + d[i] for i in range(3)))
+        frame = IDENTITY
+        for i, (joint, (w, v)) in enumerate(zip(self.joints, self.joint_screws(), strict=True)):
+            if i == k:
+                frame = frame @ Frame(IDENTITY.R, tuple(d))
+            value = qj.get(joint.name, 0.0)
+            if isinstance(value, float) and value == 0.0:
+                continue
+            frame = frame @ exp_twist(w, v, value)
+        return frame @ Frame.from_matrix(self.home)
+
+
+def carriage_index(chain: Chain) -> int:
+    """Index of the first linear (prismatic) joint of the chain: 0 on a head machine (X, Y, Z
+    first), the number of table axes before it on a table machine."""
+    return next(i for i, j in enumerate(chain.joints) if j.kind == "prismatic")
+
+
+def carriage_rotation(chain: Chain, q: Mapping[str, Any]) -> Frame | None:
+    """The frame of the rotary joints before the linear axes (the table's turn, workpiece frame)
+    at joint values q, whose rotation takes a machine-frame (carriage) vector to the workpiece
+    frame; None when the linear axes come first (a head machine: no turn)."""
+    k = carriage_index(chain)
+    if k == 0:
+        return None
+    frame = IDENTITY
+    for joint, (w, v) in list(zip(chain.joints, chain.joint_screws(), strict=True))[:k]:
+        value = q.get(joint.name, 0.0)
+        if isinstance(value, float) and value == 0.0:
+            continue
+        frame = frame @ exp_twist(w, v, value)
+    return frame
+
+
+def _spindle_pivot(machine: Machine) -> np.ndarray:
+    """The point the spindle tilt EA0S, EB0S turns about (mm, workpiece frame at home): the head's
+    pivot (where its rotary axis crosses the spindle; the B axis of a BC-head-table), else the
+    home tool tip (a table-table machine)."""
+    chain = machine.chain
+    k = carriage_index(chain)
+    head = [j for j in chain.joints[k:] if j.kind == "revolute"]
+    if head:
+        return np.asarray(head[-1].point, float)
+    return np.asarray(chain.home, float)[:3, 3]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -597,6 +730,9 @@ class ErrorModel:
     tau: servo time constant 1/Kv per axis (s; absent or 0: follows its command exactly).
     backlash: reversal error per axis (mm; rad for A, B). offset_s: recording clock behind the
     program (s). runout: (r cos phi, r sin phi) of the 1x-revolution tip runout (mm).
+    kind: the machine kind (MACHINE_KINDS) the rotary-axis errors belong to, or None (unstated:
+    a model with rotary-axis errors but no kind is an AB-head model, as every model before machine
+    kinds was, unless it has C-axis errors, which only a table has; ``machine_kind``).
     """
 
     geometric: dict[str, float] = field(default_factory=dict)
@@ -607,6 +743,7 @@ class ErrorModel:
     backlash: dict[str, float] = field(default_factory=dict)
     offset_s: float = 0.0
     runout: tuple[float, float] = (0.0, 0.0)
+    kind: str | None = None
 
     def __post_init__(self) -> None:
         for what, table in (("geometric", self.geometric), ("thermal", self.thermal), ("tau", self.tau),
@@ -640,6 +777,47 @@ class ErrorModel:
         if len(self.runout) != 2 or not all(_finite_number(v) for v in self.runout):
             raise InputError(f"runout must be two finite numbers (mm), got {self.runout!r}")
         self.runout = (float(self.runout[0]), float(self.runout[1]))
+        if self.kind is not None and (not isinstance(self.kind, str) or self.kind not in MACHINE_KINDS):
+            raise InputError(f"machine kind {self.kind!r} is not one of {', '.join(MACHINE_KINDS)}")
+        rotary = [n for n in self.geometric if n in _ROTARY_NAMES]
+        if self.kind is not None:
+            foreign = [n for n in rotary if n not in ROTARY_BY_KIND[self.kind]]
+            if foreign:
+                raise InputError(f"geometric error(s) {', '.join(foreign)} are not errors of {spoken_kind(self.kind)} "
+                                 f"machine (its rotary-axis errors: {', '.join(ROTARY_BY_KIND[self.kind])})")
+
+    def machine_kind(self) -> str | None:
+        """The machine kind this model's rotary-axis errors are for: ``kind`` when stated; else
+        "AB-head" for a model with rotary-axis errors and no C-axis error (every model file before
+        machine kinds), "table" for one with C-axis errors (some table kind, told by its tilt
+        parameters), None for a model without rotary-axis errors (it applies to every kind)."""
+        if self.kind is not None:
+            return self.kind
+        rotary = [n for n, v in self.geometric.items() if n in _ROTARY_NAMES]
+        if not rotary:
+            return None
+        return "table" if any(n in TABLE_GEOMETRIC for n in rotary) else "AB-head"
+
+    def check_machine(self, machine: Machine) -> None:
+        """InputError when this model's rotary-axis errors are not for ``machine``'s kind (an
+        AB-head model on a table machine, a table model on an AB head, an AC-table model on a BC
+        table, ...), naming both kinds."""
+        own = self.machine_kind()
+        if own is None or own == machine.kind:
+            return
+        rotary = [n for n in self.geometric if n in _ROTARY_NAMES]
+        if own == "table":
+            foreign = [n for n in rotary if n not in ROTARY_BY_KIND[machine.kind]]
+            if not foreign:
+                return
+            raise InputError(f"the error model's rotary-axis errors ({', '.join(rotary)}) are for a table machine "
+                             f"(the model states no machine kind), but the machine is {machine.kind}: "
+                             f"{', '.join(foreign)} are not errors of {spoken_kind(machine.kind)} machine (its "
+                             f"rotary-axis errors: {', '.join(ROTARY_BY_KIND[machine.kind])})")
+        stated = "" if self.kind is not None else " (the model states no machine kind, which means AB-head)"
+        raise InputError(f"the error model is for {spoken_kind(own)} machine{stated}, but the machine is "
+                         f"{machine.kind}: its rotary-axis errors ({', '.join(rotary)}) describe other axes; use a "
+                         f"model made for {spoken_kind(machine.kind)} machine (\"machine_kind\": \"{machine.kind}\")")
 
     def get(self, name: str) -> float:
         """Geometric parameter value (0 when missing)."""
@@ -651,7 +829,7 @@ class ErrorModel:
         """An independent copy (the tables copied; the spindle screw and meta values shared)."""
         return ErrorModel(dict(self.geometric), self.spindle, {k: dict(d) for k, d in self.thermal.items()},
                           dict(self.meta), dict(self.tau), dict(self.backlash), float(self.offset_s),
-                          tuple(self.runout))
+                          tuple(self.runout), self.kind)
 
     @property
     def Kv(self) -> dict[str, float]:
@@ -664,6 +842,8 @@ class ErrorModel:
         ``spindle_runout`` only when set (Kv in 1/s, backlash mm or deg, time offset s; runout
         radius mm and phase deg)."""
         doc: dict[str, Any] = {"format": FORMAT, "version": FORMAT_VERSION}
+        if self.kind is not None:
+            doc["machine_kind"] = self.kind
         doc["geometric"] = {k: {"value": float(v), "unit": GEOMETRIC_PARAMETERS[k][0]}
                             for k, v in self.geometric.items()}
         doc["spindle"] = None if self.spindle is None else {
@@ -698,6 +878,10 @@ class ErrorModel:
             if doc.get("version") != FORMAT_VERSION:
                 raise InputError(f"unsupported model version {doc.get('version')!r} "
                                  f"(supported: {FORMAT_VERSION})", file=source, key="version")
+        kind = doc.get("machine_kind")
+        if kind is not None and (not isinstance(kind, str) or kind not in MACHINE_KINDS):
+            raise InputError(f"machine_kind {kind!r} is not one of {', '.join(MACHINE_KINDS)}", file=source,
+                             key="machine_kind")
         geo = {}
         for k, item in _section(doc, "geometric", source).items():
             if k not in GEOMETRIC_PARAMETERS:
@@ -766,7 +950,7 @@ class ErrorModel:
             phi = math.radians(_number(ro.get("phase_deg", 0.0), source, "spindle_runout.phase_deg"))
             runout = (r * math.cos(phi), r * math.sin(phi))
         try:
-            return ErrorModel(geo, spindle, thermal, dict(meta), tau_s, backlash, offset, runout)
+            return ErrorModel(geo, spindle, thermal, dict(meta), tau_s, backlash, offset, runout, kind)
         except InputError as exc:
             raise InputError(str(exc), file=source) from None
 
@@ -814,31 +998,40 @@ class ErrorModel:
 
     def chain(self, machine: Machine, thermal_state: Mapping[str, float] | None = None) -> Chain:
         """The machine's chain perturbed by this model (a ``RealChain`` when the linear axes
-        have errors or a machine-frame thermal state is given): screws of A, B (and of Y, Z for
+        have errors or a machine-frame thermal state is given): screws of the rotary axes (A, B
+        on the AB head; C and the tilt axis on a table, module docstring) and of Y, Z (for
         squareness) replaced by the real axis lines, home pose M with the spindle, tool, static
         spindle-screw and (when given, a fixed) spindle-frame thermal errors. Works for numpy
-        and CasADi evaluation alike."""
+        and CasADi evaluation alike. InputError when the model is for another machine kind
+        (``check_machine``); ValueError for a chain that is not the nominal one of its kind."""
         chain = machine.chain
         if chain.screws is not None:
             raise ValueError("apply the error model to the nominal machine (its chain is already perturbed)")
+        self.check_machine(machine)
         names = chain.names
-        if names != ("X", "Y", "Z", "A", "B"):
-            raise ValueError(f"the error model needs an AB head chain X, Y, Z, A, B; got {names}")
-        jA, jB = chain.joints[3], chain.joints[4]
-        if not (np.allclose(jA.direction, (1, 0, 0)) and np.allclose(jB.direction, (0, 1, 0))
-                and np.allclose(jA.point, jB.point)):
-            raise ValueError("the error model needs nominal A about x and B about y through one pivot point")
-        F_A, F_B, S = self.axis_frames(jA.point)
-        w_A = F_A[:3, 0]
-        w_B = F_B[:3, 1]
+        idx = {n: i for i, n in enumerate(names)}
         screws = list(chain.joint_screws())
-        screws[3] = (w_A, -np.cross(w_A, F_A[:3, 3]))
-        screws[4] = (w_B, -np.cross(w_B, F_B[:3, 3]))
+        if machine.kind == "AB-head":
+            if names != ("X", "Y", "Z", "A", "B"):
+                raise ValueError(f"the error model needs an AB head chain X, Y, Z, A, B; got {names}")
+            jA, jB = chain.joints[3], chain.joints[4]
+            if not (np.allclose(jA.direction, (1, 0, 0)) and np.allclose(jB.direction, (0, 1, 0))
+                    and np.allclose(jA.point, jB.point)):
+                raise ValueError("the error model needs nominal A about x and B about y through one pivot point")
+            F_A, F_B, S = self.axis_frames(jA.point)
+            w_A = F_A[:3, 0]
+            w_B = F_B[:3, 1]
+            screws[3] = (w_A, -np.cross(w_A, F_A[:3, 3]))
+            screws[4] = (w_B, -np.cross(w_B, F_B[:3, 3]))
+        else:
+            for name, (w, point) in self.table_axis_lines(machine).items():
+                screws[idx[name]] = (w, -np.cross(w, point))
+            S = self.spindle_frame(_spindle_pivot(machine))
         g = self.get
         if g("EC0Y"):
-            screws[1] = (np.zeros(3), rot_z(g("EC0Y")) @ np.array([0.0, 1.0, 0.0]))
+            screws[idx["Y"]] = (np.zeros(3), rot_z(g("EC0Y")) @ np.array([0.0, 1.0, 0.0]))
         if g("EA0Z") or g("EB0Z"):
-            screws[2] = (np.zeros(3), rot_x(g("EA0Z")) @ rot_y(g("EB0Z")) @ np.array([0.0, 0.0, 1.0]))
+            screws[idx["Z"]] = (np.zeros(3), rot_x(g("EA0Z")) @ rot_y(g("EB0Z")) @ np.array([0.0, 0.0, 1.0]))
         spindle_state = None if not thermal_state else {k: v for k, v in thermal_state.items()
                                                         if k in SPINDLE_THERMAL}
         home = S @ chain.home @ self.tip_transform(spindle_state)
@@ -854,10 +1047,47 @@ class ErrorModel:
         return RealChain(chain.joints, home, tuple((np.asarray(w, float), np.asarray(v, float)) for w, v in screws),
                          positioning=pos, straightness=st, base=base)
 
+    def table_axis_lines(self, machine: Machine) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """The real rotary axis lines of a table machine (AC-table, BC-table, BC-head-table) at the
+        home configuration, workpiece frame: axis name -> (unit direction w, a point on the line,
+        mm); module docstring "Table machines". ValueError when the machine's chain does not have
+        the nominal lines of its kind (C about z and the tilt axis through the table centre)."""
+        chain = machine.chain
+        joints = {j.name: j for j in chain.joints}
+        g = self.get
+        c = np.asarray(machine.table_centre, float)
+        tilt = machine.rotary[0]
+        jC, jT = joints.get("C"), joints.get(tilt)
+        nominal_tilt = (1, 0, 0) if tilt == "A" else (0, 1, 0)
+        head = machine.kind == "BC-head-table"
+        tilt_point = np.zeros(3) if head else c
+        if (jC is None or jT is None or not np.allclose(jC.direction, (0, 0, 1)) or not np.allclose(jC.point, c)
+                or not np.allclose(jT.direction, nominal_tilt) or not np.allclose(jT.point, tilt_point)):
+            raise ValueError(f"the error model needs the nominal {machine.kind} chain: C about z through the table "
+                             f"centre and {tilt} about {'xy'[tilt == 'B']} through the "
+                             f"{'pivot' if head else 'table centre'}")
+        lines = {"C": (rot_x(g("EA0C")) @ rot_y(g("EB0C")) @ np.array([0.0, 0.0, 1.0]),
+                       c + np.array([g("EX0C"), g("EY0C"), 0.0]))}
+        if tilt == "A":
+            lines["A"] = (rot_z(g("EC0A")) @ rot_y(g("EB0A")) @ np.array([1.0, 0.0, 0.0]),
+                          tilt_point + np.array([0.0, g("EY0A"), g("EZ0A")]))
+        else:
+            lines["B"] = (rot_x(g("EA0B")) @ rot_z(g("EC0B")) @ np.array([0.0, 1.0, 0.0]),
+                          tilt_point + np.array([g("EX0B"), 0.0, g("EZ0B")]))
+        return lines
+
+    def spindle_frame(self, pivot_point: Sequence[float]) -> np.ndarray:
+        """4x4 spindle transform S = [R_S, p0 + (EX0S, EY0S, 0) - R_S p0] (workpiece frame at
+        home): the spindle turned by R_S = Rx(EA0S) Ry(EB0S) about p0 (mm) and shifted."""
+        g = self.get
+        p0 = np.asarray(pivot_point, dtype=float)
+        R_S = rot_x(g("EA0S")) @ rot_y(g("EB0S"))
+        return homogeneous(R_S, p0 + np.array([g("EX0S"), g("EY0S"), 0.0]) - R_S @ p0)
+
     def apply(self, machine: Machine, thermal_state: Mapping[str, float] | None = None) -> Machine:
-        """A Machine (same name, limits, pivot) whose chain is ``self.chain(machine)``."""
-        return Machine(machine.name, machine.kind, machine.pivot, self.chain(machine, thermal_state),
-                       machine.limits)
+        """The machine (same name, kind, limits, pivot, post settings, table centre) with the chain
+        ``self.chain(machine)``."""
+        return dataclasses.replace(machine, chain=self.chain(machine, thermal_state))
 
     # ---- thermal -----------------------------------------------------------------------------
     def thermal_state(self, t: np.ndarray, spindle_rpm: float | np.ndarray, hold: str = "step"
@@ -885,8 +1115,9 @@ class ErrorModel:
     def real_frame(self, machine: Machine, q: Mapping[str, Any], thermal: Mapping[str, Any] | None = None,
                    spindle_angle: Any = None, frame: Frame | None = None) -> Frame:
         """THE real tool-tip frame (workpiece frame) for actual joint values q (name -> float or
-        (N,) array; A, B rad, X, Y, Z mm): the geometric chain (``chain``), then the
-        machine-frame thermal translation (mx, my, mz), the spindle-frame thermal transform
+        (N,) array; rotary axes rad, X, Y, Z mm): the geometric chain (``chain``), then the
+        machine-frame thermal translation (mx, my, mz; turned by the table on a table machine,
+        ``carriage_rotation``), the spindle-frame thermal transform
         (``thermal_frame``) and, when spindle_angle (rad) is given, the 1x-rev runout in the tool
         frame's xy. thermal: element -> value(s) (``thermal_state``). frame: the geometric part
         ``self.chain(machine).forward(q)`` when the caller already has it (a cache)."""
@@ -897,6 +1128,9 @@ class ErrorModel:
                 f = f @ thermal_frame(sp)
             mv = [thermal.get(k, 0.0) for k in MACHINE_THERMAL]
             if any(np.any(v) for v in mv):
+                turn = carriage_rotation(machine.chain, q)
+                if turn is not None:
+                    mv = list(turn.rotate(mv))
                 f = Frame(f.R, tuple(f.p[i] + mv[i] for i in range(3)))
         rc, rs = self.runout
         if spindle_angle is not None and (rc or rs):
@@ -907,7 +1141,8 @@ class ErrorModel:
     def predict(self, machine: Machine, A: np.ndarray, B: np.ndarray, X: np.ndarray, Y: np.ndarray,
                 Z: np.ndarray, t: np.ndarray | None = None, spindle_rpm: float | np.ndarray | None = None
                 ) -> Prediction:
-        """Real tool tip and axis for commanded axes (A, B rad; X, Y, Z mm; arrays (N,)):
+        """Real tool tip and axis for commanded axes (A, B: the two rotary axes in
+        ``machine.rotary`` order, e.g. A, C on an AC table, rad; X, Y, Z mm; arrays (N,)):
         geometric errors, static spindle screw and, when t (s) and spindle_rpm are given, the
         thermal state at those times (``thermal_state``, speed held from each time to the next).
         Compared with the nominal machine. (Servo lag, backlash and clock offset describe motion
@@ -915,7 +1150,8 @@ class ErrorModel:
         A, B, X, Y, Z = np.broadcast_arrays(*(np.atleast_1d(np.asarray(v, dtype=float))
                                               for v in (A, B, X, Y, Z)))
         ideal_tip, ideal_axis = machine.tool_pose_np(A, B, X, Y, Z)
-        f = self.real_frame(machine, {"X": X, "Y": Y, "Z": Z, "A": A, "B": B},
+        r1, r2 = machine.rotary
+        f = self.real_frame(machine, {"X": X, "Y": Y, "Z": Z, r1: A, r2: B},
                             self._thermal(t, spindle_rpm, len(A)))
         tip, axis = frame_tip_axis(f, len(A))
         return _prediction(tip, axis, ideal_tip, ideal_axis)
@@ -947,7 +1183,8 @@ def _prediction(tip: np.ndarray, axis: np.ndarray, ideal_tip: np.ndarray, ideal_
 # ----------------------------------------------------------------------------------------------
 # compensation
 class Compensation(tuple):
-    """(A, B, X, Y, Z) commanded axes (rad, mm; arrays (N,)); unpacks as a 5-tuple. Attributes:
+    """(A, B, X, Y, Z) commanded axes (rad, mm; arrays (N,); A, B: the two rotary axes in
+    ``Machine.rotary`` order, e.g. A, C on an AC table); unpacks as a 5-tuple. Attributes:
     tip_residual_um, axis_residual_urad (N,) the remaining predicted deviation from the desired
     pose, iterations (Gauss-Newton iterations used)."""
 
@@ -961,14 +1198,17 @@ def compensate(model: ErrorModel, machine: Machine, tip: np.ndarray, axis: np.nd
                tol: float = 1e-12, max_iter: int = 20) -> Compensation:
     """Commanded (A, B, X, Y, Z) such that the model's PREDICTED real tool tip and axis equal the
     desired ones: tip (N,3) mm and unit axis (N,3), workpiece frame; A0, B0 (N,) rad the ideal
-    inverse kinematics (start and branch choice). Undamped Gauss-Newton on all points at once
+    inverse kinematics (start and branch choice), the machine's two rotary axes in
+    ``machine.rotary`` order (A, C on an AC table). Undamped Gauss-Newton on all points at once
     (each point an independent 6 x 5 least-squares problem, the axis residual weighted by the
-    pivot length so both are in mm); Jacobian from the chain's screws (space Jacobian, Modern
-    Robotics' JacobianSpace: d tip / d q_i = v_i + w_i x tip, d axis / d q_i = w_i x axis, with
-    the positioning and straightness derivatives of the linear axes).
+    pivot length, 1 mm on a table-table machine, so both are in mm); Jacobian from the chain's
+    screws (space Jacobian, Modern Robotics' JacobianSpace: d tip / d q_i = v_i + w_i x tip,
+    d axis / d q_i = w_i x axis, with the positioning and straightness derivatives of the linear
+    axes).
     Converges quadratically for small errors; the remaining residual is reported on the result.
-    At B = +-90 deg A only turns the tool about itself, so A is not determined there (steps use
-    the pseudo-inverse and A may move along that direction).
+    At the pole of the outer axis (B = +-90 deg on the AB head, tilt 0 on a table) the outer axis
+    only turns the tool about itself, so it is not determined there (steps use the
+    pseudo-inverse and it may move along that direction).
     """
     from camsmooth.machine.kinematics import space_jacobian
 
@@ -981,7 +1221,7 @@ def compensate(model: ErrorModel, machine: Machine, tip: np.ndarray, axis: np.nd
     thermal = model._thermal(t, spindle_rpm, n)
     chain = model.chain(machine)
     w = max(machine.pivot, 1.0)
-    order = ("A", "B", "X", "Y", "Z")
+    order = (*machine.rotary, "X", "Y", "Z")
 
     def evaluate(qq: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         qd = {k: qq[:, i] for i, k in enumerate(order)}
@@ -989,7 +1229,9 @@ def compensate(model: ErrorModel, machine: Machine, tip: np.ndarray, axis: np.nd
         p, a = frame_tip_axis(f, n)
         r = np.concatenate([p - tip, w * (a - axis)], axis=1)
         qj = chain.joint_values(qd) if isinstance(chain, RealChain) else qd
-        Js = space_jacobian(chain, qj)  # (n, 6, 5) in chain joint order X, Y, Z, A, B
+        Js = space_jacobian(chain, qj)  # (n, 6, 5) in chain joint order
+        turn = carriage_rotation(chain, qd) if isinstance(chain, RealChain) and chain.straightness else None
+        Rt = None if turn is None else Frame(turn.R, (0.0, 0.0, 0.0)).to_numpy(n)[:, :3, :3]
         J = np.empty((n, 6, 5))
         for i, k in enumerate(order):
             jw, jv = Js[:, :3, chain.names.index(k)], Js[:, 3:, chain.names.index(k)]
@@ -1003,7 +1245,11 @@ def compensate(model: ErrorModel, machine: Machine, tip: np.ndarray, axis: np.nd
                 for name, terms in chain.straightness:
                     if name == k:
                         for d, kk, c in terms:
-                            dp[:, d] += kk * c * qq[:, i] ** (kk - 1)
+                            rate = kk * c * qq[:, i] ** (kk - 1)
+                            if Rt is None:
+                                dp[:, d] += rate
+                            else:  # the carriage offset turned by the table
+                                dp += Rt[:, :, d] * rate[:, None]
             J[:, :3, i], J[:, 3:, i] = dp, w * da
         return r, J, p
 
@@ -1068,7 +1314,8 @@ def _value(item: Any, unit: str, where: str, source: str) -> float:
 
 
 __all__ = ["GEOMETRIC_NAMES", "GEOMETRIC_PARAMETERS", "LINEAR_GEOMETRIC", "MACHINE_THERMAL", "POSITIONING",
-           "ROTARY_GEOMETRIC", "SPINDLE_THERMAL", "SQUARENESS", "STRAIGHTNESS", "THERMAL_ELEMENTS", "Compensation",
-           "ErrorModel", "Prediction", "RealChain", "SpindleScrew", "compensate", "first_order_between",
+           "ROTARY_BY_KIND", "ROTARY_GEOMETRIC", "SPINDLE_THERMAL", "SPINDLE_TOOL_GEOMETRIC", "SQUARENESS",
+           "STRAIGHTNESS", "TABLE_GEOMETRIC", "THERMAL_ELEMENTS", "Compensation", "ErrorModel", "Prediction",
+           "RealChain", "SpindleScrew", "carriage_index", "carriage_rotation", "compensate", "first_order_between",
            "first_order_knots", "first_order_response", "frame_tip_axis", "homogeneous", "interval_slopes",
            "rot_x", "rot_y", "rot_z", "spindle_forward", "thermal_frame"]

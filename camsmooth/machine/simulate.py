@@ -12,11 +12,22 @@ from collections.abc import Sequence
 import numpy as np
 
 from camsmooth.errors import InputError
-from camsmooth.machine.calibration import BallbarData, ProbeData, SpindleData, probe_offsets
+from camsmooth.machine.calibration import (
+    BallbarData,
+    ProbeData,
+    RTestData,
+    SpindleData,
+    probe_offsets,
+    reference_rtest_poses,
+    rtest_displacement,
+)
 from camsmooth.machine.kinematics import Machine, load_machine
 from camsmooth.machine.model import ErrorModel, SpindleScrew
 
-DEFAULT_NOISE = {"probe": 0.0005, "spindle": 0.0001, "ballbar": 0.001}  # mm, one standard deviation
+DEFAULT_NOISE = {"probe": 0.0005, "spindle": 0.0001, "ballbar": 0.001, "rtest": 0.0005}  # mm, one std. dev.
+#: default R-test sphere, relative to the table centre (mm, workpiece frame): off the C axis and
+#: above the tilt axis, as an R-test sphere is usually set, so both axes carry it round
+RTEST_SPHERE_OFFSET = (120.0, 60.0, 80.0)
 
 
 def default_probe_poses(machine: Machine, n: int = 11, max_deg: float = 100.0
@@ -48,6 +59,35 @@ def simulate_probe(model: ErrorModel, machine: Machine | None = None, *, poses: 
     g = probe_offsets(model, machine, data)
     rng = np.random.default_rng(seed)
     data.centre = c0 + np.asarray(sphere_error, float) - g + rng.normal(0.0, noise, g.shape)
+    return data
+
+
+def default_rtest_poses(machine: Machine, n_tilt: int = 7, n_outer: int = 12, max_deg: float = 90.0
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """An R-test pose grid (q1, q2) rad in ``machine.rotary`` order within the travel
+    (``calibration.reference_rtest_poses``): on a table the tilt at n_tilt angles over +-max_deg
+    (clipped to its travel) and C at n_outer angles round a full turn."""
+    return reference_rtest_poses(machine, n_tilt, n_outer, max_deg)
+
+
+def simulate_rtest(model: ErrorModel, machine: Machine, *, poses: tuple[np.ndarray, np.ndarray] | None = None,
+                   sphere: Sequence[float] | None = None, sphere_error: Sequence[float] = (0.012, -0.008, 0.005),
+                   noise: float = DEFAULT_NOISE["rtest"], seed: int = 0) -> RTestData:
+    """An R-test run: a sphere fixed on the table, nominally at ``sphere`` (mm, workpiece frame;
+    default table_centre + RTEST_SPHERE_OFFSET), really at sphere + sphere_error; at every pose
+    (q1, q2 rad in ``machine.rotary`` order; default ``default_rtest_poses``) the linear axes keep
+    the nominal tool tip (the nest's reference point) on the nominal centre, and the nest reads the
+    real sphere centre in the real tool frame (``calibration.rtest_displacement``, through
+    ErrorModel.real_frame) plus N(0, noise^2) per coordinate (mm)."""
+    q1, q2 = poses if poses is not None else default_rtest_poses(machine)
+    q1, q2 = np.asarray(q1, float), np.asarray(q2, float)
+    s0 = (np.asarray(machine.table_centre, float) + RTEST_SPHERE_OFFSET if sphere is None
+          else np.asarray(sphere, float))
+    xyz = machine.linear_axes(np.broadcast_to(s0, (len(q1), 3)), q1, q2)
+    data = RTestData(q1, q2, xyz[:, 0], xyz[:, 1], xyz[:, 2], np.zeros((len(q1), 3)))
+    d = rtest_displacement(model, machine, data, s0 + np.asarray(sphere_error, float))
+    rng = np.random.default_rng(seed)
+    data.d = d + rng.normal(0.0, noise, d.shape)
     return data
 
 
