@@ -263,7 +263,8 @@ def prepare(program: Program, recording: Recording, machine: Machine | None = No
     its list to use instead of estimating them (the second pass of ``diagnose``)."""
     opt = options or Options()
     machine = machine or load_machine(None)
-    base = base or ErrorModel()
+    # the fitted rotary errors are those of the machine's kind (unstated on an AB head, as ever)
+    base = base or ErrorModel(kind=None if machine.kind == "AB-head" else machine.kind)
     al = align(program, recording)
     channels = [c for c in CHANNELS if c in al.channels]
     knots = Knots(program)

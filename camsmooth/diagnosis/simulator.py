@@ -230,7 +230,8 @@ class Simulator:
         if key not in self._pose:
             # idle axes stay scalar zeros: the chain then skips their joints
             q = {a: (float(v) if np.ndim(v) == 0 else v) for a, v in axes.items()}
-            self._pose.put(key, ErrorModel(dict(ph.geometric), ph.spindle).chain(self.machine).forward(q), limit=4)
+            chain = ErrorModel(dict(ph.geometric), ph.spindle, kind=ph.kind).chain(self.machine)
+            self._pose.put(key, chain.forward(q), limit=4)
         return self._pose[key]
 
     def joint_derivatives(self, ph: ErrorModel, axes: Sequence[str]) -> dict[str, np.ndarray]:
@@ -254,7 +255,7 @@ class Simulator:
                 out[a][:, self.channels.index(f"{a}_act")] = dpos[a]
         if not self.need_pose:
             return out
-        chain = ErrorModel(dict(ph.geometric), ph.spindle).chain(self.machine)
+        chain = ErrorModel(dict(ph.geometric), ph.spindle, kind=ph.kind).chain(self.machine)
         qj = chain.joint_values(q) if isinstance(chain, RealChain) else q
         J = space_jacobian(chain, qj, axes)
         angle = self.spindle_angle(ph.offset_s) if self.kn.S is not None and ph.runout != (0.0, 0.0) else None
@@ -398,6 +399,9 @@ def simulate_recording(program: Program, machine: Machine | None = None, physics
     external measurement sees it (positioning error included)."""
     machine = machine or load_machine(None)
     physics = physics or ErrorModel()
+    if physics.kind is None and machine.kind != "AB-head":  # settings name the machine's own rotary errors
+        physics = physics.copy()
+        physics.kind = machine.kind
     noise = dict(noise or {})
     quantum = dict(quantum or {})
     names: list[str] = []

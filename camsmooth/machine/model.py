@@ -220,7 +220,7 @@ def kind_parameters(kind: str) -> tuple[str, ...]:
 SPINDLE_THERMAL: dict[str, str] = {"dx": "mm", "dy": "mm", "dz": "mm", "exz": "rad", "eyz": "rad"}
 MACHINE_THERMAL: dict[str, str] = {"mx": "mm", "my": "mm", "mz": "mm"}
 THERMAL_ELEMENTS: dict[str, str] = {**SPINDLE_THERMAL, **MACHINE_THERMAL}
-SERVO_AXES = ("X", "Y", "Z", "A", "B")
+SERVO_AXES = ("X", "Y", "Z", "A", "B", "C")
 
 FORMAT = "camsmooth-error-model"
 FORMAT_VERSION = 1

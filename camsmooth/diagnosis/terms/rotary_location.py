@@ -1,5 +1,6 @@
-"""rotary_location: the A and B axis lines displaced from their nominal places (EY0A, EZ0A,
-EX0B, EZ0B; camsmooth.machine.model)."""
+"""rotary_location: the rotary axis lines displaced from their nominal places (EY0A, EZ0A, EX0B,
+EZ0B on any kind that has them; EX0C, EY0C on a table; camsmooth.machine.model), those of the
+machine's kind (``kind_parameters``) whose axis moves."""
 
 from __future__ import annotations
 
@@ -20,13 +21,16 @@ class RotaryLocation(Geometric):
     channels_seen = TIP_CHANNELS
     what = "The rotary axes are displaced from their nominal lines"
 
+    #: the parameters per rotary axis (the machine's kind keeps those it has)
+    PER_AXIS = {"A": ("EY0A", "EZ0A"), "B": ("EX0B", "EZ0B"), "C": ("EX0C", "EY0C")}
+
     def candidates_for(self, P: Problem) -> list[tuple[Any, ...]]:
-        out = []
-        if P.knots.moves("A"):
-            out += [("EY0A", "mm", 5.0, 1e-3, "A"), ("EZ0A", "mm", 5.0, 1e-3, "A")]
-        if P.knots.moves("B"):
-            out += [("EX0B", "mm", 5.0, 1e-3, "B"), ("EZ0B", "mm", 5.0, 1e-3, "B")]
-        return out
+        from camsmooth.machine.model import kind_parameters
+
+        own = set(kind_parameters(P.machine.kind))
+        unit, bound, scale = "mm", 5.0, 1e-3
+        return [(n, unit, bound, scale, a) for a, names in self.PER_AXIS.items() if P.knots.moves(a)
+                for n in names if n in own]
 
     def state(self, P: Problem, names: Sequence[str]) -> tuple[str, np.ndarray, str]:
         return rotary_state(P)

@@ -1,5 +1,5 @@
-"""rotary_squareness: the A and B axes tilted from their nominal directions (EB0A, EC0A, EA0B,
-EC0B; METHODS section 3)."""
+"""rotary_squareness: the rotary axes tilted from their nominal directions (EB0A, EC0A, EA0B,
+EC0B; EA0C, EB0C on a table; METHODS section 3), those of the machine's kind whose axis moves."""
 
 from __future__ import annotations
 
@@ -18,13 +18,16 @@ class RotarySquareness(Geometric):
     name = "rotary_squareness"
     what = "The rotary axes are tilted from their nominal directions"
 
+    #: the parameters per rotary axis (the machine's kind keeps those it has)
+    PER_AXIS = {"A": ("EB0A", "EC0A"), "B": ("EA0B", "EC0B"), "C": ("EA0C", "EB0C")}
+
     def candidates_for(self, P: Problem) -> list[tuple[Any, ...]]:
-        out = []
-        if P.knots.moves("A"):
-            out += [("EB0A", "rad", 0.05, 1e-6, "A"), ("EC0A", "rad", 0.05, 1e-6, "A")]
-        if P.knots.moves("B"):
-            out += [("EA0B", "rad", 0.05, 1e-6, "B"), ("EC0B", "rad", 0.05, 1e-6, "B")]
-        return out
+        from camsmooth.machine.model import kind_parameters
+
+        own = set(kind_parameters(P.machine.kind))
+        unit, bound, scale = "rad", 0.05, 1e-6
+        return [(n, unit, bound, scale, a) for a, names in self.PER_AXIS.items() if P.knots.moves(a)
+                for n in names if n in own]
 
     def state(self, P: Problem, names: Sequence[str]) -> tuple[str, np.ndarray, str]:
         return rotary_state(P)
