@@ -35,21 +35,14 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from camsmooth.controller.linuxcnc_sim import (  # noqa: E402
-    camsmooth_joints,
-    linuxcnc_missing,
-    programmed_tip_path,
-    row_samples,
-    simulate,
-    tip_deviation,
-)
+from camsmooth.controller.linuxcnc_sim import linuxcnc_missing, row_runs, simulate  # noqa: E402
 from camsmooth.geometry.clearance import MeshIndex  # noqa: E402
 from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl  # noqa: E402
 from camsmooth.geometry.frames import axis_from_lead_tilt, local_frames  # noqa: E402
 from camsmooth.geometry.paths import CCPath, zigzag_path  # noqa: E402
 from camsmooth.geometry.surfaces import load_surface  # noqa: E402
 from camsmooth.io.ccpath import read_cc_csv  # noqa: E402
-from camsmooth.io.gcode import DEFAULT_SAFE_HEIGHT_MM, write_gcode  # noqa: E402
+from camsmooth.io.gcode import write_gcode  # noqa: E402
 from camsmooth.io.program import load_program  # noqa: E402
 from camsmooth.machine.kinematics import (  # noqa: E402
     DEFAULT_MACHINE_TOML,
@@ -132,22 +125,11 @@ def run(sample: str, rows: int, methods: list[str], keep: Path | None) -> list[d
             sim = simulate(ngc, machine, keep=(keep / f"{sample}_{m}") if keep else None)
             wall = time.time() - t0
             text = ngc.read_text()
-        samples = row_samples(text, sim)
-        joints = camsmooth_joints(machine, sim.joints)
-        tip_sim, _ = machine.tool_pose_np(joints[:, 3], joints[:, 4], joints[:, 0], joints[:, 1], joints[:, 2])
-        q = np.column_stack([r.xyz, r.A, r.B])
-        for rid, k in samples.items():
-            executed = (k[-1] - k[0] + 1) * sim.servo_period
-            sel = r.rows == rid
-            predicted = r.controller.row_cycle_time[list(r.controller.row_ids).index(rid)]
-            optimal = r.plan.row_cycle_time[list(r.plan.row_ids).index(rid)]
-            first = np.flatnonzero(sel)[0]
-            entry = r.cl[first] + DEFAULT_SAFE_HEIGHT_MM * r.axis[first]
-            dev = tip_deviation(tip_sim[k[0]:k[-1] + 1], programmed_tip_path(machine, q[sel], entry)).max()
-            out.append(dict(sample=sample, method=m, row=int(rid), executed=executed, predicted=predicted,
-                            optimal=optimal, deviation_um=1e3 * dev, blocks=int(r.controller.keep[sel].sum() - 1),
-                            points=int(sel.sum()),
-                            wall=wall))
+        for x in row_runs(machine, r, text, sim):
+            sel = r.rows == x.row
+            out.append(dict(sample=sample, method=m, row=x.row, executed=x.executed, predicted=x.predicted,
+                            optimal=x.optimal, deviation_um=1e3 * x.deviation,
+                            blocks=int(r.controller.keep[sel].sum() - 1), points=int(sel.sum()), wall=wall))
     return out
 
 

@@ -259,26 +259,18 @@ def test_blade_rows_on_linuxcnc_take_the_predicted_time_and_stay_within_the_tole
     row's executed cut time is within 5% of camsmooth's prediction, and the tool tip (forward
     kinematics of the joints LinuxCNC commanded at every servo cycle) stays within the
     tolerance of the path the full-density program commands."""
-    from camsmooth.controller.linuxcnc_sim import programmed_tip_path, row_samples, tip_deviation
-    from camsmooth.io.gcode import DEFAULT_SAFE_HEIGHT_MM
+    from camsmooth.controller.linuxcnc_sim import row_runs
 
     m = blade_rows.machine
     r = blade_rows.methods["nlp"]
     ngc = tmp_path / "rows.ngc"
     write_gcode(ngc, r, m, blade_rows.cutter, 2000.0)
     run = simulate(ngc, m, timeout=120)
-    tip, _ = m.tool_pose_np(np.radians(run.joints[:, 3]), np.radians(run.joints[:, 4]), *run.joints[:, :3].T)
-    q = np.column_stack([r.xyz, r.A, r.B])
-    samples = row_samples(ngc.read_text(), run)
-    assert sorted(samples) == sorted(int(x) for x in np.unique(r.rows))
-    for rid, k in samples.items():
-        executed = (k[-1] - k[0] + 1) * run.servo_period
-        predicted = r.controller.row_cycle_time[list(r.controller.row_ids).index(rid)]
-        assert predicted == pytest.approx(executed, rel=0.05), rid
-        sel = r.rows == rid
-        first = np.flatnonzero(sel)[0]
-        path = programmed_tip_path(m, q[sel], r.cl[first] + DEFAULT_SAFE_HEIGHT_MM * r.axis[first])
-        assert tip_deviation(tip[k[0]:k[-1] + 1], path).max() <= 0.005, rid
+    rows = row_runs(m, r, ngc.read_text(), run)
+    assert sorted(x.row for x in rows) == sorted(int(x) for x in np.unique(r.rows))
+    for x in rows:
+        assert x.predicted == pytest.approx(x.executed, rel=0.05), x
+        assert x.deviation <= 0.005, x
 
 
 def test_a_block_that_does_not_move_takes_no_time_as_linuxcnc_drops_it():

@@ -362,14 +362,7 @@ def test_dome_rows_on_linuxcnc_xyzac_take_the_predicted_time_and_stay_within_the
     row's executed cut time is within 5% of camsmooth's prediction, and the tool tip (forward
     kinematics of the commanded joints, LinuxCNC's sense undone) stays within the tolerance of the
     path the full-density program commands."""
-    from camsmooth.controller.linuxcnc_sim import (
-        camsmooth_joints,
-        programmed_tip_path,
-        row_samples,
-        simulate,
-        tip_deviation,
-    )
-    from camsmooth.io.gcode import DEFAULT_SAFE_HEIGHT_MM
+    from camsmooth.controller.linuxcnc_sim import row_runs, simulate
 
     m = dome_rows.machine
     r = dome_rows.methods["nlp"]
@@ -381,19 +374,11 @@ def test_dome_rows_on_linuxcnc_xyzac_take_the_predicted_time_and_stay_within_the
         if "recorded nothing" in str(exc):
             pytest.skip(f"the LinuxCNC simulation does not start on this machine: {exc}")
         raise
-    q_run = camsmooth_joints(m, run.joints)
-    tip, _ = m.tool_pose_np(q_run[:, 3], q_run[:, 4], *q_run[:, :3].T)
-    q = np.column_stack([r.xyz, r.A, r.B])
-    samples = row_samples(ngc.read_text(), run)
-    assert sorted(samples) == sorted(int(x) for x in np.unique(r.rows))
-    for rid, k in samples.items():
-        executed = (k[-1] - k[0] + 1) * run.servo_period
-        predicted = r.controller.row_cycle_time[list(r.controller.row_ids).index(rid)]
-        assert predicted == pytest.approx(executed, rel=0.05), rid
-        sel = r.rows == rid
-        first = np.flatnonzero(sel)[0]
-        path = programmed_tip_path(m, q[sel], r.cl[first] + DEFAULT_SAFE_HEIGHT_MM * r.axis[first])
-        assert tip_deviation(tip[k[0]:k[-1] + 1], path).max() <= 0.005, rid
+    rows = row_runs(m, r, ngc.read_text(), run)
+    assert sorted(x.row for x in rows) == sorted(int(x) for x in np.unique(r.rows))
+    for x in rows:
+        assert x.predicted == pytest.approx(x.executed, rel=0.05), x
+        assert x.deviation <= 0.005, x
 
 
 def test_dome_machine_file_is_the_sample():

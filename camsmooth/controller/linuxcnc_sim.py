@@ -32,6 +32,7 @@ import tempfile
 import textwrap
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -406,3 +407,40 @@ def row_samples(program_text: str, run: SimRun) -> dict[int, np.ndarray]:
         elif ln.startswith("G00") and row is not None and row in lines:
             row = None
     return {r: np.flatnonzero(np.isin(run.line, lns)) for r, lns in lines.items()}
+
+
+@dataclass(frozen=True, kw_only=True)
+class RowRun:
+    """One row of a program as the simulation ran it (``row_runs``): row id, executed time of its
+    cut blocks (s, servo samples x period), the controller model's prediction and the time-optimal
+    law's (s), and the tool tip's largest distance from the programmed path over those samples (mm)."""
+
+    row: int
+    executed: float
+    predicted: float
+    optimal: float
+    deviation: float
+
+
+def row_runs(machine: Machine, result: Any, program_text: str, run: SimRun) -> list[RowRun]:
+    """Every row of a smoothing MethodResult ``result`` (with its controller plan and time law)
+    written as ``program_text`` and executed as ``run``: what it took and where the tip went.
+    The tips come from the recorded joints by the machine's forward kinematics (joints mapped to
+    camsmooth's axes and signs, ``camsmooth_joints``); the programmed path is ``programmed_tip_path``
+    from the row's entry point, ``DEFAULT_SAFE_HEIGHT_MM`` up the first point's tool axis."""
+    from camsmooth.io.gcode import DEFAULT_SAFE_HEIGHT_MM
+
+    joints = camsmooth_joints(machine, run.joints)
+    tip, _ = machine.tool_pose_np(joints[:, 3], joints[:, 4], joints[:, 0], joints[:, 1], joints[:, 2])
+    q = np.column_stack([result.xyz, result.A, result.B])
+    ctrl, plan = result.controller, result.plan
+    out = []
+    for rid, k in row_samples(program_text, run).items():
+        sel = result.rows == rid
+        first = np.flatnonzero(sel)[0]
+        path = programmed_tip_path(machine, q[sel], result.cl[first] + DEFAULT_SAFE_HEIGHT_MM * result.axis[first])
+        out.append(RowRun(row=int(rid), executed=float((k[-1] - k[0] + 1) * run.servo_period),
+                          predicted=float(ctrl.row_cycle_time[list(ctrl.row_ids).index(rid)]),
+                          optimal=float(plan.row_cycle_time[list(plan.row_ids).index(rid)]),
+                          deviation=float(tip_deviation(tip[k[0]:k[-1] + 1], path).max())))
+    return out

@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -845,30 +845,35 @@ class Selector:
         of them: (name, size in uncertainties); None when there is none."""
         if after.fold_x is None:
             return None
-        P, opt = self.P, self.opt
         lr = after.long_run_sd()
         best: tuple[str, float] | None = None
+        for n, k, dx, dk, p in self._added_parameters(before, after):
+            if dx == 0:
+                continue
+            if p is not None and min(after.x[k] - p.lo, p.hi - after.x[k]) <= 1e-3 * (p.hi - p.lo):
+                continue  # on (or at) a bound: no uncertainty to measure it against
+            z = abs(dx) / max(float(lr[k]), 1e-300)
+            if np.all(np.sign(dk) == np.sign(dx)) and z > self.opt.resolvable_sigma and (best is None or z > best[1]):
+                best = (n, z)
+        return best
+
+    def _added_parameters(self, before: Fit, after: Fit) -> Iterator[tuple[str, int, float, np.ndarray, Any]]:
+        """The main (not optional) parameters of the terms ``after`` adds to ``before``: (name, its
+        index in after.x, its change from the base value, that change in every fit leaving a fold
+        out (K,), its Param or None)."""
         for name in after.active:
             if name in before.active or not after.pnames[name]:
                 continue
             t = term(name)
             sl = after.slice(name)
             names = after.pnames[name]
-            base = np.nan_to_num(np.asarray(t.read(P.base, names), float))
-            params = {p.name: p for p in t.params(P)}
-            dx = after.x[sl] - base
-            dk = after.fold_x[:, sl] - base
+            base = np.nan_to_num(np.asarray(t.read(self.P.base, names), float))
+            params = {p.name: p for p in t.params(self.P)}
             for i, n in enumerate(names):
-                if (n in params and params[n].optional) or dx[i] == 0:
+                if n in params and params[n].optional:
                     continue
-                p = params.get(n)
-                if p is not None and min(after.x[sl][i] - p.lo, p.hi - after.x[sl][i]) <= 1e-3 * (p.hi - p.lo):
-                    continue  # on (or at) a bound: no uncertainty to measure it against
-                z = abs(float(dx[i])) / max(float(lr[sl][i]), 1e-300)
-                if np.all(np.sign(dk[:, i]) == np.sign(dx[i])) and z > opt.resolvable_sigma and \
-                        (best is None or z > best[1]):
-                    best = (n, z)
-        return best
+                k = sl.start + i
+                yield n, k, float(after.x[k] - base[i]), after.fold_x[:, k] - base[i], params.get(n)
 
     def worse_channels(self, before: Fit, after: Fit) -> list[tuple[str, float, float]]:
         """Channels on which ``after`` predicts the held-out samples clearly worse than ``before``:
@@ -916,25 +921,10 @@ class Selector:
         The significance of the term itself, not of how much else is left unexplained."""
         if after.fold_x is None:
             return False
-        P, opt = self.P, self.opt
         jk = after.jackknife_sd()
-        for name in after.active:
-            if name in before.active or not after.pnames[name]:
-                continue
-            t = term(name)
-            sl = after.slice(name)
-            names = after.pnames[name]
-            base = np.nan_to_num(np.asarray(t.read(P.base, names), float))
-            params = {p.name: p for p in t.params(P)}
-            dx = after.x[sl] - base
-            dk = after.fold_x[:, sl] - base
-            for i, n in enumerate(names):
-                if n in params and params[n].optional:
-                    continue
-                if np.all(np.sign(dk[:, i]) == np.sign(dx[i])) and dx[i] != 0 and \
-                        abs(dx[i]) > opt.resolvable_sigma * max(float(jk[sl][i]), 1e-300):
-                    return True
-        return False
+        return any(np.all(np.sign(dk) == np.sign(dx)) and dx != 0
+                   and abs(dx) > self.opt.resolvable_sigma * max(float(jk[k]), 1e-300)
+                   for _, k, dx, dk, _ in self._added_parameters(before, after))
 
     def compare(self, a: Fit, b: Fit) -> dict[str, Any]:
         """Whether the data tell fit a from fit b by their held-out residuals (a Vuong-type test on

@@ -331,6 +331,80 @@ def _probe_residual(x: np.ndarray, names: Sequence[str], scales: np.ndarray, bas
     return ((data.centre - (x[-3:] * 1e-3 - g)) * 1e3).ravel()
 
 
+@dataclass(frozen=True)
+class _SphereFit:
+    """What ``_fit_with_sphere`` found: the fitted parameters' names, the fit (scaled; the
+    sphere's three coordinates last, um), its standard deviations, the residual with only the
+    sphere fitted (um), the Jacobian on the given poses, every candidate's name, the fitted values
+    and uncertainties in the parameters' units, and the parameters no run of this kind can
+    separate (name -> why, and the value they are held at)."""
+
+    names: list[str]
+    fit: _Fit
+    sd: np.ndarray
+    r_before: np.ndarray
+    J_all: np.ndarray
+    all_names: list[str]
+    params: dict[str, float]
+    unc: dict[str, float]
+    unidentifiable: dict[str, str]
+
+
+def _fit_with_sphere(residual: Callable[[np.ndarray, Sequence[str], np.ndarray, Any], np.ndarray],
+                     names: Sequence[str], scales: np.ndarray, x_base: np.ndarray, c0: np.ndarray, ref: Any,
+                     data: Any, n_pose: int, sphere: str, spread: str, axes: str, base: ErrorModel) -> _SphereFit:
+    """The fit of a run that measures one sphere (probing, R-test): candidate parameters ``names``
+    (scaled by ``scales``, starting at ``x_base``) and the sphere's three coordinates (um, from
+    ``c0``) as a nuisance. Rank analysis (camsmooth.machine.fitting.select_identifiable) on the
+    rich reference run ``ref`` names what no such run can separate (reported, held at the base);
+    a further loss on the given poses is an InputError naming it and the poses' ``spread``; then
+    bounded Levenberg-Marquardt (central differences) and the covariance. residual(x, names,
+    scales, data) -> residual (um)."""
+    names = list(names)
+    x0 = np.concatenate([x_base, c0])
+    all_names = names + ["sphere_x", "sphere_y", "sphere_z"]
+    units = [{"mm": "um", "rad": "urad"}[GEOMETRIC_PARAMETERS[p][0]] for p in names] + ["um"] * 3
+    nuisance = [len(names), len(names) + 1, len(names) + 2]
+    # Structural analysis on a rich reference pose set: what no run of one sphere can separate
+    # (reported, not fitted). Then the same analysis on the given poses: any further loss is the
+    # data's fault and is an error, never a silently reduced fit.
+    J_ref = _central_jacobian(lambda x: residual(x, names, scales, ref), x0, 1e-3)
+    kept_ref, dropped = select_identifiable(J_ref, all_names, keep=nuisance, units=units)
+    candidates = [names[i] for i in sorted(kept_ref) if i < len(names)]
+    n_unknown = len(candidates) + 3
+    if 3 * n_pose <= n_unknown:
+        raise InputError(f"too few poses: {n_pose} poses give {3 * n_pose} equations for {n_unknown} "
+                         f"unknowns ({', '.join(candidates)} and the {sphere}); at least "
+                         f"{n_unknown // 3 + 1} distinct poses are needed", file=data.source)
+    J_all = _central_jacobian(lambda x: residual(x, names, scales, data), x0, 1e-3)
+    kept, dropped_data = select_identifiable(J_all, all_names, keep=nuisance, units=units)
+    extra = {all_names[i]: why for i, why in dropped_data.items() if i not in dropped}
+    if extra:
+        why = "; ".join(f"{k}: {v}" for k, v in extra.items())
+        raise InputError(f"these {n_pose} poses ({spread}) cannot determine {', '.join(extra)} ({why}); measure at "
+                         f"more, and more varied, {axes} angles", file=data.source)
+    idx = sorted(i for i in kept if i < len(names))
+    fit_names = [names[i] for i in idx]
+    fit_scales = scales[idx]
+
+    def fun(x: np.ndarray) -> np.ndarray:
+        return residual(x, fit_names, fit_scales, data)
+
+    r_before = fitting.levenberg_marquardt(
+        lambda c: fun(np.concatenate([x_base[idx], c])), c0, step=1e-3, central=True, rtol=1e-15, xtol=1e-12,
+        scale=np.ones(3)).r
+    fit = _lsq(fun, np.concatenate([x_base[idx], c0]))
+    sd = np.sqrt(np.diag(fit.cov))
+    unident = {}
+    for i, why in sorted(dropped.items()):
+        if i < len(names):
+            held, _, unit = _display(base.get(names[i]), 0.0, GEOMETRIC_PARAMETERS[names[i]][0])
+            unident[names[i]] = f"{why}; held at {held:g} {unit}"
+    return _SphereFit(fit_names, fit, sd, r_before, J_all, all_names,
+                      {p: float(v) for p, v in zip(fit_names, fit.x[:-3] * fit_scales, strict=True)},
+                      {p: float(v) for p, v in zip(fit_names, sd[:-3] * fit_scales, strict=True)}, unident)
+
+
 def calibrate_probe(data: ProbeData | str | os.PathLike, machine: Machine | None = None,
                     base: ErrorModel | None = None, parameters: Sequence[str] | None = None
                     ) -> CalibrationReport:
@@ -359,59 +433,18 @@ def calibrate_probe(data: ProbeData | str | os.PathLike, machine: Machine | None
 
     x_base = np.array([base.get(p) for p in names]) / scales
     c0 = np.mean(data.centre + probe_offsets(base, machine, data), axis=0)
-    x0 = np.concatenate([x_base, c0 * 1e3])
-    all_names = names + ["sphere_x", "sphere_y", "sphere_z"]
-    units = [{"mm": "um", "rad": "urad"}[GEOMETRIC_PARAMETERS[p][0]] for p in names] + ["um"] * 3
-    nuisance = [len(names), len(names) + 1, len(names) + 2]
-    # Structural analysis on a rich reference pose set: what no probing of one sphere with one
-    # tool can separate (reported, not fitted). Then the same analysis on the given poses: any
-    # further loss is the data's fault and is an error, never a silently reduced fit.
     grid = np.radians(np.linspace(-90.0, 90.0, 7))
     rA, rB = (v.ravel() for v in np.meshgrid(grid, grid, indexing="ij"))
     zero = np.zeros_like(rA)
     ref = ProbeData(rA, rB, zero, zero, zero, np.zeros((len(rA), 3)))
-    J_ref = _central_jacobian(lambda x: _probe_residual(x, names, scales, base, machine, ref), x0, 1e-3)
-    kept_ref, dropped = select_identifiable(J_ref, all_names, keep=nuisance, units=units)
-    candidates = [names[i] for i in sorted(kept_ref) if i < len(names)]
-    n_unknown = len(candidates) + 3
-    if 3 * n_pose <= n_unknown:
-        raise InputError(f"too few poses: {n_pose} poses give {3 * n_pose} equations for {n_unknown} "
-                         f"unknowns ({', '.join(candidates)} and the sphere centre); at least "
-                         f"{n_unknown // 3 + 1} distinct poses are needed", file=data.source)
-    J_all = _central_jacobian(lambda x: _probe_residual(x, names, scales, base, machine, data), x0, 1e-3)
-    kept, dropped_data = select_identifiable(J_all, all_names, keep=nuisance, units=units)
-    extra = {all_names[i]: why for i, why in dropped_data.items() if i not in dropped}
-    if extra:
-        why = "; ".join(f"{k}: {v}" for k, v in extra.items())
-        nA, nB = len(np.unique(np.round(data.A, 9))), len(np.unique(np.round(data.B, 9)))
-        raise InputError(f"these {n_pose} poses (A at {nA} and B at {nB} distinct angles) cannot determine "
-                         f"{', '.join(extra)} ({why}); probe at more, and more varied, A and B angles",
-                         file=data.source)
-    fit_idx = sorted(i for i in kept if i < len(names))
-    fit_names = [names[i] for i in fit_idx]
-
-    def residual(x: np.ndarray, fit_names: Sequence[str], fit_scales: np.ndarray) -> np.ndarray:
-        return _probe_residual(x, fit_names, fit_scales, base, machine, data)
-
-    fit_scales = scales[fit_idx]
-    x0f = np.concatenate([x_base[fit_idx], x0[-3:]])
-
-    def fun(x: np.ndarray) -> np.ndarray:
-        return residual(x, fit_names, fit_scales)
-
-    r_before = fitting.levenberg_marquardt(
-        lambda c: residual(np.concatenate([x_base[fit_idx], c]), fit_names, fit_scales), x0[-3:], step=1e-3,
-        central=True, rtol=1e-15, xtol=1e-12, scale=np.ones(3)).r
-    fit = _lsq(fun, x0f)
-    sd = np.sqrt(np.diag(fit.cov))
-    params = {p: float(v) for p, v in zip(fit_names, fit.x[:-3] * fit_scales, strict=True)}
-    unc = {p: float(v) for p, v in zip(fit_names, sd[:-3] * fit_scales, strict=True)}
+    nA, nB = len(np.unique(np.round(data.A, 9))), len(np.unique(np.round(data.B, 9)))
+    sf = _fit_with_sphere(lambda x, nm, sc, d: _probe_residual(x, nm, sc, base, machine, d), names, scales, x_base,
+                          c0 * 1e3, ref, data, n_pose, "sphere centre",
+                          f"A at {nA} and B at {nB} distinct angles", "A and B", base)
+    fit_names, fit, sd, r_before, J_all, all_names = sf.names, sf.fit, sf.sd, sf.r_before, sf.J_all, sf.all_names
+    params, unc, unident = sf.params, sf.unc, sf.unidentifiable
     geo = dict(base.geometric)
     geo.update(params)
-    unident = {}
-    for i, why in sorted(dropped.items()):
-        held, _, unit = _display(base.get(names[i]), 0.0, GEOMETRIC_PARAMETERS[names[i]][0])
-        unident[names[i]] = f"{why}; held at {held:g} {unit}"
     sv, cond = _sv(fit.J)
     meta = dict(base.meta)
     meta["probe"] = {"source": data.source, "poses": n_pose, "fitted": fit_names,
@@ -580,54 +613,18 @@ def calibrate_rtest(data: RTestData | str | os.PathLike, machine: Machine | None
     nominal_tip = machine.tool_pose_np(data.q1, data.q2, data.X, data.Y, data.Z)[0]
     sphere0 = nominal_tip.mean(axis=0)
     x_base = np.array([base.get(p) for p in names]) / scales
-    x0 = np.concatenate([x_base, np.zeros(3)])
-    all_names = names + ["sphere_x", "sphere_y", "sphere_z"]
-    units = [{"mm": "um", "rad": "urad"}[GEOMETRIC_PARAMETERS[p][0]] for p in names] + ["um"] * 3
-    nuisance = [len(names), len(names) + 1, len(names) + 2]
     rq1, rq2 = reference_rtest_poses(machine)
     rxyz = machine.linear_axes(np.broadcast_to(sphere0, (len(rq1), 3)), rq1, rq2)
     ref = RTestData(rq1, rq2, rxyz[:, 0], rxyz[:, 1], rxyz[:, 2], np.zeros((len(rq1), 3)))
-    J_ref = _central_jacobian(lambda x: _rtest_residual(x, names, scales, base, machine, ref, sphere0), x0, 1e-3)
-    kept_ref, dropped = select_identifiable(J_ref, all_names, keep=nuisance, units=units)
-    candidates = [names[i] for i in sorted(kept_ref) if i < len(names)]
-    n_unknown = len(candidates) + 3
-    if 3 * n_pose <= n_unknown:
-        raise InputError(f"too few poses: {n_pose} poses give {3 * n_pose} equations for {n_unknown} "
-                         f"unknowns ({', '.join(candidates)} and the sphere position); at least "
-                         f"{n_unknown // 3 + 1} distinct poses are needed", file=data.source)
-    J_all = _central_jacobian(lambda x: _rtest_residual(x, names, scales, base, machine, data, sphere0), x0,
-                              1e-3)
-    kept, dropped_data = select_identifiable(J_all, all_names, keep=nuisance, units=units)
-    extra = {all_names[i]: why for i, why in dropped_data.items() if i not in dropped}
-    if extra:
-        why = "; ".join(f"{k}: {v}" for k, v in extra.items())
-        spread = " and ".join(f"{ax} at {len(np.unique(np.round(v, 9)))}"
-                              for ax, v in zip(machine.rotary, (data.q1, data.q2), strict=True))
-        raise InputError(f"these {n_pose} poses ({spread} distinct angles) cannot determine {', '.join(extra)} "
-                         f"({why}); measure at more, and more varied, {' and '.join(machine.rotary)} angles",
-                         file=data.source)
-    fit_idx = sorted(i for i in kept if i < len(names))
-    fit_names = [names[i] for i in fit_idx]
-    fit_scales = scales[fit_idx]
-
-    def fun(x: np.ndarray) -> np.ndarray:
-        return _rtest_residual(x, fit_names, fit_scales, base, machine, data, sphere0)
-
-    r_before = fitting.levenberg_marquardt(
-        lambda c: fun(np.concatenate([x_base[fit_idx], c])), np.zeros(3), step=1e-3, central=True, rtol=1e-15,
-        xtol=1e-12, scale=np.ones(3)).r
-    fit = _lsq(fun, np.concatenate([x_base[fit_idx], np.zeros(3)]))
-    sd = np.sqrt(np.diag(fit.cov))
-    params = {p: float(v) for p, v in zip(fit_names, fit.x[:-3] * fit_scales, strict=True)}
-    unc = {p: float(v) for p, v in zip(fit_names, sd[:-3] * fit_scales, strict=True)}
+    spread = " and ".join(f"{ax} at {len(np.unique(np.round(v, 9)))}"
+                          for ax, v in zip(machine.rotary, (data.q1, data.q2), strict=True))
+    sf = _fit_with_sphere(lambda x, nm, sc, d: _rtest_residual(x, nm, sc, base, machine, d, sphere0), names, scales,
+                          x_base, np.zeros(3), ref, data, n_pose, "sphere position", f"{spread} distinct angles",
+                          " and ".join(machine.rotary), base)
+    fit_names, fit, sd, r_before, J_all, all_names = sf.names, sf.fit, sf.sd, sf.r_before, sf.J_all, sf.all_names
+    params, unc, unident = sf.params, sf.unc, sf.unidentifiable
     geo = dict(base.geometric)
     geo.update(params)
-    unident = {}
-    for i, why in sorted(dropped.items()):
-        if i >= len(names):
-            continue
-        held, _, unit = _display(base.get(names[i]), 0.0, GEOMETRIC_PARAMETERS[names[i]][0])
-        unident[names[i]] = f"{why}; held at {held:g} {unit}"
     sv, cond = _sv(fit.J)
     meta = dict(base.meta)
     meta["rtest"] = {"source": data.source, "poses": n_pose, "machine_kind": machine.kind, "fitted": fit_names,
