@@ -36,10 +36,16 @@ benchmarks/bench_feed.py "solvers"), and that is what lets a million-point progr
 every method within the smoothing's own time budget (toppra would have taken ~3 minutes there).
 
 Jerk. TOPP-RA is a second-order method: s'' switches instantly, so the axis jerk is unbounded in
-the continuous model. ``jmax`` is not enforced; each plan reports the finite-difference jerk of
-every axis at the points (``jerk_peak``) and how many samples exceed jmax (``jerk_over``). Those
-figures grow as the points get denser; a real controller limits the jerk itself and takes a little
-longer than ``cycle_time``.
+the continuous model. Where the machine file gives ``jmax`` for an axis (``Machine.jerk_limited``)
+``plan_row`` returns the jerk-limited time-optimal law instead (camsmooth.smoothing.jerk: an NLP
+on the same spline, fixed path nodes with free durations, started from this law), which meets
+every axis's vmax, amax, jmax and the tip feed at every instant; then ``jerk_over`` is 0 and
+``limit_time`` has the jerk constraints too. Otherwise jmax (a default) is only reported: each
+plan gives the finite-difference jerk of every axis at the points (``jerk_peak``, 6 x the third
+divided difference) and how many samples exceed jmax (``jerk_over``); a real controller limits the
+jerk itself and takes a little longer than ``cycle_time``. The jerk-limited law costs an IPOPT
+solve per row (tens of ms per point, benchmarks/bench_jerk.py), so the default machine does not
+give jmax.
 
 Units inside: mm, s, rad; feeds in mm/min at the interface (the CSV and the G-code unit).
 """
@@ -187,7 +193,8 @@ class RowPath:
     s at the distinct points (``s_mm / scale``), the spline (scipy CubicSpline, not-a-knot) and its
     derivatives dq = q'(s), ddq = q''(s) (M, 5), the tip's |p'(s)| (M,), the feed bound per point
     (mm/s) and the s'^2 bounds from the tip feed and the chords' velocities (x_feed: every axis's
-    and the tip's average speed over each block within its limit) and the five axes' limits."""
+    and the tip's average speed over each block within its limit), the five axes' limits and the
+    tool tip's spline p(s) (``tip_spline``, mm)."""
 
     n: int
     keep: np.ndarray
