@@ -3,7 +3,10 @@ jerk-limited time (camsmooth.smoothing.jerk), an independent reference NLP's tim
 difference, the largest jerk / jmax over the samples (finite differences at the points and on a
 resampling of the law, 16 instants per interval) and the planner's wall time per row.
 
-    python benchmarks/bench_jerk.py [--rows 2] [--ref-n 240,480]
+    python benchmarks/bench_jerk.py [--rows 2] [--ref-n 240,480] [--blade-only]
+
+The blade rows' reference (a piecewise polynomial of 200 pieces in CasADi) takes minutes per row;
+``--ref-n ""`` plans without it.
 
 Reference: a direct NLP in time (uniform grid over the free final time T, states s, s', s'' of
 the path's own parameter, s''' constant per step and integrated exactly, every limit at every
