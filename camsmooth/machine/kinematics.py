@@ -270,6 +270,9 @@ class Machine:
     limits: Mapping[str, AxisLimits] = field(default_factory=dict)
     post: PostConfig = field(default_factory=PostConfig)
     table_centre: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    #: the machine file gives jmax for an axis: the planned time law meets every axis's jmax
+    #: (camsmooth.smoothing.jerk); else jmax (a default) is only reported
+    jerk_limited: bool = False
 
     # ---- the rotary axes -------------------------------------------------------------------
     @property
@@ -588,8 +591,9 @@ DEFAULT_MACHINE_TOML = """\
 # camsmooth default machine: AB swivel head (METHODS.md section 1).
 # Angles in degrees, velocities deg/s, accelerations deg/s^2, jerks deg/s^3; lengths mm, mm/s,
 # mm/s^2, mm/s^3. Linear axes: vmax, amax, jmax optional (defaults as below); rotary axes: jmax
-# optional. The feed planner (camsmooth.smoothing.feed) keeps every axis within vmax and amax and
-# reports jmax (it does not enforce it).
+# optional. The feed planner (camsmooth.smoothing.feed) keeps every axis within vmax and amax; a
+# jmax given for any axis makes the planned time law meet every axis's jmax (camsmooth.smoothing.jerk),
+# otherwise jmax (defaults: the values shown) is only reported.
 [machine]
 name = "generic AB head"
 kind = "AB-head"
@@ -600,14 +604,14 @@ min = -100.0
 max = 100.0
 vmax = 60.0
 amax = 300.0
-jmax = 5000.0
+# jmax = 5000.0
 
 [axis.B]
 min = -100.0
 max = 100.0
 vmax = 60.0
 amax = 300.0
-jmax = 5000.0
+# jmax = 5000.0
 
 # X Y Z carry the head's pivot (pivot = tool tip + pivot length * tool axis)
 [axis.X]
@@ -615,21 +619,21 @@ min = -1000.0
 max = 1000.0
 vmax = 500.0
 amax = 3000.0
-jmax = 50000.0
+# jmax = 50000.0
 
 [axis.Y]
 min = -1000.0
 max = 1000.0
 vmax = 500.0
 amax = 3000.0
-jmax = 50000.0
+# jmax = 50000.0
 
 [axis.Z]
 min = -1000.0
 max = 1000.0
 vmax = 500.0
 amax = 3000.0
-jmax = 50000.0
+# jmax = 50000.0
 
 # G-code post (camsmooth.io.gcode): dialect = "generic" | "linuxcnc" | "fanuc" | "heidenhain" |
 # "siemens"; mode = "machine" (joint positions, inverse-time feed G93) | "tcp" (tool tip and A B
@@ -770,7 +774,8 @@ def machine_from_dict(data: Mapping[str, Any], source: str = "<machine>") -> Mac
         _positive(vals, ax, source)
         limits[ax] = AxisLimits(lo, hi, **vals)
     return Machine(name, kind, pivot, kind_chain(kind, pivot, centre), limits,
-                   post_from_dict(data.get("post", {}), source), table_centre=centre)
+                   post_from_dict(data.get("post", {}), source), table_centre=centre,
+                   jerk_limited=any(isinstance(t, dict) and "jmax" in t for t in axes.values()))
 
 
 _AXIS_KEYS = ("min", "max", "vmax", "amax", "jmax")

@@ -36,10 +36,16 @@ benchmarks/bench_feed.py "solvers"), and that is what lets a million-point progr
 every method within the smoothing's own time budget (toppra would have taken ~3 minutes there).
 
 Jerk. TOPP-RA is a second-order method: s'' switches instantly, so the axis jerk is unbounded in
-the continuous model. ``jmax`` is not enforced; each plan reports the finite-difference jerk of
-every axis at the points (``jerk_peak``) and how many samples exceed jmax (``jerk_over``). Those
-figures grow as the points get denser; a real controller limits the jerk itself and takes a little
-longer than ``cycle_time``.
+the continuous model. Where the machine file gives ``jmax`` for an axis (``Machine.jerk_limited``)
+``plan_row`` returns the jerk-limited time-optimal law instead (camsmooth.smoothing.jerk: an NLP
+on the same spline, fixed path nodes with free durations, started from this law), which meets
+every axis's vmax, amax, jmax and the tip feed at every instant; then ``jerk_over`` is 0 and
+``limit_time`` has the jerk constraints too. Otherwise jmax (a default) is only reported: each
+plan gives the finite-difference jerk of every axis at the points (``jerk_peak``, 6 x the third
+divided difference) and how many samples exceed jmax (``jerk_over``); a real controller limits the
+jerk itself and takes a little longer than ``cycle_time``. The jerk-limited law costs an IPOPT
+solve per row (tens of ms per point, benchmarks/bench_jerk.py), so the default machine does not
+give jmax.
 
 Units inside: mm, s, rad; feeds in mm/min at the interface (the CSV and the G-code unit).
 """
@@ -61,7 +67,8 @@ from camsmooth.machine.kinematics import Machine
 #: axis, rad, ``Machine.rotary``; names in CONSTRAINTS are mapped by ``machine_label``)
 AXES = ("X", "Y", "Z", "A", "B")
 #: constraint names, indexed by ``RowPlan.limit`` and ``limit_time``
-CONSTRAINTS = ("feed",) + tuple(f"{a} velocity" for a in AXES) + tuple(f"{a} acceleration" for a in AXES)
+CONSTRAINTS = (("feed",) + tuple(f"{a} velocity" for a in AXES) + tuple(f"{a} acceleration" for a in AXES)
+               + tuple(f"{a} jerk" for a in AXES))
 #: mm of path parameter per rad of rotary motion: weighs rotation only where the tip barely moves
 #: (1 degree counts as 0.017 mm, far below a usual 0.1-1 mm point spacing)
 ROTARY_LENGTH = 1.0
@@ -176,11 +183,16 @@ def finite_difference_rates(q: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, n
     """Segment velocities (N-1, k), point accelerations at the interior points (N-2, k) and
     jerks between consecutive interior points (N-3, k) of q(t) sampled at strictly increasing t
     (s): v = dq/dt per segment, a_i = 2 (v_(i+1/2) - v_(i-1/2)) / (t_(i+1) - t_(i-1)) (the
-    three-point rule of ``nlp.fd_operators``), j = da / dt between interior points."""
+    three-point rule of ``nlp.fd_operators``), j_i = 3 (a_(i+1) - a_i) / (t_(i+2) - t_(i-1)).
+    Each is k! times the divided difference of k + 1 consecutive samples, so it equals the k-th
+    derivative of any smooth q(t) through them at some instant of their span: a law whose
+    continuous velocity, acceleration and jerk are within limits has these within the limits on
+    any grid (da / dt_i, the form before issue 22, is not bounded so on an uneven grid: 1.85x the
+    jerk at a start from rest at constant jerk on points even in s)."""
     dt = np.diff(t)
     v = np.diff(q, axis=0) / dt[:, None]
     a = 2.0 * np.diff(v, axis=0) / (t[2:] - t[:-2])[:, None]
-    j = np.diff(a, axis=0) / dt[1:-1, None]
+    j = 3.0 * np.diff(a, axis=0) / (t[3:] - t[:-3])[:, None]
     return v, a, j
 
 
@@ -191,7 +203,8 @@ class RowPath:
     s at the distinct points (``s_mm / scale``), the spline (scipy CubicSpline, not-a-knot) and its
     derivatives dq = q'(s), ddq = q''(s) (M, 5), the tip's |p'(s)| (M,), the feed bound per point
     (mm/s) and the s'^2 bounds from the tip feed and the chords' velocities (x_feed: every axis's
-    and the tip's average speed over each block within its limit) and the five axes' limits."""
+    and the tip's average speed over each block within its limit), the five axes' limits and the
+    tool tip's spline p(s) (``tip_spline``, mm)."""
 
     n: int
     keep: np.ndarray
@@ -208,6 +221,7 @@ class RowPath:
     vmax: np.ndarray
     amax: np.ndarray
     jmax: np.ndarray
+    tip_spline: CubicSpline
 
 
 def row_path(machine: Machine, q: np.ndarray, tip: np.ndarray, feed: np.ndarray) -> RowPath | None:
@@ -241,7 +255,8 @@ def row_path(machine: Machine, q: np.ndarray, tip: np.ndarray, feed: np.ndarray)
     scale = float(np.median(finite)) if finite.size else 1.0
     s = s_mm / scale
     spline = CubicSpline(s, qk)
-    dp = np.linalg.norm(CubicSpline(s, pk).derivative()(s), axis=1)
+    tip_spline = CubicSpline(s, pk)
+    dp = np.linalg.norm(tip_spline(s, 1), axis=1)
     # s'^2 bound from the tip feed; where the tip stands still (|p'| ~ 0) the feed does not bind
     x_feed = np.full(m, _UNLIMITED)
     moving = dp * np.sqrt(_UNLIMITED) > fpt
@@ -256,7 +271,8 @@ def row_path(machine: Machine, q: np.ndarray, tip: np.ndarray, feed: np.ndarray)
     x_feed = np.minimum(x_feed, np.minimum(np.r_[x_seg, _UNLIMITED], np.r_[_UNLIMITED, x_seg]))
     return RowPath(n=len(q), keep=keep, owner=np.cumsum(keep) - 1, s=s, scale=scale, spline=spline, q=qk,
                    dq=spline(s, 1), ddq=spline(s, 2), dp=dp, feed_bound=fpt, x_feed=x_feed,
-                   vmax=np.minimum(vmax, _UNLIMITED), amax=np.minimum(amax, _UNLIMITED), jmax=jmax)
+                   vmax=np.minimum(vmax, _UNLIMITED), amax=np.minimum(amax, _UNLIMITED), jmax=jmax,
+                   tip_spline=tip_spline)
 
 
 @njit(cache=True)
@@ -375,7 +391,41 @@ def plan_row(machine: Machine, q: np.ndarray, tip: np.ndarray, feed: np.ndarray)
     rp = row_path(machine, q, tip, feed)
     if rp is None:
         return _still(len(q))
-    return plan_from_speed(rp, forward_backward(rp.s, rp.dq, rp.ddq, rp.amax, _xmax(rp)))
+    sd = forward_backward(rp.s, rp.dq, rp.ddq, rp.amax, _xmax(rp))
+    if not machine.jerk_limited:
+        return plan_from_speed(rp, sd)
+    from camsmooth.smoothing.jerk import jerk_law
+
+    return plan_from_law(rp, jerk_law(rp, sd))
+
+
+def plan_from_law(rp: RowPath, law: object) -> RowPlan:
+    """The RowPlan of a jerk-limited law (camsmooth.smoothing.jerk.JerkLaw): times and tip feed
+    at the points; the binding constraint (largest ratio of value to limit, jerk included) at each
+    point and its time, both from the law evaluated exactly at its dense-check instants; the jerk
+    report from the finite differences of the points."""
+    from camsmooth.smoothing.jerk import DENSE, law_rates
+
+    rates = law_rates(rp, law, DENSE)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratios = np.column_stack([np.nan_to_num(rates.tip_speed / rates.feed, nan=0.0, posinf=0.0),
+                                  np.abs(rates.velocity) / rp.vmax, np.abs(rates.acceleration) / rp.amax,
+                                  np.abs(rates.jerk) / rp.jmax])
+    k = np.argmax(ratios, axis=1).reshape(-1, DENSE)
+    h = np.diff(law.t)
+    wts = np.full(DENSE, 1.0 / (DENSE - 1))
+    wts[[0, -1]] *= 0.5
+    limit_time = np.bincount(k.ravel(), weights=(h[:, None] * wts[None, :]).ravel(), minlength=len(CONSTRAINTS))
+    at_node = np.r_[k[:, 0], k[-1, -1]].astype(np.int16)
+    t = law.t[law.points]
+    jerk_peak, jerk_over = np.zeros(5), np.zeros(5, np.int64)
+    if len(t) >= 4:
+        _, _, jerk = finite_difference_rates(rp.q, t)
+        jerk_peak = np.abs(jerk).max(axis=0)
+        jerk_over = np.sum(np.abs(jerk) > rp.jmax, axis=0)
+    o = rp.owner
+    return RowPlan(t_plan=t[o], feed_plan=(60.0 * rp.dp * law.y[law.points])[o], limit=at_node[law.points][o],
+                   limit_time=limit_time, cycle_time=float(law.t[-1]), jerk_peak=jerk_peak, jerk_over=jerk_over)
 
 
 def combine(row_ids: Sequence[int], plans: Sequence[RowPlan]) -> FeedPlan:
