@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 try:  # casadi is a hard dependency, but keep import errors readable
     import casadi as ca
@@ -469,24 +470,47 @@ class Machine:
         if np.all(unique) and not free.any() and not pole.any():
             out[:] = cand[np.arange(n), ok.argmax(axis=1)]
         else:
-            two_pi = 2 * np.pi
-            ref = prev
-            for i in range(n):
-                c = cand[i].copy()
-                if pole[i]:
-                    c[:, outer] = ref[outer]
-                for k in np.flatnonzero(free):
-                    c[:, k] += two_pi * np.round((ref[k] - c[:, k]) / two_pi)
-                mask = ok[i] if reach[i] else np.ones(len(c), bool)
-                d = np.where(mask, np.linalg.norm(c - ref, axis=1), np.inf)
-                out[i] = c[int(np.argmin(d))]
-                ref = out[i]
+            out[:] = _nearest_sequence(cand, ok, reach, free, pole, outer, prev)
         xyz = None
         if cl is not None:
             xyz = self.linear_axes(cl, out[:, 0], out[:, 1])
             for k, name in enumerate("XYZ"):
                 reach &= self.within(name, xyz[:, k])
         return IKResult(A=out[:, 0], B=out[:, 1], xyz=xyz, unreachable=np.flatnonzero(~reach))
+
+
+@njit(cache=True)
+def _nearest_sequence(cand: np.ndarray, ok: np.ndarray, reach: np.ndarray, free: np.ndarray, pole: np.ndarray,
+                      outer: int, prev: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
+    """``Machine.solve_row``'s sequential choice: per point, of the candidates (N, K, 2) within
+    travel (``ok``; all of them where none is, ``reach`` False), the one nearest the previous
+    point's choice (the first point: ``prev``), an axis without travel limits (``free``) unwound to
+    the turn nearest it, and the outer angle held at the pole (``pole``)."""
+    n, m = ok.shape
+    out = np.empty((n, 2))
+    two_pi = 2.0 * np.pi
+    ref0, ref1 = prev[0], prev[1]
+    for i in range(n):
+        best, b0, b1 = np.inf, 0.0, 0.0
+        for j in range(m):
+            if reach[i] and not ok[i, j]:
+                continue
+            c0, c1 = cand[i, j, 0], cand[i, j, 1]
+            if pole[i]:
+                if outer == 0:
+                    c0 = ref0
+                else:
+                    c1 = ref1
+            if free[0]:
+                c0 += two_pi * np.floor((ref0 - c0) / two_pi + 0.5)
+            if free[1]:
+                c1 += two_pi * np.floor((ref1 - c1) / two_pi + 0.5)
+            d = (c0 - ref0) ** 2 + (c1 - ref1) ** 2
+            if d < best:
+                best, b0, b1 = d, c0, c1
+        out[i, 0], out[i, 1] = b0, b1
+        ref0, ref1 = b0, b1
+    return out
 
 
 def _subproblem1(w: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
