@@ -12,8 +12,9 @@ lead/tilt windows so that C meets its velocity and acceleration limits.
   within ``POLE_CONE_DEG`` of the pole, with the closest angle, the turn of the outer axis the
   exact inverse makes across it and its peak speed at the programmed feed.
 - ``pole_start`` is the NLP's warm start across each passage: the outer axis turns linearly in
-  time from its value before the passage to its value after it, on whichever inverse branch after
-  the passage makes that turn the smaller (within the travel), and the inner axis points the tool
+  time from its value before the passage to its value after it (held where it starts when the whole
+  row lies in the cone), on whichever inverse branch after the passage makes that turn the smaller
+  (within the travel), and the inner axis points the tool
   as near the programmed axis as that outer angle allows (``Machine.nearest_with_outer``). This is
   the "singularity cone" of CAM systems, as a start: the NLP then meets every limit and window.
 Angles rad inside, degrees in PolePassage; times s.
@@ -130,8 +131,8 @@ def pole_start(machine: Machine, T: np.ndarray, rows: np.ndarray, t: np.ndarray,
                     q[b + 1:] = _continue(machine, T[s0 + b + 1:s1], after)
             ref0 = before if before is not None else after
             ref1 = after if after is not None else before
-            if ref0 is None:
-                continue  # a whole row inside the cone: nothing to hold on to
+            if ref0 is None:  # a whole row inside the cone: the outer axis held where it starts
+                ref0 = ref1 = q[a].copy()
             ta = t[s0 + a - 1] if before is not None else t[s0 + a]
             tb = t[s0 + b + 1] if after is not None else t[s0 + b]
             w = np.clip((t[s0 + a:s0 + b + 1] - ta) / max(tb - ta, 1e-12), 0.0, 1.0)
