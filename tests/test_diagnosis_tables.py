@@ -77,3 +77,29 @@ def test_a_clean_ac_table_recording_names_nothing():
     prog = _program()
     f = diagnose(prog, _record(prog, ex=0.0, ey=0.0, kv_c=0.0, seed=5), machine=m).findings
     assert f["named"] == [], f["named"]
+
+
+def test_the_command_line_simulates_and_diagnoses_a_table_machine(tmp_path, capsys):
+    """`camsmooth simulate recording` and `camsmooth diagnose` with the dome's A/C machine file:
+    the C location error and lag set on the command line are what diagnose names; probing (an
+    AB-head measurement) on that machine is refused as bad input, naming the R-test."""
+    import json
+    from pathlib import Path
+
+    from camsmooth.cli.main import main as cli_main
+    from camsmooth.diagnosis.recordings import write_program_csv
+
+    machine = str(Path(__file__).resolve().parents[1] / "surfaces" / "dome_machine.toml")
+    write_program_csv(tmp_path / "p.csv", _program(rate=50.0, duration=12.0))
+    assert cli_main(["simulate", "recording", "--program", str(tmp_path / "p.csv"), "--machine", machine,
+                     "--set", "EX0C=0.03", "--set", "Kv_C=40", "--channels", "axes,tip", "--noise", "0.0005",
+                     "--noise-deg", "0.0003", "-o", str(tmp_path / "r.csv")]) == 0
+    assert cli_main(["diagnose", "--program", str(tmp_path / "p.csv"), "--recording", str(tmp_path / "r.csv"),
+                     "--machine", machine, "--out", str(tmp_path / "f.json"), "--quiet"]) == 0
+    f = json.loads((tmp_path / "f.json").read_text())
+    eff = {e["name"]: e for e in f["effects"]}
+    assert eff["rotary_location"]["parameters"]["EX0C"] == pytest.approx(0.03, rel=0.1)
+    capsys.readouterr()
+    assert cli_main(["simulate", "probe", "--model", str(tmp_path / "f.json"), "--machine", machine,
+                     "-o", str(tmp_path / "probe.csv")]) == 2
+    assert "simulate rtest" in capsys.readouterr().err and not (tmp_path / "probe.csv").exists()

@@ -264,7 +264,10 @@ def prepare(program: Program, recording: Recording, machine: Machine | None = No
     opt = options or Options()
     machine = machine or load_machine(None)
     # the fitted rotary errors are those of the machine's kind (unstated on an AB head, as ever)
-    base = base or ErrorModel(kind=None if machine.kind == "AB-head" else machine.kind)
+    base = base or ErrorModel()
+    if base.kind is None and machine.kind != "AB-head":
+        base = base.copy()
+        base.kind = machine.kind
     al = align(program, recording)
     channels = [c for c in CHANNELS if c in al.channels]
     knots = Knots(program)

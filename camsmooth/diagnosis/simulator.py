@@ -435,7 +435,7 @@ def simulate_recording(program: Program, machine: Machine | None = None, physics
     rng = np.random.default_rng(seed)
 
     def group(c: str) -> str:
-        if c in ("A_act", "B_act"):
+        if c in tuple(f"{a}_act" for a in ROTARY_AXES):
             return "rotary"
         if c in AXIS_CHANNELS:
             return "axes"
@@ -472,7 +472,8 @@ def add_simulate_recording_arguments(parser: Any) -> None:
                         help="comma list of groups (axes, tip, axis) or channel names (default: axes)")
     parser.add_argument("--noise", "--noise-mm", dest="noise_mm", type=float, default=0.0,
                         help="white noise sigma on mm channels (mm)")
-    parser.add_argument("--noise-deg", type=float, default=0.0, help="white noise sigma on A_act, B_act (deg)")
+    parser.add_argument("--noise-deg", type=float, default=0.0,
+                        help="white noise sigma on the rotary axes (A_act, B_act, C_act; deg)")
     parser.add_argument("--noise-axis", type=float, default=0.0, help="white noise sigma on axis_i/j/k")
     parser.add_argument("--quantise-mm", type=float, default=0.0, help="rounding step of mm channels")
     parser.add_argument("--seed", type=int, default=0)

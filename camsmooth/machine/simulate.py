@@ -50,6 +50,9 @@ def simulate_probe(model: ErrorModel, machine: Machine | None = None, *, poses: 
     reports the centre computed with its nominal kinematics: c - g(A, B) + N(0, noise^2) per
     coordinate (g = real minus nominal tool tip; calibration module docstring)."""
     machine = machine or load_machine()
+    if machine.kind != "AB-head":
+        raise InputError(f"probing (columns A, B) is simulated for an AB-head machine; the machine is {machine.kind}: "
+                         "simulate its rotary axes' R-test instead (simulate_rtest, `camsmooth simulate rtest`)")
     A, B = poses if poses is not None else default_probe_poses(machine)
     A, B = np.asarray(A, float), np.asarray(B, float)
     c0 = np.asarray(sphere, float)
