@@ -352,3 +352,18 @@ def test_a_weak_scale_error_keeps_no_spurious_pitch_terms():
     h = next(h for h in hard_cases((1,)) if h.label == "weak: positioning at 3 sigma")
     r = run_hard_case(h, diagnose)
     assert r["named"] == ["linear_positioning"] and r["errors"]["EXX"] < 0.02
+
+
+def test_a_lag_refused_for_another_channel_gets_its_pruned_exact_fit():
+    """A lagging B and a displaced A axis, B_act recorded without noise beside noisy X Y Z and tip
+    channels: fitted first, the lag gives Z a small lag that takes up part of the A axis' tip
+    structure and makes Z_act worse, so its screening verdict refuses it. Its exact fit, with the
+    axes it cannot measure held, is judged again and named; then the displaced axis."""
+    prog = make_program("rotary", duration=12.0, rate=50.0, seed=1)
+    rec = record(prog, {"Kv_B": 40.0, "EY0A": 0.03}, channels=("axes", "tip"), noise={"axes": 5e-4, "tip": 5e-4},
+                 seed=3)
+    f = diagnose(prog, rec).findings
+    assert set(f["named"]) == {"servo_lag", "rotary_location"}, {r["name"]: r["reason"] for r in f["rejected"]}
+    eff = {e["name"]: e["parameters"] for e in f["effects"]}
+    assert eff["servo_lag"]["Kv_B"] == pytest.approx(40.0, rel=0.02)
+    assert eff["rotary_location"]["EY0A"] == pytest.approx(0.03, rel=0.05)

@@ -539,7 +539,11 @@ class Selector:
             if not trials:
                 break
             verdicts = {n: scr._vetoed(n, f, scr.judge(cur_s, f)) for n, f in trials.items()}
-            passing = [n for n, v in verdicts.items() if v["ok"]]
+            # a term refused only for making another channel worse gets its exact fit: pruning may
+            # hold the axes it cannot measure (a lag on an axis that does not lag, taking up the
+            # tip structure of an effect not yet named) and the exact judgement, channels included,
+            # then decides
+            passing = [n for n, v in verdicts.items() if v["ok"] or v.get("worse_channels")]
             for n, v in verdicts.items():
                 if not v["ok"]:
                     rejected[n] = {"name": n, "reason": v["reason"], "round": len(active) + 1,
