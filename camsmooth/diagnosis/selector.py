@@ -49,6 +49,11 @@ from camsmooth.errors import InputError, InternalError
 from camsmooth.machine import fitting
 from camsmooth.machine.model import ErrorModel
 
+#: a term refused at screening whose fit RMS still falls by more than this (%) is judged on its exact
+#: fit: the screening's held-out score is predicted from the Jacobian, which a nonlinear parameter
+#: (the runout's phase) can defeat
+SCREEN_RECHECK_PCT = 10.0
+
 
 @dataclass
 class Fit:
@@ -543,7 +548,11 @@ class Selector:
             # hold the axes it cannot measure (a lag on an axis that does not lag, taking up the
             # tip structure of an effect not yet named) and the exact judgement, channels included,
             # then decides
-            passing = [n for n, v in verdicts.items() if v["ok"] or v.get("worse_channels")]
+            # and so does one whose fit improves clearly while its held-out score, predicted from the
+            # Jacobian of a screening fit, says otherwise (a phase or frequency enters nonlinearly:
+            # the prediction, not the term, can fail)
+            passing = [n for n, v in verdicts.items() if v["ok"] or v.get("worse_channels")
+                       or (trials[n].approximate and v.get("fit_change_pct", 0.0) < -SCREEN_RECHECK_PCT)]
             for n, v in verdicts.items():
                 if not v["ok"]:
                     rejected[n] = {"name": n, "reason": v["reason"], "round": len(active) + 1,
