@@ -569,6 +569,11 @@ class Selector:
                 exact = trials[cand] if scr is self and not trials[cand].approximate else \
                     self.fit(key, x0=trials[cand].x)
                 exact, why = self.prune(key, exact, cand)
+                worse = verdicts[cand].get("worse_channels")
+                if not why and worse and not any(w.split("_")[0] in self.none.get(cand, ()) for w in worse):
+                    # refused for an axis's own channel, and that axis (the one it cannot measure)
+                    # was not held: the screening's refusal stands
+                    why = verdicts[cand]["reason"]
                 v = {"ok": False, "reason": why, "heldout_change_pct": None} if why else \
                     self._vetoed(cand, exact, self.judge(current, exact))
                 if v["ok"]:
