@@ -45,7 +45,8 @@ from camsmooth.smoothing.feed import (  # noqa: E402
 from camsmooth.smoothing.jerk import jerk_law  # noqa: E402
 
 
-def machine(jmax_rot: float | None, jmax_lin: float = 20000.0) -> Machine:
+def machine(jmax_rot: float | None = 2000.0, jmax_lin: float = 20000.0) -> Machine:
+    """The default machine with jmax given (deg/s^3 for A B, mm/s^3 for X Y Z); None: as shipped."""
     data = tomllib.loads(DEFAULT_MACHINE_TOML)
     if jmax_rot is not None:
         for ax in ("A", "B"):
@@ -55,21 +56,28 @@ def machine(jmax_rot: float | None, jmax_lin: float = 20000.0) -> Machine:
     return machine_from_dict(data, "<bench>")
 
 
-def helix_case(m: Machine, n: int = 240):
-    """The tests' helix (tests/test_jerk.py): q, tip, feed and the closed form q(theta), |p'(theta)|."""
-    def path(th):
-        sin, cos = (ca.sin, ca.cos) if isinstance(th, (ca.SX, ca.MX)) else (np.sin, np.cos)
-        tip = [20.0 * cos(th), 20.0 * sin(th), 2.0 * th]
-        a, b = np.radians(12.0) * sin(th), np.radians(20.0) * (1 - cos(th))
-        axis = m.tool_axis(a, b)
-        return tip, [tip[k] + m.pivot * axis[k] for k in range(3)] + [a, b]
+def helix(th, m: Machine):
+    """The helix of the jerk tests (tip (3,), joints (5,)) at theta (rad): tip on a 20 mm radius
+    helix rising 2 mm/rad, A and B swinging; numpy arrays or a CasADi symbol."""
+    sin, cos = (ca.sin, ca.cos) if isinstance(th, (ca.SX, ca.MX)) else (np.sin, np.cos)
+    tip = [20.0 * cos(th), 20.0 * sin(th), 2.0 * th]
+    a, b = np.radians(12.0) * sin(th), np.radians(20.0) * (1 - cos(th))
+    axis = m.tool_axis(a, b)
+    return tip, [tip[k] + m.pivot * axis[k] for k in range(3)] + [a, b]
 
-    th = np.linspace(0.0, np.pi, n)
-    tip, q = path(th)
+
+def helix_function(m: Machine) -> ca.Function:
+    """theta -> (joints (5,), tip (3,)) of ``helix`` as a CasADi function, for ``reference_time``."""
     sym = ca.SX.sym("th")
-    tip_s, q_s = path(sym)
-    fn = ca.Function("p", [sym], [ca.vertcat(*q_s), ca.vertcat(*tip_s)])
-    return np.column_stack(q), np.column_stack(tip), np.full(n, 3000.0), fn, float(np.pi)
+    tip_s, q_s = helix(sym, m)
+    return ca.Function("p", [sym], [ca.vertcat(*q_s), ca.vertcat(*tip_s)])
+
+
+def helix_case(m: Machine, n: int = 240):
+    """The tests' helix: q, tip, feed and the closed form for the reference."""
+    th = np.linspace(0.0, np.pi, n)
+    tip, q = helix(th, m)
+    return np.column_stack(q), np.column_stack(tip), np.full(n, 3000.0), helix_function(m), float(np.pi)
 
 
 def blade_case(m: Machine, row: int):
@@ -82,7 +90,7 @@ def blade_case(m: Machine, row: int):
     tip = np.asarray(path.points, float)[k]
     T = np.asarray(path.normals, float)[k]
     ab = np.unwrap(m.inverse_axis(T)[:, 0, :], axis=0)
-    q = np.column_stack([m.linear_axes(tip, T), ab])
+    q = np.column_stack([m.linear_axes(tip, ab[:, 0], ab[:, 1]), ab])
     return q, tip, np.asarray(path.feed, float)[k], None, None
 
 

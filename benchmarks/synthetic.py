@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.signal import lsim
+from scipy.signal import lfilter, lsim
 from scipy.spatial.transform import Rotation
 
 from camsmooth.diagnosis.recordings import Program, Recording
@@ -572,3 +572,25 @@ def run_case(case: Case, diagnose: Callable[..., Any], options: Any = None) -> d
     out.update(case=case, seconds=dt, samples=len(rec.t), none_measurable=none,
                apart_pairs=[(e["chosen"], e["alternative"]) for e in f.get("equivalences", [])])
     return out
+
+
+def coloured_noise(n: int, sigma: float, rho: float, rng: np.random.Generator) -> np.ndarray:
+    """AR(1) noise (n,) of stationary standard deviation sigma and lag-1 correlation rho (white for
+    rho 0)."""
+    if not rho:
+        return rng.normal(0.0, sigma, n)
+    return lfilter([1.0], [1.0, -rho], rng.normal(0.0, sigma * np.sqrt(1 - rho ** 2), n))
+
+
+def null_case(kind: str, rho: float, seed: int) -> tuple[Program, Recording]:
+    """A recording with no effect at all (issue 20's nulls): the program ``kind`` ('lines', or a
+    special program: 'laser', 'grid', 'rotary'), its axis channels (tip channels for grid and
+    rotary) with 1 um of AR(1) noise of correlation rho plus 0.3 um white."""
+    prog = make_program("lines", duration=8.0, rate=250.0, seed=seed) if kind == "lines" else \
+        make_special_program(kind, rate=50.0, seed=seed)
+    rec = record(prog, {}, channels=("tip",) if kind in ("grid", "rotary") else ("axes",), noise={}, seed=seed)
+    rng = np.random.default_rng(seed + 100)
+    for c in rec.channels:
+        n = len(rec.t)
+        rec.channels[c] = rec.channels[c] + coloured_noise(n, 1e-3, rho, rng) + rng.normal(0, 3e-4, n)
+    return prog, rec

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from benchmarks.synthetic import make_program, make_special_program, record
+from benchmarks.synthetic import coloured_noise, make_program, make_special_program, null_case, record
 from camsmooth.cli.main import main as cli_main
 from camsmooth.diagnosis.engine import diagnose
 from camsmooth.diagnosis.recordings import write_program_csv, write_recording_csv
@@ -176,13 +176,6 @@ def test_a_warm_start_with_missing_values_starts_those_from_their_initial_guess(
 
 
 # ---- 6. significance that does not depend on what else is unexplained ---------------------------------
-def _coloured(n: int, sigma: float, rho: float, rng: np.random.Generator) -> np.ndarray:
-    """AR(1) noise of standard deviation sigma (mm) and lag-1 correlation rho."""
-    from scipy.signal import lfilter
-
-    return lfilter([1.0], [1.0, -rho], rng.normal(0.0, sigma * np.sqrt(1 - rho ** 2), n))
-
-
 def test_a_clear_reversal_is_named_beside_a_large_unexplained_rest():
     """The issue's ISO 230-2 case: a bidirectional laser run of X with an 18.65 um reversal and a
     pitch error outside the library (0.1 mm at 13 mm and 0.05 mm at 7.3 mm periods) dwarfing it.
@@ -249,15 +242,7 @@ def test_the_same_rest_without_a_reversal_names_nothing(seed):
 def test_white_and_coloured_nulls_name_nothing(kind, rho, seed):
     """Nulls, white (rho 0) and AR(1)-coloured, on axis and tool-tip channels: nothing named under
     the absolute rule (96 such nulls measured in the report of issue 20 item 2)."""
-    prog = make_program("lines", duration=8.0, rate=250.0, seed=seed) if kind == "lines" else \
-        make_special_program(kind, rate=50.0, seed=seed)
-    chans = ("tip",) if kind in ("grid", "rotary") else ("axes",)
-    rec = record(prog, {}, channels=chans, noise={}, seed=seed)
-    rng = np.random.default_rng(seed + 100)
-    for c in rec.channels:
-        n = len(rec.t)
-        noise = _coloured(n, 1e-3, rho, rng) if rho else rng.normal(0.0, 1e-3, n)
-        rec.channels[c] = rec.channels[c] + noise + rng.normal(0, 3e-4, n)
+    prog, rec = null_case(kind, rho, seed)
     assert diagnose(prog, rec).findings["named"] == []
 
 
@@ -271,7 +256,7 @@ def test_batch_means_standard_error():
     n = 40_000
     sds = [batch_sum_sd(rng.normal(0, 1, n)) for _ in range(20)]
     assert np.mean(sds) == pytest.approx(np.sqrt(n), rel=0.15)
-    ar = [batch_sum_sd(_coloured(n, 1.0, 0.9, rng)) for _ in range(20)]
+    ar = [batch_sum_sd(coloured_noise(n, 1.0, 0.9, rng)) for _ in range(20)]
     assert np.mean(ar) == pytest.approx(np.sqrt(n * 1.9 / 0.1), rel=0.25)
     periodic = np.sin(2 * np.pi * np.arange(n) / 400)
     assert batch_sum_sd(periodic) < 0.01 * np.sqrt(n * 1.99 / 0.01)
@@ -287,7 +272,8 @@ def test_coloured_noise_is_not_a_reversal():
     rng = np.random.default_rng(2)
     for rho in (0.9, 0.99):
         for c in rec.channels:
-            rec.channels[c] = rec.channels[c] + _coloured(len(rec.t), 1e-3, rho, rng) + rng.normal(0, 3e-4, len(rec.t))
+            n = len(rec.t)
+            rec.channels[c] = rec.channels[c] + coloured_noise(n, 1e-3, rho, rng) + rng.normal(0, 3e-4, n)
     assert diagnose(prog, rec).findings["named"] == []
 
 
@@ -301,7 +287,8 @@ def test_coloured_noise_nulls_name_nothing(kind, seed):
     rec = record(prog, {}, channels=chans, noise={}, seed=seed)
     rng = np.random.default_rng(seed)
     for c in rec.channels:
-        rec.channels[c] = rec.channels[c] + _coloured(len(rec.t), 1e-3, 0.95, rng) + rng.normal(0, 3e-4, len(rec.t))
+        n = len(rec.t)
+        rec.channels[c] = rec.channels[c] + coloured_noise(n, 1e-3, 0.95, rng) + rng.normal(0, 3e-4, n)
     assert diagnose(prog, rec).findings["named"] == []
 
 

@@ -9,40 +9,20 @@ axis, feed 3000 mm/min (binds in the middle)."""
 
 from __future__ import annotations
 
-import tomllib
 from functools import cache
 
-import casadi as ca
 import numpy as np
 import pytest
 
-from camsmooth.machine.kinematics import DEFAULT_MACHINE_TOML, Machine, machine_from_dict
+from benchmarks.bench_jerk import helix, helix_function, machine
+from benchmarks.bench_jerk import reference_time as direct_nlp_time
+from camsmooth.machine.kinematics import Machine
 from camsmooth.smoothing.feed import axis_limits, finite_difference_rates, plan_row, row_path
 from camsmooth.smoothing.jerk import jerk_law, law_rates
 
 THETA = np.pi  # rad of helix
 FEED = 3000.0  # mm/min
 SLACK = 1e-6  # relative, on every check of a limit
-
-
-def machine(jmax_rot: float | None = 2000.0, jmax_lin: float = 20000.0) -> Machine:
-    """The default machine with jmax given (deg/s^3 for A B, mm/s^3 for X Y Z); None: as shipped."""
-    data = tomllib.loads(DEFAULT_MACHINE_TOML)
-    if jmax_rot is not None:
-        for ax in ("A", "B"):
-            data["axis"][ax]["jmax"] = jmax_rot
-        for ax in ("X", "Y", "Z"):
-            data["axis"][ax]["jmax"] = jmax_lin
-    return machine_from_dict(data, "<jerk test>")
-
-
-def helix(th, m: Machine):
-    """(tip (3,), joints (5,)) at theta; numpy arrays or a CasADi symbol."""
-    sin, cos = (ca.sin, ca.cos) if isinstance(th, (ca.SX, ca.MX)) else (np.sin, np.cos)
-    tip = [20.0 * cos(th), 20.0 * sin(th), 2.0 * th]
-    a, b = np.radians(12.0) * sin(th), np.radians(20.0) * (1 - cos(th))
-    axis = m.tool_axis(a, b)
-    return tip, [tip[k] + m.pivot * axis[k] for k in range(3)] + [a, b]
 
 
 def row(m: Machine, n: int = 300) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -52,49 +32,12 @@ def row(m: Machine, n: int = 300) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def reference_time(m: Machine, n: int = 240) -> float:
-    """Independent direct NLP in time: states theta, theta', theta'' at n + 1 instants of a
-    uniform grid over the free final time T, theta''' constant per step (exact integration);
-    every axis's velocity, acceleration and jerk (chain rule, derivatives of the closed form by
-    CasADi) and the tip speed within limits at every instant; rest to rest. Minimise T."""
-    vmax, amax, jmax = axis_limits(m)
-    th = ca.SX.sym("th")
-    tip, q = helix(th, m)
-    q = ca.vertcat(*q)
-    d1 = ca.jacobian(q, th)
-    d2 = ca.jacobian(d1, th)
-    d3 = ca.jacobian(d2, th)
-    sp = ca.norm_2(ca.jacobian(ca.vertcat(*tip), th))
-    f = ca.Function("f", [th], [d1, d2, d3, sp]).map(n + 1)
-    T = ca.SX.sym("T")
-    X = ca.SX.sym("X", 3, n + 1)
-    U = ca.SX.sym("U", 1, n)
-    h = T / n
-    s, v, a = X[0, :-1], X[1, :-1], X[2, :-1]
-    dyn = ca.vertcat(X[0, 1:] - (s + h * v + h**2 / 2 * a + h**3 / 6 * U),
-                     X[1, 1:] - (v + h * a + h**2 / 2 * U), X[2, 1:] - (a + h * U))
-    q1, q2, q3, spd = f(X[0, :])
-    v, a = ca.repmat(X[1, :], 5, 1), ca.repmat(X[2, :], 5, 1)
-    u = ca.repmat(ca.horzcat(U, U[-1]), 5, 1)
-    u_left = ca.repmat(ca.horzcat(U[0], U), 5, 1)
-    lim = [(q1 * v, vmax), (q2 * v**2 + q1 * a, amax), (q3 * v**3 + 3 * q2 * v * a + q1 * u, jmax),
-           (q3 * v**3 + 3 * q2 * v * a + q1 * u_left, jmax)]
-    g = [ca.vec(dyn)] + [ca.vec(e / ca.repmat(ca.DM(lm), 1, n + 1)) for e, lm in lim] + [ca.vec(spd * X[1, :])]
-    lbg = np.r_[np.zeros(3 * n), -np.ones(20 * (n + 1)), np.full(n + 1, -np.inf)]
-    ubg = np.r_[np.zeros(3 * n), np.ones(20 * (n + 1)), np.full(n + 1, FEED / 60.0)]
-    x = ca.vertcat(T, ca.vec(X), ca.vec(U))
-    lbx = np.r_[0.05, np.tile([-np.inf, 0.0, -np.inf], n + 1), np.full(n, -np.inf)]
-    ubx = np.r_[np.inf, np.full(3 * (n + 1) + n, np.inf)]
-    for k, val in ((0, 0.0), (1, 0.0), (2, 0.0), (3 * n, THETA), (3 * n + 1, 0.0), (3 * n + 2, 0.0)):
-        lbx[1 + k] = ubx[1 + k] = val
-    t_guess = 3.0
-    tt = np.linspace(0, 1, n + 1)
-    x0 = np.r_[t_guess, np.column_stack([THETA * (3 * tt**2 - 2 * tt**3), THETA * 6 * (tt - tt**2) / t_guess,
-                                         THETA * 6 * (1 - 2 * tt) / t_guess**2]).ravel(), np.zeros(n)]
-    solver = ca.nlpsol("ref", "ipopt", {"x": x, "f": T, "g": ca.vertcat(*g)},
-                       {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes", "ipopt.max_iter": 3000})
-    sol = solver(x0=x0, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
-    assert solver.stats()["success"]
-    return float(sol["x"][0])
+    """The independent direct NLP in time (benchmarks/bench_jerk.reference_time: a triple
+    integrator in the path parameter on a uniform grid over the free final time, every axis's
+    velocity, acceleration and jerk by the chain rule on the closed form) on the helix."""
+    t = direct_nlp_time(m, helix_function(m), THETA, FEED, n, 3.0)
+    assert np.isfinite(t), "the reference NLP did not converge"
+    return t
 
 
 @cache

@@ -370,14 +370,19 @@ def plan_from_speed(rp: RowPath, sd: np.ndarray) -> RowPlan:
     limit_k = np.argmax(ratios_pt, axis=1).astype(np.int16)
     limit_time = np.bincount(np.argmax(ratios_seg, axis=1), weights=dt, minlength=len(CONSTRAINTS))
 
-    jerk_peak, jerk_over = np.zeros(5), np.zeros(5, np.int64)
-    if len(s) >= 4:
-        _, _, jerk = finite_difference_rates(rp.q, t)
-        jerk_peak = np.abs(jerk).max(axis=0)
-        jerk_over = np.sum(np.abs(jerk) > rp.jmax, axis=0)
+    jerk_peak, jerk_over = _jerk_report(rp, t)
     o = rp.owner
     return RowPlan(t_plan=t[o], feed_plan=60.0 * dp[o] * sd[o], limit=limit_k[o], limit_time=limit_time,
                    cycle_time=float(t[-1]), jerk_peak=jerk_peak, jerk_over=jerk_over)
+
+
+def _jerk_report(rp: RowPath, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Largest finite-difference jerk per joint at the row's distinct points under the times t
+    (``finite_difference_rates``) and the samples above jmax; zeros for rows under 4 points."""
+    if len(t) < 4:
+        return np.zeros(5), np.zeros(5, np.int64)
+    _, _, jerk = finite_difference_rates(rp.q, t)
+    return np.abs(jerk).max(axis=0), np.sum(np.abs(jerk) > rp.jmax, axis=0)
 
 
 def plan_row(machine: Machine, q: np.ndarray, tip: np.ndarray, feed: np.ndarray) -> RowPlan:
@@ -418,11 +423,7 @@ def plan_from_law(rp: RowPath, law: object) -> RowPlan:
     limit_time = np.bincount(k.ravel(), weights=(h[:, None] * wts[None, :]).ravel(), minlength=len(CONSTRAINTS))
     at_node = np.r_[k[:, 0], k[-1, -1]].astype(np.int16)
     t = law.t[law.points]
-    jerk_peak, jerk_over = np.zeros(5), np.zeros(5, np.int64)
-    if len(t) >= 4:
-        _, _, jerk = finite_difference_rates(rp.q, t)
-        jerk_peak = np.abs(jerk).max(axis=0)
-        jerk_over = np.sum(np.abs(jerk) > rp.jmax, axis=0)
+    jerk_peak, jerk_over = _jerk_report(rp, t)
     o = rp.owner
     return RowPlan(t_plan=t[o], feed_plan=(60.0 * rp.dp * law.y[law.points])[o], limit=at_node[law.points][o],
                    limit_time=limit_time, cycle_time=float(law.t[-1]), jerk_peak=jerk_peak, jerk_over=jerk_over)
