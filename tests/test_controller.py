@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from camsmooth.controller import LinuxCNCPlanner, decimate, planner_for
+from camsmooth.controller import PATH_TOLERANCE_SHARE, LinuxCNCPlanner, decimate, planner_for
 from camsmooth.controller.blocks import BLOCK_TOLERANCE_SHARE
 from camsmooth.controller.linuxcnc_sim import interpret, linuxcnc_missing, simulate
 from camsmooth.geometry.cutter import ToroidalCutter
@@ -195,7 +195,8 @@ def test_linuxcnc_interpreter_reads_the_program_and_its_positions_and_times(blad
         first = np.r_[True, r.rows[keep][1:] != r.rows[keep][:-1]]
         assert np.allclose(60.0 / fw[~first], bt[~first], rtol=1e-6, atol=1e-7)
         assert canon.inverse_time[cut].all()
-        assert "G64 P0.0025 Q0.0025" in text
+        p = f"{PATH_TOLERANCE_SHARE * 0.005:.4f}"
+        assert f"G64 P{p} Q{p}" in text
 
 
 @needs_linuxcnc
@@ -228,7 +229,8 @@ def test_tcp_codes_switch_to_the_five_axis_kinematics_of_the_shipped_configs(bla
 @pytest.mark.skipif(os.geteuid() != 0 and shutil.which("sudo") is None, reason="the simulation needs a user to run as")
 def test_planner_model_predicts_the_linuxcnc_simulation(tmp_path, simulation_runs):
     """A short five-axis program of 120 blocks (0.4 mm, B turning, G93) on the headless LinuxCNC
-    simulation: the model's time of the cut blocks is within 2% of the executed one."""
+    simulation: the model's time of the cut blocks is within 1% of the executed one (measured
+    +0.36%)."""
     m = _machine()
     n = 120
     x = 0.4 * np.arange(n + 1)
@@ -247,7 +249,7 @@ def test_planner_model_predicts_the_linuxcnc_simulation(tmp_path, simulation_run
                            np.ones(n, bool))
     bt = planner.run(seg)
     predicted = bt.end[-1] - bt.start[0]
-    assert predicted == pytest.approx(executed, rel=0.02)
+    assert predicted == pytest.approx(executed, rel=0.01)
     assert executed > 1.5 * n * 0.012  # the short blocks really are slower than their feed
 
 
@@ -286,3 +288,134 @@ def test_a_block_that_does_not_move_takes_no_time_as_linuxcnc_drops_it():
                                np.ones(2, bool)))
     assert t.end[1] == t.end[0] and t.end[2] == pytest.approx(without.end[1])
     assert np.all(np.diff(t.end) >= 0)
+
+
+# ---- the planner model's servo cycles, the tolerance check, and the lower bound ----------------
+
+
+def test_tip_deviation_is_the_distance_to_the_nearest_segment_by_brute_force():
+    """The k-d tree search against every segment: a fine helix after a long entry segment (a row's
+    entry move), points scattered up to 0.3 mm around it."""
+    from camsmooth.controller.blocks import tip_deviation
+
+    rng = np.random.default_rng(3)
+    th = np.linspace(0, 4 * np.pi, 2000)
+    helix = np.column_stack([20 * np.cos(th), 20 * np.sin(th), 0.5 * th])
+    path = np.vstack([helix[0] + [0, 0, 10.0], helix])
+    idx = rng.integers(0, len(path) - 1, 3000)
+    pts = path[idx] + rng.uniform(0, 1, (3000, 1)) * (path[idx + 1] - path[idx]) + rng.normal(0, 0.1, (3000, 3))
+    a, d = path[:-1], np.diff(path, axis=0)
+    rel = pts[:, None, :] - a[None]
+    t = np.clip((rel * d).sum(-1) / (d * d).sum(-1), 0, 1)
+    brute = np.linalg.norm(rel - t[..., None] * d, axis=-1).min(axis=1)
+    assert np.allclose(tip_deviation(pts, path), brute, atol=1e-12)
+
+
+def test_model_positions_follow_each_segment_and_its_blend():
+    """The model's joints at every servo cycle: on the first move's line before the blend, on
+    the second's after it, never past the corner by more than the blend, ending at the last
+    point; speeds within the axis limit."""
+    m = _machine()
+    p = LinuxCNCPlanner()
+    joints = np.array([[10.0, 0, 0, 0, 0], [10.0, 10.0, 0, 0, 0]])
+    seg = p.segments(m, np.zeros(5), joints, np.zeros(2, bool), np.full(2, 3000.0), np.zeros(2, bool))
+    bt = p.run(seg)
+    pos = bt.positions(np.zeros(5), joints)
+    assert np.allclose(pos[-1], joints[-1])
+    first = bt.head == 0
+    assert np.allclose(pos[first & (bt.following_fraction == 0), 1], 0.0)
+    assert np.all(pos[:, 0] <= 10.0 + 1e-12) and np.all(np.diff(pos[:, 0]) >= -1e-12)
+    speed = np.linalg.norm(np.diff(pos[:, :3], axis=0), axis=1) / p.servo_period
+    assert speed.max() <= 50.0 * (1 + 1e-9)
+
+
+def test_the_blocks_keep_the_models_tool_tip_within_the_tolerance_at_every_servo_cycle(blade_rows):
+    """The nlp rows' program: the model's tool tip over every servo cycle stays within
+    EXECUTED_TOLERANCE_SHARE of the tolerance, checked here by running the planner model on the
+    written blocks; at the time-optimal law's block times it does not (the check does work)."""
+    from camsmooth.controller import EXECUTED_TOLERANCE_SHARE
+    from camsmooth.controller.blocks import programmed_tip_path, tip_deviation, tool_tips
+    from camsmooth.io.gcode import DEFAULT_SAFE_HEIGHT_MM
+
+    r, m = blade_rows.methods["nlp"], blade_rows.machine
+    p = planner_for(m, 0.005)
+    q = np.column_stack([r.xyz, r.A, r.B])
+    worst_written, worst_optimal = 0.0, 0.0
+    for rid in np.unique(r.rows):
+        sel = np.flatnonzero(r.rows == rid)
+        k = sel[r.controller.keep[sel]]
+        entry = q[sel[0]].copy()
+        entry[:3] += DEFAULT_SAFE_HEIGHT_MM * r.axis[sel[0]]
+        path = programmed_tip_path(m, q[sel], tool_tips(m, entry[None])[0])
+        for bt, is_written in ((r.controller.block_time[k[1:]], True), (np.diff(r.plan.t_plan[k]), False)):
+            _, joints = p.row_run(m, q[k], bt, entry, 60 * DEFAULT_SAFE_HEIGHT_MM / 2000.0)
+            dev = float(tip_deviation(tool_tips(m, joints), path).max())
+            if is_written:
+                worst_written = max(worst_written, dev)
+            else:
+                worst_optimal = max(worst_optimal, dev)
+    assert worst_written <= EXECUTED_TOLERANCE_SHARE * 0.005 + 1e-6
+    assert np.isclose(worst_written, r.controller.row_deviation.max(), rtol=0.05)
+    assert worst_optimal > EXECUTED_TOLERANCE_SHARE * 0.005
+
+
+def _least_time_brute_force(m, q, tip, feed_mm_s, ok):
+    """Every choice of block ends of a short row, the same block cost as least_row_times."""
+    import itertools
+
+    from camsmooth.smoothing.feed import axis_limits
+
+    vmax, amax, _ = axis_limits(m)
+    n = len(q)
+    best = np.inf
+    for mask in itertools.product([False, True], repeat=n - 2):
+        ends = [0] + [i + 1 for i, on in enumerate(mask) if on] + [n - 1]
+        total = 0.0
+        for i, j in zip(ends[:-1], ends[1:], strict=True):
+            if j - i > ok.shape[1] or not ok[i, j - i - 1]:
+                total = np.inf
+                break
+            d = np.abs(q[j] - q[i])
+            total += max(np.linalg.norm(tip[j] - tip[i]) / feed_mm_s, (d / vmax).max(), np.sqrt(2 * (d / amax).max()))
+        best = min(best, total)
+    return best
+
+
+def test_least_row_times_is_the_best_choice_of_block_ends_by_brute_force():
+    """A short curved row with B turning: the dynamic programme equals the best of all 2^(n-2)
+    choices of block ends; on a straight row with no rotary motion one block is best and the
+    bound is the closed form max(L / v, sqrt(2 L / a))."""
+    from camsmooth.controller.blocks import block_reach
+    from camsmooth.controller.linuxcnc import least_row_times
+
+    m = _machine()
+    n = 11
+    th = np.radians(np.linspace(0, 6, n))
+    tip = np.column_stack([60 * np.sin(th), np.zeros(n), 60 * (1 - np.cos(th))])
+    B = np.radians(np.linspace(0, 4, n))
+    q = np.column_stack([m.linear_axes(tip, np.zeros(n), B), np.zeros(n), B])
+    for tol in (0.002, 0.005, 0.05):
+        ok = block_reach(m, np.zeros(n, int), q, tip, tol, 16)
+        got = least_row_times(m, np.zeros(n, int), q, tip, np.full(n, 2000.0), tol)[0]
+        assert got == pytest.approx(_least_time_brute_force(m, q, tip, 2000.0 / 60, ok), rel=1e-12)
+    x = np.linspace(0, 20, 41)
+    tip = np.column_stack([x, np.zeros(41), np.zeros(41)])
+    q = np.column_stack([tip + [0, 0, m.pivot], np.zeros(41), np.zeros(41)])
+    for feed in (2000.0, 1e6):
+        got = least_row_times(m, np.zeros(41, int), q, tip, np.full(41, feed), 0.005)[0]
+        assert got == pytest.approx(max(20 / (feed / 60), np.sqrt(2 * 20 / 3000.0)), rel=1e-12)
+
+
+def test_least_row_times_is_below_what_the_model_predicts_for_every_method(blade_rows):
+    """No program camsmooth writes beats the bound: per row and method, the bound at the
+    tolerance is below the controller's predicted row time, and a looser tolerance lowers it."""
+    from camsmooth.controller.linuxcnc import least_row_times
+
+    m = blade_rows.machine
+    for r in blade_rows.methods.values():
+        q = np.column_stack([r.xyz, r.A, r.B])
+        feed = np.full(len(q), 2000.0)
+        bound = least_row_times(m, r.rows, q, r.cl, feed, 0.005)
+        assert np.all(bound < r.controller.row_cycle_time)
+        assert np.all(bound >= np.asarray(r.plan.row_cycle_time) * 0.9)
+        assert np.all(least_row_times(m, r.rows, q, r.cl, feed, 0.01) <= bound + 1e-12)

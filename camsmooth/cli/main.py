@@ -236,8 +236,10 @@ def _print_summary(result) -> None:
     print("peaks (deg/s^2) and violations under the planned time law; 'at feed': violations at the programmed "
           "feed, before planning")
     if m.controller:
+        dev = (f"; its tool tip within {1e3 * m.controller_deviation_mm:.3g} um of the programmed path at every servo "
+               f"cycle" if m.controller_deviation_mm is not None else "")
         print(f"cycle times: 'optimal' is the time-optimal law under the axes' limits; '{ctrl}' what the {ctrl} "
-              f"controller's planner makes of the program as written ({m.blocks} cut blocks)")
+              f"controller's planner makes of the program as written ({m.blocks} cut blocks{dev})")
     if m.pole:
         _print_pole(result)
     for w in result.warnings:

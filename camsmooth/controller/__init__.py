@@ -1,8 +1,10 @@
 """The controller: what the machine's control does with a program camsmooth writes.
 
 - ``blocks``: the blocks a program is written in (longer blocks where the axes are smooth,
-  within the tolerance) and ``ControllerPlan``, a controller's timing of them per point;
-- ``linuxcnc``: a model of LinuxCNC's trajectory planner (derived from its source);
+  within the tolerance), ``ControllerPlan``, a controller's timing of them per point, and the
+  check that the planner model's tool tip stays within the tolerance at every servo cycle;
+- ``linuxcnc``: a model of LinuxCNC's trajectory planner (derived from its source), and the least
+  time any program of straight blocks can take on it (``least_row_times``);
 - ``linuxcnc_sim``: LinuxCNC itself, its interpreter and a headless simulation (tests and
   benchmarks, needs the ``linuxcnc-uspace`` package).
 
@@ -13,15 +15,24 @@ reported). A second controller is one more entry in ``PLANNERS``.
 
 from __future__ import annotations
 
-from camsmooth.controller.blocks import BLOCK_TOLERANCE_SHARE, ControllerPlan, Planner, decimate, predict
+from camsmooth.controller.blocks import (
+    BLOCK_TOLERANCE_SHARE,
+    EXECUTED_TOLERANCE_SHARE,
+    ControllerPlan,
+    Planner,
+    decimate,
+    predict,
+)
 from camsmooth.controller.linuxcnc import LinuxCNCPlanner
 from camsmooth.machine.kinematics import Machine
 
-__all__ = ["PLANNERS", "PATH_TOLERANCE_SHARE", "BLOCK_TOLERANCE_SHARE", "planner_for", "ControllerPlan", "Planner",
-           "decimate", "predict", "LinuxCNCPlanner"]
+__all__ = ["PLANNERS", "PATH_TOLERANCE_SHARE", "BLOCK_TOLERANCE_SHARE", "EXECUTED_TOLERANCE_SHARE", "planner_for",
+           "ControllerPlan", "Planner", "decimate", "predict", "LinuxCNCPlanner"]
 
-#: share of the user's tolerance the controller may blend off the path (G64 P), the rest is the blocks'
-PATH_TOLERANCE_SHARE = 1.0 - BLOCK_TOLERANCE_SHARE
+#: share of the user's tolerance the controller's own blend tolerance gets (LinuxCNC ``G64 P``): its
+#: bound on how far a blend cuts an XYZ corner, which holds the corner of a row's entry move; the
+#: tool tip at every servo cycle is held within EXECUTED_TOLERANCE_SHARE by the block times
+PATH_TOLERANCE_SHARE = 0.6
 #: dialect of the machine's post -> the model of that controller's planner
 PLANNERS: dict[str, type] = {"linuxcnc": LinuxCNCPlanner}
 

@@ -29,14 +29,21 @@ import numpy as np
 from camsmooth.geometry.paths import _row_runs
 from camsmooth.machine.kinematics import Machine
 
-__all__ = ["BLOCK_TOLERANCE_SHARE", "MAX_BLOCK_POINTS", "decimate", "ControllerPlan", "Planner", "predict"]
+__all__ = ["BLOCK_TOLERANCE_SHARE", "MAX_BLOCK_POINTS", "block_reach", "decimate", "ControllerPlan", "Planner",
+           "predict"]
 
-#: share of the user's tolerance the longer blocks may use (the rest is the controller's blending)
-BLOCK_TOLERANCE_SHARE = 0.5
+#: share of the user's tolerance the longer blocks may use: their tip curves keep every dropped tip
+#: this close; the blends then get what is left up to EXECUTED_TOLERANCE_SHARE, checked on the
+#: planner model's servo cycles (``predict``). Measured on the blade, wave and ridge rows of
+#: benchmarks/bench_controller.py (0.5 to 0.8 tried): 0.7 is fastest on LinuxCNC while the model's
+#: tip still settles under the limit on every row.
+BLOCK_TOLERANCE_SHARE = 0.7
 #: most points one block may replace (bounds the vectorised search)
 MAX_BLOCK_POINTS = 16
 #: intervals of the polyline that stands for a block's tip curve
 _CURVE_SAMPLES = 16
+#: point-segment pairs per batch of ``tip_deviation``
+_DEVIATION_BATCH = 2_000_000
 
 
 def tool_tips(machine: Machine, q: np.ndarray) -> np.ndarray:
@@ -62,26 +69,104 @@ def _row_bounds(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return starts, np.r_[starts[1:], len(np.asarray(rows))]
 
 
-def decimate(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray, tolerance: float) -> np.ndarray:
-    """Points that end a block (bool (N,)): every row's first and last point, and greedily the
-    farthest point (at most MAX_BLOCK_POINTS on) whose block keeps the skipped tips within
-    ``BLOCK_TOLERANCE_SHARE * tolerance`` (module docstring). q: (N, 5) X Y Z mm A B rad; tip:
-    (N, 3) the tool tips the program must pass (mm, workpiece frame)."""
+def _tip_polyline(machine: Machine, q: np.ndarray, entry: np.ndarray | None, sub: int,
+                  max_turn: float) -> tuple[np.ndarray, np.ndarray]:
+    """``programmed_tip_path`` and, per point of q, the index of its vertex in it."""
+    q = np.asarray(q, float)
+    dq = np.diff(q, axis=0)
+    steps = np.maximum(int(sub), np.ceil(np.abs(dq[:, 3:]).max(axis=1, initial=0.0) / max_turn)).astype(np.int64)
+    owner = np.repeat(np.arange(len(dq)), steps)
+    frac = (np.arange(len(owner)) - np.repeat(np.cumsum(steps) - steps, steps)) / steps[owner]
+    tip = tool_tips(machine, np.vstack([q[owner] + frac[:, None] * dq[owner], q[-1:]]))
+    at = np.r_[0, np.cumsum(steps)]
+    if entry is None:
+        return tip, at
+    return np.vstack([np.asarray(entry, float)[None, :], tip]), at + 1
+
+
+def programmed_tip_path(machine: Machine, q: np.ndarray, entry: np.ndarray | None = None, sub: int = 16,
+                        max_turn: float = np.radians(0.25)) -> np.ndarray:
+    """The tool-tip path a row commands, as a polyline (mm, workpiece frame): the forward
+    kinematics of each block's joints interpolated linearly (q: (N, 5) X Y Z mm and the rotary
+    axes of ``machine.rotary`` rad, the full-density program) at ``sub`` steps, and more where a
+    step would turn a rotary axis by more than ``max_turn`` (rad; a table turning 16 deg in one
+    block swings the tip along an arc), after the tip ``entry`` where the row's entry feed move
+    starts (the controller blends that move into the row)."""
+    return _tip_polyline(machine, q, entry, sub, max_turn)[0]
+
+
+def _segment_distance(points: np.ndarray, a: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Distance (M,) of points (M, 3) to the nearest of the segments a + [0, 1] d ((S, 3) each)."""
+    rel = points[:, None, :] - a[None, :, :]
+    dd = np.maximum(np.einsum("sk,sk->s", d, d), 1e-300)
+    t = np.clip(np.einsum("msk,sk->ms", rel, d) / dd, 0.0, 1.0)
+    close = rel - t[..., None] * d[None]
+    return np.sqrt(np.einsum("msk,msk->ms", close, close).min(axis=1))
+
+
+def tip_deviation(points: np.ndarray, path: np.ndarray) -> np.ndarray:
+    """Distance (mm) of each point (M, 3) to the polyline ``path`` (K, 3), against every segment
+    (in batches of bounded memory)."""
+    points = np.atleast_2d(np.asarray(points, float))
+    path = np.asarray(path, float)
+    if len(path) < 2:
+        return np.linalg.norm(points - path[:1], axis=1)
+    a, d = path[:-1], np.diff(path, axis=0)
+    step = max(1, _DEVIATION_BATCH // len(a))
+    return np.concatenate([_segment_distance(points[c:c + step], a, d) for c in range(0, len(points), step)])
+
+
+def _run_deviation(run: RowRun, tips: np.ndarray, path: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """Distance (mm) of the tool tip at every servo cycle of a row run to the programmed path
+    ``path``: the samples while segment h executes are measured against the path from segment
+    h's start to the end of the segment after it (the one it blends into). ends: (M,) the path
+    vertex where each segment ends (segment 0 the entry move, which starts at vertex 0)."""
+    out = np.empty(len(tips))
+    m = len(ends)
+    for h in np.unique(run.head):
+        idx = np.flatnonzero(run.head == h)
+        lo = int(ends[h - 1]) if 0 < h <= m else (0 if h == 0 else int(ends[-1]))
+        hi = int(ends[min(h + 1, m - 1)])
+        seg = path[max(lo - 1, 0):min(hi + 2, len(path))]
+        out[idx] = _segment_distance(tips[idx], seg[:-1], np.diff(seg, axis=0))
+    return out
+
+
+def _chord_deviation(machine: Machine, q: np.ndarray, k: np.ndarray, path: np.ndarray,
+                     at: np.ndarray) -> np.ndarray:
+    """Per block of k (indices into q), the largest distance (mm) of its tip curve (the joints
+    interpolated linearly, _CURVE_SAMPLES steps) from ``path``, against the path between its ends
+    (at: the path vertex of each point of q): what the block costs before any blending."""
+    s = np.linspace(0.0, 1.0, _CURVE_SAMPLES + 1)
+    qa, qb = q[k[:-1]], q[k[1:]]
+    curve = tool_tips(machine, qa[:, None, :] + s[None, :, None] * (qb - qa)[:, None, :])
+    out = np.empty(len(qa))
+    for j in range(len(qa)):
+        seg = path[at[k[j]]:at[k[j + 1]] + 1]
+        out[j] = _segment_distance(curve[j], seg[:-1], np.diff(seg, axis=0)).max()
+    return out
+
+
+def block_reach(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray, tolerance: float,
+                max_points: int = MAX_BLOCK_POINTS) -> np.ndarray:
+    """Which blocks keep the tips they skip within ``tolerance`` (mm): (N, max_points) bool, entry
+    [a, k - 1] for the block from point a to point a + k inside a's row (always True for k = 1).
+
+    A block passes when every skipped tip and the tip of every skipped block's middle lies within
+    ``tolerance`` of the block's tip curve: the machine's forward kinematics of the joints
+    interpolated linearly (what the controller does), as a polyline of _CURVE_SAMPLES steps. Once
+    a block from a fails, the longer ones from a are not tried (they are marked False). q: (N, 5)
+    X Y Z mm A B rad; tip: (N, 3) mm, workpiece frame."""
     q = np.asarray(q, float)
     tip = np.asarray(tip, float)
     n = len(q)
-    keep = np.zeros(n, bool)
-    if n == 0:
-        return keep
-    tol = BLOCK_TOLERANCE_SHARE * float(tolerance)
-    starts, ends = _row_bounds(rows)
-    last_of_row = np.zeros(n, bool)
-    last_of_row[ends - 1] = True
-    row_end = np.repeat(ends - 1, ends - starts)
-    # ok[a, k-1]: the block a -> a + k keeps its skipped points within tol
-    K = MAX_BLOCK_POINTS
+    K = int(max_points)
     ok = np.zeros((n, K), bool)
+    if n == 0:
+        return ok
     ok[:, 0] = True
+    starts, ends = _row_bounds(rows)
+    row_end = np.repeat(ends - 1, ends - starts)
     mid = tool_tips(machine, 0.5 * (q[1:] + q[:-1])) if n > 1 else np.zeros((0, 3))
     a_idx = np.arange(n)
     alive = np.ones(n, bool)
@@ -92,14 +177,29 @@ def decimate(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
             break
         a = a_idx[alive]
         bb = a + k
-        # the tip curve of the block (the joints interpolated linearly), as a fine polyline
         curve = tool_tips(machine, q[a][:, None, :] + s[None, :, None] * (q[bb] - q[a])[:, None, :])
         pts = np.concatenate([tip[a[:, None] + np.arange(1, k)[None, :]],
                               mid[a[:, None] + np.arange(0, k)[None, :]]], axis=1)
-        good = _polyline_distance(pts, curve).max(axis=1) <= tol
+        good = _polyline_distance(pts, curve).max(axis=1) <= tolerance
         ok[a, k - 1] = good
         alive[a[~good]] = False  # a longer block from a is not tried once one fails
-    reach = ok.sum(axis=1)  # ok is a prefix of True per row of the table
+    return ok
+
+
+def decimate(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray, tolerance: float) -> np.ndarray:
+    """Points that end a block (bool (N,)): every row's first and last point, and greedily the
+    farthest point (at most MAX_BLOCK_POINTS on) whose block keeps the skipped tips within
+    ``BLOCK_TOLERANCE_SHARE * tolerance`` (``block_reach``; module docstring). q: (N, 5) X Y Z mm
+    A B rad; tip: (N, 3) the tool tips the program must pass (mm, workpiece frame)."""
+    n = len(np.asarray(q))
+    keep = np.zeros(n, bool)
+    if n == 0:
+        return keep
+    starts, ends = _row_bounds(rows)
+    last_of_row = np.zeros(n, bool)
+    last_of_row[ends - 1] = True
+    row_end = np.repeat(ends - 1, ends - starts)
+    reach = block_reach(machine, rows, q, tip, BLOCK_TOLERANCE_SHARE * float(tolerance)).sum(axis=1)
     i = 0
     while i < n:  # one step per block, not per point
         keep[i] = True
@@ -120,7 +220,9 @@ class ControllerPlan:
     program commands it (the time-optimal law's; 0 at a row's first point and at dropped points);
     t_plan: (N,) s from the row's first point, when the controller passes each point;
     feed_plan: (N,) mm/min, the controller's tool-tip feed at each point (block average);
-    row_ids, row_cycle_time: (R,) s per row; cycle_time: s, the sum over rows (rapids not counted).
+    row_ids, row_cycle_time: (R,) s per row; cycle_time: s, the sum over rows (rapids not counted);
+    row_deviation: (R,) mm, the largest distance of the model's tool tip from the programmed path
+    over the row's servo cycles (0 where it was not checked).
     """
 
     controller: str
@@ -131,6 +233,7 @@ class ControllerPlan:
     row_ids: np.ndarray
     row_cycle_time: np.ndarray
     cycle_time: float
+    row_deviation: np.ndarray
 
     @property
     def blocks(self) -> int:
@@ -138,51 +241,130 @@ class ControllerPlan:
         return int(self.keep.sum() - len(self.row_ids))
 
 
+class RowRun(Protocol):
+    """A row as a planner model runs it (camsmooth.controller.linuxcnc.BlockTimes): ``end`` (s) of
+    every segment (the row's entry move first), and per servo cycle the executing segment
+    ``head`` and the segment ``following`` it that moves at the same time while the head blends
+    into it, with ``following_fraction`` of it done."""
+
+    end: np.ndarray
+    head: np.ndarray
+    following: np.ndarray
+    following_fraction: np.ndarray
+
+
 class Planner(Protocol):
     """A model of a controller's trajectory planner (camsmooth.controller.linuxcnc.LinuxCNCPlanner)."""
 
     name: str
+    servo_period: float
 
-    def row_times(self, machine: Machine, q_blocks: np.ndarray, block_time: np.ndarray, entry: np.ndarray,
-                  entry_time: float) -> np.ndarray:
-        """End time (s from the row's first point) of each block of one row."""
+    def row_run(self, machine: Machine, q_blocks: np.ndarray, block_time: np.ndarray, entry: np.ndarray,
+                entry_time: float) -> tuple[RowRun, np.ndarray]:
+        """One row run from its entry move: the segments' timing and (K, 5) the joints commanded at
+        the end of every servo cycle (X Y Z mm A B rad)."""
         ...
 
-    def safe_block_times(self, machine: Machine, q_blocks: np.ndarray, block_time: np.ndarray,
-                         tolerance: float) -> np.ndarray:
-        """Block times (s, at least ``block_time``) that keep the controller's blending within
-        ``tolerance`` (mm)."""
-        ...
+
+#: the share of the user's tolerance the controller model's tool tip may use at any servo cycle:
+#: the rest covers the model's differences from the real planner (the headless LinuxCNC runs the
+#: same blade rows up to 0.6 um farther off at a few corners, benchmarks/bench_controller.py)
+EXECUTED_TOLERANCE_SHARE = 0.8
+#: rounds of lengthening the blocks whose blends go too far, at most
+_ROUNDS = 20
+
+
+def _blend_excess(run: RowRun, dev: np.ndarray, limit: float, n_blocks: int) -> np.ndarray:
+    """Per block (n_blocks,), the largest deviation (mm) past ``limit`` of a servo sample in a
+    blend it takes part in (0 where none): both segments of the blend, the entry move (segment 0)
+    counted on the first block (it keeps its feed). A sample outside any blend is the block's own
+    tip curve, which no speed changes."""
+    over = (dev > limit) & (run.following_fraction > 0)
+    worst = np.zeros(n_blocks + 2)
+    for seg in (run.head[over], run.following[over]):
+        np.maximum.at(worst, np.minimum(seg, n_blocks + 1), dev[over])
+    worst[1] = max(worst[1], worst[0])
+    return worst[1:n_blocks + 1]
+
+
+def _hold_row(planner: Planner, machine: Machine, q: np.ndarray, k: np.ndarray, t_opt: np.ndarray,
+              entry_q: np.ndarray, entry_time: float, path: np.ndarray | None, at: np.ndarray | None,
+              limit: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """One row's blocks k (indices into q) and their times, starting from the time-optimal law's
+    t_opt, made such that the planner model's tool tip at every servo cycle stays within ``limit``
+    (mm) of ``path`` (None: not checked; at: the path vertex of each point of q). A block whose
+    own tip curve leaves less than a tenth of the limit to its blends is split back into the
+    program's points; then, at most _ROUNDS times, a blend that goes farther than the limit is
+    slowed: both its blocks lengthened from what they took by sqrt(excess / limit) and 5% (a
+    parabolic blend's deviation grows with the square of its speed). Returns k, the block times
+    (s), the blocks' end times (s from the row's start, starting with 0) and the largest
+    deviation of the last run (mm, 0 when not checked)."""
+    if path is not None and len(k) > 1:
+        split = (_chord_deviation(machine, q, k, path, at) > 0.9 * limit) & (np.diff(k) > 1)
+        if split.any():
+            k = np.r_[np.concatenate([np.arange(k[j], k[j + 1]) if split[j] else k[j:j + 1]
+                                      for j in range(len(k) - 1)]), k[-1]]
+    bt = np.diff(t_opt[k])
+    worst = 0.0
+    for _ in range(_ROUNDS if path is not None else 1):
+        run, joints = planner.row_run(machine, q[k], bt, entry_q, entry_time)
+        if path is None:
+            break
+        dev = _run_deviation(run, tool_tips(machine, joints), path, at[k])
+        worst = float(dev.max())
+        if worst <= limit:
+            break
+        excess = _blend_excess(run, dev, limit, len(bt))
+        if not excess.any():
+            break  # what is left is a block's own tip curve: slowing down cannot help
+        # the controller runs short five-axis blocks slower than commanded: slow down from what it did
+        bt = np.where(excess > 0, np.maximum(bt, np.diff(run.end)) * np.sqrt(excess / limit) * 1.05, bt)
+    return k, bt, np.r_[0.0, run.end[1:] - run.end[0]], worst
 
 
 def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
             t_opt: np.ndarray, keep: np.ndarray, *, entry_height: float, entry_feed: np.ndarray,
-            blend_tolerance: float | None = None) -> ControllerPlan:
+            tolerance: float | None = None) -> ControllerPlan:
     """The controller's timing of a program written in the blocks ``keep`` with the block times
     of the time-optimal law ``t_opt`` (s from each row's start). q: (N, 5) X Y Z mm A B rad;
     tip: (N, 3) mm. Each row is entered by a feed move of ``entry_height`` mm along the tool axis
     at the row's programmed feed ``entry_feed`` (mm/min, per row), as the G-code writer does.
-    blend_tolerance: mm the controller's blends may take the tip off the path; the block times
-    are lengthened where its blends would go farther (``Planner.safe_block_times``)."""
+
+    tolerance: the user's (mm). Then the blocks are also made slow enough that the tool tip the
+    planner model commands at every servo cycle (forward kinematics of its joints) stays within
+    EXECUTED_TOLERANCE_SHARE of it from the path the full-density program commands
+    (``programmed_tip_path``): a block whose own tip curve comes too near the limit is split back
+    into the program's points, and a block whose blend goes farther is lengthened and the row
+    run again, at most _ROUNDS times (``_hold_row``). ``row_deviation`` is what the last run gives; the
+    plan's ``keep`` has the split blocks' points."""
     rows = np.asarray(rows)
+    keep = np.array(keep, bool)
     n = len(rows)
     starts, ends = _row_bounds(rows)
     block_time = np.zeros(n)
     t_ctrl = np.zeros(n)
     feed = np.zeros(n)
     row_cycle = np.zeros(len(starts))
+    row_dev = np.zeros(len(starts))
     for r, (a, b) in enumerate(zip(starts, ends, strict=True)):
         k = a + np.flatnonzero(keep[a:b])
-        bt = np.diff(t_opt[k])
-        if blend_tolerance is not None and len(k) > 2:
-            bt = planner.safe_block_times(machine, q[k], bt, blend_tolerance)
-        block_time[k[1:]] = bt
+        bt = np.zeros(0)
         _, axis = machine.tool_pose_np(q[a, 3], q[a, 4], q[a, 0], q[a, 1], q[a, 2])
         entry_q = q[a].copy()
         entry_q[:3] += entry_height * np.asarray(axis, float).reshape(3)
         entry_time = 60.0 * entry_height / float(entry_feed[r])
-        ends_t = planner.row_times(machine, q[k], bt, entry_q, entry_time) if len(k) > 1 else np.zeros(0)
-        tk = np.r_[0.0, ends_t]
+        tk = np.zeros(1)
+        if len(k) > 1:
+            path, at = None, None
+            if tolerance is not None:
+                path, at_row = _tip_polyline(machine, q[a:b], tool_tips(machine, entry_q[None, :])[0], 4,
+                                             np.radians(0.25))
+                at = np.zeros(n, np.int64)
+                at[a:b] = at_row
+            limit = EXECUTED_TOLERANCE_SHARE * float(tolerance or 0.0)
+            k, bt, tk, row_dev[r] = _hold_row(planner, machine, q, k, t_opt, entry_q, entry_time, path, at, limit)
+            keep[k] = True
+        block_time[k[1:]] = bt
         # points inside a block: by their share of the block's pivot travel
         s = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(q[a:b, :3], axis=0), axis=1))]
         t_ctrl[a:b] = np.interp(s, s[k - a], tk)
@@ -193,6 +375,6 @@ def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray,
         feed[a:b] = np.interp(s, s[k - a][1:], fb) if len(fb) else 0.0
         feed[a] = 0.0
         feed[b - 1] = 0.0
-    return ControllerPlan(controller=planner.name, keep=np.asarray(keep, bool), block_time=block_time, t_plan=t_ctrl,
+    return ControllerPlan(controller=planner.name, keep=keep, block_time=block_time, t_plan=t_ctrl,
                           feed_plan=feed, row_ids=rows[starts].astype(np.int64), row_cycle_time=row_cycle,
-                          cycle_time=float(row_cycle.sum()))
+                          cycle_time=float(row_cycle.sum()), row_deviation=row_dev)

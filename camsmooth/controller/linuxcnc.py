@@ -20,9 +20,11 @@ headless simulation in ``benchmarks/bench_controller.py`` and ``tests/test_contr
    *parabolic* blend. Each such segment plans a trapezoid from its own current speed to rest at
    its end with *half* its acceleration (``tcGetTangentialMaxAccel``: the two overlapping segments
    share the limit); once it is on its final deceleration and slower than its blend speed
-   (``tpComputeBlendVelocity``), the next segment starts and runs at the same time, its target
-   speed ramped by the progress of the current one's deceleration (``tpUpdateBlend``). A feed
-   block next to a rapid stops (``handleModeChange``). So the speed a short block reaches is
+   (``tpComputeBlendVelocity``), the next segment starts and runs at the same time, accelerating
+   at its own half acceleration from that cycle on (``tpUpdateBlend`` ramps the next segment's
+   ``target_vel``, but ``tpCalculateTrapezoidalAccel`` takes ``tpGetRealTargetVel``, which is
+   ``reqvel`` for a move not synchronized to the spindle). A feed block next to a rapid stops
+   (``handleModeChange``). So the speed a short block reaches is
    about ``sqrt(a/2 L)``: that, not the programmed feed, sets the pace of a program of short
    five-axis blocks.
 5. Everything runs at the servo period (1 ms), with the segment end split inside a cycle
@@ -42,11 +44,12 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from camsmooth.controller.blocks import tool_tips
+from camsmooth.controller.blocks import _row_bounds, block_reach
 from camsmooth.machine.kinematics import Machine
 from camsmooth.smoothing.feed import axis_limits
 
-__all__ = ["LinuxCNCPlanner", "Segments", "canon_segments", "SERVO_PERIOD_S", "LINUXCNC_SENSE", "linuxcnc_sense"]
+__all__ = ["LinuxCNCPlanner", "Segments", "canon_segments", "least_row_times", "SERVO_PERIOD_S", "LINUXCNC_SENSE",
+           "linuxcnc_sense"]
 
 #: per machine kind, the sign of each rotary axis value LinuxCNC is given against camsmooth's
 #: (``Machine.rotary`` order). camsmooth's angles are the tool's rotation relative to the workpiece
@@ -157,15 +160,12 @@ def _trapezoid_vel(a: float, dx: float, v_final: float, v: float, dt: float) -> 
 
 
 @njit(cache=True)
-def _update(k: int, tv_cap: float, length: np.ndarray, reqvel: np.ndarray, maxvel: np.ndarray, acc_h: np.ndarray,
-            progress: np.ndarray, vel: np.ndarray, dt_k: np.ndarray, blending_next: np.ndarray,
-            vel_at_blend_start: np.ndarray, on_final_decel: np.ndarray, splitting: np.ndarray,
-            dt: float) -> None:  # pragma: no cover - compiled
+def _update(k: int, length: np.ndarray, reqvel: np.ndarray, maxvel: np.ndarray, acc_h: np.ndarray,
+            progress: np.ndarray, vel: np.ndarray, dt_k: np.ndarray, on_final_decel: np.ndarray,
+            splitting: np.ndarray, dt: float) -> None:  # pragma: no cover - compiled
     """tpUpdateCycle on segment k (trapezoidal, final speed 0: parabolic or stop), then
     tpCheckEndCondition."""
-    if not blending_next[k]:
-        vel_at_blend_start[k] = vel[k]
-    tv = min(reqvel[k], maxvel[k], tv_cap)
+    tv = min(reqvel[k], maxvel[k])
     a = acc_h[k]
     cyc = dt_k[k]
     dx = length[k] - progress[k]
@@ -205,16 +205,16 @@ def _update(k: int, tv_cap: float, length: np.ndarray, reqvel: np.ndarray, maxve
 @njit(cache=True)
 def _run(length: np.ndarray, reqvel: np.ndarray, maxvel: np.ndarray, acc: np.ndarray, parabolic: np.ndarray,
          direction: np.ndarray, tolerance: float, dt: float,
-         max_cycles: int) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - compiled
+         max_cycles: int) -> tuple[np.ndarray, ...]:  # pragma: no cover - compiled
     """tpRunCycle until the queue is empty: per segment the cycle it became the head of the queue
-    (active) and the cycle at whose end it was removed (done)."""
+    (active) and the cycle at whose end it was removed (done); per cycle, at its end, the head
+    segment and the progress (length units) of it and of the segment after it (which moves at the
+    same time while the head blends into it)."""
     n = len(length)
     progress = np.zeros(n)
     vel = np.zeros(n)
     dt_k = np.full(n, dt)
     blending_next = np.zeros(n, np.bool_)
-    is_blending = np.zeros(n, np.bool_)
-    vel_at_blend_start = np.zeros(n)
     on_final_decel = np.zeros(n, np.bool_)
     splitting = np.zeros(n, np.bool_)
     blend_vel = np.zeros(n)
@@ -224,6 +224,10 @@ def _run(length: np.ndarray, reqvel: np.ndarray, maxvel: np.ndarray, acc: np.nda
         acc_h[k] = acc[k] * (0.5 if half else 1.0)
     start = np.full(n, -1, np.int64)
     done = np.full(n, -1, np.int64)
+    cap = 1024
+    head = np.full(cap, n, np.int64)
+    head_progress = np.zeros(cap)
+    next_progress = np.zeros(cap)
     i = 0
     cyc = 0
     while i < n and cyc < max_cycles:
@@ -237,14 +241,12 @@ def _run(length: np.ndarray, reqvel: np.ndarray, maxvel: np.ndarray, acc: np.nda
             progress[tc] = length[tc]
             if nx >= 0 and parabolic[tc]:
                 dt_k[nx] = dt
-                _update(nx, np.inf, length, reqvel, maxvel, acc_h, progress, vel, dt_k, blending_next,
-                        vel_at_blend_start, on_final_decel, splitting, dt)
+                _update(nx, length, reqvel, maxvel, acc_h, progress, vel, dt_k, on_final_decel, splitting, dt)
             done[tc] = cyc
             i += 1
         else:
             dt_k[tc] = dt
-            _update(tc, np.inf, length, reqvel, maxvel, acc_h, progress, vel, dt_k, blending_next,
-                    vel_at_blend_start, on_final_decel, splitting, dt)
+            _update(tc, length, reqvel, maxvel, acc_h, progress, vel, dt_k, on_final_decel, splitting, dt)
             if nx >= 0 and parabolic[tc]:
                 # tpComputeBlendVelocity (finalized segments; no tolerance)
                 v_this = min(np.sqrt(acc_h[tc] * length[tc]), min(reqvel[tc], maxvel[tc]))
@@ -266,25 +268,99 @@ def _run(length: np.ndarray, reqvel: np.ndarray, maxvel: np.ndarray, acc: np.nda
                 if on_final_decel[tc] and vel[tc] < blend_vel[tc]:
                     blending_next[tc] = True
                 if blending_next[tc]:
-                    dv = vel_at_blend_start[tc] - vel[tc]
-                    vs = max(vel_at_blend_start[tc], _VEL_EPSILON)
-                    prog = max(min(dv / vs, 1.0), 0.0)
-                    scale = vel_at_blend_start[tc] / max(blend_vel[tc], 1e-300)
-                    is_blending[nx] = True
+                    # tpUpdateBlend ramps the next segment's target_vel with the blend's progress,
+                    # but tpCalculateTrapezoidalAccel takes tpGetRealTargetVel, which is reqvel for
+                    # a move not synchronized to the spindle: the next segment accelerates at its
+                    # own (half) acceleration from the blend's first cycle
                     dt_k[nx] = dt
-                    _update(nx, prog * blend_vel[nx] * scale, length, reqvel, maxvel, acc_h, progress, vel, dt_k,
-                            blending_next, vel_at_blend_start, on_final_decel, splitting, dt)
+                    _update(nx, length, reqvel, maxvel, acc_h, progress, vel, dt_k,
+                            on_final_decel, splitting, dt)
+        if cyc == cap:  # grow the per-cycle record
+            cap *= 2
+            head = np.concatenate((head, np.full(cap - cyc, n, np.int64)))
+            head_progress = np.concatenate((head_progress, np.zeros(cap - cyc)))
+            next_progress = np.concatenate((next_progress, np.zeros(cap - cyc)))
+        head[cyc] = i
+        if i < n:
+            head_progress[cyc] = progress[i]
+            if i + 1 < n:
+                next_progress[cyc] = progress[i + 1]
         cyc += 1
-    return start, done
+    return start, done, head[:cyc], head_progress[:cyc], next_progress[:cyc]
+
+
+#: longest block (in points) the lower bound of ``least_row_times`` considers
+LEAST_TIME_BLOCK_POINTS = 64
+
+
+def least_row_times(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray, feed: np.ndarray,
+                    tolerance: float, *, max_points: int = LEAST_TIME_BLOCK_POINTS) -> np.ndarray:
+    """A lower bound (s, per row in order of appearance) on the cut time of ANY program of straight
+    blocks that LinuxCNC 2.9 can run through a row's points within ``tolerance`` (mm).
+
+    Why it bounds: a block that moves a rotary axis is joined to its neighbours only by a
+    parabolic blend (module docstring, step 4). Each segment then rises from rest and falls back
+    to rest at half its acceleration a_s = L / max_i(|d_i| / a_i) (L its length, d_i the joint
+    moves), overlapping only its two neighbours, so its share of the time is at least
+    L / v >= 2 v / a_s, that is at least sqrt(2 max_i |d_i| / a_i). It also lasts at least
+    max_i |d_i| / vmax_i and its tip chord over the programmed feed. The bound is the least sum of
+    these over every choice of block ends among the row's points whose blocks keep the skipped
+    tips within the WHOLE tolerance (``block_reach``): it credits the blends with no deviation and
+    the blocks with the whole tolerance, and ignores the first acceleration and the last stop.
+    Dynamic programming over the block ends, blocks of at most ``max_points`` points.
+
+    rows (N,); q (N, 5) X Y Z mm A B rad; tip (N, 3) mm (workpiece frame); feed (N,) mm/min, the
+    programmed tip feed."""
+    q = np.asarray(q, float)
+    tip = np.asarray(tip, float)
+    feed = np.asarray(feed, float) / 60.0
+    vmax, amax, _ = axis_limits(machine)
+    ok = block_reach(machine, rows, q, tip, float(tolerance), max_points)
+    starts, ends = _row_bounds(rows)
+    out = np.zeros(len(starts))
+    for r, (a, b) in enumerate(zip(starts, ends, strict=True)):
+        best = np.full(b - a, np.inf)
+        best[0] = 0.0
+        for j in range(1, b - a):
+            k = np.arange(1, min(max_points, j) + 1)
+            i = j - k
+            good = ok[a + i, k - 1]
+            i = i[good]
+            d = np.abs(q[a + j] - q[a + i])
+            chord = np.linalg.norm(tip[a + j] - tip[a + i], axis=1)
+            cost = np.maximum.reduce([chord / feed[a + j], (d / vmax).max(axis=1),
+                                      np.sqrt(2.0 * (d / amax).max(axis=1))])
+            best[j] = np.min(best[i] + cost)
+        out[r] = best[-1]
+    return out
 
 
 @dataclass(frozen=True, kw_only=True)
 class BlockTimes:
     """When LinuxCNC runs each block: start (s, the cycle it became the executing segment) and
-    end (s, the end of the cycle it finished in), both from the first block's start."""
+    end (s, the end of the cycle it finished in), both from the first block's start; and where it
+    is at the end of every servo cycle k (time (k + 1) x period): head[k], the executing segment
+    (M past the last), with head_fraction[k] of it done, and following_fraction[k] done of the
+    segment following[k] that moves at the same time while the head blends into it (the next
+    one LinuxCNC did not drop). Position at the end of cycle k: the start of segment head[k] plus
+    those fractions of the two segments."""
 
     start: np.ndarray
     end: np.ndarray
+    head: np.ndarray
+    head_fraction: np.ndarray
+    following: np.ndarray
+    following_fraction: np.ndarray
+
+    def positions(self, start: np.ndarray, joints: np.ndarray) -> np.ndarray:
+        """(K, D) the commanded position at the end of every servo cycle, for segments from
+        ``start`` (D,) through ``joints`` (M, D) (any units; LinuxCNC interpolates each segment
+        linearly in its joints)."""
+        q = np.vstack([np.asarray(start, float)[None, :], np.asarray(joints, float)])
+        d = np.vstack([np.diff(q, axis=0), np.zeros((2, q.shape[1]))])
+        h = self.head
+        return (q[np.minimum(h, len(q) - 1)] + self.head_fraction[:, None] * d[h]
+                + self.following_fraction[:, None] * d[self.following])
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -307,75 +383,37 @@ class LinuxCNCPlanner:
         return canon_segments(start, joints, rapid, fword, inverse_time, machine, servo_period=self.servo_period,
                               v_limit=self.v_limit, tolerance=self.tolerance)
 
-    def row_times(self, machine: Machine, q_blocks: np.ndarray, block_time: np.ndarray, entry_q: np.ndarray,
-                  entry_time: float) -> np.ndarray:
-        """End times (s from the row's first point) of the blocks of one row as LinuxCNC runs them:
-        the row is entered from rest at ``entry_q`` by a feed move of ``entry_time`` s onto
-        q_blocks[0] (blended into the row, as LinuxCNC does between two feed moves), then one G93
-        block per further point with the commanded block times ``block_time`` (s), and ends at
-        rest (the rapid that follows). Joints X Y Z mm A B rad; the values are rounded as the
-        G-code writer writes them (4 decimals, mm and degrees)."""
+    def row_run(self, machine: Machine, q_blocks: np.ndarray, block_time: np.ndarray, entry_q: np.ndarray,
+                entry_time: float) -> tuple[BlockTimes, np.ndarray]:
+        """One row as LinuxCNC runs it: the row is entered from rest at ``entry_q`` by a feed move
+        of ``entry_time`` s onto q_blocks[0] (blended into the row, as LinuxCNC does between two
+        feed moves), then one G93 block per further point with the commanded block times
+        ``block_time`` (s), and ends at rest (the rapid that follows). Joints X Y Z mm A B rad;
+        the values are rounded as the G-code writer writes them (4 decimals, mm and degrees).
+        Returns the segments' BlockTimes (the entry move first) and (K, 5) the joints (mm, rad)
+        commanded at the end of every servo cycle."""
         def written(q: np.ndarray) -> np.ndarray:
             q = np.atleast_2d(np.asarray(q, float))
             return np.round(np.column_stack([q[:, :3], np.degrees(q[:, 3:])]), 4)
 
         times = np.maximum(np.r_[entry_time, np.asarray(block_time, float)], 1e-6)
         k = len(times)
-        seg = self.segments(machine, written(entry_q)[0], written(q_blocks), np.zeros(k, bool), 60.0 / times,
-                            np.ones(k, bool))
+        start, joints = written(entry_q)[0], written(q_blocks)
+        seg = self.segments(machine, start, joints, np.zeros(k, bool), 60.0 / times, np.ones(k, bool))
         bt = self.run(seg)
+        q = bt.positions(start, joints)
+        return bt, np.column_stack([q[:, :3], np.radians(q[:, 3:])])
+
+    def row_times(self, machine: Machine, q_blocks: np.ndarray, block_time: np.ndarray, entry_q: np.ndarray,
+                  entry_time: float) -> np.ndarray:
+        """End times (s from the row's first point) of the blocks of one row as LinuxCNC runs them
+        (``row_run``)."""
+        bt, _ = self.row_run(machine, q_blocks, block_time, entry_q, entry_time)
         return bt.end[1:] - bt.end[0]
 
-    def safe_block_times(self, machine: Machine, q_blocks: np.ndarray, block_time: np.ndarray,
-                         tolerance: float) -> np.ndarray:
-        """The block times (s) to command so that LinuxCNC's parabolic blends keep the tool tip
-        within ``tolerance`` (mm) of the blocks' tip path: at least ``block_time``.
-
-        Why: LinuxCNC blends all five joints at once between two rotary blocks, from the moment
-        the first one, decelerating at a/2, is slower than the blend speed v_b: the joints then
-        follow a parabola from J - d w_1 to J + d w_2 (J the corner, w the joint change per mm of
-        the block's XYZ length, d = v_b^2 / a, a the smaller segment acceleration), whose
-        middle lies (d / 4) (w_2 - w_1) from J in joint space. Its tip error grows with the
-        pivot lever; ``G64 P`` bounds only the XYZ part. So the commanded speed of both blocks is
-        capped at sqrt(a d_max) with d_max the d whose tip error across the path is
-        ``tolerance`` (the tip error is linear in d: the Jacobian of the forward kinematics,
-        evaluated by a finite step). Joints X Y Z mm A B rad."""
-        q = np.asarray(q_blocks, float)
-        bt = np.asarray(block_time, float).copy()
-        if len(q) < 3:
-            return bt
-        dq = np.diff(q, axis=0)
-        L = np.linalg.norm(dq[:, :3], axis=1)
-        ok = L > 0
-        w = np.where(ok[:, None], dq / np.maximum(L, 1e-300)[:, None], 0.0)
-        jq = q[1:-1]  # corners between block k and k + 1
-        step = 0.01  # mm of d for the finite step (the error is linear in d)
-        dw = 0.25 * (w[1:] - w[:-1])
-        tip0 = tool_tips(machine, jq)
-        err = (tool_tips(machine, jq + step * dw) - tip0) / step
-        tangent = tool_tips(machine, jq + step * w[1:]) - tool_tips(machine, jq - step * w[:-1])
-        tangent /= np.maximum(np.linalg.norm(tangent, axis=1), 1e-300)[:, None]
-        err -= np.sum(err * tangent, axis=1)[:, None] * tangent
-        per_d = np.linalg.norm(err, axis=1)  # mm of tip error per mm of d
-        vmax, amax = _limits(machine)
-        deg = np.r_[1.0, 1.0, 1.0, 180.0 / np.pi, 180.0 / np.pi]
-        d_prog = np.abs(dq) * deg
-        with np.errstate(divide="ignore", invalid="ignore"):
-            acc = np.where(L > 0, L / np.max(np.where(d_prog > 0, d_prog / amax, 0.0), axis=1), np.inf)
-        a = np.minimum(acc[1:], acc[:-1])  # the blend's d uses the slower of the two decelerations
-        with np.errstate(divide="ignore"):
-            d_max = np.where(per_d > 0, tolerance / per_d, np.inf)
-        v_cap = np.sqrt(a * d_max)
-        ok_corner = ok[1:] & ok[:-1]
-        for side in (0, 1):  # the block before the corner and the block after it
-            k = np.flatnonzero(ok_corner) + side
-            v = v_cap[ok_corner]
-            bt[k] = np.maximum(bt[k], L[k] / v)
-        return bt
-
     def run(self, seg: Segments) -> BlockTimes:
-        """Start and end time of every segment (s); a segment of zero length (LinuxCNC drops it)
-        takes no time."""
+        """Start and end time of every segment (s) and where the program is at every servo cycle;
+        a segment of zero length (LinuxCNC drops it) takes no time."""
         moving = seg.length > 0
         if not moving.all():  # run the moving segments; a dropped one ends when the one before it does
             idx = np.flatnonzero(moving)
@@ -384,13 +422,20 @@ class LinuxCNCPlanner:
             before = np.searchsorted(idx, np.arange(len(moving)), side="right") - 1
             end = np.where(before >= 0, np.r_[inner.end, 0.0][before], 0.0)
             start = np.where(moving, np.r_[inner.start, 0.0][np.maximum(before, 0)], end)
-            return BlockTimes(start=start, end=end)
+            m = len(moving)
+            return BlockTimes(start=start, end=end, head=np.r_[idx, m][inner.head],
+                              head_fraction=inner.head_fraction, following=np.r_[idx, m, m][inner.following],
+                              following_fraction=inner.following_fraction)
         parabolic = ~seg.stop_after
         expect = float(np.sum(seg.length / np.maximum(np.minimum(seg.reqvel, seg.maxvel), 1e-9)))
         max_cycles = int(10 * expect / self.servo_period + 10 * len(seg.length) + 1e5)
-        start, done = _run(seg.length.astype(float), seg.reqvel.astype(float), seg.maxvel.astype(float),
-                           seg.acc.astype(float), parabolic, seg.direction.astype(float), float(seg.tolerance),
-                           self.servo_period, max_cycles)
+        length = seg.length.astype(float)
+        start, done, head, p_head, p_next = _run(length, seg.reqvel.astype(float), seg.maxvel.astype(float),
+                                                 seg.acc.astype(float), parabolic, seg.direction.astype(float),
+                                                 float(seg.tolerance), self.servo_period, max_cycles)
         if (done < 0).any():
             raise RuntimeError("LinuxCNC planner model did not finish the program (a segment that cannot move)")
-        return BlockTimes(start=start * self.servo_period, end=(done + 1) * self.servo_period)
+        L = np.r_[length, 1.0, 1.0]
+        return BlockTimes(start=start * self.servo_period, end=(done + 1) * self.servo_period, head=head,
+                          head_fraction=np.minimum(p_head / L[head], 1.0), following=head + 1,
+                          following_fraction=np.minimum(p_next / L[head + 1], 1.0))

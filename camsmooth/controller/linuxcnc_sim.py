@@ -36,11 +36,12 @@ from typing import Any
 
 import numpy as np
 
+from camsmooth.controller.blocks import programmed_tip_path, tip_deviation
 from camsmooth.controller.linuxcnc import linuxcnc_sense
 from camsmooth.machine.kinematics import Machine
 
-__all__ = ["linuxcnc_missing", "interpret", "Canon", "simulate", "SimRun", "LINUXCNC_USER", "programmed_tip_path",
-           "tip_deviation", "row_samples", "camsmooth_joints"]
+__all__ = ["linuxcnc_missing", "interpret", "Canon", "simulate", "SimRun", "LINUXCNC_USER", "row_samples",
+           "camsmooth_joints"]
 
 #: the unprivileged user the simulation runs as when we are root
 LINUXCNC_USER = "camsmooth-lcnc"
@@ -359,38 +360,6 @@ def simulate(program: Path | str, machine: Machine, *, timeout: float = 600.0,
 
 # ----------------------------------------------------------------------------------------------
 # what the tool did
-def programmed_tip_path(machine: Machine, q: np.ndarray, entry: np.ndarray | None = None, sub: int = 16) -> np.ndarray:
-    """The tool-tip path a row commands, as a polyline (mm, workpiece frame): the forward
-    kinematics of each block's joints interpolated linearly (q: (N, 5) X Y Z mm and the rotary
-    axes of ``machine.rotary`` rad, the full-density program) at ``sub`` steps, after the tip
-    ``entry`` where the row's entry feed move starts (LinuxCNC blends that move into the row)."""
-    q = np.asarray(q, float)
-    s = np.linspace(0.0, 1.0, sub, endpoint=False)
-    qq = (q[:-1, None, :] + s[None, :, None] * np.diff(q, axis=0)[:, None, :]).reshape(-1, 5)
-    qq = np.vstack([qq, q[-1:]])
-    tip, _ = machine.tool_pose_np(qq[:, 3], qq[:, 4], qq[:, 0], qq[:, 1], qq[:, 2])
-    return np.vstack([np.asarray(entry, float)[None, :], tip]) if entry is not None else tip
-
-
-def tip_deviation(points: np.ndarray, path: np.ndarray) -> np.ndarray:
-    """Distance (mm) of each point (M, 3) to the polyline ``path`` (K, 3): projection on the
-    segments near it (a k-d tree of the segment middles finds them)."""
-    from scipy.spatial import cKDTree
-
-    points = np.asarray(points, float)
-    a, d = path[:-1], np.diff(path, axis=0)
-    dd = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
-    reach = float(np.sqrt(dd.max())) + 1e-9
-    tree = cKDTree(a + 0.5 * d)
-    out = np.empty(len(points))
-    for i, idx in enumerate(tree.query_ball_point(points, r=reach)):
-        idx = np.asarray(idx, int) if idx else np.array([int(tree.query(points[i])[1])])
-        rel = points[i] - a[idx]
-        t = np.clip(np.einsum("ij,ij->i", rel, d[idx]) / dd[idx], 0.0, 1.0)
-        out[i] = np.sqrt(np.min(np.einsum("ij,ij->i", rel - t[:, None] * d[idx], rel - t[:, None] * d[idx])))
-    return out
-
-
 def row_samples(program_text: str, run: SimRun) -> dict[int, np.ndarray]:
     """Per row of a camsmooth program (its ``(row N: ...)`` comments), the indices of the servo
     samples executing the row's cut blocks (the G01 blocks after the entry move)."""

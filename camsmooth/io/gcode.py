@@ -36,8 +36,9 @@ Modes (``[post] mode``):
 Path tolerance (how far the controller may blend off the programmed path), set after the
 program start from the user's tolerance T (mm), by each controller manual's name for it:
 LinuxCNC "path blending" ``G64 P<s T> Q<s T>`` (P the blending tolerance, Q the naive-CAM
-detector's; s = camsmooth.controller.PATH_TOLERANCE_SHARE, the rest of T is spent on the longer
-blocks of camsmooth.controller.blocks);
+detector's; s = camsmooth.controller.PATH_TOLERANCE_SHARE: LinuxCNC's own bound on its XYZ corner
+blends, while the block times of camsmooth.controller.blocks hold the tool tip of every servo
+cycle of the planner model within EXECUTED_TOLERANCE_SHARE of T);
 Heidenhain cycle 32 TOLERANCE (``CYCL DEF 32.0 TOLERANCE`` / ``32.1 T<T>`` / ``32.2 HSC-MODE:0``,
 finishing); Siemens high-speed settings ``CYCLE832(<T>, _FINISH, 1)``; Fanuc AI contour control
 ``G05.1 Q1`` (look-ahead on; the Fanuc tolerance is a machine parameter, not a program word). A

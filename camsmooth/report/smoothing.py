@@ -579,6 +579,8 @@ def method_summary(m: MethodResult) -> dict[str, Any]:
         "cycle_time_s": float(mt.cycle_time_s) if mt is not None else nan,
         "cycle_time_optimal_s": float(mt.cycle_time_optimal_s) if mt is not None else nan,
         "controller": mt.controller if mt is not None else "",
+        "controller_deviation_mm": (float(mt.controller_deviation_mm) if mt is not None
+                                    and mt.controller_deviation_mm is not None else nan),
         "violations_programmed": dict(mt.violations_programmed) if mt is not None else {},
         "peak_A_acc_plan": float(mt.peak_A_acc_plan) if mt is not None else nan,
         "peak_B_acc_plan": float(mt.peak_B_acc_plan) if mt is not None else nan,
@@ -653,6 +655,8 @@ def _verdict_html(order: list[str], summaries: dict[str, dict[str, Any]], primar
         cyc = f"cycle time {_fmt(s['cycle_time_optimal_s'], '.4g')} s time-optimal"
         if s["controller"]:
             cyc += f", {_fmt(s['cycle_time_s'], '.4g')} s on the {html.escape(s['controller'])} controller"
+            if np.isfinite(s["controller_deviation_mm"]):
+                cyc += f" (tool tip within {_fmt(1e3 * s['controller_deviation_mm'], '.3g')} \u00b5m of the path)"
         share = s["binding_share"]
         where = " in the time-optimal law" if s["controller"] else ""
         binds = (f"binds most{where}: {html.escape(s['limiting'])}"

@@ -111,7 +111,7 @@ def time_law(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
     points that end a controller block (None: camsmooth.controller.decimate, as the writer
     does); real: the machine the tips are decimated on (an error model's, default ``machine``);
     tolerance: mm, the user's."""
-    from camsmooth.controller import PATH_TOLERANCE_SHARE, decimate, planner_for, predict
+    from camsmooth.controller import decimate, planner_for, predict
     from camsmooth.io.gcode import DEFAULT_SAFE_HEIGHT_MM
 
     rows = np.asarray(rows)
@@ -139,8 +139,7 @@ def time_law(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
             dt = np.maximum(t_plan[nxt] - t_plan[starts], 1e-9)
             entry = np.where(np.isfinite(entry) & (entry > 0), entry, 60.0 * chord / dt)
         ctrl = predict(planner, machine, rows, q, tip, t_plan, np.asarray(keep, bool),
-                       entry_height=DEFAULT_SAFE_HEIGHT_MM, entry_feed=entry,
-                       blend_tolerance=PATH_TOLERANCE_SHARE * tolerance)
+                       entry_height=DEFAULT_SAFE_HEIGHT_MM, entry_feed=entry, tolerance=tolerance)
         law.update(controller=ctrl, cycle_time=float(ctrl.cycle_time), row_cycle_time=np.asarray(ctrl.row_cycle_time))
     return TimeLaw(**law)
 

@@ -406,6 +406,7 @@ class ProgramSmoother:
         if law.controller is not None:
             m.controller = law.controller.controller
             m.blocks = law.controller.blocks
+            m.controller_deviation_mm = float(np.max(law.controller.row_deviation, initial=0.0))
         viol, peaks = axis_violations(self.nominal, q, law.t_plan, p.path.rows)
         m.violations = {**viol, **{k: v for k, v in m.violations_programmed.items() if k not in viol}}
         r1, r2 = self.nominal.rotary

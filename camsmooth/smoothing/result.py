@@ -66,7 +66,8 @@ class Metrics:
     (camsmooth.smoothing.feed): cycle_time_optimal_s, limiting; what the machine's controller
     makes of the program (camsmooth.controller, where camsmooth has a model of it, else the
     time-optimal figures): cycle_time_s, row_cycle_time_s, controller (its name, '' for none),
-    blocks (cut blocks written). Row NLP work (nlp
+    blocks (cut blocks written), controller_deviation_mm (the largest distance of the tool tip the
+    controller's planner model commands at any servo cycle from the programmed path). Row NLP work (nlp
     methods): IPOPT iterations, rounds, points mapped, clearance evaluations, times (s), the
     points lifted because their whole window is blocked or the limits kept them out of their
     clear region. With an error model: the largest tip error (um) with and without compensation
@@ -94,6 +95,7 @@ class Metrics:
     peak_B_acc_plan: float = float("nan")
     controller: str = ""
     blocks: int | None = None
+    controller_deviation_mm: float | None = None
     limiting: str = ""
     row_cycle_time_s: list[float] = field(default_factory=list)
     ipopt_iterations: int = 0
