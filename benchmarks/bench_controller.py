@@ -10,7 +10,11 @@ time-optimal law (t_opt), and the tool tip's largest distance, over every servo 
 row, from the path the method commands (the tips of the full-density program, each block's tip
 curve sampled at 16 steps), by the machine's forward kinematics of the recorded joints
 (LinuxCNC's sense of a table axis undone; the programmed path includes the entry feed move onto
-the row, which LinuxCNC blends into the row's first block).
+the row, which LinuxCNC blends into the row's first block), beside the same distance for the
+tip camsmooth's model commands ("model um"); and the lower bound of
+camsmooth.controller.linuxcnc.least_row_times over the time-optimal law ("bound/opt"): no
+program of straight blocks through the row's points runs faster on LinuxCNC 2.9 within the
+tolerance.
 
     .venv/bin/python benchmarks/bench_controller.py [--samples blade,wave] [--rows 3] [--methods none,spline,nlp]
     .venv/bin/python benchmarks/bench_controller.py --sample dome    (the A/C trunnion of surfaces/dome_machine.toml)
