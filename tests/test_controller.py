@@ -384,15 +384,18 @@ def _least_time_brute_force(m, q, tip, feed_mm_s, ok):
                 total = np.inf
                 break
             d = np.abs(q[j] - q[i])
-            total += max(np.linalg.norm(tip[j] - tip[i]) / feed_mm_s, (d / vmax).max(), np.sqrt(2 * (d / amax).max()))
+            rest = np.sqrt(2 * (d / amax).max()) if d[3:].max() > 0 else 0.0
+            total += max(np.linalg.norm(tip[j] - tip[i]) / feed_mm_s, (d / vmax).max(), rest)
         best = min(best, total)
     return best
 
 
 def test_least_row_times_is_the_best_choice_of_block_ends_by_brute_force():
     """A short curved row with B turning: the dynamic programme equals the best of all 2^(n-2)
-    choices of block ends; on a straight row with no rotary motion one block is best and the
-    bound is the closed form max(L / v, sqrt(2 L / a))."""
+    choices of block ends. With a tolerance every block meets, one block is best (chords add up
+    to at least the whole chord, square roots of parts to at least the root of the whole): X 20
+    mm and B 10 deg give max(L / v, sqrt(2 max(X / a_X, B / a_B))); with no rotary motion there
+    is no parabolic blend and the bound is max(L / v, L / vmax_X)."""
     from camsmooth.controller.blocks import block_reach
     from camsmooth.controller.linuxcnc import least_row_times
 
@@ -406,12 +409,17 @@ def test_least_row_times_is_the_best_choice_of_block_ends_by_brute_force():
         ok = block_reach(m, np.zeros(n, int), q, tip, tol, 16)
         got = least_row_times(m, np.zeros(n, int), q, tip, np.full(n, 2000.0), tol)[0]
         assert got == pytest.approx(_least_time_brute_force(m, q, tip, 2000.0 / 60, ok), rel=1e-12)
-    x = np.linspace(0, 20, 41)
-    tip = np.column_stack([x, np.zeros(41), np.zeros(41)])
-    q = np.column_stack([tip + [0, 0, m.pivot], np.zeros(41), np.zeros(41)])
-    for feed in (2000.0, 1e6):
-        got = least_row_times(m, np.zeros(41, int), q, tip, np.full(41, feed), 0.005)[0]
-        assert got == pytest.approx(max(20 / (feed / 60), np.sqrt(2 * 20 / 3000.0)), rel=1e-12)
+    x = np.linspace(0, 20, 21)
+    for b_deg in (10.0, 0.0):
+        B = np.radians(np.linspace(0, b_deg, 21))
+        q = np.column_stack([x, np.zeros(21), np.full(21, m.pivot), np.zeros(21), B])
+        tip = m.tool_pose_np(np.zeros(21), B, q[:, 0], q[:, 1], q[:, 2])[0]
+        chord = np.linalg.norm(tip[-1] - tip[0])
+        for feed in (2000.0, 1e6):
+            got = least_row_times(m, np.zeros(21, int), q, tip, np.full(21, feed), 10.0)[0]
+            rest = np.sqrt(2 * max(20 / 3000.0, b_deg / 300.0)) if b_deg else 0.0
+            want = max(chord / (feed / 60), 20 / 500.0, np.radians(b_deg) / np.radians(60.0), rest)
+            assert got == pytest.approx(want, rel=1e-12)
 
 
 def test_least_row_times_is_below_what_the_model_predicts_for_every_method(blade_rows):

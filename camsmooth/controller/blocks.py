@@ -10,11 +10,13 @@ G-code (camsmooth.io.gcode):
    dropped tool tip (and the tip of every dropped block's middle) within ``BLOCK_TOLERANCE_SHARE``
    of the tolerance: the tip is evaluated by the machine's forward kinematics at the joints the
    controller interpolates linearly (X Y Z A B), at the fraction of the block's pivot travel the
-   dropped point sits at (an upper bound on the distance to the block's tip curve). The rest of
-   the tolerance is left to the controller's blending (``G64 P`` in LinuxCNC).
-2. ``ControllerPlan``: the blocks' times as the controller runs them (a planner model, e.g.
-   ``LinuxCNCPlanner``), per point: ``t_plan`` and ``feed_plan`` of the controller (points inside
-   a block are timed by their share of the block's pivot travel).
+   dropped point sits at (an upper bound on the distance to the block's tip curve).
+2. ``predict``: the blocks' times as the controller runs them (a planner model, e.g.
+   ``LinuxCNCPlanner``), made slow enough where the controller's blends would take the tool tip
+   the model commands at some servo cycle farther than EXECUTED_TOLERANCE_SHARE of the tolerance
+   from the programmed path (``programmed_tip_path``), and per point the ``ControllerPlan``:
+   ``t_plan`` and ``feed_plan`` of the controller (points inside a block are timed by their share
+   of the block's pivot travel) and each row's largest tip deviation.
 
 Units: mm, s, rad inside; F words in 1/min (G93) as written.
 """
@@ -257,7 +259,6 @@ class Planner(Protocol):
     """A model of a controller's trajectory planner (camsmooth.controller.linuxcnc.LinuxCNCPlanner)."""
 
     name: str
-    servo_period: float
 
     def row_run(self, machine: Machine, q_blocks: np.ndarray, block_time: np.ndarray, entry: np.ndarray,
                 entry_time: float) -> tuple[RowRun, np.ndarray]:

@@ -302,7 +302,8 @@ def least_row_times(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.n
     parabolic blend (module docstring, step 4). Each segment then rises from rest and falls back
     to rest at half its acceleration a_s = L / max_i(|d_i| / a_i) (L its length, d_i the joint
     moves), overlapping only its two neighbours, so its share of the time is at least
-    L / v >= 2 v / a_s, that is at least sqrt(2 max_i |d_i| / a_i). It also lasts at least
+    L / v >= 2 v / a_s, that is at least sqrt(2 max_i |d_i| / a_i) (a block that moves no rotary
+    axis may be joined tangentially and gets no such term). It also lasts at least
     max_i |d_i| / vmax_i and its tip chord over the programmed feed. The bound is the least sum of
     these over every choice of block ends among the row's points whose blocks keep the skipped
     tips within the WHOLE tolerance (``block_reach``): it credits the blends with no deviation and
@@ -328,8 +329,9 @@ def least_row_times(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.n
             i = i[good]
             d = np.abs(q[a + j] - q[a + i])
             chord = np.linalg.norm(tip[a + j] - tip[a + i], axis=1)
-            cost = np.maximum.reduce([chord / feed[a + j], (d / vmax).max(axis=1),
-                                      np.sqrt(2.0 * (d / amax).max(axis=1))])
+            # only a block that turns a rotary axis is bound to the parabolic blend
+            rest = np.where(d[:, 3:].max(axis=1) > 0, np.sqrt(2.0 * (d / amax).max(axis=1)), 0.0)
+            cost = np.maximum.reduce([chord / feed[a + j], (d / vmax).max(axis=1), rest])
             best[j] = np.min(best[i] + cost)
         out[r] = best[-1]
     return out
