@@ -97,15 +97,6 @@ def programmed_tip_path(machine: Machine, q: np.ndarray, entry: np.ndarray | Non
     return _tip_polyline(machine, q, entry, sub, max_turn)[0]
 
 
-def _segment_distance(points: np.ndarray, a: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """Distance (M,) of points (M, 3) to the nearest of the segments a + [0, 1] d ((S, 3) each)."""
-    rel = points[:, None, :] - a[None, :, :]
-    dd = np.maximum(np.einsum("sk,sk->s", d, d), 1e-300)
-    t = np.clip(np.einsum("msk,sk->ms", rel, d) / dd, 0.0, 1.0)
-    close = rel - t[..., None] * d[None]
-    return np.sqrt(np.einsum("msk,msk->ms", close, close).min(axis=1))
-
-
 def tip_deviation(points: np.ndarray, path: np.ndarray) -> np.ndarray:
     """Distance (mm) of each point (M, 3) to the polyline ``path`` (K, 3), against every segment
     (in batches of bounded memory)."""
@@ -113,9 +104,9 @@ def tip_deviation(points: np.ndarray, path: np.ndarray) -> np.ndarray:
     path = np.asarray(path, float)
     if len(path) < 2:
         return np.linalg.norm(points - path[:1], axis=1)
-    a, d = path[:-1], np.diff(path, axis=0)
-    step = max(1, _DEVIATION_BATCH // len(a))
-    return np.concatenate([_segment_distance(points[c:c + step], a, d) for c in range(0, len(points), step)])
+    step = max(1, _DEVIATION_BATCH // (len(path) - 1))
+    return np.concatenate([_polyline_distance(points[None, c:c + step], path[None])[0]
+                           for c in range(0, len(points), step)])
 
 
 def _run_deviation(run: RowRun, tips: np.ndarray, path: np.ndarray, ends: np.ndarray) -> np.ndarray:
@@ -130,7 +121,7 @@ def _run_deviation(run: RowRun, tips: np.ndarray, path: np.ndarray, ends: np.nda
         lo = int(ends[h - 1]) if 0 < h <= m else (0 if h == 0 else int(ends[-1]))
         hi = int(ends[min(h + 1, m - 1)])
         seg = path[max(lo - 1, 0):min(hi + 2, len(path))]
-        out[idx] = _segment_distance(tips[idx], seg[:-1], np.diff(seg, axis=0))
+        out[idx] = _polyline_distance(tips[None, idx], seg[None])[0]
     return out
 
 
@@ -145,7 +136,7 @@ def _chord_deviation(machine: Machine, q: np.ndarray, k: np.ndarray, path: np.nd
     out = np.empty(len(qa))
     for j in range(len(qa)):
         seg = path[at[k[j]]:at[k[j + 1]] + 1]
-        out[j] = _segment_distance(curve[j], seg[:-1], np.diff(seg, axis=0)).max()
+        out[j] = _polyline_distance(curve[None, j], seg[None])[0].max()
     return out
 
 
@@ -268,8 +259,9 @@ class Planner(Protocol):
 
 
 #: the share of the user's tolerance the controller model's tool tip may use at any servo cycle:
-#: the rest covers the model's differences from the real planner (the headless LinuxCNC runs the
-#: same blade rows up to 0.6 um farther off at a few corners, benchmarks/bench_controller.py)
+#: the rest covers the model's differences from the real planner (on the headless LinuxCNC the tip
+#: came at most 1.13 um farther off than the model's at a few corners, wave rows of
+#: benchmarks/bench_controller.py)
 EXECUTED_TOLERANCE_SHARE = 0.8
 #: rounds of lengthening the blocks whose blends go too far, at most
 _ROUNDS = 20
@@ -347,6 +339,7 @@ def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray,
     feed = np.zeros(n)
     row_cycle = np.zeros(len(starts))
     row_dev = np.zeros(len(starts))
+    at = np.zeros(n, np.int64)  # per point, its vertex in its row's programmed tip path
     for r, (a, b) in enumerate(zip(starts, ends, strict=True)):
         k = a + np.flatnonzero(keep[a:b])
         bt = np.zeros(0)
@@ -356,12 +349,10 @@ def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray,
         entry_time = 60.0 * entry_height / float(entry_feed[r])
         tk = np.zeros(1)
         if len(k) > 1:
-            path, at = None, None
+            path = None
             if tolerance is not None:
-                path, at_row = _tip_polyline(machine, q[a:b], tool_tips(machine, entry_q[None, :])[0], 4,
-                                             np.radians(0.25))
-                at = np.zeros(n, np.int64)
-                at[a:b] = at_row
+                path, at[a:b] = _tip_polyline(machine, q[a:b], tool_tips(machine, entry_q[None, :])[0], 4,
+                                              np.radians(0.25))
             limit = EXECUTED_TOLERANCE_SHARE * float(tolerance or 0.0)
             k, bt, tk, row_dev[r] = _hold_row(planner, machine, q, k, t_opt, entry_q, entry_time, path, at, limit)
             keep[k] = True
