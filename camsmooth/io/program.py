@@ -12,6 +12,8 @@ format     reader                                 gives
 apt        camsmooth.io.apt.read_apt              CLProgram (APT CLDATA: NX CLSF, ISO 4343 of Fusion/HSM)
 cl-csv     camsmooth.io.clcsv.read_cl_csv         CLProgram (x,y,z,i,j,k[,row][,feed])
 gcode      camsmooth.io.gcode.read_gcode          CLProgram (camsmooth's own G-code, any dialect)
+gcode      camsmooth.post.read_posted             CLProgram (posted programs: ISO/Fanuc/Haas/LinuxCNC,
+                                                  Heidenhain Klartext, Siemens 840D; no camsmooth header)
 cc-csv     camsmooth.io.ccpath.read_cc_csv        CCPath (contact points and normals)
 =========  =====================================  ==========================================
 """
@@ -30,7 +32,8 @@ import numpy as np
 from camsmooth.errors import InputError
 from camsmooth.geometry.paths import CCPath
 
-__all__ = ["Tool", "ToolPath", "CLProgram", "load_program", "detect_format", "FORMATS", "LOADERS"]
+__all__ = ["Tool", "ToolPath", "CLProgram", "Cycle", "load_program", "detect_format", "FORMATS", "LOADERS",
+           "CL_COLUMNS", "cl_columns", "cl_of_cc", "write_cl_table"]
 
 
 @dataclass(frozen=True)
@@ -66,7 +69,9 @@ class ToolPath:
 
     name: the operation name (``TOOL PATH/name``) or None; tool: the cutter or None when the file
     declares none; line: the line that started it (None for formats without tool paths);
-    transform: the 4x4 MCS -> workpiece transform applied to its first point (identity when none).
+    transform: the 4x4 MCS -> workpiece transform applied to its first point (identity when none;
+    a posted program: its tilted frame). kind: 'motion' (CL data), '5-axis' (a posted operation
+    whose rotary axes move while cutting), '3+2' (in a tilted frame), 'cycle' (canned cycles only).
     """
 
     name: str | None
@@ -75,10 +80,28 @@ class ToolPath:
     stop: int
     line: int | None = None
     transform: np.ndarray = field(default_factory=lambda: np.eye(4))
+    kind: str = "motion"
 
     @property
     def points(self) -> slice:
         return slice(self.start, self.stop)
+
+
+@dataclass
+class Cycle:
+    """A canned cycle of a posted program (G81-G89, G73, G74, G76; CYCLE81...; CYCL DEF 200...):
+    listed, not smoothed. code: the word ('G83'); line: its first line; text: that block; holes:
+    (N, 3) the bottom of each hole, mm, workpiece frame; lines: the line of each block that made
+    holes; operation: index of the operation in the reader's list, op_name its name."""
+
+    code: str
+    line: int
+    text: str
+    holes: np.ndarray
+    operation: int
+    lines: list[int] = field(default_factory=list)
+    modal: bool = True
+    op_name: str | None = None
 
 
 @dataclass
@@ -128,7 +151,9 @@ class CLProgram:
     -1. feed: (N,) mm/min of the move that ends at the point (NaN at rapid points and where the
     file sets no feed). rapid: (N,) bool, the point is reached by a rapid move. line: (N,) int64
     the line (data row for CSV) of the record that produced the point. toolpaths: contiguous
-    point ranges with name and tool. angles: (N, 2) commanded rotary angles (rad) when the
+    point ranges with name and tool. dialect: the posted program's dialect (camsmooth.post) or
+    None; cycles: its canned cycles (listed, not smoothed); work_offset: the last work offset it
+    selects ('G54'), recorded, not added. angles: (N, 2) commanded rotary angles (rad) when the
     file commands them (G-code, a result CSV) else None, in the order ``rotary`` names them (the
     axes of the machine the file was written for: ("A", "B"), ("A", "C"), ("B", "C")). source: the
     file; format: the reader's format name;
@@ -149,6 +174,9 @@ class CLProgram:
     angles: np.ndarray | None = None
     written: Written | None = None
     rotary: tuple[str, str] = ("A", "B")
+    dialect: str | None = None
+    cycles: list[Cycle] = field(default_factory=list)
+    work_offset: str | None = None
 
     def __post_init__(self) -> None:
         self.tip = np.asarray(self.tip, dtype=float).reshape(-1, 3)
@@ -185,12 +213,13 @@ class CLProgram:
         keep = self.rows >= 0
         new_index = np.cumsum(np.r_[0, keep.astype(np.int64)])
         tps = [ToolPath(tp.name, tp.tool, int(new_index[tp.start]), int(new_index[tp.stop]), tp.line,
-                        tp.transform) for tp in self.toolpaths]
+                        tp.transform, tp.kind) for tp in self.toolpaths]
         return CLProgram(tip=self.tip[keep], axis=None if self.axis is None else self.axis[keep],
                          rows=self.rows[keep], feed=self.feed[keep], rapid=self.rapid[keep], line=self.line[keep],
                          toolpaths=tps, source=self.source, format=self.format, warnings=list(self.warnings),
                          angles=None if self.angles is None else self.angles[keep],
-                         written=None if self.written is None else self.written.take(keep), rotary=self.rotary)
+                         written=None if self.written is None else self.written.take(keep), rotary=self.rotary,
+                         dialect=self.dialect, cycles=list(self.cycles), work_offset=self.work_offset)
 
     def toolpath_of(self, index: int) -> ToolPath | None:
         """The tool path holding point ``index`` (None if none does)."""
@@ -296,9 +325,20 @@ def _read_cl(path: str | os.PathLike, **_: Any) -> CLProgram:
 
 
 def _read_gcode(path: str | os.PathLike, **kw: Any) -> CLProgram:
-    from camsmooth.io.gcode import read_gcode
+    """camsmooth's own G-code (its ``camsmooth post:`` header) by camsmooth.io.gcode, any other
+    (a posted program) by camsmooth.post, the dialect detected from the content."""
+    from camsmooth.io.gcode import _POST_TAG, read_gcode
+    from camsmooth.io.table import read_text_file
 
-    return read_gcode(path, **{k: v for k, v in kw.items() if k in ("machine",)})
+    text = read_text_file(path, "G-code file")
+    if _POST_TAG in "\n".join(text.split("\n", 60)[:60]):
+        return read_gcode(path, **{k: v for k, v in kw.items() if k in ("machine",)})
+    from camsmooth.post import read_posted
+
+    opts = {k: v for k, v in kw.items() if k in ("machine", "dialect", "chord_tol")}
+    if kw.get("machine_given") is False:
+        opts["machine"] = None  # the default machine was not chosen for this program: the letters it uses decide
+    return read_posted(path, text=text, **opts)
 
 
 def _read_result(path: str | os.PathLike, **_: Any) -> CLProgram:
@@ -354,9 +394,11 @@ def load_program(source: str | os.PathLike, format: str | None = None, **options
     a CCPath.
 
     format: None (detected from the content, ``detect_format``) or one of FORMATS (aliases: cls,
-    clsf, cldata, cl, cc, nc). options: ``chord_tol`` (mm, APT arc interpolation), ``units``
-    ('mm' or 'inch', APT files without UNITS/ or feed units), ``machine`` (camsmooth Machine,
-    G-code in machine mode); a reader ignores options it does not take.
+    clsf, cldata, cl, cc, nc). options: ``chord_tol`` (mm, APT and posted arc interpolation),
+    ``units`` ('mm' or 'inch', APT files without UNITS/ or feed units), ``machine`` (camsmooth
+    Machine, G-code in machine mode), ``machine_given`` (False: ``machine`` is only the default
+    one, and a posted program is read with the nominal machine of its rotary letters), ``dialect``
+    (a posted program's, camsmooth.post.DIALECTS); a reader ignores options it does not take.
     """
     if format is None:
         fmt = detect_format(source)
@@ -371,3 +413,60 @@ def load_program(source: str | os.PathLike, format: str | None = None, **options
                                     "axes i,j,k), not as a CL CSV whose x,y,z would be the CC points")
             return program
     return LOADERS[fmt](source, **options)
+
+
+# ----------------------------------------------------------------------------------------------
+# the CL program as read (``camsmooth analyze --cl OUT.csv``)
+#: the header of the CL table, in order (pinned)
+CL_COLUMNS = ("operation", "row", "line", "x", "y", "z", "i", "j", "k", "feed")
+
+
+def cl_columns(program: CLProgram) -> dict[str, np.ndarray]:
+    """The CL program as read, one record per feed-motion end point (rapids left out, arcs as
+    interpolated): ``operation`` the tool path's name as the program gives it (never shortened),
+    else its number from 1; ``row`` the row id (a camsmooth result CSV or G-code: smooth's row id,
+    else the program's row numbering); ``line`` the file line (CSV: data row) of the motion;
+    ``x,y,z`` the tool tip (mm) and ``i,j,k`` the unit tool axis (tip -> spindle), both in the
+    program's workpiece frame; ``feed`` mm/min (NaN where the program sets none)."""
+    axis = program.require_axis()
+    keep = ~program.rapid & (program.rows >= 0)
+    names = np.empty(len(program), dtype=object)
+    names[:] = ""
+    for k, tp in enumerate(program.toolpaths):
+        names[tp.start:tp.stop] = tp.name if tp.name else str(k + 1)
+    row = program.rows
+    w = program.written
+    if w is not None and w.row_id is not None and len(w.row_id) == len(program):
+        row = np.where(w.row_id >= 0, w.row_id, row)
+    idx = np.flatnonzero(keep)
+    return {"operation": names[idx].astype(str), "row": row[idx].astype(np.int64),
+            "line": program.line[idx].astype(np.int64), "x": program.tip[idx, 0], "y": program.tip[idx, 1],
+            "z": program.tip[idx, 2], "i": axis[idx, 0], "j": axis[idx, 1], "k": axis[idx, 2],
+            "feed": program.feed[idx]}
+
+
+def cl_of_cc(path: CCPath, cutter: Any, lead: float, tilt: float) -> CLProgram:
+    """A CC path as the CL program ``analyze`` evaluates (camsmooth.smoothing.analysis): the tool
+    axis at the constant lead and tilt (rad, local frame of METHODS section 1), the tip of the
+    cutter touching each CC point; rows and feed as the CC file gives them; line = the data row."""
+    from camsmooth.geometry.cutter import cc_to_cl
+    from camsmooth.geometry.frames import axis_from_lead_tilt, local_frames
+    from camsmooth.geometry.paths import estimate_feed_dirs
+
+    fd = path.feed_dirs if path.feed_dirs is not None else estimate_feed_dirs(path.points, path.normals, path.rows)
+    fr = local_frames(path.normals, fd)
+    axes = axis_from_lead_tilt(np.full(len(fr), lead), np.full(len(fr), tilt), fr)
+    tip = cc_to_cl(cutter, path.points, path.normals, axes)
+    n = len(tip)
+    starts = np.r_[True, path.rows[1:] != path.rows[:-1]] if n else np.zeros(0, bool)
+    feed = path.feed if path.feed is not None else np.full(n, np.nan)
+    return CLProgram(tip=tip, axis=axes, rows=np.cumsum(starts) - 1, feed=feed, rapid=np.zeros(n, bool),
+                     line=np.arange(1, n + 1), toolpaths=[ToolPath("CC path", None, 0, n)], source=path.source,
+                     format="cc-csv")
+
+
+def write_cl_table(path: str | os.PathLike, program: CLProgram) -> None:
+    """Write ``cl_columns(program)`` as a CSV (camsmooth.io.table.write_table, atomic)."""
+    from camsmooth.io.table import write_table
+
+    write_table(path, cl_columns(program))

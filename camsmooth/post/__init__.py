@@ -1,0 +1,100 @@
+"""Posted programs: the G-code a CAM post-processor writes for one machine and one controller,
+read into the one program model (camsmooth.io.program.CLProgram), one module per dialect
+(trimesh ``exchange/`` layout: each module registers its reader in ``READERS``; the shared
+core is camsmooth.post.core).
+
+=============  ==============================  =============================================
+dialect        module                          controllers
+=============  ==============================  =============================================
+iso            camsmooth.post.iso              ISO G-code, Fanuc, Haas, Mori Seiki, Okuma-style
+fanuc / haas   camsmooth.post.iso              (the same reader, Haas words G234/G254 named)
+linuxcnc       camsmooth.post.iso              LinuxCNC (M428/M429 trt TCP, ``#<name>`` params)
+heidenhain     camsmooth.post.heidenhain       Heidenhain Klartext (iTNC 530, TNC 640)
+siemens        camsmooth.post.siemens          Siemens Sinumerik 840D
+=============  ==============================  =============================================
+
+``detect_dialect`` tells them from the content; ``read_posted`` reads a file.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Callable
+from typing import Any
+
+from camsmooth.errors import InputError
+from camsmooth.io.program import CLProgram
+
+__all__ = ["read_posted", "detect_dialect", "READERS", "DIALECTS"]
+
+
+def _iso(path: str, text: str, machine: Any, dialect: str, chord_tol: float | None) -> CLProgram:
+    from camsmooth.post.iso import read_iso
+
+    return read_iso(path, text, machine, dialect, chord_tol)
+
+
+def _heidenhain(path: str, text: str, machine: Any, dialect: str, chord_tol: float | None) -> CLProgram:
+    from camsmooth.post.heidenhain import read_heidenhain
+
+    return read_heidenhain(path, text, machine, chord_tol)
+
+
+def _siemens(path: str, text: str, machine: Any, dialect: str, chord_tol: float | None) -> CLProgram:
+    from camsmooth.post.siemens import read_siemens
+
+    return read_siemens(path, text, machine, chord_tol)
+
+
+#: dialect -> reader(path, text, machine, dialect, chord_tol)
+READERS: dict[str, Callable[..., CLProgram]] = {
+    "iso": _iso, "fanuc": _iso, "haas": _iso, "linuxcnc": _iso, "heidenhain": _heidenhain, "siemens": _siemens}
+DIALECTS = tuple(READERS)
+
+_HEIDENHAIN = re.compile(r"^\s*\d*\s*BEGIN\s+PGM\b", re.I | re.M)
+_SIEMENS = re.compile(r"\b(TRAORI|TRAFOOF|CYCLE8\d\d|CYCLE\d+\s*\(|AROT|ATRANS|SUPA|G153|G500|MSG\s*\(|"
+                      r"DEF\s+(REAL|INT)|ORIWKS|ORIVECT|ORIAXES|COMPCAD|COMPCURV|SOFT|FFWON|G64[12]|EXTCALL|"
+                      r"T\s*=\s*\"|[XYZ]\s*=\s*(IC|AC|DC)\s*\()", re.I)
+_LINUXCNC = re.compile(r"(\bM42[89]\b|#<|\bo\d+\s+(sub|call|if|while)\b|\bG64\s*P)", re.I)
+_HAAS = re.compile(r"\bG(234|254|255|187|154)\b", re.I)
+
+
+def detect_dialect(text: str) -> str:
+    """The dialect of a posted program from its content: Heidenhain (``BEGIN PGM``), Siemens (its
+    keywords: TRAORI, CYCLE800, AROT, ``X=IC(..)`` ...), LinuxCNC (M428/M429, ``#<name>``,
+    o-words), Haas (G234, G254, G187, G154), else ISO/Fanuc."""
+    head = text[:400_000]
+    if _HEIDENHAIN.search(head):
+        return "heidenhain"
+    code = re.sub(r"\([^()\n]*\)", "", head)
+    code = "\n".join(ln.split(";", 1)[0] for ln in code.split("\n"))
+    if _SIEMENS.search(code):
+        return "siemens"
+    if _LINUXCNC.search(head):
+        return "linuxcnc"
+    if _HAAS.search(code):
+        return "haas"
+    return "iso"
+
+
+def read_posted(path: str | os.PathLike, text: str | None = None, machine: Any = None, dialect: str | None = None,
+                chord_tol: float | None = None) -> CLProgram:
+    """Read a posted program (any dialect of READERS; None: ``detect_dialect``) as a CLProgram:
+    tool tip and unit tool axis per point in the program's workpiece frame (mm), feed mm/min,
+    rapids apart, operations named from the post's comments, canned cycles listed
+    (``CLProgram.cycles``), what was not applied named in ``CLProgram.warnings``.
+
+    machine: a camsmooth Machine (its kinematics in machine mode, its tool axis in TCP mode);
+    None: the nominal machine of the rotary letters the program uses, with a warning."""
+    from camsmooth.io.table import read_text_file
+
+    file = str(path)
+    if text is None:
+        text = read_text_file(path, "G-code file")
+    if dialect is None:
+        dialect = detect_dialect(text)
+    if dialect not in READERS:
+        raise InputError(f"unknown dialect {dialect!r} (known: {', '.join(READERS)})", file=file)
+    text = text.replace("\t", " ")
+    return READERS[dialect](file, text, machine, dialect, chord_tol)
