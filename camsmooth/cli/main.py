@@ -346,7 +346,12 @@ def run_analyze(args: argparse.Namespace) -> int:
     with output_transaction() as tx:
         out_json = tx.file(args.json) if args.json else None
         report = tx.folder(args.report, replace=args.force, keep=inputs) if args.report else None
-        program = load_program(args.program, args.format, machine=machine)
+        out_cl = tx.file(args.cl) if args.cl else None
+        program = load_program(args.program, args.format, machine=machine, machine_given=args.machine is not None)
+        if args.machine is None and getattr(program, "dialect", None) and tuple(program.rotary) != machine.rotary:
+            from camsmooth.post.core import nominal_machine  # a posted program for another kind of machine
+
+            machine = nominal_machine(tuple(program.rotary))
         index = MeshIndex(load_surface(args.surface).mesh) if args.surface else None
         cutter = None
         if args.cutter_radius is not None or args.corner_radius is not None or isinstance(program, CCPath):
@@ -355,6 +360,10 @@ def run_analyze(args: argparse.Namespace) -> int:
         tilt = np.radians(np.mean(args.tilt)) if args.tilt else 0.0
         analysis = analyze_program(program, machine, index=index, cutter=cutter, tolerance=args.tolerance,
                                    feed=args.feed, lead=lead, tilt=tilt)
+        if out_cl is not None:  # the CL program as read (camsmooth.io.program.cl_columns)
+            from camsmooth.io.program import cl_of_cc, write_cl_table
+
+            write_cl_table(out_cl, cl_of_cc(program, cutter, lead, tilt) if isinstance(program, CCPath) else program)
         if out_json is not None:
             out_json.write_text(json.dumps(analysis.to_json(), indent=2) + "\n", encoding="utf-8")
         if report is not None:
@@ -534,6 +543,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--tilt", type=angle_range(-90, 90, lo_open=True), default=None, metavar="MIN:MAX",
                    help="CC input only: analysed at the middle of this tilt window (deg; default 0)")
     p.add_argument("--json", default=None, metavar="OUT.json", help="write the analysis as JSON (units mm, deg)")
+    p.add_argument("--cl", default=None, metavar="OUT.csv", help="write the CL program as read: operation,row,line,"
+                   "x,y,z,i,j,k,feed (tool tip mm and unit axis in the workpiece frame, feed mm/min; one record per "
+                   "feed motion end point; a CC path: at the --lead/--tilt it is analysed with)")
     p.add_argument("--report", default=None, metavar="DIR", help="also write a report into the folder DIR")
     p.add_argument("--force", action="store_true", help="with --report: replace the folder DIR whole")
     p.add_argument("--quiet", action="store_true", help="no summary on stdout")
