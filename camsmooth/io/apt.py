@@ -845,6 +845,10 @@ def _program(st: _State, transforms: list[np.ndarray], toolpaths: list[ToolPath]
         tp_id[tp.start:tp.stop] = k
     new = ~rapid & np.r_[True, rapid[:-1] | (tp_id[1:] != tp_id[:-1])]
     rows = np.where(rapid, -1, np.cumsum(new) - 1)
+    if rapid.all():  # FROM/, RAPID GOTOs, GOHOME only (a drilling CLSF whose holes are all reached by rapids)
+        raise InputError(f"no cutting move: all {len(rapid)} positions are rapid (FROM/, GOTO after RAPID); the file "
+                         "holds no feed motion to analyse or smooth", file=st.file,
+                         line=int(line[0]) if len(line) else None)
     unknown_feed = ~rapid & ~np.isfinite(feed)
     if unknown_feed.any():
         lines = line[unknown_feed]
