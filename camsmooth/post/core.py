@@ -458,10 +458,15 @@ class Builder:
         if self.offsets:
             warnings.append(f"work offset(s) {', '.join(self.offsets)} selected: tips are in the program's workpiece "
                             "frame (offsets recorded, not added)")
-        if m == 0 and not cycles_kept:
+        if not (~rapid).any():  # nothing to analyse or smooth: say what there was
             if self.skipped_ops:
                 raise InputError(f"no operation could be read: {self.skipped_ops[0]}", file=self.file)
-            raise InputError("no motion block: the program holds no tool position", file=self.file)
+            if cycles_kept:
+                listed = "; ".join(f"{c.code} line {c.line} ({len(c.holes)} holes)" for c in cycles_kept[:10])
+                raise InputError(f"no cutting move: only canned cycles ({listed}), which are listed, not smoothed",
+                                 file=self.file)
+            raise InputError("no cutting move: the program holds no feed motion (rapids and machine moves only)",
+                             file=self.file)
         prog = CLProgram(tip=tip, axis=axis, rows=rows, feed=feed, rapid=rapid, line=line, toolpaths=toolpaths,
                          source=self.file, format=fmt, warnings=warnings, angles=np.radians(q),
                          rotary=tuple(letters))  # type: ignore[arg-type]
