@@ -1,4 +1,11 @@
-"""Planted bugs (issue 12): does the test suite catch small plausible bugs?
+"""Planted bugs (issues 12, 21, 31): does the test suite catch small plausible bugs?
+
+The last 14 (issue 31) are the slips that passed the whole suite when the issue was filed; each is
+now caught by an invariant (tests/test_invariants.py: inch = mm, bulk = record by record, rows
+with blank lines, a part turned about C, mirrored poles, cone points in a passage, bounds a
+margin inside the samples, a feed drop) or a hand-worked oracle (tests/test_oracles_hand.py:
+ISO 230-2 by hand, batch means by a plain loop, CYCLE832 against the Siemens manual), and its
+``tests`` name the test that catches it (a node id: the run is seconds, not minutes).
 
     python benchmarks/planted_bugs.py              # every bug (about 5-10 minutes on 2 cores)
     python benchmarks/planted_bugs.py --only facet,backlash-sign
@@ -163,6 +170,60 @@ BUGS: tuple[Bug, ...] = (
     Bug("row-times-shift", "`pipeline.row_times` (class d)", "each block timed at the feed of the block before it",
         (("camsmooth/smoothing/pipeline.py", "seg / (feed_mm_min[1:] / 60.0)", "seg / (feed_mm_min[:-1] / 60.0)"),),
         ("tests/test_pipeline.py",)),
+    # ---- issue 31: the slips the whole suite missed, each caught by an invariant or a hand oracle -----
+    Bug("ceiling-margin", "accessibility `clear_region`", "the lead ceiling moved up by its margin instead of down",
+        (("camsmooth/geometry/accessibility.py", "    ceiling[:, 0] -= margin\n", "    ceiling[:, 0] += margin\n"),),
+        ("tests/test_invariants.py::test_clear_region_bounds_sit_a_margin_inside_every_sample",)),
+    Bug("apt-bulk-axis", "APT reader, the bulk GOTO path",
+        "a run of 16+ six-number GOTOs does not leave its last tool axis modal for the 3-number GOTOs after it",
+        (("camsmooth/io/apt.py", "                axis = tuple(Tm[-1].tolist())\n", ""),),
+        ("tests/test_invariants.py::test_apt_bulk_run_and_record_by_record_agree",)),
+    Bug("movarc-inches", "APT reader, MOVARC", "centre and radius not converted from inches",
+        (("camsmooth/io/apt.py", 'arc = _Arc(np.array(v[:3]) * st.scale, normal, v[6] * st.scale, rec.line, "MOVARC",',
+          'arc = _Arc(np.array(v[:3]), normal, v[6], rec.line, "MOVARC",'),),
+        ("tests/test_invariants.py::test_apt_inch_and_mm_programs_read_the_same",)),
+    Bug("table-error-row", "`Table.error`", "the row of a record taken as its index + 1 (wrong after a blank line)",
+        (("camsmooth/io/table.py", "row = None if index is None else int(self.rows[int(index)])",
+          "row = None if index is None else int(index) + 1"),),
+        ("tests/test_invariants.py::test_error_rows_are_the_file_lines_minus_one",)),
+    Bug("c-unwind-one-turn", "`Machine.inverse_candidates`", "candidates searched one turn either way instead of two",
+        (("camsmooth/machine/kinematics.py", "shifts = 2 * np.pi * np.arange(-2, 3)",
+          "shifts = 2 * np.pi * np.arange(-1, 2)"),),
+        ("tests/test_invariants.py::test_c_follows_a_part_turned_several_times_both_ways",)),
+    Bug("outer-turn-sign", "`Machine.nearest_with_outer`", "the tool axis turned back by +outer instead of -outer",
+        (("camsmooth/machine/kinematics.py", "back = exp_twist(w1, np.zeros(3), -outer)",
+          "back = exp_twist(w1, np.zeros(3), outer)"),),
+        ("tests/test_invariants.py::test_pole_start_keeps_the_tool_axis_within_the_pole_angle",)),
+    Bug("pole-angle-abs", "`Machine.pole_angle`", "no absolute value: the far pole (T toward -w) is missed",
+        (("camsmooth/machine/kinematics.py", "return np.arccos(np.clip(np.abs(T @ w1), 0.0, 1.0))",
+          "return np.arccos(np.clip(T @ w1, 0.0, 1.0))"),),
+        ("tests/test_invariants.py::test_mirrored_pole_passages_give_mirrored_tilts",)),
+    Bug("passage-short", "`pole._runs`", "a passage ends one point before the last point inside the cone",
+        (("camsmooth/smoothing/pole.py", "(np.flatnonzero(d == -1) - 1).tolist()",
+          "(np.flatnonzero(d == -1) - 2).tolist()"),),
+        ("tests/test_invariants.py::test_every_point_inside_the_cone_is_in_a_passage",)),
+    Bug("cycle832-blend", "G-code writer, Siemens", "CYCLE832 written with the blend share instead of the tolerance",
+        (("camsmooth/io/gcode.py", 'path_tolerance=("CYCLE832({tol}, _FINISH, 1)",)',
+          'path_tolerance=("CYCLE832({blend}, _FINISH, 1)",)'),),
+        ("tests/test_oracles_hand.py::test_siemens_cycle832_carries_the_tolerance",)),
+    Bug("iso-R-max", "ISO 230-2 `evaluate`", "bidirectional repeatability without the max over the unidirectional ones",
+        (("camsmooth/diagnosis/iso230.py", "rbi = np.maximum.reduce([2 * su + 2 * sd + np.abs(b), ru, rd])",
+          "rbi = 2 * su + 2 * sd + np.abs(b)"),),
+        ("tests/test_oracles_hand.py::test_iso230_figures_match_the_hand_worked_example",)),
+    Bug("iso-B-abs", "ISO 230-2 `evaluate`", "axis reversal B the largest signed B_j (a negative reversal lost)",
+        (("camsmooth/diagnosis/iso230.py", "B=float(np.max(np.abs(b)))", "B=float(np.max(b))"),),
+        ("tests/test_oracles_hand.py::test_iso230_figures_match_the_hand_worked_example",)),
+    Bug("batch-weight", "`significance.batch_sum_sd`", "batch sums compared with their mean, not weighted by length",
+        (("camsmooth/diagnosis/significance.py", "dev = sums - np.diff(edges)[:, None] * Y.mean(axis=0)",
+          "dev = sums - sums.mean(axis=0)"),),
+        ("tests/test_oracles_hand.py::test_batch_sum_sd_matches_a_plain_reference",)),
+    Bug("apt-mmpr", "APT reader, FEDRAT", "MMPR (mm per revolution) read as mm per minute",
+        (("camsmooth/io/apt.py", '"MMPR": ("mm", True)', '"MMPR": ("mm", False)'),),
+        ("tests/test_invariants.py::test_apt_feed_units_give_the_same_feed",)),
+    Bug("jerk-piece-feed", "`jerk._piece_feed`", "a piece's feed bound the smaller of its ends (min for max)",
+        (("camsmooth/smoothing/jerk.py", "return np.maximum(rp.feed_bound[:-1], rp.feed_bound[1:])",
+          "return np.minimum(rp.feed_bound[:-1], rp.feed_bound[1:])"),),
+        ("tests/test_invariants.py::test_a_feed_drop_mid_row_costs_no_more_than_the_lower_feed",)),
 )
 
 
