@@ -3,7 +3,8 @@ between two runs of the code, or properties every correct answer has, never numb
 the code's output.
 
 - units: the same APT program in inch and in mm (GOTO, MOVARC, CIRCLE, FEDRAT IPM/IPR/MMPM/MMPR)
-  reads the same; the bulk GOTO path reads as record by record;
+  reads the same, and so does a posted program in G20 and G21; the bulk GOTO path reads as record
+  by record;
 - numbering: the rows and lines errors name are the file's (blank lines, comments, BOM, CRLF);
 - frames: a tool-axis row turned about the table's C axis gives the same tilt and C shifted by
   the turn, through several turns both ways (limited and continuous C);
@@ -117,6 +118,41 @@ def test_apt_bulk_run_and_record_by_record_agree(tmp_path, unit):
     np.testing.assert_allclose(bulk.axis[-4:], np.tile([np.sin(b), 0.0, np.cos(b)], (4, 1)), atol=1e-12)
     np.testing.assert_allclose(bulk.tip[-1], [23.0, 10.0, 3.0], atol=1e-9)
 
+
+
+def _iso_program(inch: bool) -> str:
+    """A posted ISO (Fanuc-style) program in mm (G21) or the same in inch (G20): lines, a G2 arc by
+    its centre (I J), a G3 arc by its radius (R), feed per minute; rotary words in degrees."""
+    k = 1.0 / INCH if inch else 1.0
+
+    def f(v: float) -> str:
+        return f"{v * k:.10f}"
+
+    return "\n".join([
+        "%", "O1000", "G20 G90 G17" if inch else "G21 G90 G17", "T1 M6", "G43.4 H1", f"G0 X0 Y0 Z{f(50)} A0 B0",
+        f"G1 X{f(10)} Y{f(0)} Z{f(5)} A0 B10. F{f(1000)}", f"G1 X{f(20)} Y{f(5)} Z{f(5)} A5. B10.",
+        f"G2 X{f(30)} Y{f(-5)} I{f(0)} J{f(-10)}", f"G3 X{f(40)} Y{f(5)} R{f(10)}", f"G1 X{f(50)} Y{f(5)} Z{f(4)}",
+        "G49", "M30", "%"]) + "\n"
+
+
+def test_posted_g20_and_g21_programs_read_the_same(tmp_path):
+    """The same posted program in inch (G20) and in mm (G21): the same tips (arcs by I J and by R
+    included), tool axes and feeds."""
+    from camsmooth.post import read_posted
+
+    progs = []
+    for inch in (False, True):
+        p = tmp_path / f"p{int(inch)}.nc"
+        p.write_text(_iso_program(inch))
+        progs.append(read_posted(p))
+    mm, inch = progs
+    assert mm.tip.shape == inch.tip.shape and len(mm.tip) > 10
+    np.testing.assert_allclose(inch.tip, mm.tip, atol=1e-7)
+    np.testing.assert_allclose(inch.axis, mm.axis, atol=1e-12)
+    np.testing.assert_allclose(inch.feed, mm.feed, rtol=1e-9)
+    cut = ~mm.rapid
+    np.testing.assert_allclose(mm.feed[cut][1:], 1000.0, rtol=1e-9)
+    assert np.ptp(mm.tip[:, 0]) == pytest.approx(50.0, abs=1e-9)
 
 # ---- numbering -----------------------------------------------------------------------------------
 @pytest.mark.parametrize("newline, bom", [("\n", False), ("\r\n", False), ("\r\n", True), ("\n", True)])
