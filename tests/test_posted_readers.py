@@ -1,0 +1,221 @@
+"""Posted programs (camsmooth.post): each dialect on programs written the way its controller manual
+documents them, against closed forms written here, LinuxCNC's own interpreter (rs274) where it is
+installed, and the public corpus of tests/data/posted (SOURCES.md)."""
+
+from __future__ import annotations
+
+import math
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from camsmooth.cli.main import main
+from camsmooth.controller.linuxcnc_sim import parse_canon
+from camsmooth.errors import InputError
+from camsmooth.io.program import CL_COLUMNS, load_program
+from camsmooth.io.table import read_table
+from camsmooth.post import detect_dialect, read_posted
+from camsmooth.post.core import nominal_machine
+
+DATA = Path(__file__).parent / "data" / "posted"
+
+
+def _write(tmp_path: Path, name: str, text: str) -> Path:
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def _rs274(tmp_path: Path, program: Path) -> str:
+    """LinuxCNC's canonical calls for ``program`` (M428/M429, the trt remaps, dropped: they switch
+    the kinematics, not the words)."""
+    text = re.sub(r"\bM42[89]\b", "", program.read_text())
+    src = tmp_path / ("rs_" + program.name)
+    src.write_text(text)
+    tbl = tmp_path / "tool.tbl"
+    tbl.write_text("T1 P1 Z0 D10 ;\n")
+    out = tmp_path / "canon.txt"
+    subprocess.run(["rs274", "-t", str(tbl), "-g", str(src), str(out)], capture_output=True, text=True,
+                   stdin=subprocess.DEVNULL, timeout=120, check=False)
+    return out.read_text()
+
+
+needs_rs274 = pytest.mark.skipif(shutil.which("rs274") is None, reason="LinuxCNC's rs274 not installed (make linuxcnc)")
+
+
+# ---- ISO / Fanuc -----------------------------------------------------------------------------
+def test_helix_ijk_against_closed_form(tmp_path):
+    # Fanuc 30i operator's manual, "Helical interpolation": G17 G03 with I J, Z moving linearly with the angle
+    p = _write(tmp_path, "h.nc", "%\nO1000\nG21 G90 G17\nG0 X10. Y0 Z0\nG1 Z0 F300.\n"
+                                 "G3 X-10. Y0 Z-4. I-10. J0\nM30\n%\n")
+    prog = read_posted(p, chord_tol=1e-4)
+    arc = prog.tip[prog.line == 6]
+    r = np.hypot(arc[:, 0], arc[:, 1])
+    assert np.allclose(r[:-1], 10.0, atol=1e-9) and np.allclose(arc[-1], [-10, 0, -4])
+    ang = np.unwrap(np.arctan2(arc[:, 1], arc[:, 0]))
+    assert np.all(np.diff(ang) > 0)  # counter-clockwise about +Z
+    assert np.allclose(arc[:, 2], -4.0 * ang / math.pi, atol=1e-9)  # z linear in the angle, -4 over pi
+    chord = np.max(10 - 10 * np.cos(np.diff(ang) / 2))
+    assert chord <= 1e-4 + 1e-12
+
+
+def test_r_word_arcs_and_planes(tmp_path):
+    # G02 with R < 0: the arc over 180 deg (Fanuc "Circular interpolation"); G18: ZX plane, normal +Y
+    p = _write(tmp_path, "r.nc", "G21 G90 G17\nG0 X0 Y0 Z0\nG2 X10 Y0 R-5.5 F100\n"
+                                 "G18\nG0 X0 Y0 Z0\nG3 X10 Z0 R5 F100\nM30\n")
+    prog = read_posted(p)
+    a = prog.tip[prog.line == 3]
+    h = math.sqrt(5.5 ** 2 - 25)
+    c = np.array([5.0, h, 0.0])  # G2 with R < 0: centre to the left of the chord, long way round
+    assert np.allclose(np.linalg.norm(a - c, axis=1), 5.5, atol=1e-9)
+    assert a[:, 1].max() > 5.5 + h - 1e-3 and a[:, 1].min() >= -1e-9 or a[:, 1].min() < 0
+    b = prog.tip[prog.line == 6]
+    assert np.allclose(b[:, 1], 0) and np.allclose(np.hypot(b[:, 0] - 5, b[:, 2]), 5, atol=1e-9)
+    # G3 in G18 turns by the right-hand rule about +Y: from X0 (centre X5) through Z > 0
+    assert b[:, 2].max() > 4.9
+
+
+def test_inch_program_converted(tmp_path):
+    p = _write(tmp_path, "i.nc", "G20 G90 G94\nG0 X1. Y2. Z3.\nG1 X2. F10.\nM30\n")
+    prog = read_posted(p)
+    assert np.allclose(prog.tip[-1], [50.8, 50.8, 76.2]) and prog.feed[-1] == pytest.approx(254.0)
+
+
+def test_tcp_against_machine_mode_on_an_ac_table(tmp_path):
+    # TCP (G43.4): X Y Z is the tip; machine mode: the joints of a table machine, whose tip in the
+    # workpiece frame is Rz(C) Rx(A) X (camsmooth's AC table with its centre at the origin)
+    A, C = 25.0, -130.0
+    X = np.array([12.0, -7.0, 30.0])
+    words = f"X{X[0]} Y{X[1]} Z{X[2]} A{A} C{C}"
+    tcp = read_posted(_write(tmp_path, "t.nc", f"G21 G90\nG43.4 H1\nG0 {words}\nG1 X13 F500\nG49\nM30\n"))
+    mach = read_posted(_write(tmp_path, "m.nc", f"G21 G90\nG0 {words}\nG1 X13 F500\nM30\n"))
+    R = Rotation.from_euler("xz", [A, C], degrees=True).as_matrix()  # extrinsic: Rz(C) @ Rx(A)
+    assert np.allclose(tcp.tip[0], X)
+    assert np.allclose(mach.tip[0], R @ X, atol=1e-9)
+    assert np.allclose(tcp.axis[0], R[:, 2]) and np.allclose(mach.axis[0], R[:, 2])
+    assert tcp.rotary == ("A", "C") and np.allclose(np.degrees(tcp.angles[0]), [A, C])
+
+
+def test_g68_2_tilted_plane(tmp_path):
+    # Fanuc "Tilted working plane indexing", Eulerian angles: G68.2 X Y Z I J K, R = Rz(I) Rx(J) Rz(K)
+    o, eul = np.array([10.0, 5.0, -2.0]), (30.0, 45.0, -20.0)
+    p = _write(tmp_path, "g68.nc", f"G21 G90 G54\nG68.2 X{o[0]} Y{o[1]} Z{o[2]} I{eul[0]} J{eul[1]} K{eul[2]}\n"
+                                   "G53.1\nG0 X1 Y2 Z5\nG1 Z0 F200\nX4\nG69\nM30\n")
+    prog = read_posted(p)
+    R = Rotation.from_euler("ZXZ", eul, degrees=True).as_matrix()
+    assert np.allclose(prog.tip[-1], o + R @ [4, 2, 0], atol=1e-9)
+    assert np.allclose(prog.axis[-1], R[:, 2]) and prog.toolpaths[0].kind == "3+2"
+    assert any("G54" in w for w in prog.warnings)
+
+
+def test_cycles_named_subprogram_variables_and_robust_text(tmp_path):
+    text = ("\ufefflisting banner, not G-code: page 1\r\n%\r\nO0001 (MAIN)\r\n"
+            "(Operation Name: DRILL_HOLES)\r\nT2 M6\r\nG21 G90 G17 G54.1 P3\r\n#100 = 12.5\r\n"
+            "G0 X0 Y0 Z20.\r\nG99 G81 X10. Y10. Z-5. R2. F100.\r\nX[#100+2.5] Y10.\r\nG80\r\n"
+            "(Operation Name: CONTOUR)\r\nT3 M6\r\nG0 X0 Y0 Z5\r\nM98 P1000 L2\r\n/ G1 Z-1 F100\r\nM30\r\n"
+            "O1000\r\nG1 G91 X 1 . 5 F200\r\nG90\r\nM99\r\n%\r\n")
+    p = tmp_path / "c.nc"
+    p.write_bytes(text.encode())
+    prog = load_program(p)
+    assert [t.name for t in prog.toolpaths] == ["DRILL_HOLES", "CONTOUR"]
+    (cyc,) = prog.cycles
+    assert cyc.code == "G81" and np.allclose(cyc.holes, [[10, 10, -5], [15, 10, -5]]) and cyc.lines == [9, 10]
+    assert any("canned cycle G81" in w and "DRILL_HOLES" in w for w in prog.warnings)
+    cut = prog.tip[~prog.rapid]
+    assert np.allclose(cut[:, 0], [1.5, 3.0, 3.0]) and np.allclose(cut[-1], [3.0, 0, -1])  # two calls, block delete
+    assert prog.toolpaths[0].kind == "cycle"
+
+
+def test_unknown_construct_costs_its_operation(tmp_path):
+    p = _write(tmp_path, "u.nc", "(Operation Name: A)\nG21 G90\nG0 X0 Y0 Z5\nG1 Z0 F100\nX10\n"
+                                 "(Operation Name: B)\nG0 X0 Y0 Z5\nG41 D1\nG1 X5 F100\nM30\n")
+    prog = read_posted(p)
+    assert [t.name for t in prog.toolpaths] == ["A"]
+    assert any("operation 'B'" in w and "line 8" in w and "G41" in w for w in prog.warnings)
+    bad = _write(tmp_path, "v.nc", "G21\nG0 X0 Y0 Z0\nG1 X1 F100 Q#<undefined>\nG41\nG1 X2\nM30\n")
+    with pytest.raises(InputError):
+        read_posted(bad)
+
+
+@needs_rs274
+def test_linuxcnc_words_against_rs274(tmp_path):
+    # LinuxCNC G-code overview: named parameters, spaces inside words, G91, N numbers, comments
+    p = _write(tmp_path, "lc.ngc", "%\n(test)\nM428\nG21 G90 G94\n#<feed> = 250\n#<dx> = [3 * 2]\n"
+                                   "N10 G0 X0 Y0 Z5 A0 C0\nG1 Z 0 F#<feed> ; plunge\nG1 X#<dx> Y1.25 A10 C-20\n"
+                                   "G91 G1 X-1 Y2 C30\nG90\nG1 X 1 0 . 5 Y0\nM2\n%\n")
+    prog = read_posted(p, machine=nominal_machine(("A", "C")), dialect="linuxcnc")
+    canon = parse_canon(_rs274(tmp_path, p))
+    feed = ~canon.rapid
+    assert np.allclose(canon.positions[feed][:, :3], prog.tip[~prog.rapid], atol=1e-9)  # M428: TCP, tip = X Y Z
+    assert np.allclose(canon.positions[feed][:, [3, 5]], -np.degrees(prog.angles[~prog.rapid]), atol=1e-9)
+    assert np.allclose(canon.feed[feed], prog.feed[~prog.rapid])
+
+
+@needs_rs274
+@pytest.mark.parametrize("name", ["impeller-7bl-xyzac.ngc", "xyzac_switchkins_test_2.ngc"])
+def test_corpus_linuxcnc_against_rs274(tmp_path, name):
+    """LinuxCNC's shipped trt demos: every feed point's X Y Z and rotary words as rs274 reads them
+    (M428 turns TCP on: the tip is X Y Z in the workpiece frame)."""
+    prog = read_posted(DATA / name)
+    canon = parse_canon(_rs274(tmp_path, DATA / name))
+    feed = ~canon.rapid
+    assert (~prog.rapid).sum() == feed.sum()
+    tcp = prog.toolpaths and "M428" in (DATA / name).read_text()
+    rows = ~prog.rapid
+    if tcp and name != "xyzac_switchkins_test_2.ngc":
+        assert np.allclose(canon.positions[feed][:, :3], prog.tip[rows], atol=1e-9)
+    cols = [3, 5] if "xyzac" in name else [4, 5]
+    sense = np.array([-1.0, -1.0])  # the trt kinematics' table sense (camsmooth.io.gcode)
+    assert np.allclose(canon.positions[feed][:, cols], np.degrees(prog.angles[rows]) * sense, atol=1e-9)
+
+
+def test_corpus_reads_and_counts(tmp_path):
+    """Every corpus file reads (no exit 70), its operations named as its comments give them, and the
+    cutting points equal an independent count of its feed blocks."""
+    imp = read_posted(DATA / "impeller-7bl-xyzac.ngc")
+    n_g1 = sum(1 for ln in (DATA / "impeller-7bl-xyzac.ngc").read_text().splitlines() if ln.startswith("G1 "))
+    assert (~imp.rapid).sum() == n_g1
+    assert [t.name for t in imp.toolpaths] == ["Operation 1", "Operation 2", "Operation 3"]
+    boat = read_posted(DATA / "boat-xyzac.ngc")
+    assert [t.name for t in boat.toolpaths] == ["ROUGH7 Z LEVEL SRF_MILL1", "FINISH1 FLOWLINE SRF_MILL1",
+                                               "FINISH2 FLOWLINE SRF_MILL1"]
+    assert detect_dialect((DATA / "boat-xyzbc.ngc").read_text()) == "linuxcnc"
+    for f in sorted(DATA.glob("*.ngc")):
+        out = tmp_path / (f.stem + ".csv")
+        assert main(["analyze", str(f), "--cl", str(out), "--quiet"]) == 0
+        t = read_table(out, required=("x", "y", "z", "i", "j", "k"), text=("operation",))
+        assert tuple(t.header) == CL_COLUMNS
+        assert np.allclose(np.linalg.norm(np.column_stack([t["i"], t["j"], t["k"]]), axis=1), 1.0)
+
+
+# ---- Siemens 840D --------------------------------------------------------------------------
+def test_siemens_cycle800_traori_and_r_parameters(tmp_path):
+    # 840D cycles manual, CYCLE800 axis by axis (_MODE 57: X, then Y, then Z, each about the turned
+    # frame); Fundamentals: R parameters, '=' words, CR= radius, ';' comments
+    p = _write(tmp_path, "s.mpf", "; header\nN10 G71 G90 G17\n;(ROUGH_1)\nT=\"EM10\" M6\nR1=7\n"
+                                  "CYCLE800(1,\"TC1\",200000,57,0,0,0,30,-20,10,0,0,0,1,100,1)\n"
+                                  "G0 X10 Y0 Z5\nG1 Z0 F=500\nG1 X20 Y=R1\nCYCLE800()\nTRAORI\n"
+                                  "G0 X0 Y0 Z50 A0 C0\nG1 X1 A10 C20\nTRAFOOF\nM30\n")
+    prog = read_posted(p, machine=nominal_machine(("A", "C")))
+    assert prog.dialect == "siemens" and prog.toolpaths[0].name == "ROUGH_1"
+    R = Rotation.from_euler("XYZ", [30, -20, 10], degrees=True).as_matrix()  # intrinsic X, Y', Z''
+    assert np.allclose(prog.tip[prog.line == 9][0], R @ [20, 7, 0], atol=1e-9)
+    assert np.allclose(prog.axis[prog.line == 9][0], R[:, 2])
+    last = prog.line == 13
+    assert np.allclose(prog.tip[last][0], [1, 0, 50])
+    assert np.allclose(prog.axis[last][0], Rotation.from_euler("xz", [10, 20], degrees=True).as_matrix()[:, 2])
+
+
+def test_cli_cl_for_apt_and_cc(tmp_path):
+    apt = Path(__file__).parent / "data" / "apt" / "fusion_iso4343.apt"
+    out = tmp_path / "a.csv"
+    assert main(["analyze", str(apt), "--cl", str(out), "--quiet"]) == 0
+    t = read_table(out, required=("x", "y", "z"), text=("operation",))
+    assert tuple(t.header) == CL_COLUMNS
+    prog = load_program(apt)
+    assert len(t) == int((~prog.rapid).sum())
