@@ -5,6 +5,14 @@
     camsmooth diagnose --format umich FILE.csv [FILE.csv ...] --out FINDINGS.json [...]
                        [--validate FILE.csv ...]
 
+    camsmooth diagnose --trace FILE.csv [--units mm|deg] [--columns t=1,X_cmd=3,X_act=4] [--scale S]
+                       [--sample-period S]
+                       --out FINDINGS.json [--report DIR]
+    camsmooth diagnose --points FILE.csv --out FINDINGS.json
+
+With ``--trace`` a controller trace (command and actual per axis, camsmooth.diagnosis.trace) is
+diagnosed on its own, with no program; with ``--points`` nominal against measured points
+(camsmooth.diagnosis.points) are fitted with the setup and the linear-axis geometry.
 With ``--format umich`` each University of Michigan CNC-mill experiment file is read as program
 and recording at once (camsmooth.diagnosis.recordings.read_umich); several files are fitted together
 (kept apart in time), and ``--validate`` files are only predicted with the fitted model, never
@@ -16,6 +24,7 @@ InputError (exit 2 from the CLI).
 from __future__ import annotations
 
 import argparse
+import json
 from typing import Any
 
 from camsmooth.cli.options import number
@@ -35,6 +44,17 @@ def register(subparsers: Any) -> None:
                    help="csv: --program and --recording CSVs (default); umich: Michigan CNC-mill traces")
     p.add_argument("--program", help="program CSV: t (s), X, Y, Z (mm), A, B (deg), optional S (rpm), segment")
     p.add_argument("--recording", help="recording CSV: t and X_act.., tip_x.., axis_i.., temp_* channels")
+    p.add_argument("--trace", metavar="FILE.csv", help="controller trace: t (s), <AX>_cmd, <AX>_act (mm, or deg "
+                   "with --units deg), optional <AX>_load, <AX>_vel_act, <AX>_current, temp_<name> (deg C)")
+    p.add_argument("--units", choices=("mm", "deg"), default="mm", help="with --trace: unit of the positions")
+    p.add_argument("--columns", metavar="MAP", help="with --trace: read a plain delimited log by field numbers, "
+                   "e.g. t=1,X_cmd=3,X_act=4 (1-based; a header line, if any, is skipped)")
+    p.add_argument("--scale", type=number(gt=0), default=1.0, metavar="S",
+                   help="with --trace: units per count of positions logged as encoder counts (default 1)")
+    p.add_argument("--sample-period", type=number(gt=0, unit="s"), default=None, metavar="S",
+                   help="with --trace: the t column counts samples (halsampler -t, a row index); t = count * S")
+    p.add_argument("--points", metavar="FILE.csv", help="nominal against measured points: x_nom, y_nom[, z_nom], "
+                   "x_meas, y_meas[, z_meas] (mm)")
     p.add_argument("--machine", help="machine TOML (default: the ideal AB head)")
     p.add_argument("--model", help="current model JSON (ErrorModel JSON, optional servo section)")
     p.add_argument("--out", required=True, help="FINDINGS.json to write")
@@ -95,6 +115,8 @@ def run_diagnose(args: argparse.Namespace) -> int:
 
     if getattr(args, "force", False) and not args.report:
         raise InputError("--force replaces the --report folder whole; it needs --report DIR")
+    if getattr(args, "trace", None) or getattr(args, "points", None):
+        return run_trace_or_points(args)
     if args.format == "umich":
         if not args.files:
             raise InputError("--format umich needs at least one FILE.csv")
@@ -136,6 +158,60 @@ def run_diagnose(args: argparse.Namespace) -> int:
         print(summary_text(diag.findings))
         print(f"findings: {args.out}" + (f"; report: {args.report}" if args.report else "")
               + (f"; model: {args.model_out}" if args.model_out else ""))
+    return 0
+
+
+def run_trace_or_points(args: argparse.Namespace) -> int:
+    """`camsmooth diagnose --trace` / `--points` (module docstring): what was read is printed
+    first; the outputs are one transaction."""
+    from camsmooth.io.atomic import output_transaction
+
+    if args.trace and args.points:
+        raise InputError("give --trace or --points, not both")
+    other = [o for o, v in (("--program", args.program), ("--recording", args.recording), ("--model", args.model),
+                            ("--model-out", args.model_out), ("--validate", args.validate), ("FILE.csv", args.files))
+             if v]
+    if other or args.format != "csv":
+        raise InputError(f"{'--trace' if args.trace else '--points'} is diagnosed on its own; drop "
+                         f"{', '.join(other) or '--format'}")
+    if args.points and (args.columns or args.units != "mm" or args.scale != 1.0 or args.report
+                        or args.sample_period):
+        raise InputError("--columns, --units, --scale, --sample-period and --report go with --trace, not --points")
+    if args.trace:
+        from camsmooth.diagnosis.trace import diagnose_trace, parse_columns, read_trace, write_trace_report
+        from camsmooth.diagnosis.trace import summary_text as trace_summary
+
+        columns = parse_columns(args.columns) if args.columns else None
+        trace = read_trace(args.trace, units=args.units, columns=columns, scale=args.scale,
+                           sample_period=args.sample_period)
+        if not args.quiet:
+            print(trace.summary(), flush=True)
+        options = _options(args)
+        with output_transaction() as tx:
+            out = tx.file(args.out)
+            report = tx.folder(args.report, replace=args.force, keep=[args.trace]) if args.report else None
+            diag = diagnose_trace(trace, options)
+            out.write_text(json.dumps(diag.findings, indent=2) + "\n", encoding="utf-8")
+            if report is not None:
+                write_trace_report(diag, report)
+        f = diag.findings
+        if not args.quiet:
+            print(trace_summary(f))
+    else:
+        from camsmooth.diagnosis.points import diagnose_points, read_points
+        from camsmooth.diagnosis.points import summary_text as points_summary
+
+        pts = read_points(args.points)
+        if not args.quiet:
+            print(pts.summary(), flush=True)
+        with output_transaction() as tx:
+            out = tx.file(args.out)
+            f = diagnose_points(pts)
+            out.write_text(json.dumps(f, indent=2) + "\n", encoding="utf-8")
+        if not args.quiet:
+            print(points_summary(f))
+    if not args.quiet:
+        print(f"findings: {args.out}" + (f"; report: {args.report}" if args.report else ""))
     return 0
 
 

@@ -5,21 +5,31 @@ which two terms that explain a residual equally are named), followed by the line
 from __future__ import annotations
 
 from camsmooth.diagnosis.terms.backlash import Backlash
+from camsmooth.diagnosis.terms.backlash_load import BacklashLoad
 from camsmooth.diagnosis.terms.base import Param, Term
 from camsmooth.diagnosis.terms.linear import LinearPositioning, LinearSquareness, LinearStraightness
 from camsmooth.diagnosis.terms.rotary_location import RotaryLocation
 from camsmooth.diagnosis.terms.rotary_squareness import RotarySquareness
 from camsmooth.diagnosis.terms.servo_lag import ServoLag
+from camsmooth.diagnosis.terms.servo_second_order import ServoSecondOrder
 from camsmooth.diagnosis.terms.spindle_runout import SpindleRunout
 from camsmooth.diagnosis.terms.spindle_tilt import SpindleTilt
 from camsmooth.diagnosis.terms.thermal import ThermalDrift, ThermalMachine
+from camsmooth.diagnosis.terms.thermal_temperature import ThermalTemperature
 from camsmooth.diagnosis.terms.time_offset import TimeOffset
 from camsmooth.diagnosis.terms.tool_length import ToolLength
+from camsmooth.diagnosis.terms.velocity_limit import AccelerationLimit, VelocityLimit
 
 LIBRARY: tuple[Term, ...] = (ServoLag(), TimeOffset(), Backlash(), RotaryLocation(), RotarySquareness(),
                              SpindleTilt(), SpindleRunout(), ToolLength(), ThermalDrift(), ThermalMachine(),
-                             LinearPositioning(), LinearStraightness(), LinearSquareness())
+                             LinearPositioning(), LinearStraightness(), LinearSquareness(),
+                             # controller traces only (camsmooth.diagnosis.trace)
+                             ServoSecondOrder(), VelocityLimit(), AccelerationLimit(), BacklashLoad(),
+                             ThermalTemperature())
 CANDIDATES: tuple[str, ...] = tuple(t.name for t in LIBRARY)
+#: the terms only a controller trace can show (not applicable to a program and its recording)
+TRACE_ONLY: tuple[str, ...] = ("servo_second_order", "velocity_limit", "acceleration_limit", "backlash_load",
+                               "thermal_temperature")
 
 
 def term(name: str) -> Term:
@@ -36,6 +46,18 @@ SEPARATING = {
         "a move whose speed changes (an acceleration, a start or a reversal), recorded with a sampling "
         "period well below 1/Kv, separates them: a lag rounds the velocity corners with time constant 1/Kv, "
         "a clock offset only shifts them; and one clock offset gives every axis the same delay",
+    frozenset({"servo_lag", "servo_second_order"}):
+        "a step or a sharp start of the command, sampled well below 1/wn, separates them: a second-order servo "
+        "starts slowly and overshoots, a first-order lag starts at once and never overshoots",
+    frozenset({"servo_lag", "velocity_limit"}):
+        "moves at two clearly different speeds separate them: a lag grows with speed, a velocity limit clips "
+        "only the fast one",
+    frozenset({"servo_lag", "acceleration_limit"}):
+        "a long move at constant speed separates them: a lag stays behind by v/Kv all along, an acceleration "
+        "limit catches up once the speed is reached",
+    frozenset({"backlash", "backlash_load"}):
+        "reversing the motion under a load of one sign (or changing the load while the axis holds still) "
+        "separates them",
     frozenset({"servo_lag", "backlash"}):
         "moves of the same axis at two clearly different speeds, with a dwell after each reversal, separate "
         "them: lag grows with speed and vanishes at rest, backlash does not",
@@ -69,4 +91,4 @@ def separating_measurement(a: str, b: str) -> str:
                           "(other speeds, rotary positions or spindle speeds) separates them")
 
 
-__all__ = ["CANDIDATES", "LIBRARY", "SEPARATING", "Param", "Term", "separating_measurement", "term"]
+__all__ = ["CANDIDATES", "LIBRARY", "SEPARATING", "TRACE_ONLY", "Param", "Term", "separating_measurement", "term"]

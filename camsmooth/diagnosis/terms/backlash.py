@@ -22,7 +22,7 @@ class Backlash(Term):
     needs = "axis reversals"
 
     def _axes(self, P):
-        return [a for a in AXES if P.knots.reverses(a)]
+        return [a for a in getattr(P, "axes", AXES) if P.knots.reverses(a)]  # a trace names its own axes
 
     def applicable(self, P: Problem) -> str | None:
         return None if self._axes(P) else "no axis reverses in the program"

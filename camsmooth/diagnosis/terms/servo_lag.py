@@ -23,7 +23,7 @@ class ServoLag(Term):
     needs = "moving axes"
 
     def _axes(self, P):
-        return [a for a in AXES if P.knots.moves(a)]
+        return [a for a in getattr(P, "axes", AXES) if P.knots.moves(a)]  # a trace names its own axes
 
     def applicable(self, P: Problem) -> str | None:
         return None if self._axes(P) else "no axis moves in the program"

@@ -22,7 +22,8 @@ class TimeOffset(Term):
     needs = "moving axes"
 
     def applicable(self, P: Problem) -> str | None:
-        return None if any(P.knots.moves(a) for a in AXES) or P.knots.S is not None else "nothing moves"
+        moving = any(P.knots.moves(a) for a in getattr(P, "axes", AXES))  # a trace names its own axes
+        return None if moving or P.knots.S is not None else "nothing moves"
 
     def params(self, P: Problem) -> list[Param]:
         span = float(P.t[-1] - P.t[0])
@@ -37,7 +38,7 @@ class TimeOffset(Term):
 
     def initial(self, P: Problem, model: ErrorModel, names: Sequence[str], resid: np.ndarray) -> np.ndarray:
         num = den = 0.0
-        for a in AXES:
+        for a in getattr(P, "axes", AXES):  # a trace names its own axes
             c = f"{a}_act"
             if c in P.channels and P.knots.moves(a):
                 j = P.channels.index(c)
@@ -66,5 +67,5 @@ class TimeOffset(Term):
         return None
 
     def state(self, P: Problem, names: Sequence[str]) -> tuple[str, np.ndarray, str]:
-        a = max((a for a in AXES if f"v_{a}" in P.states), key=lambda a: np.std(P.states[f"v_{a}"]))
+        a = max((a for a in getattr(P, "axes", AXES) if f"v_{a}" in P.states), key=lambda a: np.std(P.states[f"v_{a}"]))
         return f"commanded velocity {a}", P.states[f"v_{a}"], "mm/s"
