@@ -250,7 +250,7 @@ def test_post_table_in_machine_file(tmp_path):
     m, feed = _method()
     own = machine_from_dict({**base, "post": {"dialect": "linuxcnc", "mode": "tcp", "tcp_on": "M129",
                                               "tcp_off": "M128"}})
-    own = type(own)(own.name, own.kind, MACHINE.pivot, MACHINE.chain, {}, own.post)
+    own = type(own)(own.name, MACHINE.description, MACHINE.chain, {}, own.post)
     text = write_gcode(tmp_path / "own.nc", m, own, CUTTER, feed).read_text()
     assert "M129" in text.splitlines() and "M128" in text.splitlines() and "G93" not in text
 

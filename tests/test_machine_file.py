@@ -62,7 +62,8 @@ def test_post_table_values_and_defaults():
     assert (p.dialect, p.mode, p.tool, p.tcp_on, p.tcp_off) == ("heidenhain", "tcp", 0, "M128", "M129")
 
 
-KINDS = '"AB-head", "AC-table", "BC-table", "BC-head-table")'
+MACHINE_KEYS = "name, kind, pivot, table_centre, table, head, gauge)"
+KINDS = '"AB-head", "AC-table", "BC-table", "BC-head-table"; or describe the chain with table, head and gauge)'
 
 
 @pytest.mark.parametrize("path,value,message", [
@@ -106,8 +107,8 @@ KINDS = '"AB-head", "AC-table", "BC-table", "BC-head-table")'
     ("posts", {"dialect": "fanuc"}, "unknown table(s) [posts] (known: [machine], [axis], [post])"),
     ("machin", {"kind": "AB-head"}, "unknown table(s) [machin] (known: [machine], [axis], [post])"),
     ("pivot", 150.0, "unknown table(s) pivot = 150.0 (known: [machine], [axis], [post])"),
-    ("machine.pivto", 150.0, "unknown key(s) pivto in [machine] (known: name, kind, pivot, table_centre)"),
-    ("machine.post", {"dialect": "fanuc"}, "unknown key(s) post in [machine] (known: name, kind, pivot, table_centre)"),
+    ("machine.pivto", 150.0, "unknown key(s) pivto in [machine] (known: " + MACHINE_KEYS),
+    ("machine.post", {"dialect": "fanuc"}, "unknown key(s) post in [machine] (known: " + MACHINE_KEYS),
     ("axis.Q", {"min": 0.0}, "unknown axis table(s) Q (an AB-head machine has A, B, X, Y, Z)"),
     ("post", "fanuc", "[post] must be a table"),
     ("post", {"dialect": "fanuc", "colour": 1, "brand": 2},

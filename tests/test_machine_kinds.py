@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from camsmooth.machine.kinematics import FIRST_BRANCH, MACHINE_KINDS, machine_from_dict
+from camsmooth.machine.kinematics import MACHINE_KINDS, machine_from_dict
 
 KINDS = tuple(MACHINE_KINDS)
 CENTRE = (12.0, -7.0, -35.0)
@@ -116,7 +116,7 @@ def test_inverse_gives_both_branches_and_brute_force_finds_no_other(kind):
 
 
 def test_first_branch_words_match_branch_of():
-    """FIRST_BRANCH names the branch 0 of every kind in words; check the words on samples."""
+    """branch_words() names the branch 0 of every kind in words; check the words on samples."""
     for kind in KINDS:
         m = machine(kind)
         tilt = np.radians(np.linspace(-179.0, 179.0, 37))
@@ -127,7 +127,9 @@ def test_first_branch_words_match_branch_of():
             expect = np.abs(tilt) <= np.pi / 2
         else:  # "A in [-180, 0] deg" / "B in [-180, 0] deg"
             expect = tilt <= 0
-        assert "[-90, 90]" in FIRST_BRANCH[kind] if kind == "AB-head" else "[-180, 0]" in FIRST_BRANCH[kind]
+        first, second = m.branch_words()
+        assert first == ("B in [-90, 90] deg" if kind == "AB-head" else f"{m.rotary[0]} in [-180, 0] deg")
+        assert second == ("B beyond +-90 deg" if kind == "AB-head" else f"{m.rotary[0]} in (0, 180) deg")
         np.testing.assert_array_equal(branch == 0, expect)
 
 

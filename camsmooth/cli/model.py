@@ -204,9 +204,9 @@ def calibrate_cli(args: argparse.Namespace) -> int:
 def _probe_extent(machine: Any, max_angle: float | None) -> float:
     """The probe grid's +-extent (deg): ``max_angle`` checked against the A and B travel, or the
     largest symmetric extent the travel allows."""
-    if machine.kind != "AB-head":
-        raise InputError(f"simulate probe: probing (columns A, B) is for an AB-head machine; the machine is "
-                         f"{machine.kind}: use `camsmooth simulate rtest` for its rotary axes")
+    from camsmooth.machine.simulate import require_probe_machine
+
+    require_probe_machine(machine, "simulate probe: probing")
     lims = {name: np.degrees([machine.limits[name].min, machine.limits[name].max]) for name in ("A", "B")}
     allowed = min(min(-lo, hi) for lo, hi in lims.values())
     travel = ", ".join(f"{n} [{lo:g}, {hi:g}] deg" for n, (lo, hi) in lims.items())

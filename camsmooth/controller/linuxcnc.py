@@ -48,22 +48,19 @@ from camsmooth.controller.blocks import _row_bounds, block_reach
 from camsmooth.machine.kinematics import Machine
 from camsmooth.smoothing.feed import axis_limits
 
-__all__ = ["LinuxCNCPlanner", "Segments", "canon_segments", "least_row_times", "SERVO_PERIOD_S", "LINUXCNC_SENSE",
-           "linuxcnc_sense"]
-
-#: per machine kind, the sign of each rotary axis value LinuxCNC is given against camsmooth's
-#: (``Machine.rotary`` order). camsmooth's angles are the tool's rotation relative to the workpiece
-#: (ISO 841); LinuxCNC's trt kinematics (xyzac-trt, xyzbc-trt) take a table axis' value as the
-#: table's own rotation, the opposite turn: joints = r + Rx(a) Rz(c) (pos - r) (xyzac) or
-#: r + Ry(b) Rz(c) (pos - r) (xyzbc), against camsmooth's X = c + Rx(-A) Rz(-C) (CL - c), so
-#: a = -A, c = -C (b = -B) with r = the table centre. A head axis turns the tool: no change.
-LINUXCNC_SENSE: dict[str, tuple[float, float]] = {"AB-head": (1.0, 1.0), "AC-table": (-1.0, -1.0),
-                                                  "BC-table": (-1.0, -1.0), "BC-head-table": (1.0, -1.0)}
-
+__all__ = ["LinuxCNCPlanner", "Segments", "canon_segments", "least_row_times", "SERVO_PERIOD_S", "linuxcnc_sense"]
 
 def linuxcnc_sense(machine: Machine) -> np.ndarray:
-    """(2,) the signs LINUXCNC_SENSE gives the machine's rotary axes (1, 1 for an unknown kind)."""
-    return np.array(LINUXCNC_SENSE.get(getattr(machine, "kind", "AB-head"), (1.0, 1.0)))
+    """(2,) the sign of each rotary axis value LinuxCNC is given against camsmooth's
+    (``Machine.rotary`` order; ``Machine.linuxcnc_sense``). camsmooth's angles are the tool's
+    rotation relative to the workpiece (ISO 841); LinuxCNC's trt kinematics (xyzac-trt,
+    xyzbc-trt) take a table axis' value as the table's own rotation, the opposite turn:
+    joints = r + Rx(a) Rz(c) (pos - r) (xyzac) or r + Ry(b) Rz(c) (pos - r) (xyzbc), against
+    camsmooth's X = c + Rx(-A) Rz(-C) (CL - c), so a preset's a = -A, c = -C (b = -B) with r the
+    table centre; a head axis turns the tool: no change. A chain given explicitly is written as
+    described (1, 1)."""
+    return np.asarray(machine.linuxcnc_sense, float)
+
 
 #: LinuxCNC's usual servo (and trajectory) period, s
 SERVO_PERIOD_S = 0.001

@@ -265,9 +265,7 @@ def prepare(program: Program, recording: Recording, machine: Machine | None = No
     machine = machine or load_machine(None)
     # the fitted rotary errors are those of the machine's kind (unstated on an AB head, as ever)
     base = base or ErrorModel()
-    if base.kind is None and machine.kind != "AB-head":
-        base = base.copy()
-        base.kind = machine.kind
+    base = base.for_machine(machine)  # settings name the machine's own rotary errors
     al = align(program, recording)
     channels = [c for c in CHANNELS if c in al.channels]
     knots = Knots(program)

@@ -399,9 +399,7 @@ def simulate_recording(program: Program, machine: Machine | None = None, physics
     external measurement sees it (positioning error included)."""
     machine = machine or load_machine(None)
     physics = physics or ErrorModel()
-    if physics.kind is None and machine.kind != "AB-head":  # settings name the machine's own rotary errors
-        physics = physics.copy()
-        physics.kind = machine.kind
+    physics = physics.for_machine(machine)  # settings name the machine's own rotary errors
     noise = dict(noise or {})
     quantum = dict(quantum or {})
     names: list[str] = []

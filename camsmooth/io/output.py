@@ -125,15 +125,14 @@ def read_result_csv(path: str | os.PathLike, required: Sequence[str] | None = No
 
 def result_rotary(path: str | os.PathLike) -> tuple[str, str]:
     """The rotary columns a result CSV's header names (("A", "B") on an AB head, ("A", "C") on an
-    AC table, ...; MACHINE_KINDS): the first pair of the kinds whose both names are columns; ("A",
-    "B") when none is (the reader then names the missing columns)."""
+    AC table, ...): the two of A, B, C that are columns, in alphabetical order (the order of
+    ``Machine.rotary``); ("A", "B") when not exactly two are (the reader then names the missing
+    columns)."""
     from camsmooth.io.table import read_text_file
-    from camsmooth.machine.kinematics import MACHINE_KINDS
+    from camsmooth.machine.kinematics import ROTARY_NAMES
 
     text = read_text_file(path, "result file")
     first = next((ln for ln in text.splitlines() if ln.strip()), "")
     names = {h.strip().strip('"') for h in first.split(",")}
-    for pair in dict.fromkeys(MACHINE_KINDS.values()):
-        if set(pair) <= names:
-            return pair
-    return ("A", "B")
+    present = [n for n in ROTARY_NAMES if n in names]
+    return (present[0], present[1]) if len(present) == 2 else ("A", "B")

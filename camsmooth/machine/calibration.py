@@ -418,9 +418,9 @@ def calibrate_probe(data: ProbeData | str | os.PathLike, machine: Machine | None
     if not isinstance(data, ProbeData):
         data = read_probe_csv(data)
     machine = machine or load_machine()
-    if machine.kind != "AB-head":
+    if machine.description.preset != "AB-head":
         raise InputError(f"probe calibration (columns A, B) is for an AB-head machine; the machine is "
-                         f"{machine.kind}: calibrate its rotary axes from an R-test (calibrate_rtest, "
+                         f"{machine.describe()}: calibrate its rotary axes from an R-test (calibrate_rtest, "
                          f"`camsmooth calibrate rtest`)", file=data.source)
     base = base or ErrorModel()
     validate_probe(data)
@@ -468,9 +468,12 @@ RTEST_TAIL = ("X", "Y", "Z", "dx", "dy", "dz")
 #: these are confounded with the sphere position and the axis offsets (the rank analysis names
 #: the combinations). On a table-table machine the spindle tilt turns the spindle about the tool
 #: tip and has no first-order effect on a point measurement, so it is not tried there.
-RTEST_PRIORITY: dict[str, tuple[str, ...]] = {
-    kind: tuple(params) + ("EX0S", "EY0S", "EZ0T") + (("EA0S", "EB0S") if "head" in kind else ())
-    for kind, params in ROTARY_BY_KIND.items()}
+def rtest_priority(machine: Machine) -> tuple[str, ...]:
+    """The R-test parameters of ``machine`` in priority order (the comment above): its rotary axis
+    lines (ROTARY_BY_KIND of its preset), the nest's offset, and the spindle tilt where a head
+    carries the spindle."""
+    own = ROTARY_BY_KIND.get(machine.description.preset or "", {})
+    return tuple(own) + ("EX0S", "EY0S", "EZ0T") + (("EA0S", "EB0S") if machine.has_head else ())
 
 
 @dataclass
@@ -541,7 +544,7 @@ def validate_rtest(data: RTestData, machine: Machine) -> None:
         rows = np.flatnonzero(counts[inverse.ravel()] > 1) + 1
         raise InputError(f"duplicate poses: rows {rows[:6].tolist()} repeat the same {', '.join(cols[:5])} (each "
                          "pose must be measured once; average repeated readings first)", file=src)
-    own = ROTARY_BY_KIND[machine.kind]
+    own = ROTARY_BY_KIND.get(machine.description.preset or "", {})
     for k, (ax, vals) in enumerate(zip(machine.rotary, (data.q1, data.q2), strict=True)):
         if len(np.unique(np.round(vals, 9))) < 3:
             params = ", ".join(n for n in own if n.endswith(ax))
@@ -592,17 +595,20 @@ def calibrate_rtest(data: RTestData | str | os.PathLike, machine: Machine | None
     analysis on a rich reference pose set (``reference_rtest_poses``) names what no R-test on
     one sphere can separate (reported, held at the base value); a further loss on the given poses
     is an InputError; then bounded Levenberg-Marquardt (central differences) with the covariance
-    s^2 (J^T J)^-1. parameters: the ones to try (default RTEST_PRIORITY[kind], also the order in
+    s^2 (J^T J)^-1. parameters: the ones to try (default ``rtest_priority(machine)``, also the order in
     which confounded parameters are resolved: later ones are dropped). The result model states
     the machine kind (ErrorModel.kind)."""
     machine = machine or load_machine()
+    if machine.description.preset is None:
+        raise InputError(f"R-test calibration fits the rotary-axis errors of the preset kinds; the machine is given "
+                         f"by its chain ({machine.describe()}), whose rotary-axis errors camsmooth does not model yet")
     if not isinstance(data, RTestData):
         data = read_rtest_csv(data, machine)
     base = (base or ErrorModel())
     base.check_machine(machine)
     base = replace(base, kind=machine.kind)
     validate_rtest(data, machine)
-    names = list(parameters or RTEST_PRIORITY[machine.kind])
+    names = list(parameters or rtest_priority(machine))
     allowed = set(kind_parameters(machine.kind))
     wrong = [p for p in names if p not in allowed]
     if wrong:

@@ -233,53 +233,241 @@ class PostConfig:
     tcp_off: str | None = None
 
 
-#: machine kinds (``[machine] kind``): the chain of each is ``kind_chain``; the rotary axes of each,
-#: in the order of the output columns (the tilt axis first, C last)
+#: the preset kinds (``[machine] kind``): each expands to a MachineChain (``preset_chain``); the rotary
+#: axes of each, in the order of the output columns
 MACHINE_KINDS: dict[str, tuple[str, str]] = {
     "AB-head": ("A", "B"),
     "AC-table": ("A", "C"),
     "BC-table": ("B", "C"),
     "BC-head-table": ("B", "C"),
 }
-#: the first and second inverse branch of each kind (``Machine.branch_of``), in words
-FIRST_BRANCH = {"AB-head": "B in [-90, 90] deg", "AC-table": "A in [-180, 0] deg", "BC-table": "B in [-180, 0] deg",
-                "BC-head-table": "B in [-180, 0] deg"}
-SECOND_BRANCH = {"AB-head": "B beyond +-90 deg", "AC-table": "A in (0, 180) deg", "BC-table": "B in (0, 180) deg",
-                 "BC-head-table": "B in (0, 180) deg"}
+#: the names a rotary axis of a machine file may have (ISO 841: rotations about X, Y, Z)
+ROTARY_NAMES = ("A", "B", "C")
 #: angle (rad) from the pole below which the outer rotary angle is undefined (held at its previous
 #: value by ``solve_row``): far below any angle a program resolves (1e-9 rad = 2e-7 deg)
 POLE_EPS = 1e-9
+#: |g|^2 of Paden-Kahan subproblem 2 below -REACH_EPS: the tool axis is outside the cone the two
+#: rotary axes sweep (a nutating chain), so no angles reach it
+REACH_EPS = 1e-9
+
+
+@dataclass(frozen=True)
+class RotaryAxis:
+    """One rotary axis of a machine description: its name (A, B or C), unit direction (machine frame
+    with every axis at zero; a positive value turns the tool relative to the workpiece right-handed
+    about it) and a point on it (mm): a table axis in the workpiece frame, a head axis from the tool
+    tip, both with every axis at zero."""
+
+    name: str
+    direction: tuple[float, float, float]
+    point: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class MachineChain:
+    """What a machine is, as its file describes it: the rotary axes that carry the workpiece
+    (``table``, from the bed to the workpiece) and those that carry the spindle (``head``, from the
+    ram to the spindle), exactly two in all, and the gauge point (mm, from the tool tip with every
+    axis at zero: the point of the ram that X Y Z command in machine mode). ``preset`` names the kind
+    it was expanded from (MACHINE_KINDS) or is None for a chain given explicitly.
+
+    Formulas (rot(d, q, p): rotation by q about the line through p with direction d, right-handed):
+    tool axis T = R(t_n) ... R(t_1) R(h_1) ... R(h_m) e_z (workpiece frame); machine mode: the tip in
+    the machine frame tip_m = XYZ + rot(h_1) ... rot(h_m) (-gauge), the head's points taken from the
+    gauge point, and the tip in the workpiece frame CL = rot(t_n) ... rot(t_1) tip_m; TCP mode: X Y Z
+    = CL. As a POE chain from the workpiece to the tip: t_n ... t_1, X, Y, Z, h_1 ... h_m, home pose a
+    translation by -gauge (``chain``)."""
+
+    table: tuple[RotaryAxis, ...]
+    head: tuple[RotaryAxis, ...]
+    gauge: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    preset: str | None = None
+
+    @property
+    def axes(self) -> tuple[RotaryAxis, ...]:
+        """The rotary axes from the workpiece to the spindle: t_n ... t_1, h_1 ... h_m."""
+        return tuple(reversed(self.table)) + self.head
+
+    @property
+    def rotary(self) -> tuple[str, str]:
+        """The two rotary axis names in column order (alphabetical: A B, A C, B C)."""
+        a, b = sorted(ax.name for ax in self.axes)
+        return a, b
+
+    def axis(self, name: str) -> RotaryAxis:
+        """The rotary axis called ``name``."""
+        return next(ax for ax in self.axes if ax.name == name)
+
+    def on_table(self, name: str) -> bool:
+        """True when axis ``name`` carries the workpiece, False when it carries the spindle."""
+        return any(ax.name == name for ax in self.table)
+
+    def chain(self) -> Chain:
+        """The POE chain from the workpiece frame to the tool tip (class docstring)."""
+        g = np.asarray(self.gauge, float)
+        joints = [Joint(ax.name, "revolute", ax.direction, ax.point) for ax in reversed(self.table)]
+        joints += [Joint(n, "prismatic", d) for n, d in zip("XYZ", np.eye(3).tolist(), strict=True)]
+        joints += [Joint(ax.name, "revolute", ax.direction, tuple((np.asarray(ax.point) - g).tolist()))
+                   for ax in self.head]
+        home = np.eye(4)
+        home[:3, 3] = -g
+        return Chain(tuple(Joint(j.name, j.kind, tuple(float(v) for v in j.direction),
+                                 tuple(float(v) for v in j.point)) for j in joints), home)
+
+    # ---- the words a machine kind decided before chains: derived here, in one place ---------
+    def axis_formula(self) -> str:
+        """The tool axis as a formula of the rotary axes: "T = Rz(C) Rx(A) e_z" (AC table);
+        R<d>(q) for an axis along -d, R[dx,dy,dz](q) for an inclined one."""
+        def rot(ax: RotaryAxis) -> str:
+            d = np.asarray(ax.direction, float)
+            k = int(np.argmax(np.abs(d)))
+            if abs(abs(d[k]) - 1.0) < 1e-12:
+                return f"R{'xyz'[k]}({'-' if d[k] < 0 else ''}{ax.name})"
+            return "R[" + ",".join(f"{v:.4g}" for v in d) + f"]({ax.name})"
+        return "T = " + " ".join(rot(ax) for ax in self.axes) + " e_z"
+
+    def about(self, name: str) -> str:
+        """The direction of axis ``name`` in words: "+X", "-Z", or "[0, -0.7071, 0.7071]"."""
+        d = np.asarray(self.axis(name).direction, float)
+        k = int(np.argmax(np.abs(d)))
+        if abs(abs(d[k]) - 1.0) < 1e-12:
+            return ("-" if d[k] < 0 else "+") + "XYZ"[k]
+        return "[" + ", ".join(f"{v:.4g}" for v in d) + "]"
+
+    def summary(self) -> str:
+        """One line on the chain: the preset, or the table and head axes with directions and the gauge."""
+        def one(ax: RotaryAxis) -> str:
+            d = ", ".join(f"{v:g}" for v in ax.direction)
+            p = ", ".join(f"{v:g}" for v in ax.point)
+            return f"{ax.name} about [{d}] through [{p}] mm"
+        table = "; ".join(one(ax) for ax in self.table) or "none"
+        head = "; ".join(one(ax) for ax in self.head) or "none"
+        kind = f"kind {self.preset}: " if self.preset else ""
+        gauge = ", ".join(f"{v:g}" for v in self.gauge)
+        return f"{kind}table {table}; head {head}; gauge [{gauge}] mm"
+
+
+def preset_chain(kind: str, pivot: float = 0.0, centre: Sequence[float] = (0.0, 0.0, 0.0)) -> MachineChain:
+    """The chain a preset kind expands to (MACHINE_KINDS): AB-head = head [A, B], A along x, B along y,
+    both through (0, 0, pivot), gauge (0, 0, pivot); AC-table = table [A, C] through the table
+    centre, along x and z, gauge 0; BC-table = table [B, C], along y and z; BC-head-table = table [C]
+    through the centre, head [B] through (0, 0, pivot), gauge (0, 0, pivot)."""
+    c = tuple(float(v) for v in centre)
+    top = (0.0, 0.0, float(pivot))
+    x, y, z = (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)
+    if kind == "AB-head":
+        return MachineChain((), (RotaryAxis("A", x, top), RotaryAxis("B", y, top)), top, kind)
+    if kind == "AC-table":
+        return MachineChain((RotaryAxis("A", x, c), RotaryAxis("C", z, c)), (), (0.0, 0.0, 0.0), kind)
+    if kind == "BC-table":
+        return MachineChain((RotaryAxis("B", y, c), RotaryAxis("C", z, c)), (), (0.0, 0.0, 0.0), kind)
+    if kind == "BC-head-table":
+        return MachineChain((RotaryAxis("C", z, c),), (RotaryAxis("B", y, top),), top, kind)
+    raise ValueError(f"unknown machine kind {kind!r}")
 
 
 @dataclass(frozen=True)
 class Machine:
-    """A five-axis machine: its name, kind (MACHINE_KINDS), pivot length (mm, head pivot to tool
-    tip; 0 on a table-table machine, whose tool length the controller applies), the chain, the
-    limits per axis (radians inside the code), the G-code post settings and the table centre (mm,
-    workpiece frame at zero angles: where the table's C axis crosses its tilt axis).
+    """A five-axis machine: its name, its description (MachineChain: the table and head axes and
+    the gauge point), the chain (the description's POE chain, or an error model's perturbed one),
+    the limits per axis (radians inside the code), the G-code post settings, and whether the file
+    gives jerk limits.
 
     The two rotary axes are ``rotary`` (e.g. ("A", "C")); every method that takes two angles
     (q1, q2) takes them in that order, in radians, as the tool's rotation relative to the
     workpiece (ISO 841 sense; a table turns the workpiece the opposite way), right-hand rule:
-    AB-head T = Rx(A) Ry(B) e_z; AC-table T = Rz(C) Rx(A) e_z; BC-table and BC-head-table
-    T = Rz(C) Ry(B) e_z (docs/CONVENTIONS.md)."""
+    T = R(t_n) ... R(t_1) R(h_1) ... R(h_m) e_z (MachineChain), e.g. AB-head T = Rx(A) Ry(B) e_z;
+    AC-table T = Rz(C) Rx(A) e_z; BC-table and BC-head-table T = Rz(C) Ry(B) e_z
+    (docs/CONVENTIONS.md)."""
 
     name: str
-    kind: str
-    pivot: float
+    description: MachineChain
     chain: Chain
     limits: Mapping[str, AxisLimits] = field(default_factory=dict)
     post: PostConfig = field(default_factory=PostConfig)
-    table_centre: tuple[float, float, float] = (0.0, 0.0, 0.0)
     #: the machine file gives jmax for an axis: the planned time law meets every axis's jmax
     #: (camsmooth.smoothing.jerk); else jmax (a default) is only reported
     jerk_limited: bool = False
+
+    # ---- what the description says ------------------------------------------------------------
+    @property
+    def kind(self) -> str:
+        """The preset kind (MACHINE_KINDS) the machine was described by, or "chain" for a chain
+        given explicitly. Words only: code outside this package asks the description, not this."""
+        return self.description.preset or "chain"
+
+    @property
+    def pivot(self) -> float:
+        """Distance (mm) from the tool tip to the gauge point at every axis zero: the head's pivot
+        length on a preset head; 0 on a table-table machine, whose tool length the controller applies."""
+        return float(np.linalg.norm(self.description.gauge))
+
+    @property
+    def table_centre(self) -> tuple[float, float, float]:
+        """A point (mm, workpiece frame at zero angles) on the table axis that carries the workpiece
+        (where a trunnion's C axis crosses its tilt axis on the presets); the origin without a table."""
+        table = self.description.table
+        return table[-1].point if table else (0.0, 0.0, 0.0)
+
+    @property
+    def has_head(self) -> bool:
+        """A rotary axis carries the spindle (the head's pivot lever moves the tip as it turns)."""
+        return bool(self.description.head)
+
+    @property
+    def has_table(self) -> bool:
+        """A rotary axis carries the workpiece."""
+        return bool(self.description.table)
+
+    @property
+    def linuxcnc_sense(self) -> np.ndarray:
+        """(2,) the sign each rotary value carries in a LinuxCNC program, ``rotary`` order. A preset's
+        table axis is written as the table's own rotation (LinuxCNC's xyzac-trt / xyzbc-trt
+        kinematics: a = -A, c = -C), -1; a head axis +1. A chain given explicitly is written as
+        described (a LinuxCNC trt table is described with its own directions): +1."""
+        if self.description.preset is None:
+            return np.ones(2)
+        return np.array([-1.0 if self.description.on_table(n) else 1.0 for n in self.rotary])
+
+    def branch_words(self) -> tuple[str, str]:
+        """The two inverse branches (``branch_of`` 0 and 1) in words, by the inner axis' angle:
+        e.g. ("A in [-180, 0] deg", "A in (0, 180) deg") on an AC table, ("B in [-90, 90] deg",
+        "B beyond +-90 deg") on the AB head. Branch 0 is where
+        (exp([w2] th2) h) . (w1 x w2) = a + r cos(th2 - phi) >= 0 (``branch_of``)."""
+        nominal = self.description.chain()  # the words of the nominal machine, not of an error model's
+        i1, i2 = [i for i, j in enumerate(nominal.joints) if j.kind == "revolute"]
+        screws = nominal.joint_screws()
+        w1, w2 = (np.asarray(screws[i][0], float) for i in (i1, i2))
+        h = np.asarray(nominal.home, float)[:3, 2]
+        name = nominal.joints[i2].name
+        n = np.cross(w1, w2)
+        # f(th) = (h.w2)(w2.n) + cos th (h - (h.w2) w2).n + sin th (w2 x h).n  (Rodrigues)
+        a = float((h @ w2) * (w2 @ n))
+        b = float((h - (h @ w2) * w2) @ n)
+        c = float(np.cross(w2, h) @ n)
+        r = float(np.hypot(b, c))
+        if r <= abs(a):
+            return (f"{name} anywhere", "none") if a >= 0 else ("none", f"{name} anywhere")
+        phi = np.degrees(np.arctan2(c, b))
+        half = np.degrees(np.arccos(np.clip(-a / r, -1.0, 1.0)))
+        lo, hi = (float(np.round(v, 6)) + 0.0 for v in (phi - half, phi + half))
+        first = f"{name} in [{lo:g}, {hi:g}] deg"
+        if abs(lo + hi) < 1e-9:
+            return first, f"{name} beyond +-{hi:g} deg"
+        lo2, hi2 = hi, lo + 360.0
+        if hi2 > 180.0 + 1e-9:
+            lo2, hi2 = lo2 - 360.0, hi2 - 360.0
+        return first, f"{name} in ({lo2:g}, {hi2:g}) deg"
+
+    def describe(self) -> str:
+        """The machine in a phrase for messages: its name and what it is (the preset or the chain)."""
+        return f"{self.name} ({self.description.summary()})"
 
     # ---- the rotary axes -------------------------------------------------------------------
     @property
     def rotary(self) -> tuple[str, str]:
         """Names of the two rotary axes, in the order every two-angle method takes them."""
-        return MACHINE_KINDS[self.kind]
+        return self.description.rotary
 
     @property
     def joint_names(self) -> tuple[str, str, str, str, str]:
@@ -369,16 +557,9 @@ class Machine:
         B = asin(i), A = atan2(-j, k) and B' = pi - B, A' = A + pi; tables: tilt' = -tilt,
         C' = C + pi). At the pole the outer angle is undefined; it is returned as 0."""
         T = np.atleast_2d(np.asarray(T, dtype=float))
-        i1, i2, j1, j2 = self._outer_inner()
-        screws = self.chain.joint_screws()
-        w1, w2 = (np.asarray(screws[i][0], float) for i in (i1, i2))
-        h = np.asarray(self.chain.home, float)[:3, 2]
-        a = float(w1 @ w2)
+        _, _, j1, j2 = self._outer_inner()
+        w1, w2, h, alpha, beta, g2 = self._subproblem2(T)
         c12 = np.cross(w1, w2)
-        den = a * a - 1.0
-        alpha = (a * (w2 @ h) - T @ w1) / den
-        beta = (a * (T @ w1) - w2 @ h) / den
-        g2 = (h @ h - alpha ** 2 - beta ** 2 - 2 * alpha * beta * a) / (c12 @ c12)
         gam = np.sqrt(np.clip(g2, 0.0, None))
         out = np.empty((len(T), 2, 2))
         order = (0, 1) if (j1.name, j2.name) == self.rotary else (1, 0)
@@ -390,6 +571,31 @@ class Machine:
             out[:, branch, 0] = _wrap(pair[order[0]])
             out[:, branch, 1] = _wrap(pair[order[1]])
         return out
+
+    def _subproblem2(self, T: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                                   np.ndarray]:
+        """Paden-Kahan subproblem 2's coefficients for unit axes T (N, 3): the outer and inner
+        rotary directions w1, w2, the home tool axis h, and alpha, beta, g^2 (N,) of the
+        intermediate direction z = alpha w1 + beta w2 +- g (w1 x w2); g^2 < 0 where T is outside
+        the cone the two axes sweep."""
+        i1, i2, _, _ = self._outer_inner()
+        screws = self.chain.joint_screws()
+        w1, w2 = (np.asarray(screws[i][0], float) for i in (i1, i2))
+        h = np.asarray(self.chain.home, float)[:3, 2]
+        a = float(w1 @ w2)
+        c12 = np.cross(w1, w2)
+        den = a * a - 1.0
+        alpha = (a * (w2 @ h) - T @ w1) / den
+        beta = (a * (T @ w1) - w2 @ h) / den
+        g2 = (h @ h - alpha ** 2 - beta ** 2 - 2 * alpha * beta * a) / (c12 @ c12)
+        return w1, w2, h, alpha, beta, g2
+
+    def reachable(self, T: np.ndarray) -> np.ndarray:
+        """Mask (N,) of the unit tool axes T (N, 3, workpiece frame) that some rotary angles reach,
+        travel aside: all of them on an orthogonal chain; on a nutating one (an inclined axis)
+        those inside the cone its axes sweep (subproblem 2's g^2 >= -REACH_EPS)."""
+        T = np.atleast_2d(np.asarray(T, dtype=float))
+        return self._subproblem2(T)[5] >= -REACH_EPS
 
     def nearest_with_outer(self, T: np.ndarray, outer: np.ndarray) -> np.ndarray:
         """The angles (N, 2) rad in ``rotary`` order with the outer rotary axis (the C axis of a
@@ -411,7 +617,7 @@ class Machine:
     def branch_of(self, q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
         """Which inverse branch (0 or 1, as ``inverse_axis`` numbers them) the angles (q1, q2) rad
         are on: the sign of the +-g component of subproblem 2, read from the inner axis alone
-        (exp([w2] th2) h . (w1 x w2) >= 0: branch 0). Branch 0 is FIRST_BRANCH[kind]; points
+        (exp([w2] th2) h . (w1 x w2) >= 0: branch 0). Branch 0 is ``branch_words()[0]``; points
         within 1e-12 of the boundary count as branch 0."""
         i1, i2, _, j2 = self._outer_inner()
         screws = self.chain.joint_screws()
@@ -439,7 +645,8 @@ class Machine:
         grid = np.stack(np.meshgrid(shifts, shifts, indexing="ij"), -1).reshape(-1, 2)
         cand = (sols[:, :, None, :] + grid[None, None]).reshape(len(sols), -1, 2)
         r1, r2 = self.rotary
-        return cand, self.within(r1, cand[..., 0]) & self.within(r2, cand[..., 1])
+        ok = self.within(r1, cand[..., 0]) & self.within(r2, cand[..., 1]) & self.reachable(T)[:, None]
+        return cand, ok
 
     def solve_row(self, T: np.ndarray, cl: np.ndarray | None = None,
                   previous: tuple[float, float] | None = None) -> IKResult:
@@ -538,67 +745,52 @@ def _wrap(a: np.ndarray) -> np.ndarray:
     return -((-np.asarray(a) + np.pi) % (2 * np.pi) - np.pi)
 
 
-def ab_head_chain(pivot: float) -> Chain:
-    """The AB swivel head of METHODS section 1: linear axes X, Y, Z carry the pivot; A rotates
-    about X (outer), B about Y (inner, carried by A); both axes pass through the pivot, which is
-    at the workpiece origin when X = Y = Z = 0. Home: tool tip at (0, 0, -pivot), tool axis +z."""
-    joints = (
-        Joint("X", "prismatic", (1.0, 0.0, 0.0)),
-        Joint("Y", "prismatic", (0.0, 1.0, 0.0)),
-        Joint("Z", "prismatic", (0.0, 0.0, 1.0)),
-        Joint("A", "revolute", (1.0, 0.0, 0.0), (0.0, 0.0, 0.0)),
-        Joint("B", "revolute", (0.0, 1.0, 0.0), (0.0, 0.0, 0.0)),
-    )
-    home = np.eye(4)
-    home[2, 3] = -pivot
-    return Chain(joints, home)
-
-
-def table_chain(tilt: str, centre: Sequence[float]) -> Chain:
-    """A trunnion table (AC-table: tilt = "A" about x; BC-table: tilt = "B" about y) seen from the
-    workpiece: the workpiece frame W is carried by the table, so the chain from W to the tool tip
-    runs C (about z through the table centre c, outer), the tilt axis (through c, carried by C),
-    then X, Y, Z, which carry the tool tip in the machine frame. Home: tip at the origin, axis +z.
-    Tip = c + Rz(C) R_tilt (P - c) for P = (X, Y, Z): the inverse of the machine's
-    P = c + R_wp (CL - c), R_wp = R_tilt(-tilt) Rz(-C) (issue 18)."""
-    c = tuple(float(v) for v in centre)
-    d = (1.0, 0.0, 0.0) if tilt == "A" else (0.0, 1.0, 0.0)
-    joints = (
-        Joint("C", "revolute", (0.0, 0.0, 1.0), c),
-        Joint(tilt, "revolute", d, c),
-        Joint("X", "prismatic", (1.0, 0.0, 0.0)),
-        Joint("Y", "prismatic", (0.0, 1.0, 0.0)),
-        Joint("Z", "prismatic", (0.0, 0.0, 1.0)),
-    )
-    return Chain(joints, np.eye(4))
-
-
-def head_table_chain(pivot: float, centre: Sequence[float]) -> Chain:
-    """A B head over a C table (BC-head-table): C about z through the table centre c (outer,
-    carries the workpiece), then X, Y, Z carrying the head's pivot, then B about y through the
-    pivot. Home: tip at (0, 0, -pivot), axis +z. Tip = c + Rz(C)(P - L_p Ry(B) e_z - c)."""
-    c = tuple(float(v) for v in centre)
-    joints = (
-        Joint("C", "revolute", (0.0, 0.0, 1.0), c),
-        Joint("X", "prismatic", (1.0, 0.0, 0.0)),
-        Joint("Y", "prismatic", (0.0, 1.0, 0.0)),
-        Joint("Z", "prismatic", (0.0, 0.0, 1.0)),
-        Joint("B", "revolute", (0.0, 1.0, 0.0), (0.0, 0.0, 0.0)),
-    )
-    home = np.eye(4)
-    home[2, 3] = -pivot
-    return Chain(joints, home)
-
-
 def kind_chain(kind: str, pivot: float, centre: Sequence[float] = (0.0, 0.0, 0.0)) -> Chain:
-    """The nominal chain of a machine kind (MACHINE_KINDS): the one place a kind becomes a chain."""
-    if kind == "AB-head":
-        return ab_head_chain(pivot)
-    if kind in ("AC-table", "BC-table"):
-        return table_chain(kind[0], centre)
-    if kind == "BC-head-table":
-        return head_table_chain(pivot, centre)
-    raise ValueError(f"unknown machine kind {kind!r}")
+    """The nominal POE chain of a preset kind (MACHINE_KINDS; ``preset_chain``)."""
+    return preset_chain(kind, pivot, centre).chain()
+
+
+def machine_from_header(kind: str | None, pivot: float | None, centre: Sequence[float], machine: Machine | None,
+                        rotary: Sequence[str] | None = None, file: str | None = None, line: int | None = None
+                        ) -> Machine:
+    """The machine a program of camsmooth's was written for, from its header's words: ``kind``
+    (a preset, "chain", or None for older headers), the pivot (mm) and table centre (mm) and the
+    rotary letters it commands. With ``machine`` given, that machine, after checking it has those
+    rotary axes; without, the nominal preset machine of the header (the AB head without a kind).
+    InputError naming the file and line for an unknown kind, a chain machine not given, or rotary
+    axes the machine does not have."""
+    from camsmooth.errors import InputError
+
+    if kind is not None and kind not in MACHINE_KINDS and kind != "chain":
+        raise InputError(f"the camsmooth post header gives kind={kind}: not a machine kind "
+                         f"({', '.join(MACHINE_KINDS)}, chain)", file=file, line=line)
+    if machine is not None:
+        letters = tuple(rotary) if rotary else (MACHINE_KINDS[kind] if kind in MACHINE_KINDS else machine.rotary)
+        if letters != machine.rotary:
+            written = f"an {kind} machine" if kind in MACHINE_KINDS else "a machine"
+            own = f"an {machine.kind}" if machine.description.preset else "a machine given by its chain"
+            raise InputError(f"the program was written for {written} (rotary axes {','.join(letters)}) but the "
+                             f"machine is {own} ({machine.name}, rotary axes {','.join(machine.rotary)}): give the "
+                             "machine file it was written for (--machine)", file=file, line=line)
+        return machine
+    if kind == "chain":
+        raise InputError("the program was written for a machine described by its chain: give its machine file "
+                         "(--machine)", file=file, line=line)
+    kind = kind or "AB-head"
+    desc = preset_chain(kind)
+    base = load_machine(None)
+    pivot = (base.pivot if pivot is None else pivot) if desc.head else 0.0
+    if not desc.table:  # the default machine's name and post with the header's pivot
+        return preset_machine(kind, pivot, centre, base.name, post=base.post)
+    return preset_machine(kind, pivot, centre, f"{kind} from the program header", post=base.post)
+
+
+def preset_machine(kind: str, pivot: float = 0.0, centre: Sequence[float] = (0.0, 0.0, 0.0), name: str | None = None,
+                   limits: Mapping[str, AxisLimits] | None = None, post: PostConfig | None = None) -> Machine:
+    """A machine of a preset kind with the given pivot (mm, head kinds) and table centre (mm,
+    table kinds), limits (rad) and post settings (default: none given, the generic post)."""
+    desc = preset_chain(kind, pivot, centre)
+    return Machine(name or kind.replace("-", " "), desc, desc.chain(), dict(limits or {}), post or PostConfig())
 
 
 #: dynamics of the linear axes when a machine file does not give them (mm/s, mm/s^2, mm/s^3): a
@@ -712,14 +904,18 @@ def _table(parent: Mapping[str, Any], key: str, where: str, file: str,
 def machine_from_dict(data: Mapping[str, Any], source: str = "<machine>") -> Machine:
     """A Machine from the parsed machine TOML (degrees in the file, radians in the result).
 
-    InputError naming ``source`` and the key for: a missing or wrongly typed table or key (a value
-    where a table belongs, a string or boolean where a number belongs), non-finite numbers, an
-    unsupported kind, pivot < 0 (or a pivot on a table-table machine), min >= max, vmax, amax or
-    jmax <= 0, a C axis with only one of min and max, unknown tables (top level or axis) or keys.
-    The rotary axes ``[axis.*]`` are those of the kind (MACHINE_KINDS); a C axis without min and
-    max is continuous. ``table_centre`` (mm, default the origin) places the table's axes.
-    X, Y, Z: vmax, amax, jmax default to LINEAR_DEFAULTS and a missing table to unlimited travel
-    with those dynamics; rotary axes: jmax defaults to ROTARY_JMAX_DEFAULT.
+    ``[machine]`` gives either a preset ``kind`` (MACHINE_KINDS, with ``pivot`` on a head and
+    ``table_centre`` on a table: ``preset_chain``) or the chain itself: ``table`` and ``head`` (the
+    rotary axis names from the bed to the workpiece and from the ram to the spindle, two in all),
+    ``gauge`` (mm, required with a head) and per rotary axis ``direction`` and ``point``
+    (``chain_from_dict``). InputError naming ``source`` and the key for: a missing or wrongly typed
+    table or key (a value where a table belongs, a string or boolean where a number belongs),
+    non-finite numbers, an unsupported kind, a kind given with a chain, pivot < 0 (or a pivot on a
+    table-table machine), min >= max, vmax, amax or jmax <= 0, an axis with only one of min and max,
+    unknown tables (top level or axis) or keys. The rotary axes ``[axis.*]`` are those of the
+    description; the table's last axis (the one carrying the workpiece) without min and max is
+    continuous. X, Y, Z: vmax, amax, jmax default to LINEAR_DEFAULTS and a missing table to
+    unlimited travel with those dynamics; rotary axes: jmax defaults to ROTARY_JMAX_DEFAULT.
     """
     from camsmooth.errors import InputError
 
@@ -729,54 +925,41 @@ def machine_from_dict(data: Mapping[str, Any], source: str = "<machine>") -> Mac
     if unknown:
         raise InputError(f"unknown key(s) {', '.join(unknown)} in [machine] (known: {', '.join(_MACHINE_KEYS)})",
                          file=source)
-    kind = m.get("kind")
-    if kind not in MACHINE_KINDS:
-        shown = _toml_repr(kind) if kind is not None else "missing"
-        known = ", ".join(f'"{k}"' for k in MACHINE_KINDS)
-        raise InputError(f"[machine] kind = {shown} is not supported (supported: {known})", file=source)
-    rotary = MACHINE_KINDS[kind]
-    head = kind in ("AB-head", "BC-head-table")
-    if head:
-        pivot = _number(m, "pivot", "machine", source)
-        if pivot < 0:
-            raise InputError(f"[machine] pivot must be >= 0 mm, got {pivot:g}", file=source)
+    axes = _table(data, "axis", "axis", source, required=False) or {}
+    for ax in axes:
+        _table(axes, ax, f"axis.{ax}", source)
+    chained = [k for k in _CHAIN_KEYS if k in m]
+    if chained and "kind" in m:
+        raise InputError(f"[machine] gives kind = {_toml_repr(m['kind'])} and {', '.join(chained)}: a machine is "
+                         "a preset kind or a chain (table, head, gauge), not both", file=source)
+    if chained:
+        desc = chain_from_dict(m, axes, source)
+        default_name = "five-axis machine (" + " ".join(desc.rotary) + ")"
     else:
-        if "pivot" in m:
-            raise InputError(f"[machine] pivot: a table-table machine ({kind}) has no head pivot (its tool length is "
-                             "the "
-                             "controller's); remove the key", file=source)
-        pivot = 0.0
-    centre = (0.0, 0.0, 0.0)
-    if "table_centre" in m:
-        if kind == "AB-head":
-            raise InputError("[machine] table_centre: an AB-head machine has no rotary table; remove the key",
-                             file=source)
-        tc = m["table_centre"]
-        if (not isinstance(tc, list) or len(tc) != 3
-                or any(isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) for v in tc)):
-            raise InputError(f"[machine] table_centre must be three finite numbers [x, y, z] (mm), got "
-                             f"{_toml_repr(tc)}", file=source)
-        centre = tuple(float(v) for v in tc)
-    name = m.get("name", kind.replace("-", " "))
+        desc = _preset_from_dict(m, axes, source)
+        default_name = str(desc.preset).replace("-", " ")
+    rotary = desc.rotary
+    name = m.get("name", default_name)
     if not isinstance(name, str):
         raise InputError(f"[machine] name must be a string, got {_toml_repr(name)}", file=source)
-    axes = _table(data, "axis", "axis", source, required=False) or {}
     allowed = set(rotary) | {"X", "Y", "Z"}
     unknown = set(axes) - allowed
     if unknown:
-        raise InputError(f"unknown axis table(s) {', '.join(sorted(unknown))} (an {kind} machine has "
+        which = f"an {desc.preset} machine" if desc.preset else "the machine"
+        raise InputError(f"unknown axis table(s) {', '.join(sorted(unknown))} ({which} has "
                          f"{', '.join(rotary)}, X, Y, Z)", file=source)
+    carrier = desc.table[-1].name if desc.table else None  # the table axis that may turn without end
     limits: dict[str, AxisLimits] = {}
     for ax in rotary:
         t = _table(axes, ax, f"axis.{ax}", source)
-        _known_keys(t, ax, source)
+        _known_keys(t, ax, source, _AXIS_KEYS + (("direction", "point") if chained else ()))
         travel = ("min", "max")
-        if ax == "C" and not any(k in t for k in travel):
-            travel = ()  # a continuous C: no travel limits
-        elif ax == "C" and sum(k in t for k in travel) == 1:
-            given = "min" if "min" in t else "max"
-            raise InputError(f"[axis.C] gives {given} but not {'max' if given == 'min' else 'min'}: give both "
-                             "or neither (a continuous C)", file=source)
+        given = [k for k in travel if k in t]
+        if ax == carrier and not given:
+            travel = ()  # a continuous table axis: no travel limits
+        elif ax == carrier and len(given) == 1:
+            raise InputError(f"[axis.{ax}] gives {given[0]} but not {'max' if given[0] == 'min' else 'min'}: give "
+                             "both or neither (a continuous axis)", file=source)
         vals = {k: _number(t, k, f"axis.{ax}", source) for k in travel + ("vmax", "amax")}
         vals.setdefault("min", -np.inf)
         vals.setdefault("max", np.inf)
@@ -797,14 +980,110 @@ def machine_from_dict(data: Mapping[str, Any], source: str = "<machine>") -> Mac
         vals = {k: _number(t, k, f"axis.{ax}", source) if k in t else d for k, d in LINEAR_DEFAULTS.items()}
         _positive(vals, ax, source)
         limits[ax] = AxisLimits(lo, hi, **vals)
-    return Machine(name, kind, pivot, kind_chain(kind, pivot, centre), limits,
-                   post_from_dict(data.get("post", {}), source), table_centre=centre,
+    return Machine(name, desc, desc.chain(), limits, post_from_dict(data.get("post", {}), source),
                    jerk_limited=any(isinstance(t, dict) and "jmax" in t for t in axes.values()))
+
+
+def _preset_from_dict(m: Mapping[str, Any], axes: Mapping[str, Any], source: str) -> MachineChain:
+    """The MachineChain of ``[machine] kind`` with its pivot and table centre (machine_from_dict)."""
+    from camsmooth.errors import InputError
+
+    kind = m.get("kind")
+    if kind not in MACHINE_KINDS:
+        shown = _toml_repr(kind) if kind is not None else "missing"
+        known = ", ".join(f'"{k}"' for k in MACHINE_KINDS)
+        raise InputError(f"[machine] kind = {shown} is not supported (supported: {known}; or describe the chain "
+                         "with table, head and gauge)", file=source)
+    head = bool(preset_chain(kind).head)
+    if head:
+        pivot = _number(m, "pivot", "machine", source)
+        if pivot < 0:
+            raise InputError(f"[machine] pivot must be >= 0 mm, got {pivot:g}", file=source)
+    else:
+        if "pivot" in m:
+            raise InputError(f"[machine] pivot: a table-table machine ({kind}) has no head pivot (its tool length is "
+                             "the controller's); remove the key", file=source)
+        pivot = 0.0
+    centre = (0.0, 0.0, 0.0)
+    if "table_centre" in m:
+        if not preset_chain(kind).table:
+            raise InputError(f"[machine] table_centre: an {kind} machine has no rotary table; remove the key",
+                             file=source)
+        centre = _vector(m["table_centre"], "[machine] table_centre", source)
+    for ax in MACHINE_KINDS[kind]:
+        t = axes.get(ax)
+        if isinstance(t, Mapping) and ("direction" in t or "point" in t):
+            raise InputError(f"[axis.{ax}] direction/point: the kind {kind} fixes its axes' lines; describe the "
+                             "machine by its chain (table, head, gauge) instead of kind to give them", file=source)
+    return preset_chain(kind, pivot, centre)
+
+
+def chain_from_dict(m: Mapping[str, Any], axes: Mapping[str, Any], source: str = "<machine>") -> MachineChain:
+    """The MachineChain of a machine file that gives its chain: ``[machine] table`` and ``head``
+    (rotary axis names, A B or C, two in all), ``gauge`` (mm; required when ``head`` is not empty,
+    else default 0) and per rotary axis ``direction`` (normalised; machine frame at every axis zero)
+    and ``point`` (mm: a table axis in the workpiece frame, a head axis from the tool tip).
+    InputError naming the key for a wrong name, count or vector, parallel axes, or an axis nearest
+    the tool that lies along the tool (it could not turn it)."""
+    from camsmooth.errors import InputError
+
+    names: dict[str, list[str]] = {}
+    for key in ("table", "head"):
+        v = m.get(key, [])
+        if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
+            raise InputError(f"[machine] {key} must be a list of axis names (e.g. [\"A\", \"C\"]), got {_toml_repr(v)}",
+                             file=source)
+        bad = [x for x in v if x not in ROTARY_NAMES]
+        if bad:
+            raise InputError(f"[machine] {key}: {', '.join(repr(x) for x in bad)} is not a rotary axis name "
+                             f"({', '.join(ROTARY_NAMES)})", file=source)
+        names[key] = list(v)
+    every = names["table"] + names["head"]
+    if len(every) != 2 or len(set(every)) != 2:
+        raise InputError(f"[machine] table = {names['table']} and head = {names['head']} must name exactly two "
+                         "different rotary axes in all", file=source)
+    if names["head"] and "gauge" not in m:
+        raise InputError("[machine] gauge is required when head is not empty: the point of the ram that X Y Z "
+                         "command, from the tool tip with every axis at zero (mm)", file=source)
+    gauge = _vector(m.get("gauge", [0.0, 0.0, 0.0]), "[machine] gauge", source)
+
+    def one(name: str) -> RotaryAxis:
+        t = _table(axes, name, f"axis.{name}", source)
+        for key in ("direction", "point"):
+            if key not in t:
+                raise InputError(f"missing key '{key}' in [axis.{name}] (a machine given by its chain gives each "
+                                 "rotary axis' direction and point)", file=source)
+        d = np.asarray(_vector(t["direction"], f"[axis.{name}] direction", source))
+        if np.linalg.norm(d) < 1e-9:
+            raise InputError(f"[axis.{name}] direction must not be zero", file=source)
+        d = d / np.linalg.norm(d)
+        return RotaryAxis(name, tuple(float(x) for x in d), _vector(t["point"], f"[axis.{name}] point", source))
+
+    desc = MachineChain(tuple(one(n) for n in names["table"]), tuple(one(n) for n in names["head"]), gauge)
+    outer, inner = desc.axes
+    if abs(float(np.dot(outer.direction, inner.direction))) > 1.0 - 1e-9:
+        raise InputError(f"[axis.{outer.name}] and [axis.{inner.name}] directions are parallel: two parallel rotary "
+                         "axes cannot point the tool", file=source)
+    if abs(inner.direction[2]) > 1.0 - 1e-9:
+        raise InputError(f"[axis.{inner.name}] direction is along the tool (z with every axis at zero): the axis "
+                         "nearest the tool cannot turn it", file=source)
+    return desc
+
+
+def _vector(v: Any, where: str, source: str) -> tuple[float, float, float]:
+    """Three finite numbers [x, y, z] of a machine file; InputError naming ``where`` otherwise."""
+    from camsmooth.errors import InputError
+
+    if (not isinstance(v, list) or len(v) != 3
+            or any(isinstance(x, bool) or not isinstance(x, (int, float)) or not np.isfinite(x) for x in v)):
+        raise InputError(f"{where} must be three finite numbers [x, y, z], got {_toml_repr(v)}", file=source)
+    return (float(v[0]), float(v[1]), float(v[2]))
 
 
 _AXIS_KEYS = ("min", "max", "vmax", "amax", "jmax")
 _TOP_TABLES = ("machine", "axis", "post")
-_MACHINE_KEYS = ("name", "kind", "pivot", "table_centre")
+_CHAIN_KEYS = ("table", "head", "gauge")
+_MACHINE_KEYS = ("name", "kind", "pivot", "table_centre") + _CHAIN_KEYS
 
 
 def _known_tables(data: Mapping[str, Any], source: str) -> None:
@@ -820,13 +1099,13 @@ def _known_tables(data: Mapping[str, Any], source: str) -> None:
                          file=source)
 
 
-def _known_keys(table: Mapping[str, Any], ax: str, source: str) -> None:
+def _known_keys(table: Mapping[str, Any], ax: str, source: str, known: Sequence[str] = _AXIS_KEYS) -> None:
     """InputError for a key an [axis.*] table does not know (a misspelt limit would be ignored)."""
     from camsmooth.errors import InputError
 
-    unknown = sorted(set(table) - set(_AXIS_KEYS))
+    unknown = sorted(set(table) - set(known))
     if unknown:
-        raise InputError(f"unknown key(s) {', '.join(unknown)} in [axis.{ax}] (known: {', '.join(_AXIS_KEYS)})",
+        raise InputError(f"unknown key(s) {', '.join(unknown)} in [axis.{ax}] (known: {', '.join(known)})",
                          file=source)
 
 

@@ -208,6 +208,17 @@ def spoken_kind(kind: str) -> str:
     return ("an " if kind[0] in "AEFHILMNORSX" else "a ") + kind
 
 
+def machine_parameters(machine: Machine) -> tuple[str, ...]:
+    """The geometric parameters that apply to ``machine``: those of its preset kind
+    (``kind_parameters``); on a chain given explicitly the spindle, tool and linear-axis errors (its
+    rotary-axis errors are not modelled yet)."""
+    preset = machine.description.preset
+    if preset is None:
+        own = set(SPINDLE_TOOL_GEOMETRIC) | set(LINEAR_GEOMETRIC)
+        return tuple(n for n in GEOMETRIC_NAMES if n in own)
+    return kind_parameters(preset)
+
+
 def kind_parameters(kind: str) -> tuple[str, ...]:
     """The geometric parameters that apply to a machine kind (MACHINE_KINDS): its rotary-axis
     errors (ROTARY_BY_KIND), the spindle and tool errors and the linear-axis errors, in
@@ -798,11 +809,29 @@ class ErrorModel:
             return None
         return "table" if any(n in TABLE_GEOMETRIC for n in rotary) else "AB-head"
 
+    def for_machine(self, machine: Machine) -> ErrorModel:
+        """This model with its rotary-axis errors stated to be ``machine``'s (a copy with ``kind`` set)
+        when it states none and the machine is a preset other than the AB head (whose models have
+        always left the kind unstated); else this model itself."""
+        preset = machine.description.preset
+        if self.kind is None and preset is not None and preset != "AB-head":
+            model = self.copy()
+            model.kind = preset
+            return model
+        return self
+
     def check_machine(self, machine: Machine) -> None:
         """InputError when this model's rotary-axis errors are not for ``machine``'s kind (an
         AB-head model on a table machine, a table model on an AB head, an AC-table model on a BC
         table, ...), naming both kinds."""
         own = self.machine_kind()
+        if machine.description.preset is None:
+            rotary = [n for n, v in self.geometric.items() if n in _ROTARY_NAMES and v]
+            if rotary:
+                raise InputError(f"the error model has rotary-axis errors ({', '.join(rotary)}), but the machine is "
+                                 f"given by its chain ({machine.describe()}), whose rotary-axis errors camsmooth does "
+                                 "not model yet: use a model without them (spindle, tool, linear axes, servo, thermal)")
+            return
         if own is None or own == machine.kind:
             return
         rotary = [n for n in self.geometric if n in _ROTARY_NAMES]
@@ -1011,7 +1040,8 @@ class ErrorModel:
         names = chain.names
         idx = {n: i for i, n in enumerate(names)}
         screws = list(chain.joint_screws())
-        if machine.kind == "AB-head":
+        preset = machine.description.preset
+        if preset == "AB-head":
             if names != ("X", "Y", "Z", "A", "B"):
                 raise ValueError(f"the error model needs an AB head chain X, Y, Z, A, B; got {names}")
             jA, jB = chain.joints[3], chain.joints[4]
@@ -1024,8 +1054,9 @@ class ErrorModel:
             screws[3] = (w_A, -np.cross(w_A, F_A[:3, 3]))
             screws[4] = (w_B, -np.cross(w_B, F_B[:3, 3]))
         else:
-            for name, (w, point) in self.table_axis_lines(machine).items():
-                screws[idx[name]] = (w, -np.cross(w, point))
+            if preset is not None:  # a chain given explicitly has no modelled rotary errors (check_machine)
+                for name, (w, point) in self.table_axis_lines(machine).items():
+                    screws[idx[name]] = (w, -np.cross(w, point))
             S = self.spindle_frame(_spindle_pivot(machine))
         g = self.get
         if g("EC0Y"):
@@ -1059,7 +1090,7 @@ class ErrorModel:
         tilt = machine.rotary[0]
         jC, jT = joints.get("C"), joints.get(tilt)
         nominal_tilt = (1, 0, 0) if tilt == "A" else (0, 1, 0)
-        head = machine.kind == "BC-head-table"
+        head = machine.has_head
         tilt_point = np.zeros(3) if head else c
         if (jC is None or jT is None or not np.allclose(jC.direction, (0, 0, 1)) or not np.allclose(jC.point, c)
                 or not np.allclose(jT.direction, nominal_tilt) or not np.allclose(jT.point, tilt_point)):

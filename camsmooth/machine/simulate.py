@@ -40,6 +40,14 @@ def default_probe_poses(machine: Machine, n: int = 11, max_deg: float = 100.0
     return A[ok], B[ok]
 
 
+def require_probe_machine(machine: Machine, what: str = "probing") -> None:
+    """InputError unless ``machine`` is the AB head that reference-sphere probing (columns A, B)
+    simulates and calibrates: its rotary errors are the AB head's (ErrorModel, module docstring)."""
+    if machine.description.preset != "AB-head":
+        raise InputError(f"{what} (columns A, B) is for an AB-head machine; the machine is {machine.describe()}: "
+                         "simulate its rotary axes' R-test instead (simulate_rtest, `camsmooth simulate rtest`)")
+
+
 def simulate_probe(model: ErrorModel, machine: Machine | None = None, *, poses: tuple[np.ndarray, np.ndarray]
                    | None = None, sphere: Sequence[float] = (0.0, 0.0, 0.0),
                    sphere_error: Sequence[float] = (0.012, -0.008, 0.005),
@@ -50,9 +58,7 @@ def simulate_probe(model: ErrorModel, machine: Machine | None = None, *, poses: 
     reports the centre computed with its nominal kinematics: c - g(A, B) + N(0, noise^2) per
     coordinate (g = real minus nominal tool tip; calibration module docstring)."""
     machine = machine or load_machine()
-    if machine.kind != "AB-head":
-        raise InputError(f"probing (columns A, B) is simulated for an AB-head machine; the machine is {machine.kind}: "
-                         "simulate its rotary axes' R-test instead (simulate_rtest, `camsmooth simulate rtest`)")
+    require_probe_machine(machine)
     A, B = poses if poses is not None else default_probe_poses(machine)
     A, B = np.asarray(A, float), np.asarray(B, float)
     c0 = np.asarray(sphere, float)

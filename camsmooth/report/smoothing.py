@@ -902,11 +902,13 @@ def _setup_html(result: SmoothResult) -> str:
     m, c = result.machine, result.cutter
     rows: list[tuple[str, str]] = []
     if m is not None:
-        kind = getattr(m, "kind", "?")
-        where = [f"pivot {_fmt(getattr(m, 'pivot', None))} mm"] if kind in ("AB-head", "BC-head-table", "?") else []
-        if kind != "AB-head" and getattr(m, "table_centre", None) is not None:
-            where.append("table centre [" + ", ".join(_fmt(v) for v in m.table_centre) + "] mm")
-        rows.append(("machine", f"{getattr(m, 'name', '?')} (kind {kind}, {', '.join(where)})"))
+        if m.description.preset is not None:
+            where = [f"pivot {_fmt(m.pivot)} mm"] if m.has_head else []
+            if m.has_table:
+                where.append("table centre [" + ", ".join(_fmt(v) for v in m.table_centre) + "] mm")
+            rows.append(("machine", f"{m.name} (kind {m.kind}, {', '.join(where)})"))
+        else:
+            rows.append(("machine", f"{m.name} ({m.description.summary()})"))
         rotary = tuple(getattr(m, "rotary", ("A", "B")))
         for ax in (*rotary, "X", "Y", "Z"):
             lim = _axis_limits(m, ax)

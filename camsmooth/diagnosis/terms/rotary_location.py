@@ -1,6 +1,6 @@
 """rotary_location: the rotary axis lines displaced from their nominal places (EY0A, EZ0A, EX0B,
 EZ0B on any kind that has them; EX0C, EY0C on a table; camsmooth.machine.model), those of the
-machine's kind (``kind_parameters``) whose axis moves."""
+machine (``machine_parameters``) whose axis moves."""
 
 from __future__ import annotations
 
@@ -25,9 +25,9 @@ class RotaryLocation(Geometric):
     PER_AXIS = {"A": ("EY0A", "EZ0A"), "B": ("EX0B", "EZ0B"), "C": ("EX0C", "EY0C")}
 
     def candidates_for(self, P: Problem) -> list[tuple[Any, ...]]:
-        from camsmooth.machine.model import kind_parameters
+        from camsmooth.machine.model import machine_parameters
 
-        own = set(kind_parameters(P.machine.kind))
+        own = set(machine_parameters(P.machine))
         unit, bound, scale = "mm", 5.0, 1e-3
         return [(n, unit, bound, scale, a) for a, names in self.PER_AXIS.items() if P.knots.moves(a)
                 for n in names if n in own]

@@ -22,9 +22,9 @@ class RotarySquareness(Geometric):
     PER_AXIS = {"A": ("EB0A", "EC0A"), "B": ("EA0B", "EC0B"), "C": ("EA0C", "EB0C")}
 
     def candidates_for(self, P: Problem) -> list[tuple[Any, ...]]:
-        from camsmooth.machine.model import kind_parameters
+        from camsmooth.machine.model import machine_parameters
 
-        own = set(kind_parameters(P.machine.kind))
+        own = set(machine_parameters(P.machine))
         unit, bound, scale = "rad", 0.05, 1e-6
         return [(n, unit, bound, scale, a) for a, names in self.PER_AXIS.items() if P.knots.moves(a)
                 for n in names if n in own]
