@@ -219,3 +219,48 @@ def test_cli_cl_for_apt_and_cc(tmp_path):
     assert tuple(t.header) == CL_COLUMNS
     prog = load_program(apt)
     assert len(t) == int((~prog.rapid).sum())
+
+
+# ---- Heidenhain Klartext -------------------------------------------------------------------
+def test_heidenhain_plane_datum_arc_tcpm_labels_and_cycle(tmp_path):
+    # TNC 640 Klartext manual: CYCL DEF 7 datum shift, PLANE SPATIAL (about the machine-fixed X, Y,
+    # Z in that order: R = Rz(SPC) Ry(SPB) Rx(SPA)), CC/C arcs (DR+ counter-clockwise), M128, LBL,
+    # CYCL DEF 200 called by M99 (hole bottom Q203 + Q201)
+    p = _write(tmp_path, "t.h", "0 BEGIN PGM T MM\n1 * - FACE\n2 TOOL CALL 5 Z S8000\n"
+                                "3 CYCL DEF 7.0 DATUM SHIFT\n4 CYCL DEF 7.1 X+10\n5 CYCL DEF 7.2 Y+5\n"
+                                "6 PLANE SPATIAL SPA+30 SPB-10 SPC+45 TURN MB MAX FMAX SEQ+ TABLE ROT\n"
+                                "7 L X+0 Y+0 Z+5 R0 FMAX\n8 L Z+0 F500\n9 L X+20\n10 CC X+20 Y+10\n"
+                                "11 C X+30 Y+10 DR+\n12 PLANE RESET STAY\n13 CYCL DEF 7.0 DATUM SHIFT\n"
+                                "14 CYCL DEF 7.1 X+0\n15 CYCL DEF 7.2 Y+0\n16 * - SWARF\n17 M128\n"
+                                "18 L X+0 Y+0 Z+50 A+0 C+0 R0 FMAX\n19 Q5 = 4 * 2.5\n20 L X+Q5 A+10 C+20 F800\n"
+                                "21 CALL LBL 1 REP 1\n22 M129\n23 * - DRILL\n24 CYCL DEF 200 DRILLING ~\n"
+                                "   Q200=2 ;SET-UP CLEARANCE ~\n   Q201=-15 ;DEPTH ~\n   Q203=+0 ;SURFACE COORDINATE\n"
+                                "25 L X+5 Y+5 Z+50 A+0 C+0 R0 FMAX M99\n26 M30\n27 LBL 1\n28 L IX+1 F800\n29 LBL 0\n"
+                                "30 END PGM T MM\n")
+    prog = read_posted(p, machine=nominal_machine(("A", "C")))
+    assert prog.dialect == "heidenhain"
+    assert [t.name for t in prog.toolpaths] == ["FACE", "SWARF", "DRILL"]
+    R = Rotation.from_euler("xyz", [30, -10, 45], degrees=True).as_matrix()  # extrinsic x, y, z
+    o = np.array([10.0, 5.0, 0.0])
+    assert np.allclose(prog.tip[prog.line == 10][0], o + R @ [20, 0, 0])
+    arc = prog.tip[prog.line == 12]
+    local = (arc - o) @ R  # back into the plane's frame
+    assert np.allclose(np.hypot(local[:, 0] - 20, local[:, 1] - 10), 10, atol=1e-9) and np.allclose(local[:, 2], 0)
+    assert local[len(local) // 2, 0] > 20 and np.allclose(local[-1], [30, 10, 0])  # DR+ from (20,0) via x > 20
+    assert np.allclose(prog.axis[prog.line == 12], R[:, 2])
+    swarf = prog.tip[prog.toolpaths[1].start:prog.toolpaths[1].stop]
+    assert np.allclose(swarf[1:, 0], [10, 11, 12]) and np.allclose(swarf[:, 2], 50)  # Q5, then LBL 1 twice
+    (cyc,) = prog.cycles
+    assert cyc.op_name == "DRILL" and np.allclose(cyc.holes, [[5, 5, -15]])
+
+
+def test_every_dialect_refuses_cleanly(tmp_path):
+    """Bad input in any dialect: InputError naming the file (exit 2), never another exception."""
+    for name, text in [("a.h", "0 BEGIN PGM A MM\n1 L X+Q9 R0 F100\n2 END PGM A MM\n"),
+                       ("b.mpf", "TRAORI\nG1 X=IC(5) F100\nM30\n"), ("c.nc", "G1 X1 Y2 Z3 F100 W5\nM30\n"),
+                       ("d.nc", "%\n%\n")]:
+        f = _write(tmp_path, name, text)
+        with pytest.raises(InputError) as exc:
+            read_posted(f)
+        assert str(f) in str(exc.value)
+        assert main(["analyze", str(f), "--quiet"]) == 2

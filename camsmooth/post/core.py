@@ -16,6 +16,7 @@ CLProgram.angles are the values in camsmooth's sense, never wrapped (an unwound 
   the block gives one (Fanuc G43.5 I J K, Siemens A3 B3 C3, Heidenhain LN TX TY TZ).
 - **machine mode** (no TCP): X Y Z and the rotary words are the machine's joints:
   ``machine.tool_pose_np(q1, q2, X, Y, Z)`` gives tip and axis in the workpiece frame.
+- **no rotary word in the whole program** (three-axis): X Y Z is the tip, the axis +Z.
 - **dynamic work offset** (Haas G254): the control moves the work offset with the table: tip =
   ``tool_pose(q, XYZ) - tool_pose(q, 0)`` (exact on table machines, whose tip does not depend
   on where their axes are), axis from the rotary words.
@@ -382,6 +383,9 @@ class Builder:
             t_0, _ = machine.tool_pose_np(qr[:, 0], qr[:, 1], z, z, z)
             tip = np.where((mode == 0)[:, None], t_m, np.where((mode == 2)[:, None], t_m - t_0, xyz))
             axis = np.where((mode == 0)[:, None], a_m, a_t)
+            if not self.letters_used:  # a three-axis program: X Y Z is the tip (tool length by the control), axis +Z
+                tip = xyz.copy()
+                axis = np.tile([0.0, 0.0, 1.0], (n, 1))
             vec = np.array([v if v is not None else (np.nan,) * 3 for v in self._vec], float).reshape(-1, 3)
             has = np.isfinite(vec).all(axis=1)
             if has.any():

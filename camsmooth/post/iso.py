@@ -107,6 +107,7 @@ class IsoInterpreter:
         self.tcp_vector = False
         self.block_delete: list[int] = []
         self.keyword: Callable[[int, str, list[str]], str] | None = None
+        self.paren = True  # '( ... )' are comments (not in Siemens, whose parentheses are syntax)
 
     # ------------------------------------------------------------------------------------------
     def run(self, machine: Any = None) -> CLProgram:
@@ -161,7 +162,7 @@ class IsoInterpreter:
 
     # ---- one line ----------------------------------------------------------------------------
     def _block(self, number: int, raw: str) -> _Block | None:
-        code, comments = split_comments(raw)
+        code, comments = split_comments(raw, paren=self.paren)
         after_blank = number >= 2 and not self.lines[number - 2].strip()
         for c in comments:
             self._comment(number, c, heading=after_blank and not code.strip() and len(comments) == 1)
