@@ -156,22 +156,44 @@ def test_linuxcnc_words_against_rs274(tmp_path):
     assert np.allclose(canon.feed[feed], prog.feed[~prog.rapid])
 
 
+def _canon_feeds(text: str) -> tuple[np.ndarray, list[tuple[int, np.ndarray]]]:
+    """The end of every feed motion (X Y Z A B C) of rs274's canonical calls, STRAIGHT_FEED and
+    ARC_FEED (G17: first, second end, centre, rotation, axis end, a, b, c), and the arcs' (index,
+    centre)."""
+    ends, arcs = [], []
+    for ln in text.splitlines():
+        m = re.search(r"(STRAIGHT_FEED|ARC_FEED)\((.*)\)\s*$", ln)
+        if not m:
+            continue
+        v = [float(x) for x in m.group(2).split(",")]
+        if m.group(1) == "STRAIGHT_FEED":
+            ends.append(v[:6])
+        else:
+            arcs.append((len(ends), np.array(v[2:4])))
+            ends.append([v[0], v[1], v[5], v[6], v[7], v[8]])
+    return np.asarray(ends), arcs
+
+
 @needs_rs274
-@pytest.mark.parametrize("name", ["impeller-7bl-xyzac.ngc", "xyzac_switchkins_test_2.ngc"])
+@pytest.mark.parametrize("name", ["boat-xyzac.ngc", "boat-xyzbc.ngc", "impeller-7bl-xyzac.ngc",
+                                  "xyzac_switchkins_test_2.ngc"])
 def test_corpus_linuxcnc_against_rs274(tmp_path, name):
-    """LinuxCNC's shipped trt demos: every feed point's X Y Z and rotary words as rs274 reads them
-    (M428 turns TCP on: the tip is X Y Z in the workpiece frame)."""
+    """LinuxCNC's shipped trt demos: the end of every feed block (X Y Z and the rotary words) as
+    rs274 reads it, and every interpolated arc point on the circle about rs274's centre (M428 turns
+    TCP on: the tip is X Y Z in the workpiece frame; the trt kinematics' table sense is -1)."""
     prog = read_posted(DATA / name)
-    canon = parse_canon(_rs274(tmp_path, DATA / name))
-    feed = ~canon.rapid
-    assert (~prog.rapid).sum() == feed.sum()
-    tcp = prog.toolpaths and "M428" in (DATA / name).read_text()
-    rows = ~prog.rapid
-    if tcp and name != "xyzac_switchkins_test_2.ngc":
-        assert np.allclose(canon.positions[feed][:, :3], prog.tip[rows], atol=1e-9)
+    ends, arcs = _canon_feeds(_rs274(tmp_path, DATA / name))
+    cut = np.flatnonzero(~prog.rapid)
+    last = cut[np.r_[prog.line[cut][1:] != prog.line[cut][:-1], True]]  # the last point of each feed block
+    assert len(last) == len(ends)
     cols = [3, 5] if "xyzac" in name else [4, 5]
-    sense = np.array([-1.0, -1.0])  # the trt kinematics' table sense (camsmooth.io.gcode)
-    assert np.allclose(canon.positions[feed][:, cols], np.degrees(prog.angles[rows]) * sense, atol=1e-9)
+    assert np.allclose(ends[:, cols], -np.degrees(prog.angles[last]), atol=1e-9)
+    if name != "xyzac_switchkins_test_2.ngc":  # its first moves run under M429 (machine mode)
+        assert np.allclose(ends[:, :3], prog.tip[last], atol=1e-9)
+        for k, centre in arcs:
+            pts = prog.tip[cut][prog.line[cut] == prog.line[last[k]]]
+            r = np.hypot(*(pts[:, :2] - centre).T)
+            assert np.ptp(r) < 2e-3  # the posts' rounding of the centre (3 decimals)
 
 
 def test_corpus_reads_and_counts(tmp_path):
