@@ -190,7 +190,7 @@ def test_irregular_sampling_with_a_gap_keeps_the_lag(tmp_path):
     rng = np.random.default_rng(7)
     T, P = moves()
     t = np.sort(rng.uniform(0.0, T[-1], 2000))
-    t = t[(t < 1.2) | (t > 1.6)]  # a 0.4 s gap in the middle of a dwell and a move
+    t = t[(t < 1.0) | (t > 1.25)]  # a 0.25 s gap in a dwell: the simulation restarts at rest after it
     u = np.interp(t, T, P)
     y = superpose(t, T, P, ramp_first_order(1 / 40.0)) + rng.normal(0, NOISE, len(t))
     tr = read_trace(write_csv(tmp_path / "irr.csv", t, {"X_cmd": u, "X_act": y}))

@@ -7,7 +7,9 @@ axis ``<AX>_load`` (any unit, its sign matters), ``<AX>_vel_cmd``, ``<AX>_vel_ac
 ``<AX>_current`` (A), and covariates ``temp_<name>`` (deg C). With a column map
 (``columns={"t": 1, "X_cmd": 3, ...}``, 1-based) a plain delimited log (comma, semicolon, tab or
 blanks; with or without a header line) is read the same way. Irregular sampling is kept as
-recorded; a gap (a step above ``GAP_FACTOR`` median sample periods) starts a new segment.
+recorded; a gap (a step above ``GAP_FACTOR`` median sample periods) starts a new segment, where
+the simulation restarts at rest on the command. Each channel's quantisation step (per sample,
+camsmooth.diagnosis.recordings.quantisation_steps) enters its noise floor.
 
 Model (``TraceModel``, internal units: the file's length unit, s; ``TraceSimulator``): the
 command u(t), linearly interpolated between its samples onto a uniform internal grid, passes
@@ -39,11 +41,12 @@ import numpy as np
 from numba import njit
 
 from camsmooth.diagnosis.problem import Options, locate_intervals, noise_floor
+from camsmooth.diagnosis.recordings import quantisation_steps
 from camsmooth.errors import InputError
 from camsmooth.io.table import Table, read_table, read_text_file
 
 #: a step of more than this many median sample periods is a gap (a new segment)
-GAP_FACTOR = 5.0
+GAP_FACTOR = 20.0
 #: largest internal simulation grid (points); a longer recording is simulated on a coarser grid
 GRID_MAX = 400_000
 #: terms tried on a trace (the library's order decides between equals)
@@ -369,6 +372,10 @@ class TraceKnots:
         self.u = {a: np.interp(self.tg, t, trace.cmd[a]) for a in trace.axes}
         self.dir = {a: _direction(self.u[a]) for a in trace.axes}
         self.n = len(self.tg)
+        # a gap ends a segment: the simulation restarts at rest on the command after it
+        after = np.flatnonzero(np.diff(t) > GAP_FACTOR * trace.dt) + 1
+        starts = [0] + sorted({int(np.floor((t[i] - t[0]) / h + 1e-9)) for i in after} - {0})
+        self.segments = list(zip(starts, starts[1:] + [self.n], strict=True))
 
     def moves(self, a: str) -> bool:
         u = self.u.get(a)
@@ -412,10 +419,9 @@ class TraceSimulator:
             self._lowpassed[key] = np.interp(self.t, kn.tg, y)
         return self._lowpassed[key]
 
-    def axis(self, model: TraceModel, a: str) -> np.ndarray:
-        kn = self.knots
-        u = kn.u[a]
-        h = kn.h
+    def servo(self, model: TraceModel, a: str, u: np.ndarray) -> np.ndarray:
+        """The axis position on the grid for the command u (one segment, starting at rest)."""
+        h = self.knots.h
         ia, iv = model.ia.get(a, 0.0), model.iv.get(a, 0.0)
         if ia > 0:
             u = _accel_limit(u, h, 1.0 / ia)
@@ -427,6 +433,14 @@ class TraceSimulator:
         t2 = model.t2.get(a, 0.0)
         if t2 > 0:
             u = _lag2(u, h, t2, model.zeta.get(a, 1.0))
+        return u
+
+    def axis(self, model: TraceModel, a: str) -> np.ndarray:
+        kn = self.knots
+        if len(kn.segments) == 1:
+            u = self.servo(model, a, kn.u[a])
+        else:
+            u = np.concatenate([self.servo(model, a, kn.u[a][s:e]) for s, e in kn.segments])
         k, f = self.loc(model.offset_s)
         y = u[k] * (1.0 - f) + u[k + 1] * f
         b = model.backlash.get(a, 0.0)
@@ -491,18 +505,6 @@ class TraceProblem:
     machine: Any = None
 
 
-def quantum(x: np.ndarray) -> float:
-    """The step of a quantised channel (its smallest nonzero change, when nearly every change is
-    a whole multiple of it), else 0."""
-    d = np.abs(np.diff(x))
-    d = d[d > 1e-12 * max(1.0, float(np.max(np.abs(x))))]
-    if len(d) < 10:
-        return 0.0
-    q = float(np.min(d))
-    r = d / q
-    return q if np.mean(np.abs(r - np.round(r)) < 0.02) > 0.99 else 0.0
-
-
 def _states(trace: Trace, knots: TraceKnots, idx: np.ndarray) -> dict[str, np.ndarray]:
     t = trace.t[idx]
     k = np.clip(np.searchsorted(knots.tg, t, side="right") - 1, 0, knots.n - 1)
@@ -565,8 +567,8 @@ def prepare_trace(trace: Trace, options: Options | None = None) -> TraceProblem:
     valid = np.ones_like(data, dtype=bool)
     outliers: list[dict[str, Any]] = []
     for j, a in enumerate(trace.axes):
-        q_rec = np.full(n, quantum(trace.act[a]))
-        q_cmd = np.full(n, quantum(trace.cmd[a]))
+        q_rec = quantisation_steps(trace.act[a])
+        q_cmd = quantisation_steps(trace.cmd[a])
         f, inf = noise_floor(resid[:, j], segment, q_rec, q_cmd)
         tiny = 1e-9 * max(1.0, float(np.max(np.abs(data[:, j]))))
         floor[:, j] = np.maximum(f, tiny)
