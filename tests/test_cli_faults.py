@@ -471,7 +471,7 @@ SIM_REC = ["simulate", "recording", "--program", "program.csv", "-o", "r.csv"]
 
 
 @pytest.mark.parametrize("argv,needles", [
-    (SMOOTH + ["-o", "o.csv", "--corner-radius", "0"], ("--corner-radius", "positive")),
+    (SMOOTH + ["-o", "o.csv", "--corner-radius", "-1"], ("--corner-radius", ">= 0 mm")),
     (SMOOTH + ["-o", "o.csv", "--cutter-radius", "-1"], ("--cutter-radius", ">= 0 mm")),
     (SMOOTH + ["-o", "o.csv", "--feed", "0"], ("--feed", "mm/min")),
     (SMOOTH + ["-o", "o.csv", "--feed", "nan"], ("--feed",)),

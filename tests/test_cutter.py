@@ -52,7 +52,7 @@ def test_defaults_and_properties():
 @pytest.mark.parametrize("kwargs, words", [
     (dict(R=float("nan"), r=1.0), "finite"),
     (dict(R=1.0, r=float("inf")), "finite"),
-    (dict(R=1.0, r=0.0), "corner radius"),
+    (dict(R=0.0, r=0.0), "cutter radius R"),
     (dict(R=1.0, r=-1.0), "corner radius"),
     (dict(R=-0.5, r=1.0), "ring radius"),
     (dict(R=1.0, r=2.0, shank_length=1.5), "shank_length"),

@@ -70,8 +70,8 @@ def _add_cutter_args(p: argparse.ArgumentParser, required: bool = True) -> None:
     p.add_argument("--cutter-radius", type=number(ge=0, unit="mm"), required=required, metavar="R",
                    help="ring radius R (mm, >= 0; 0 is a ball nose); the cutter diameter is 2(R + r)"
                    + ("" if required else "; default: the program's TLDATA (CL input)"))
-    p.add_argument("--corner-radius", type=_POSITIVE_MM, required=required, metavar="r",
-                   help="corner radius r (mm, > 0)")
+    p.add_argument("--corner-radius", type=number(ge=0, unit="mm"), required=required, metavar="r",
+                   help="corner radius r (mm, >= 0; 0 is a flat end)")
     p.add_argument("--shank-length", type=_POSITIVE_MM, default=None, metavar="L",
                    help="length of the cylindrical part from the tip (mm, >= r; default 4 x (R + r))")
     p.add_argument("--holder-radius", type=_POSITIVE_MM, default=None, metavar="RH",

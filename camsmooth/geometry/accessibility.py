@@ -27,6 +27,27 @@ Tang hand their optimiser the accessible set:
 A point none of whose samples clears is *blocked*: the lift along the normal is then the only
 fallback, and the map's best clearance (and where it was found) says how close it came.
 Angles are radians, lengths mm, workpiece frame.
+
+What the windows mean for each cutter of the toroid family (camsmooth.geometry.cutter; lead
+rotates the axis in the plane of the feed and the normal, so the meridian plane through the
+contact runs along the feed and the ring's curvature acts across it):
+
+* Bull nose (R, r > 0): the contact moves round the ring with the lead; the effective radius
+  across the feed is R / sin(lead) + r, so the lead sets the finish and, where the part is
+  concave, the floor against local gouging (camsmooth.smoothing.orientation) and against the heel
+  (this map).  Lead 0 is a face contact where CC -> CL jumps by R: keep the lead window above 0.
+* Ball end (R = 0): the contact point and the ball's centre CC + r n do not depend on lead or
+  tilt, and the cut surface is the same at every orientation (effective radius r).  The windows
+  then bound no cutting geometry: they are where the shank and holder may stand (this map's floors
+  and ceilings come only from them meeting the part) and the machine's motion; practice keeps the
+  lead off 0 because the ball's tip cuts at zero speed.
+* Flat end (r = 0): the contact is the point of the sharp bottom rim lowest along n,
+  CL = CC + R u; across the feed the rim's ellipse has radius R / sin(lead); along the feed the
+  bottom is a straight line rising at the lead behind the contact, so on a surface concave along
+  the feed with curvature k the heel (2 R behind) gouges unless tan(lead) >= k R about; this
+  global condition is found here, by the exact clearance, not by the local curvature test.  Lead
+  0 is a face contact (the whole bottom on a plane, CL = CC) that gouges any concave region: a
+  flat end needs lead > 0.
 """
 
 from __future__ import annotations

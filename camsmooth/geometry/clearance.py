@@ -42,6 +42,7 @@ __all__ = ["Clearance", "Drop", "MeshIndex", "axial_drop", "clearance"]
 _INVPHI = (math.sqrt(5.0) - 1.0) / 2.0
 _SQRT3 = math.sqrt(3.0)
 _PRUNE_TOL = 1e-9          # mm: an element that can improve the answer by less than this is skipped
+_TIE = 1e-13               # relative: drop parameters this close (times the mesh's size) are a tie
 _BARY_TOL = 1e-12
 _CHUNK = 512              # poses / points per chunk (bounds memory)
 _LEAF = 8                 # triangles per leaf of the bounding-volume hierarchy
@@ -362,7 +363,14 @@ class Drop:
     cl : (N, 3) lowest tool tip positions, mm (NaN where ``hit`` is False).
     contact : (N, 3) the mesh point touched.
     contact_normal : (N, 3) unit normal of the cutter surface at the contact, pointing from the
-        material toward the tool (into the cutter), i.e. the ``n`` of cc_to_cl.
+        material toward the tool (into the cutter), i.e. the ``n`` of cc_to_cl.  Where the flat
+        bottom touches (face contact: the contact inside the bottom's rim, normal = axis), cc_to_cl
+        takes the contact at the bottom's centre (CL = CC): on a plane across the axis the facet
+        under the tip wins the tie and the contact is the tip; where the bottom rests on a vertex
+        off its centre (the top of a bump) that vertex is reported, and CC -> CL gives the pose
+        with the bottom's centre on it instead (as :func:`camsmooth.geometry.contact.contacts`).
+        A flat end's rim has a cone of normals (any of them gives the same CL): the part's normal
+        moved into that cone (``_rim_normals``).
     hit : (N,) bool, False where the tool's footprint misses the mesh.
 
     Unpacks as ``cl, contact, contact_normal = drop`` (the triple that
@@ -384,13 +392,18 @@ def _zlow(cutter: ToroidalCutter, rho: np.ndarray) -> np.ndarray:
     return cutter.r - np.sqrt(np.maximum(cutter.r ** 2 - x * x, 0.0))
 
 
-def _scatter_max(S: np.ndarray, C: np.ndarray, idx: np.ndarray, val: np.ndarray, pts: np.ndarray) -> None:
+def _scatter_max(S: np.ndarray, C: np.ndarray, idx: np.ndarray, val: np.ndarray, pts: np.ndarray,
+                 NF: np.ndarray, nrm: np.ndarray | None = None, tie: float = 0.0) -> None:
+    """S[i] = max(S[i], val) per owner i; where val wins (or comes within ``tie`` mm of the best
+    so far), C[i] = its point and NF[i] = its facet normal (NaN for a vertex or an edge contact,
+    ``nrm`` None)."""
     if len(idx) == 0:
         return
     old = S[idx]
     np.maximum.at(S, idx, val)
-    m = (val > old) & (val >= S[idx])
+    m = (val > old - tie) & (val >= S[idx] - tie)
     C[idx[m]] = pts[m]
+    NF[idx[m]] = np.nan if nrm is None else nrm[m]
 
 
 def _drop_candidates(index: MeshIndex, p: np.ndarray, A: np.ndarray, fixed: bool,
@@ -436,13 +449,16 @@ def _drop_candidates(index: MeshIndex, p: np.ndarray, A: np.ndarray, fixed: bool
 
 
 def _drop_chunk(index: MeshIndex, cutter: ToroidalCutter, p: np.ndarray, A: np.ndarray,
-                fixed: bool) -> tuple[np.ndarray, np.ndarray]:
+                fixed: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(S, C, NF) of the points of a chunk: drop parameter, contact point, facet normal of a
+    facet contact (oriented n.A > 0; NaN for vertex and edge contacts)."""
     V, F, E = index.vertices, index.faces, index.edges
     R, r = cutter.R, cutter.r
     Rc = R + r
     N = len(p)
     S = np.full(N, -np.inf)
     C = np.full((N, 3), np.nan)
+    NF = np.full((N, 3), np.nan)
 
     def local(pts, pp, aa):
         q = pts - pp
@@ -452,14 +468,14 @@ def _drop_chunk(index: MeshIndex, cutter: ToroidalCutter, p: np.ndarray, A: np.n
 
     pid, vid = _drop_candidates(index, p, A, fixed, Rc + index.long_max)
     if len(vid) == 0:
-        return S, C
+        return S, C, NF
     h, _, rho = local(V[vid], p[pid], A[pid])
     keep = rho <= Rc + index.vertex_long[vid]
     pid, vid, h, rho = pid[keep], vid[keep], h[keep], rho[keep]
 
     # Vertex test (closed form): s = (v - p).A - zlow(rho).
     inn = rho <= Rc
-    _scatter_max(S, C, pid[inn], h[inn] - _zlow(cutter, rho[inn]), V[vid[inn]])
+    _scatter_max(S, C, pid[inn], h[inn] - _zlow(cutter, rho[inn]), V[vid[inn]], NF)
 
     # Faces worth testing: if a point x of a face has s(x) > S, the face's highest vertex v
     # (h is linear on the face) has h_v >= h(x) > S + zlow(rho(x)) >= S + zlow(rho_v - l_v), as
@@ -468,7 +484,7 @@ def _drop_chunk(index: MeshIndex, cutter: ToroidalCutter, p: np.ndarray, A: np.n
     shrunk = np.maximum(rho - lv, 0.0)
     m = (shrunk <= Rc) & (h > S[pid] + _zlow(cutter, np.minimum(shrunk, Rc)) + _PRUNE_TOL)
     if not np.any(m):
-        return S, C
+        return S, C, NF
     fp, ff = _csr_expand(index.vf_ptr, index.vf_faces, pid[m], vid[m])
     fp, ff = _unique_pairs(fp, ff, len(F))
     pp, aa = p[fp], A[fp]
@@ -490,7 +506,7 @@ def _drop_chunk(index: MeshIndex, cutter: ToroidalCutter, p: np.ndarray, A: np.n
     k = ubf > S[fp] + _PRUNE_TOL
     fp, ff, pp, aa, tri = fp[k], ff[k], pp[k], aa[k], tri[k]
     if len(fp) == 0:
-        return S, C
+        return S, C, NF
 
     # Facet test (closed form): the plane, oriented so n.A > 0, touches the offset disc where
     # CL = CC + r n + R u - r A (METHODS.md section 1); accept if CC lies in the triangle.
@@ -505,7 +521,9 @@ def _drop_chunk(index: MeshIndex, cutter: ToroidalCutter, p: np.ndarray, A: np.n
     s_f = (r + R * wl - r * na - _dot(n, pp - tri[:, 0])) / np.where(ok, na, 1.0)
     cc = pp + s_f[:, None] * aa - r * n - R * u + r * aa
     ok &= _inside_triangle(cc, tri[:, 0], tri[:, 1], tri[:, 2])
-    _scatter_max(S, C, fp[ok], s_f[ok], cc[ok])
+    # a facet wins a tie with a vertex: on a face contact (a plane across the axis) its contact
+    # is the bottom's centre, the tip, as cc_to_cl takes it, where a vertex is any point under it
+    _scatter_max(S, C, fp[ok], s_f[ok], cc[ok], NF, n[ok], tie=_TIE * (1.0 + float(np.max(np.abs(index.box)))))
 
     # Edge test: s(t) is concave on the part of the edge inside the footprint (linear height
     # minus a convex nondecreasing function of a convex rho): golden section on that interval.
@@ -541,8 +559,8 @@ def _drop_chunk(index: MeshIndex, cutter: ToroidalCutter, p: np.ndarray, A: np.n
             vv = negs(tt)
             better = vv < val
             t, val = np.where(better, tt, t), np.where(better, vv, val)
-        _scatter_max(S, C, ep, -val, pa + t[:, None] * d)
-    return S, C
+        _scatter_max(S, C, ep, -val, pa + t[:, None] * d, NF)
+    return S, C, NF
 
 
 def axial_drop(mesh_or_index: MeshIndex | trimesh.Trimesh, cutter: ToroidalCutter, points: np.ndarray,
@@ -579,11 +597,13 @@ def axial_drop(mesh_or_index: MeshIndex | trimesh.Trimesh, cutter: ToroidalCutte
     N = len(p)
     S = np.full(N, -np.inf)
     C = np.full((N, 3), np.nan)
+    NF = np.full((N, 3), np.nan)
     for lo in range(0, N, _CHUNK):
         sl = slice(lo, min(lo + _CHUNK, N))
-        S[sl], C[sl] = _drop_chunk(idx, cutter, p[sl], A[sl], fixed)
+        S[sl], C[sl], NF[sl] = _drop_chunk(idx, cutter, p[sl], A[sl], fixed)
     hit = np.isfinite(S)
     cl = np.where(hit[:, None], p + np.where(hit, S, 0.0)[:, None] * A, np.nan)
+    C = np.where(hit[:, None], C, np.nan)
     # Cutter normal at the contact: from the contact toward the nearest point of the core disc
     # (radius R at height r): r n = core point - contact.
     q = C - cl
@@ -594,4 +614,36 @@ def axial_drop(mesh_or_index: MeshIndex | trimesh.Trimesh, cutter: ToroidalCutte
     nrm = core - C
     ln = np.linalg.norm(nrm, axis=1)
     normal = np.where(hit[:, None], nrm / np.where(ln > 0.0, ln, 1.0)[:, None], np.nan)
+    # Face contact (the contact on the flat bottom, inside its rim): the bottom's normal, the axis.
+    scale = 1.0 + float(np.max(np.abs(idx.box)))
+    face = hit & (np.abs(hq) <= 1e-9 * scale) & (rq < cutter.R * (1.0 - 1e-9))
+    normal[face] = A[face]
+    if cutter.r == 0.0:
+        rim = hit & ~face
+        if np.any(rim):
+            normal[rim] = _rim_normals(idx, C[rim], A[rim], wq[rim] / rq[rim, None], NF[rim])
     return Drop(cl=cl, contact=C, contact_normal=normal, hit=hit)
+
+
+def _rim_normals(index: MeshIndex, contact: np.ndarray, A: np.ndarray, e: np.ndarray,
+                 facet: np.ndarray) -> np.ndarray:
+    """Contact normals (n of cc_to_cl) where a flat end's sharp rim touches (unit radial
+    direction ``e`` of the contact from the axis): the tool's normals there form the cone
+    a A - b e (a, b >= 0) and any of them places the tool right (CL = CC - R e); the one closest
+    to the part's normal is taken: the facet's for a facet contact, else that of the face closest
+    to the contact (trimesh), projected onto the cone, with b >= 1e-6 a so that the contact stays
+    on the rim (a part normal along the axis there is a face contact tied with the rim)."""
+    m = facet.copy()
+    need = ~np.all(np.isfinite(m), axis=1)
+    if np.any(need):
+        mesh = trimesh.Trimesh(index.vertices, index.faces, process=False)
+        _, _, face = trimesh.proximity.closest_point(mesh, contact[need])
+        m[need] = index.face_normals[face]
+    a = _dot(m, A)
+    m = np.where((a < 0.0)[:, None], -m, m)
+    a = np.abs(a)
+    b = np.maximum(-_dot(m, e), 0.0)
+    a = np.where(a + b > 0.0, a, 1.0)
+    b = np.maximum(b, 1e-6 * a)
+    n = a[:, None] * A - b[:, None] * e
+    return n / np.linalg.norm(n, axis=1, keepdims=True)

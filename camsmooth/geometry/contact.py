@@ -12,6 +12,14 @@ Where the flat bottom touches (n parallel to T) every point of the contact disc 
 the CC -> CL formula then puts the tip on the contact (CL = CC), so the tip is taken as the CC
 point when it lies on the mesh within the tolerance. Poses that do not touch (air moves,
 lead-ins) or that gouge beyond the tolerance are flagged, with their clearance.
+
+The same holds for every cutter of the toroid family. A ball end touches at one point of its
+sphere. A flat end (r = 0) touches with its sharp bottom rim, where the tool's normals form a
+cone (from the axis to the radial direction); the clearance's normal lies in that cone (a facet's
+normal for a facet contact, the direction toward the tool for a vertex or an edge) and every
+normal of the cone gives the same CL (CL = CC + R u, u the unit radial direction from the contact
+toward the axis); a flat end standing on a plane along its normal (a facing program) is the face
+contact above.
 """
 
 from __future__ import annotations

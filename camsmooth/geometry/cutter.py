@@ -1,8 +1,14 @@
-"""Toroidal cutter geometry: CC <-> CL placement, exact signed distance, support points.
+"""Cutters of the toroid family (bull nose, ball end, flat end): CC <-> CL placement, exact
+signed distance, support points.
 
 Frames and signs (docs/CONVENTIONS.md): the tool axis ``T`` is the unit vector from the tool tip
-toward the spindle; the tool tip (CL point) is the centre of the cutter's flat bottom face; a
-surface normal ``n`` points from the material toward the tool.
+toward the spindle; the tool tip (CL point) is the centre of the cutter's flat bottom face (the
+lowest point of a ball end); a surface normal ``n`` points from the material toward the tool.
+
+The family. Ring radius ``R`` (of the circle the corner's centres lie on) and corner radius
+``r``, cutter radius ``R + r``: a bull nose has ``R > 0, r > 0``, a ball end ``R = 0`` (a
+hemisphere of radius ``r``), a flat end ``r = 0`` (a disc of radius ``R`` on a cylinder: the
+torus with a zero tube).  ``R = r = 0`` is no cutter and is refused.
 
 Solid model. The cutter with its shank is the set of points within ``r`` of the solid core
 cylinder ``C`` of radius ``R`` whose axis runs from ``c0 = tip + r T`` to
@@ -12,9 +18,12 @@ radius ``R + r`` up to height ``shank_length - r``.  Its top is rounded (a secon
 the real shank continues as a plain cylinder; the rounded top is irrelevant because it lies at
 least ``shank_length - r`` above the tip, is covered by the holder when one is given, and the
 body is only used for gouge checks near the surface.  When ``shank_length < 2 r`` the core
-degenerates to the disc at ``c0`` and the body is ``2 r`` tall.  For ``R = 0`` (ball nose) the
-core is a segment and the body a capsule.  Keeping the body convex is what makes the signed
-distance exact and the mesh clearance test (camsmooth.geometry.clearance) exact.
+degenerates to the disc at ``c0`` and the body is ``2 r`` tall.  For ``R = 0`` (ball end) the
+core is a segment and the body a capsule; for ``r = 0`` (flat end) the offset vanishes and the
+body is the core itself, the solid cylinder of radius ``R`` from the tip to
+``tip + shank_length T`` (bottom disc, sharp rim, cylindrical side).  Keeping the body convex is
+what makes the signed distance exact and the mesh clearance test (camsmooth.geometry.clearance)
+exact.
 
 The optional holder is the solid cylinder of radius ``holder_radius`` from
 ``tip + shank_length T`` to ``tip + (shank_length + holder_length) T``.
@@ -42,14 +51,14 @@ _PARALLEL_EPS = 1e-12
 
 @dataclass(frozen=True)
 class ToroidalCutter:
-    """Toroidal (bull-nose) end mill; all lengths in mm.
+    """End mill of the toroid family (module docstring); all lengths in mm.
 
     Attributes
     ----------
-    R : ring radius (radius of the centre circle of the corner), >= 0; ``R = 0`` is a ball nose.
-    r : corner radius, > 0.
+    R : ring radius (radius of the centre circle of the corner), >= 0; ``R = 0`` is a ball end.
+    r : corner radius, >= 0; ``r = 0`` is a flat end.  ``R + r`` must be > 0.
     shank_length : length from the tip of the cylindrical part of radius ``R + r``
-        (default ``4 (R + r)``); must be >= ``r``.
+        (default ``4 (R + r)``); must be >= ``r`` and > 0.
     holder_radius : radius of the cylindrical holder above the shank, or None for no holder;
         must exceed ``R + r``.
     holder_length : axial length of the holder (default 0 = no holder).
@@ -74,12 +83,15 @@ class ToroidalCutter:
         R = num("R (ring radius, mm)", self.R)
         r = num("r (corner radius, mm)", self.r)
         if R < 0:
-            raise InputError(f"cutter ring radius R must be >= 0 mm (R = 0 is a ball nose), got {R}")
-        if r <= 0:
-            raise InputError(f"cutter corner radius r must be > 0 mm, got {r}")
+            raise InputError(f"cutter ring radius R must be >= 0 mm (R = 0 is a ball end), got {R}")
+        if r < 0:
+            raise InputError(f"cutter corner radius r must be >= 0 mm (r = 0 is a flat end), got {r}")
+        if R + r <= 0:
+            raise InputError("cutter radius R + r must be > 0 mm (R = 0 is a ball end, r = 0 a flat end), "
+                             f"got R = {R}, r = {r}")
         L = 4.0 * (R + r) if self.shank_length is None else num("shank_length (mm)", self.shank_length)
-        if L < r:
-            raise InputError(f"cutter shank_length ({L} mm) must be >= the corner radius r ({r} mm)")
+        if L < r or L <= 0:
+            raise InputError(f"cutter shank_length ({L} mm) must be > 0 and >= the corner radius r ({r} mm)")
         hl = num("holder_length (mm)", self.holder_length)
         if hl < 0:
             raise InputError(f"cutter holder_length must be >= 0 mm, got {hl}")
@@ -104,6 +116,11 @@ class ToroidalCutter:
     def radius(self) -> float:
         """Cutter (and shank) radius R + r, mm."""
         return self.R + self.r
+
+    @property
+    def kind(self) -> str:
+        """'ball' (R = 0), 'flat' (r = 0) or 'bull' (both > 0)."""
+        return "ball" if self.R == 0.0 else ("flat" if self.r == 0.0 else "bull")
 
     @property
     def core_height(self) -> float:
@@ -158,7 +175,13 @@ def cc_to_cl(cutter: ToroidalCutter, cc: np.ndarray, n: np.ndarray, T: np.ndarra
     """Cutter-location (tool tip) points from cutter-contact points (METHODS.md section 1).
 
     ``u = (n - (n.T) T) / |n - (n.T) T|``, ``CL = CC + r n + R u - r T``; where ``n`` is parallel
-    to ``T`` the flat bottom touches and ``CL = CC``.
+    to ``T`` the flat bottom touches and ``CL = CC``.  Per kind: a ball end (R = 0) has
+    ``CL = CC + r (n - T)``, its centre ``CC + r n`` independent of the axis; a flat end (r = 0)
+    touches with the point of its bottom rim lowest along ``n``, ``CL = CC + R u`` (no offset along
+    the normal).  Face contact (``n`` parallel to ``T``, within 1e-12): every point of the bottom
+    disc touches and the contact is taken at its centre, ``CL = CC``; so CC -> CL jumps by ``R``
+    between lead 0 and any lead > 0 for the flat end and the bull nose, and their lead windows
+    should exclude 0 (camsmooth.geometry.accessibility).
 
     Parameters
     ----------

@@ -8,10 +8,13 @@ Records read (one per line; ``MAJOR/arg,arg,...`` or a bare major word):
 - ``TOOL PATH/name,TOOL,toolname``: starts a tool path (operation); ``END-OF-PATH`` ends it.
   Points outside any tool path form an unnamed one.
 - ``TLDATA/MILL,D,R,L,taper,tip[,...]``: the tool path's milling cutter: diameter D, lower corner
-  radius R, length L (file units). Other ``TLDATA/`` kinds are kept by name, without dimensions.
+  radius R, length L (file units; ``TLDATA/MILL,D,R`` without the length is read too). Other
+  ``TLDATA/`` kinds are kept by name, without dimensions.
 - ``CUTTER/d[,r,e,f,a,b,h]`` (the 7-parameter APT cutter, ISO 4343): a milling cutter of diameter
   d and corner radius r (0 when absent). A ``TLDATA/`` or ``CUTTER/`` after motion in the same
-  tool path starts a new tool path (a tool change).
+  tool path starts a new tool path (a tool change). Both cover the toroid family
+  (camsmooth.geometry.cutter): r = 0 (``TLDATA/MILL,10,0``, ``CUTTER/10``) is a flat end of
+  ring radius D/2, r = D/2 a ball end, 0 < r < D/2 a bull nose.
 - ``LOAD/TOOL,n[,ADJUST,m]`` and ``LOADTL/n[,...]``: the tool number.
 - ``MSYS/x,y,z,a,b,c,d,e,f``: the machine coordinate system (MCS) the following points are given
   in: origin (x, y, z) and the unit X (a, b, c) and Y (d, e, f) axes of the MCS in the absolute
@@ -704,8 +707,9 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
                     v = _numbers(rec, file, "CUTTER", tuple(range(1, 8)), rec.args)
                     tool = _mill(v[0], v[1] if len(v) > 1 else 0.0, None, "CUTTER", rec, file, st.scale, tool_name)
                 elif rec.args and rec.args[0].lower() == "mill":
-                    v = _numbers(rec, file, "TLDATA/MILL", tuple(range(3, 12)), rec.args[1:])
-                    tool = _mill(v[0], v[1], v[2], "TLDATA/MILL", rec, file, st.scale, tool_name)
+                    v = _numbers(rec, file, "TLDATA/MILL", tuple(range(2, 12)), rec.args[1:])
+                    tool = _mill(v[0], v[1], v[2] if len(v) > 2 else None, "TLDATA/MILL", rec, file, st.scale,
+                                 tool_name)
                 else:
                     kind = rec.args[0].lower() if rec.args else ""
                     tool = Tool(name=tool_name, kind=kind or "unknown", diameter=None, corner_radius=None,

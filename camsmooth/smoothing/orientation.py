@@ -39,12 +39,13 @@ def cutter_curvature_tensors(R: float, r: float, lead: np.ndarray, tilt: np.ndar
     """
     lead, tilt = np.broadcast_arrays(np.asarray(lead, float), np.asarray(tilt, float))
     sl = np.sin(lead)
-    k_meridian = 1.0 / r
     k_cross = sl / (R + r * sl) if R > 0 else np.full_like(sl, 1.0 / r)
     m = np.stack([np.cos(tilt), np.sin(tilt)], -1)
     p = np.stack([-np.sin(tilt), np.cos(tilt)], -1)
-    return (k_meridian * m[..., :, None] * m[..., None, :]
-            + k_cross[..., None, None] * p[..., :, None] * p[..., None, :])
+    mm = m[..., :, None] * m[..., None, :]
+    # flat end (r = 0): the sharp rim, infinite curvature in the meridian plane (0 where mm is 0)
+    k_mm = mm / r if r > 0 else np.where(mm == 0.0, 0.0, np.copysign(np.inf, mm))
+    return k_mm + k_cross[..., None, None] * p[..., :, None] * p[..., None, :]
 
 
 def min_gouge_free_lead(R: float, r: float, K_surface: np.ndarray, tilt: np.ndarray,
@@ -66,6 +67,11 @@ def min_gouge_free_lead(R: float, r: float, K_surface: np.ndarray, tilt: np.ndar
     shape = np.broadcast_shapes(K_surface.shape[:-2], tilt.shape)
     K = np.broadcast_to(K_surface, shape + (2, 2))
     c, s_ = np.cos(tilt), np.sin(tilt)
+    if r == 0:  # flat end: k_m infinite, the condition is k >= p^T K p + margin; sin(lead) = k R
+        k_need = np.maximum(0.0, s_ * s_ * K[..., 0, 0] - 2 * c * s_ * K[..., 0, 1] + c * c * K[..., 1, 1] + margin)
+        sin_lead = k_need * R
+        lead = np.where(sin_lead <= 1.0, np.arcsin(np.clip(sin_lead, 0.0, 1.0)), np.inf)
+        return np.where(lead <= lead_max, lead, np.nan)
     km = 1.0 / r
     # C = km m m^T - K - margin I, m = (c, s)
     c11 = km * c * c - K[..., 0, 0] - margin
