@@ -150,15 +150,11 @@ def arc_points(start: np.ndarray, end: np.ndarray, centre: np.ndarray, normal: n
 
 def nominal_machine(letters: tuple[str, str]) -> Any:
     """The nominal camsmooth machine whose rotary axes are ``letters`` (AB: the default AB head; AC
-    and BC: the table machines of camsmooth.machine.kinematics with their centre at the origin)."""
-    from camsmooth.machine.kinematics import load_machine, machine_from_dict
+    and BC: the preset table machines with their centre at the origin;
+    camsmooth.machine.kinematics.nominal_machine)."""
+    from camsmooth.machine.kinematics import nominal_machine as _nominal
 
-    if letters == ("A", "B"):
-        return load_machine(None)
-    kind = {("A", "C"): "AC-table", ("B", "C"): "BC-table"}[letters]
-    big = {"min": -1e6, "max": 1e6, "vmax": 3600.0, "amax": 3600.0}
-    return machine_from_dict({"machine": {"kind": kind, "name": f"nominal {kind}"},
-                              "axis": {letters[0]: dict(big), letters[1]: dict(big)}}, f"<nominal {kind}>")
+    return _nominal(letters)
 
 
 @dataclass

@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from camsmooth.errors import InputError
 from camsmooth.io.program import CLProgram, Tool
 from camsmooth.post.core import INCH_MM, Builder, Frame3, Skip, rot_x, rot_y, rot_z
 from camsmooth.post.words import evaluate, operation_name, tool_comment
@@ -111,8 +112,13 @@ class _Klartext:
                 return "return"
             try:
                 flow = self._block(line, code, up, depth)
+            except InputError:
+                raise
             except Skip as exc:
                 self.b.skip(line, code, exc.reason)
+                continue
+            except (ValueError, IndexError, ArithmeticError) as exc:  # a block this reader cannot read
+                self.b.skip(line, code, f"the block cannot be read ({exc})")
                 continue
             if flow == "end":
                 return flow
@@ -242,6 +248,9 @@ class _Klartext:
             self.F = self._len(w.pop("F")) * (0.1 if self.inch else 1.0)
         elif re.search(r"F\s*AUTO", body):
             self.F = self.tool_F
+        if 140 in ms:  # M140 MB: retract along the tool axis (to the travel limit): not a point of the program
+            self.b.machine_move(line, "M140 (retract along the tool axis)")
+            return self._m(line, [m for m in ms if m != 140])
         if 91 in ms or 92 in ms:
             self.b.machine_move(line, "M91/M92 (machine-referenced block)")
             for a in "ABC":

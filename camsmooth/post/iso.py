@@ -146,15 +146,25 @@ class IsoInterpreter:
             i += 1
             try:
                 blk = self._block(number, raw)
+            except InputError:
+                raise
             except Skip as exc:
                 self.b.skip(number, raw, exc.reason)
+                continue
+            except (ValueError, IndexError, ArithmeticError) as exc:  # a block this reader cannot read
+                self.b.skip(number, raw, f"the block cannot be read ({exc})")
                 continue
             if blk is None:
                 continue
             try:
                 flow = self._run_block(blk, labels, depth)
+            except InputError:
+                raise
             except Skip as exc:
                 self.b.skip(number, raw, exc.reason)
+                continue
+            except (ValueError, IndexError, ArithmeticError) as exc:  # a block this reader cannot read
+                self.b.skip(number, raw, f"the block cannot be read ({exc})")
                 continue
             if flow in ("end", "return"):
                 return flow

@@ -163,6 +163,8 @@ class _Siemens(IsoInterpreter):
         """CYCLE800(_FR, _TC, _ST, _MODE, _X0, _Y0, _Z0, _A, _B, _C, _X1, _Y1, _Z1, _DIR, ...): the
         swivel frame; axis by axis (_MODE bits 6-7 = 00) with the order of bits 0-5 (two bits per
         rotation: 01 X, 10 Y, 11 Z), each rotation about the frame's axis as turned so far."""
+        if "(" not in tok:
+            raise Skip("CYCLE800 without its arguments")
         args = [a.strip() for a in tok[tok.index("(") + 1:-1].split(",")]
         if len(args) < 13:
             if len(args) == 0 or all(not a for a in args) or tok.replace(" ", "").upper() == "CYCLE800()":
@@ -203,6 +205,8 @@ class _Siemens(IsoInterpreter):
 
     def _drill(self, number: int, tok: str, modal: bool, text: str) -> None:
         """CYCLE81..89(RTP, RFP, SDIS, DP, DPR, ...): the hole's bottom DP (absolute) or RFP - DPR."""
+        if "(" not in tok:
+            raise Skip(f"{tok} without its arguments")
         args = [a.strip() for a in tok[tok.index("(") + 1:-1].split(",")]
         try:
             rfp = self._num(args[1]) if len(args) > 1 and args[1] else 0.0
