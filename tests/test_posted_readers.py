@@ -286,3 +286,37 @@ def test_every_dialect_refuses_cleanly(tmp_path):
             read_posted(f)
         assert str(f) in str(exc.value)
         assert main(["analyze", str(f), "--quiet"]) == 2
+
+
+def test_g43_5_vector_g93_feed_and_haas_dwo(tmp_path):
+    # Fanuc G43.5 (TCP type 2): I J K the tool vector; G93: F = 1 / block time (min), so the tip feed is
+    # the block's tip path length times F
+    p = _write(tmp_path, "v.nc", "G21 G90\nG43.5 H1\nG0 X0 Y0 Z10 I0 J0 K1\nG93 G1 X3 Y4 Z10 I0 J0.6 K0.8 F20\n"
+                                 "G49 G94\nM30\n")
+    prog = read_posted(p)
+    assert np.allclose(prog.axis[-1], [0, 0.6, 0.8]) and prog.feed[-1] == pytest.approx(5.0 * 20)
+    # Haas G254 (dynamic work offset) on an A/C table: the control moves the work offset with the
+    # table, tip = Rz(C) Rx(A) X whatever the table centre
+    A, C = 20.0, 70.0
+    q = _write(tmp_path, "d.nc", f"G21 G90 G54\nG254\nG0 X5 Y6 Z7 A{A} C{C}\nG1 X6 F100\nG255\nM30\n")
+    prog = read_posted(q, machine=nominal_machine(("A", "C")))
+    R = Rotation.from_euler("xz", [A, C], degrees=True).as_matrix()
+    assert np.allclose(prog.tip[-1], R @ [6, 6, 7]) and detect_dialect(q.read_text()) == "haas"
+
+
+def test_rotary_word_the_machine_lacks_costs_its_operation(tmp_path):
+    p = _write(tmp_path, "b.nc", "(Operation Name: AC)\nG21 G90\nG43.4 H1\nG0 X0 Y0 Z5 A0 C0\nG1 X1 A5 F100\n"
+                                 "(Operation Name: WITH B)\nG0 X0 Y0 Z5\nG1 X2 B10 F100\nM30\n")
+    prog = read_posted(p, machine=nominal_machine(("A", "C")))
+    assert [t.name for t in prog.toolpaths] == ["AC"]
+    assert any("operation 'WITH B'" in w and "rotary axis B" in w and "line 8" in w for w in prog.warnings)
+
+
+def test_siemens_mcall_holes_and_frames(tmp_path):
+    # 840D: MCALL CYCLE81(RTP, RFP, SDIS, DP) drills at every position until MCALL; TRANS/AROT frames
+    p = _write(tmp_path, "m.mpf", "G71 G90\nTRANS X10 Y20\nAROT Z90\nG0 X0 Y0 Z50\nG1 Z0 F100\nX5\n"
+                                  "MCALL CYCLE81(10,0,2,-8)\nG0 X1 Y1\nX2 Y1\nMCALL\nG0 X3 Y3\nTRANS\nM30\n")
+    prog = read_posted(p)
+    assert np.allclose(prog.tip[prog.line == 6][0], [10, 25, 0])  # (5, 0) turned 90 deg about Z, shifted
+    (cyc,) = prog.cycles
+    assert cyc.code == "CYCLE81" and np.allclose(cyc.holes, [[9, 21, -8], [9, 22, -8]])
