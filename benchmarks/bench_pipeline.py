@@ -2,7 +2,7 @@
 independent reference, a 10k-point row through the CLI against a naive CasADi solve, a 1M-point
 program end to end, NLP scaling on one row, and the demo.
 
-    python benchmarks/bench_pipeline.py samples [--names blade,saddle,mould,wave] [--no-reference]
+    python benchmarks/bench_pipeline.py samples [--names blade,saddle,mould,wave] [--no-reference] [--machine M.toml]
     python benchmarks/bench_pipeline.py row10k
     python benchmarks/bench_pipeline.py program1m [--surface blade] [--stepover 0.06 --spacing 0.08]
     python benchmarks/bench_pipeline.py scaling [--sizes 1000,10000,100000]
@@ -134,11 +134,11 @@ def reference_gamma(res, program, machine, index: MeshIndex) -> tuple[float, flo
     return total, float(d.min()), time.perf_counter() - t0
 
 
-def bench_samples(names: list[str], reference: bool) -> bool:
+def bench_samples(names: list[str], reference: bool, machine_file: str | None = None) -> bool:
     print("== samples: every limit and window from the output arrays, clearance recomputed, Gamma against the "
           "independent reference (plain SX formulation, exact Hessian, map at every point, 4 starts)")
-    cases = [(n, _sample_machine(n), LEAD, TILT, None) for n in names]
-    if "wave" in names:  # issue 13's first case: a small head, a narrow tilt window, 900 mm/min
+    cases = [(n, load_machine(machine_file) if machine_file else _sample_machine(n), LEAD, TILT, None) for n in names]
+    if "wave" in names and not machine_file:  # issue 13's first case: a small head, a narrow tilt window, 900 mm/min
         cases.append(("wave", machine_from_dict(SMALL_HEAD, "small head"), LEAD, tuple(np.radians([-8.0, 8.0])),
                       900.0))
     ok = True
@@ -353,6 +353,8 @@ def main() -> int:
     p = sub.add_parser("samples")
     p.add_argument("--names", default="blade,saddle,mould,wave")
     p.add_argument("--no-reference", action="store_true")
+    p.add_argument("--machine", default=None, help="run every sample on this machine file (e.g. "
+                   "surfaces/nutating_machine.toml) instead of its own")
     sub.add_parser("row10k")
     p = sub.add_parser("program1m")
     p.add_argument("--surface", default="blade")
@@ -364,7 +366,7 @@ def main() -> int:
     sub.add_parser("demo")
     a = ap.parse_args()
     if a.what == "samples":
-        return 0 if bench_samples([s for s in a.names.split(",") if s], not a.no_reference) else 1
+        return 0 if bench_samples([s for s in a.names.split(",") if s], not a.no_reference, a.machine) else 1
     if a.what == "row10k":
         return 0 if bench_row10k() else 1
     if a.what == "program1m":

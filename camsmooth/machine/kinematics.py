@@ -767,7 +767,8 @@ def machine_from_header(kind: str | None, pivot: float | None, centre: Sequence[
     if machine is not None:
         letters = tuple(rotary) if rotary else (MACHINE_KINDS[kind] if kind in MACHINE_KINDS else machine.rotary)
         if letters != machine.rotary:
-            written = f"an {kind} machine" if kind in MACHINE_KINDS else "a machine"
+            written = (f"an {kind} machine" if kind in MACHINE_KINDS else "a machine given by its chain"
+                       if kind == "chain" else "a machine")
             own = f"an {machine.kind}" if machine.description.preset else "a machine given by its chain"
             raise InputError(f"the program was written for {written} (rotary axes {','.join(letters)}) but the "
                              f"machine is {own} ({machine.name}, rotary axes {','.join(machine.rotary)}): give the "
@@ -783,6 +784,26 @@ def machine_from_header(kind: str | None, pivot: float | None, centre: Sequence[
     if not desc.table:  # the default machine's name and post with the header's pivot
         return preset_machine(kind, pivot, centre, base.name, post=base.post)
     return preset_machine(kind, pivot, centre, f"{kind} from the program header", post=base.post)
+
+
+def nominal_machine(letters: Sequence[str]) -> Machine:
+    """The nominal machine a program that names only its rotary letters is read on: A B the default
+    AB head; A C and B C the preset trunnion of those axes, centred at the origin, with travel and
+    dynamics that bind nothing (1e6 deg, 3600 deg/s and deg/s^2). InputError for other letters."""
+    from camsmooth.errors import InputError
+
+    letters = tuple(letters)
+    if letters == ("A", "B"):
+        return load_machine(None)
+    kind = next((k for k, v in MACHINE_KINDS.items() if v == letters and not preset_chain(k).head), None)
+    if kind is None:
+        raise InputError(f"no nominal machine has the rotary axes {', '.join(letters)}: give the machine file "
+                         "(--machine)")
+    free = AxisLimits(-np.radians(1e6), np.radians(1e6), np.radians(3600.0), np.radians(3600.0),
+                      np.radians(ROTARY_JMAX_DEFAULT))
+    linear = AxisLimits(-np.inf, np.inf, **LINEAR_DEFAULTS)
+    return preset_machine(kind, 0.0, (0.0, 0.0, 0.0), f"nominal {kind}",
+                          {letters[0]: free, letters[1]: free, "X": linear, "Y": linear, "Z": linear})
 
 
 def preset_machine(kind: str, pivot: float = 0.0, centre: Sequence[float] = (0.0, 0.0, 0.0), name: str | None = None,
