@@ -200,6 +200,29 @@ def test_irregular_sampling_with_a_gap_keeps_the_lag(tmp_path):
     assert effect(f, "servo_lag")["parameters"]["Kv_X"] == pytest.approx(40.0, rel=0.10)
 
 
+# ---- a real recording ------------------------------------------------------------------------------
+def test_a_real_mill_trace_names_its_lag_as_the_data_show_it():
+    """University of Michigan CNC mill, experiment 01 (CC0; tests/data/traces/SOURCES.md), in the
+    trace layout: the lag fitted by the trace diagnosis against a regression written here (the
+    following error cmd - act on the commanded velocity: steady lag v / Kv)."""
+    from pathlib import Path
+
+    path = Path(__file__).parent / "data" / "traces" / "umich_exp01_trace.csv"
+    tr = read_trace(str(path))
+    d = tr.describe()
+    assert d["axes"] == ["X", "Y", "Z"] and d["samples"] == 1055 and d["rate_hz"] == pytest.approx(10.0)
+    assert d["optional"]["X"] == ["current", "vel_act"]
+    f = diagnose_trace(tr).findings
+    assert f["named"] == ["servo_lag"]  # 10 Hz cannot show ringing, a delay or a limit apart from it
+    kv = effect(f, "servo_lag")["parameters"]
+    for a in ("Y", "Z"):
+        v = np.gradient(tr.cmd[a], tr.t)
+        kv_regression = float(np.sum(v * v) / np.sum((tr.cmd[a] - tr.act[a]) * v))
+        assert kv[f"Kv_{a}"] == pytest.approx(kv_regression, rel=0.15)
+    h = f["heldout"]
+    assert all(h["rms_after"][c] < h["rms_before"][c] for c in ("Y_act", "Z_act"))
+
+
 # ---- command line ----------------------------------------------------------------------------------
 def test_a_plain_log_read_through_a_column_map(tmp_path, capsys):
     T, P = moves()

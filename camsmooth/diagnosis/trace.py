@@ -646,7 +646,9 @@ def diagnose_trace(trace: Trace, options: Options | None = None) -> TraceDiagnos
         sd = np.sqrt(np.maximum(f.sd()[sl] ** 2, f.long_run_sd()[sl] ** 2))
         par, unc, unit = _report_effect(P, name, names, f.x[sl], sd)
         none = sel["none_measurable"].get(name, [])
+        same = [e for e in sel["equivalences"] if e["chosen"] == name]
         effects.append({"name": name, "parameters": par, "uncertainties": unc, "units": unit,
+                        "equivalent_to": same,
                         "heldout_rms_before": before.heldout_rms, "heldout_rms_after": after.heldout_rms,
                         "rms_before": before.rms_fit, "rms_after": after.rms_fit,
                         "none_measurable": none, "verdict": {k: v for k, v in step["verdict"].items()
@@ -683,6 +685,8 @@ def summary_text(f: Mapping[str, Any]) -> str:
         hb, ha = e["heldout_rms_before"], e["heldout_rms_after"]
         ch = ", ".join(f"{c} {hb[c]:.4g} -> {ha[c]:.4g}" for c in hb if hb[c] is not None and ha[c] is not None)
         lines.append(f"- {e['sentence']} (held-out RMS {ch})")
+        for q in e.get("equivalent_to", []):
+            lines.append(f"  cannot tell it apart from {q['alternative']} on this trace: {q['separating_measurement']}")
     u = f["unexplained"]
     if u["count"]:
         it = u["intervals"][0]
