@@ -405,7 +405,7 @@ class Builder:
         F = np.asarray(self._F, float)
         fm = np.asarray(self._fmode, np.int64)
         block = np.asarray(self._block, np.int64)
-        feed = self._feeds(tip, rapid, F, fm, block, mode, warnings)
+        feed = self._feeds(tip, rapid, F, fm, block, mode, q, warnings)
         # operations: drop the skipped ones
         keep = np.ones(n, bool)
         for k, op in enumerate(self.ops):
@@ -502,7 +502,9 @@ class Builder:
         return any(self._fid[i] == 0 or not self._frames[self._fid[i]].rotates for i in range(len(self._fid)))
 
     def _feeds(self, tip: np.ndarray, rapid: np.ndarray, F: np.ndarray, fm: np.ndarray, block: np.ndarray,
-               mode: np.ndarray, warnings: list[str]) -> np.ndarray:
+               mode: np.ndarray, q: np.ndarray, warnings: list[str]) -> np.ndarray:
+        """Feed (mm/min) per point (module docstring); a warning where machine-mode G94 moves turn a
+        rotary axis (F is then the joints' feed, not the tip's)."""
         n = len(tip)
         feed = np.where(rapid, np.nan, F)
         if n == 0:
@@ -516,8 +518,9 @@ class Builder:
             blen = np.bincount(block, weights=chord)  # tip path length per block
             with np.errstate(invalid="ignore"):
                 feed[inv] = blen[block[inv]] * F[inv]
-        g94_machine = (fm == 94) & ~rapid & (mode == 0)
-        if g94_machine.any() and self.letters_used:
+        turns = np.r_[False, np.any(np.abs(np.diff(q, axis=0)) > 1e-9, axis=1)] if n else np.zeros(0, bool)
+        g94_machine = (fm == 94) & ~rapid & (mode == 0) & turns
+        if g94_machine.any():
             warnings.append("machine-mode moves in feed per minute (G94): F applies to the joint motion; the tool "
                             "tip's feed is reported as F written")
         return feed
