@@ -320,3 +320,26 @@ def test_siemens_mcall_holes_and_frames(tmp_path):
     assert np.allclose(prog.tip[prog.line == 6][0], [10, 25, 0])  # (5, 0) turned 90 deg about Z, shifted
     (cyc,) = prog.cycles
     assert cyc.code == "CYCLE81" and np.allclose(cyc.holes, [[9, 21, -8], [9, 22, -8]])
+
+
+def test_heidenhain_jumps_rotation_and_drilling_only(tmp_path):
+    # Klartext manual: FN 9 IF ... EQU ... GOTO LBL (a conditional jump), CYCL DEF 10 ROTATION, a
+    # block-delete '/' before the block number, '* ---' rules that name nothing, CYCL DEF 207 called by M99
+    p = _write(tmp_path, "j.h", "0 BEGIN PGM J MM\n1 * --- HEADER ---\n2 * - ROTATED\n3 TOOL CALL 1 Z S1000\n"
+                                "4 FN 0: Q1900=2\n5 CALL LBL \"PICK\"\n6 CYCL DEF 10.0 ROTATION\n"
+                                "7 CYCL DEF 10.1 ROT+90\n"
+                                "8 L X+0 Y+0 Z+5 R0 FMAX\n9 L Z+0 FQ5\n10 L X+10\n/11 M30\n12 LBL \"PICK\"\n"
+                                "13 FN 9: IF +Q1900 EQU +1 GOTO LBL \"ONE\"\n"
+                                "14 FN 9: IF +Q1900 EQU +2 GOTO LBL \"TWO\"\n"
+                                "15 LBL 0\n16 LBL \"ONE\"\n17 FN 0: Q5=100\n18 LBL 0\n19 LBL \"TWO\"\n20 FN 0: Q5=200\n"
+                                "21 LBL 0\n22 END PGM J MM\n")
+    prog = read_posted(p)
+    assert [t.name for t in prog.toolpaths] == ["ROTATED"]
+    assert np.allclose(prog.tip[-1], [0, 10, 0]) and np.allclose(prog.feed[~prog.rapid], 200)
+    d = _write(tmp_path, "d.h", "0 BEGIN PGM D MM\n1 TOOL CALL 1 Z S500\n2 L X+0 Y+0 Z+50 R0 FMAX\n"
+                                "3 CYCL DEF 207 RIGID TAPPING NEW~\n   Q200=3 ;SET-UP CLEARANCE~\n"
+                                "   Q201=-11.5 ;DEPTH~\n"
+                                "   Q203=0 ;SURFACE COORDINATE\n4 L X+10 Y+5 R0 FMAX M99\n5 L X-10 R0 FMAX M99\n"
+                                "6 M30\n7 END PGM D MM\n")
+    with pytest.raises(InputError, match=r"only canned cycles \(CYCL DEF 207 line 8 \(2 holes\)\)"):
+        read_posted(d)

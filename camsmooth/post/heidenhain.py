@@ -55,6 +55,7 @@ class _Klartext:
         self.pole = np.array([math.nan, math.nan])
         self.shift = np.zeros(3)
         self.plane = np.eye(3)
+        self.rotation = np.eye(3)
         self.cycle: tuple[str, float, float] | None = None
         self.cycle7 = False
         self.pending: list[str] = []
@@ -78,7 +79,7 @@ class _Klartext:
                 continue
             full = acc + text
             acc = ""
-            full = re.sub(r"^\s*\d+\s+", "", full)
+            full = re.sub(r"^\s*/?\s*\d+\s+", "", full)  # the block number (after a block-delete '/')
             if full.lstrip().startswith("*"):
                 out.append((start, "*", full.lstrip()[1:].strip()))
                 continue
@@ -122,6 +123,8 @@ class _Klartext:
                 continue
             if flow == "end":
                 return flow
+            if isinstance(flow, tuple):  # FN 9..12: a jump taken to a label
+                k = self.labels[flow[1]] + 1
         return None
 
     def _num(self, text: str) -> float:
@@ -134,7 +137,7 @@ class _Klartext:
         return v * INCH_MM if self.inch else v
 
     def _frame(self) -> None:
-        R, o = self.plane.copy(), self.shift.copy()  # the frame keeps its own values (later shifts change ours)
+        R, o = self.plane @ self.rotation, self.shift.copy()  # the frame keeps its own values
         fr = Frame3(R, o) if not np.allclose(R, np.eye(3)) else Frame3(o=o)
         self.b.set_frame(fr if not fr.identity else Frame3())
 
@@ -147,6 +150,14 @@ class _Klartext:
         if up.startswith(("BLK FORM", "TOOL DEF", "FUNCTION MODE", "FUNCTION PARAX")):
             self.b.note(up.split()[0] + " " + up.split()[1], line)
             return None
+        m = re.match(r"^FN\s*(9|10|11|12)\s*:\s*IF\s+(.+?)\s+(EQU|NE|GT|LT)\s+(.+?)\s+GOTO\s+LBL\s+\"?([\w ]+?)\"?\s*$",
+                     up)
+        if m:  # a conditional jump between values: taken or not, as the control does
+            a, b, lab = self._num(m.group(2)), self._num(m.group(4)), m.group(5).strip()
+            if lab not in self.labels:
+                raise Skip(f"jump to label {lab}, which is not in this program")
+            taken = {"EQU": a == b, "NE": a != b, "GT": a > b, "LT": a < b}[m.group(3)]
+            return ("jump", lab) if taken else None  # type: ignore[return-value]
         m = re.match(r"^(?:FN\s*\d+\s*:\s*)?(Q\d+)\s*=\s*(.+)$", code, re.I)
         if m:
             if re.match(r"^FN\s*(9|1[0-2]|1[4-9]|2\d)\b", up):
@@ -342,9 +353,14 @@ class _Klartext:
                 raise Skip(f"{' '.join(up.split()[:2])} is not read (SPATIAL, EULER, VECTOR and RESET are)")
         self._frame()
         self.b.note("PLANE", line)
+        for k in ("Q120", "Q121", "Q122"):  # the rotary positions the control computes for the plane: the
+            self.q.setdefault(k, 0.0)  # frame gives tip and axis, so their values only label the angles
+        if not up.startswith("PLANE RESET"):
+            self.b.note("Q120-Q122 (rotary positions the control computes for PLANE) read as 0: the plane gives "
+                        "the tool axis", line)
 
     def _cycl_def(self, line: int, up: str) -> str | None:
-        m = re.match(r"CYCL DEF\s+(\d+)(?:\.(\d+))?\s*(.*)$", up)
+        m = re.match(r"CYCL DEF\s*(\d+)\s*(?:\.\s*(\d+))?\s*(.*)$", up)
         if not m:
             raise Skip("CYCL DEF without a cycle number")
         num, sub, rest = int(m.group(1)), m.group(2), m.group(3)
@@ -364,12 +380,25 @@ class _Klartext:
         if num == 247:
             self.b.offset(f"preset {q.get('Q339', 0):g} (CYCL DEF 247)", line)
             return None
-        if num in (32, 332):
-            self.b.note("CYCL DEF 32 (tolerance)", line)
+        if num in (32, 332, 9, 13, 392, 397):
+            self.b.note({32: "CYCL DEF 32 (tolerance)", 332: "CYCL DEF 332 (tolerance)", 9: "CYCL DEF 9 (dwell)",
+                         13: "CYCL DEF 13 (oriented spindle stop)", 392: "CYCL DEF 392 (ATC)",
+                         397: "CYCL DEF 397"}[num], line)
+            return None
+        if num == 10:  # ROTATION in the working plane: 10.1 ROT+angle about the tool axis
+            if sub in (None, "0"):
+                return None
+            mr = re.search(r"ROT\s*(" + _VAL + ")", rest)
+            if not mr:
+                raise Skip("CYCL DEF 10 without ROT")
+            self.rotation = rot_z(math.radians(self._num(mr.group(1))))
+            self._frame()
+            self.b.note("CYCL DEF 10 (rotation)", line)
             return None
         if num == 19:
             raise Skip("CYCL DEF 19 (tilted plane by cycle) is not read; PLANE is")
         if 200 <= num <= 209 or num in (240, 241):
+            self.b.end_cycle()  # the holes of one CYCL DEF are one cycle
             self.cycle = (f"CYCL DEF {num}", q.get("Q201", 0.0), q.get("Q203", 0.0))
             return None
         raise Skip(f"CYCL DEF {num} is not read")
@@ -382,7 +411,6 @@ class _Klartext:
         if math.isnan(x) or math.isnan(y):
             raise Skip("cycle call at an unknown position")
         self.b.cycle(code, line, np.array([x, y, self._len(surface + depth)]), text)
-        self.b.end_cycle()
 
 
 def read_heidenhain(path: str, text: str, machine: Any = None, chord_tol: float | None = None) -> CLProgram:

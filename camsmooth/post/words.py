@@ -53,7 +53,7 @@ _EXPLICIT = [
     re.compile(r"^\s*path\s*:\s*(.+?)\s*$", re.I),
     re.compile(r"^\s*-*\s*(operation\s+\S.*?)\s*-*\s*$", re.I),
     re.compile(r"^\s*\((.+?)\)\s*$"),  # ';(NAME)' (NX Sinumerik posts)
-    re.compile(r"^\s*-\s*(?:JOB:\s*)?(.+?)\s*$"),  # Heidenhain '* - NAME'
+    re.compile(r"^\s*-\s+(?:JOB:\s*)?([^-\s].*?)\s*$"),  # Heidenhain '* - NAME' (not '* --- rule ---')
 ]
 
 
