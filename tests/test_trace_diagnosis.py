@@ -77,8 +77,17 @@ def motion_trace(tmp_path, case: str, seed: int = 0):
     elif case == "coloured":
         e = np.convolve(np.cumsum(rng.normal(size=len(t))), np.ones(25) / 25, "same")
         y = u + 3 * NOISE * (e - e.mean()) / e.std()
-    elif case == "lag":
+    elif case in ("lag", "lag_ar1"):
         y = superpose(t, T, P, ramp_first_order(1 / 40.0))
+        if case == "lag_ar1":  # plus AR(1) noise, rho 0.99, 5 um stationary sd
+            e = np.zeros(len(t))
+            for i in range(1, len(t)):
+                e[i] = 0.99 * e[i - 1] + rng.normal(0.0, 5 * NOISE * np.sqrt(1 - 0.99 ** 2))
+            y = y + e
+    elif case == "pitch":  # outside the library: a lead-screw error of 10 um with a 5 mm period
+        y = u + 0.010 * np.sin(2 * np.pi * u / 5.0)
+    elif case == "second_order_delay":  # the ringing servo behind a 12 ms transport delay
+        y = superpose(t - 0.012, T, P, ramp_second_order(120.0, 0.3))
     elif case == "second_order":
         y = superpose(t, T, P, ramp_second_order(120.0, 0.3))
     elif case == "velocity_limit":
@@ -161,6 +170,13 @@ def test_a_pure_delay_is_told_apart_from_a_lag(tmp_path):
     assert effect(f, "time_offset")["parameters"]["offset_s"] == pytest.approx(0.012, rel=0.10)
 
 
+def test_a_ringing_servo_behind_a_delay_is_named_as_both(tmp_path):
+    f = diagnose_trace(read_trace(motion_trace(tmp_path, "second_order_delay"))).findings
+    assert sorted(f["named"]) == ["servo_second_order", "time_offset"], f["named"]
+    assert effect(f, "time_offset")["parameters"]["offset_s"] == pytest.approx(0.012, rel=0.10)
+    assert effect(f, "servo_second_order")["parameters"]["wn_X"] == pytest.approx(120.0, rel=0.10)
+
+
 def test_growth_that_follows_a_temperature_is_named_on_that_channel(tmp_path):
     f = diagnose_trace(read_trace(thermal_trace(tmp_path))).findings
     assert f["named"] == ["thermal_temperature"]
@@ -171,15 +187,19 @@ def test_growth_that_follows_a_temperature_is_named_on_that_channel(tmp_path):
 
 
 # ---- nulls ---------------------------------------------------------------------------------------
-@pytest.mark.parametrize("case", ["white", "coloured", "lag"])
+@pytest.mark.parametrize("case", ["white", "coloured", "lag", "lag_ar1", "pitch"])
 def test_nothing_new_is_named_on_a_null(tmp_path, case):
+    """White and coloured noise, a clean first-order servo (alone and under AR(1) noise of rho
+    0.99), a lead-screw error outside the library: no new term."""
     f = diagnose_trace(read_trace(motion_trace(tmp_path, case, seed=5))).findings
     assert not set(f["named"]) & NEW, f["named"]
-    if case == "lag":  # a clean first-order servo: its lag, and only that
+    if case.startswith("lag"):  # a first-order servo: its lag, and only that
         assert f["named"] == ["servo_lag"]
         assert effect(f, "servo_lag")["parameters"]["Kv_X"] == pytest.approx(40.0, rel=0.10)
     else:
         assert f["named"] == []
+    if case == "pitch":  # left unexplained, and located
+        assert f["unexplained"]["count"] > 0
 
 
 def test_a_random_walk_beside_temperatures_is_not_growth(tmp_path):
@@ -255,6 +275,20 @@ def test_bad_traces_give_one_message_and_exit_2(tmp_path, capsys, body, where):
     assert "Traceback" not in err and len(err.strip().splitlines()) == 1
     assert str(p) in err and all(w in err for w in where), err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("body, where", [
+    ("x_nom,y_nom,x_meas\n0,0,0\n1,0,1\n0,1,0\n1,1,1\n", ["row 0", "column 'y_meas'"]),
+    ("x_nom,y_nom,x_meas,y_meas\n0,0,0,0\n1,0,1,0\n0,1,0,1\n1,1,1,inf\n", ["row 4", "column 'y_meas'"]),
+])
+def test_bad_points_give_one_message_and_exit_2(tmp_path, capsys, body, where):
+    p = tmp_path / "bad.csv"
+    p.write_text(body)
+    assert main(["diagnose", "--points", str(p), "--out", str(tmp_path / "f.json")]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert str(p) in err and all(w in err for w in where), err
+    assert not (tmp_path / "f.json").exists()
 
 
 def test_degrees_and_a_candidate_list_that_fits_no_trace(tmp_path, capsys):

@@ -43,6 +43,9 @@ class ThermalTemperature(Term):
             return "the trace has no temp_<name> column"
         if not any(np.ptp(v) > 0 for v in tr.temps.values()):
             return "no recorded temperature changes"
+        if not self._choose(P):
+            return (f"no recorded temperature, lagged or not, lowers the residual of "
+                    f"{P.base.thermal_axis}_act by {100 * MIN_FALL:g}%")
         return None
 
     def _taus(self, P: Problem) -> np.ndarray:
