@@ -234,3 +234,81 @@ def test_no_machine_kind_string_is_tested_outside_the_machine_package():
             if any(p.search(code) for p in patterns):
                 offenders.append(f"{path.relative_to(ROOT)}:{n}: {line.strip()}")
     assert not offenders, "\n".join(offenders)
+
+
+def _skew(u) -> np.ndarray:
+    return np.array([[0.0, -u[2], u[1]], [u[2], 0.0, -u[0]], [-u[1], u[0], 0.0]])
+
+
+def test_inclined_axis_errors_against_the_exact_poe_error_to_second_order():
+    """The nutating machine (B inclined at 45 deg on the head, C on the table) with the error model's
+    location and orientation errors of both axes: the real tip and axis equal the pinned formulas
+    with the lines moved (exact, scipy rotations), and the first-order error written here in closed
+    form (a line moved by delta: the tip moves by R_prefix (I - R_i) delta; a direction turned by e
+    about u: by R_prefix e ([u] R_i - R_i [u]) (y_i - p_i)) leaves a residual of O(S^2)."""
+    from camsmooth.machine.model import ErrorModel, chain_axis_errors
+
+    m = load_machine(ROOT / "surfaces" / "nutating_machine.toml")
+    errors = chain_axis_errors(m)
+    assert set(errors) == {"EX0B", "EZ0B", "EA0B", "EC0B", "EX0C", "EY0C", "EA0C", "EB0C"}
+    s2 = np.sqrt(0.5)
+    np.testing.assert_allclose(errors["EZ0B"].u, [0.0, -s2, s2], atol=1e-15)  # z made perpendicular to B
+    rng = np.random.default_rng(5)
+    q = {"B": rng.uniform(-0.1, 3.2, 20), "C": rng.uniform(-3, 3, 20)}
+    xyz = rng.uniform(-200, 200, (20, 3))
+    desc = m.description
+    B, C = desc.axis("B"), desc.axis("C")
+    g = np.asarray(desc.gauge)
+    residual = {}
+    for eps in (1e-3, 1e-4):
+        geo = {"EX0B": 0.8 * eps, "EZ0B": -1.1 * eps, "EA0B": 0.5 * eps, "EC0B": -0.7 * eps,
+               "EX0C": 1.3 * eps, "EY0C": 0.6 * eps, "EA0C": -0.9 * eps, "EB0C": 0.4 * eps}
+        real = ErrorModel(geo).apply(m)
+        tip, axis = real.tool_pose_np(q["B"], q["C"], *xyz.T)
+        nom_tip, _ = m.tool_pose_np(q["B"], q["C"], *xyz.T)
+        # the moved lines, written here from the parameters' meaning
+        lines = {}
+        for ax in (B, C):
+            loc = sum(geo[n] * np.asarray(e.u) for n, e in errors.items() if e.axis == ax.name and e.what == "location")
+            rot = sum(geo[n] * np.asarray(e.u) for n, e in errors.items()
+                      if e.axis == ax.name and e.what == "orientation")
+            d = Rotation.from_rotvec(rot).apply(np.asarray(ax.direction) / np.linalg.norm(ax.direction))
+            lines[ax.name] = (d, np.asarray(ax.point) + loc, loc, rot)
+        first = np.zeros_like(nom_tip)
+        for k in range(len(xyz)):
+            exact_tip, exact_axis = _pinned_pose([("C", lines["C"][0], lines["C"][1])],
+                                                 [("B", lines["B"][0], lines["B"][1])], g,
+                                                 {"B": q["B"][k], "C": q["C"][k]}, xyz[k])
+            np.testing.assert_allclose(tip[k], exact_tip, atol=1e-9)
+            np.testing.assert_allclose(axis[k], exact_axis, atol=1e-12)
+            # first order: the head's B (inner), then the table's C (outer, prefix of B's effect)
+            RB = Rotation.from_rotvec(q["B"][k] * np.asarray(B.direction)).as_matrix()
+            RC = Rotation.from_rotvec(q["C"][k] * np.asarray(C.direction)).as_matrix()
+            pB = np.asarray(B.point) - g  # B's point in the machine frame with XYZ at zero
+            yB = -g  # the point B turns: the tip below the gauge
+            dB = (np.eye(3) - RB) @ lines["B"][2] + (_skew(lines["B"][3]) @ RB - RB @ _skew(lines["B"][3])) @ (yB - pB)
+            tip_m = xyz[k] + pB + RB @ (yB - pB)
+            pC = np.asarray(C.point)
+            uC = _skew(lines["C"][3])
+            dC = (np.eye(3) - RC) @ lines["C"][2] + (uC @ RC - RC @ uC) @ (tip_m - pC)
+            first[k] = RC @ dB + dC
+        residual[eps] = np.abs(tip - nom_tip - first).max()
+        assert np.abs(first).max() > 50 * residual[eps]  # the errors move the tip, the first order explains it
+    # O(S^2): ten times smaller errors leave a residual about a hundred times smaller
+    assert residual[1e-4] < residual[1e-3] / 50
+
+
+def test_rtest_calibration_identifies_the_nutating_machines_axis_lines():
+    """R-test calibration on a chain: the simulated R-test (sphere on the table, noise 0.5 um) of
+    known line errors of the inclined B and the C axis gives them back within 4 standard
+    uncertainties; the parameters it fits are the chain's own (chain_axis_errors)."""
+    from camsmooth.machine import calibration as cal
+    from camsmooth.machine import simulate as sim
+    from camsmooth.machine.model import ErrorModel
+
+    m = load_machine(ROOT / "surfaces" / "nutating_machine.toml")
+    true = {"EX0C": 0.012, "EY0C": -0.008, "EX0B": 0.015, "EZ0B": -0.010, "EA0B": 20e-6, "EA0C": -30e-6}
+    rep = cal.calibrate_rtest(sim.simulate_rtest(ErrorModel(true), m), m)
+    for name, value in true.items():
+        assert abs(rep.parameters[name] - value) < 4 * rep.uncertainties[name] + 1e-9, name
+    assert rep.model.kind is None and set(rep.parameters) <= set(cal.machine_parameters(m))

@@ -55,10 +55,11 @@ from camsmooth.machine.model import (
     SPINDLE_THERMAL,
     ErrorModel,
     SpindleScrew,
+    chain_axis_errors,
     first_order_response,
-    kind_parameters,
+    machine_parameters,
     spindle_forward,
-    spoken_kind,
+    spoken_machine,
 )
 
 RANK_TOL = fitting.RANK_TOL
@@ -472,8 +473,11 @@ def rtest_priority(machine: Machine) -> tuple[str, ...]:
     """The R-test parameters of ``machine`` in priority order (the comment above): its rotary axis
     lines (ROTARY_BY_KIND of its preset), the nest's offset, and the spindle tilt where a head
     carries the spindle."""
-    own = ROTARY_BY_KIND.get(machine.description.preset or "", {})
-    return tuple(own) + ("EX0S", "EY0S", "EZ0T") + (("EA0S", "EB0S") if machine.has_head else ())
+    preset = machine.description.preset
+    own = tuple(ROTARY_BY_KIND[preset]) if preset is not None else tuple(
+        n for n, e in chain_axis_errors(machine).items() if e.what == "location") + tuple(
+        n for n, e in chain_axis_errors(machine).items() if e.what == "orientation")
+    return own + ("EX0S", "EY0S", "EZ0T") + (("EA0S", "EB0S") if machine.has_head else ())
 
 
 @dataclass
@@ -544,7 +548,7 @@ def validate_rtest(data: RTestData, machine: Machine) -> None:
         rows = np.flatnonzero(counts[inverse.ravel()] > 1) + 1
         raise InputError(f"duplicate poses: rows {rows[:6].tolist()} repeat the same {', '.join(cols[:5])} (each "
                          "pose must be measured once; average repeated readings first)", file=src)
-    own = ROTARY_BY_KIND.get(machine.description.preset or "", {})
+    own = rtest_priority(machine)
     for k, (ax, vals) in enumerate(zip(machine.rotary, (data.q1, data.q2), strict=True)):
         if len(np.unique(np.round(vals, 9))) < 3:
             params = ", ".join(n for n in own if n.endswith(ax))
@@ -581,7 +585,7 @@ def _rtest_residual(x: np.ndarray, names: Sequence[str], scales: np.ndarray, bas
     then the sphere's offset from sphere0 in um."""
     geo = dict(base.geometric)
     geo.update({p: float(v) for p, v in zip(names, x[:-3] * scales, strict=True)})
-    model = replace(base, geometric=geo, kind=machine.kind)
+    model = replace(base, geometric=geo, kind=machine.description.preset)
     return ((data.d - rtest_displacement(model, machine, data, sphere0 + x[-3:] * 1e-3)) * 1e3).ravel()
 
 
@@ -599,21 +603,18 @@ def calibrate_rtest(data: RTestData | str | os.PathLike, machine: Machine | None
     which confounded parameters are resolved: later ones are dropped). The result model states
     the machine kind (ErrorModel.kind)."""
     machine = machine or load_machine()
-    if machine.description.preset is None:
-        raise InputError(f"R-test calibration fits the rotary-axis errors of the preset kinds; the machine is given "
-                         f"by its chain ({machine.describe()}), whose rotary-axis errors camsmooth does not model yet")
     if not isinstance(data, RTestData):
         data = read_rtest_csv(data, machine)
     base = (base or ErrorModel())
     base.check_machine(machine)
-    base = replace(base, kind=machine.kind)
+    base = replace(base, kind=machine.description.preset)
     validate_rtest(data, machine)
     names = list(parameters or rtest_priority(machine))
-    allowed = set(kind_parameters(machine.kind))
+    allowed = machine_parameters(machine)
     wrong = [p for p in names if p not in allowed]
     if wrong:
-        raise InputError(f"parameter(s) {', '.join(wrong)} are not errors of {spoken_kind(machine.kind)} machine "
-                         f"(its parameters: {', '.join(kind_parameters(machine.kind))})")
+        raise InputError(f"parameter(s) {', '.join(wrong)} are not errors of {spoken_machine(machine)} "
+                         f"(its parameters: {', '.join(allowed)})")
     scales = np.array([_scale(p) for p in names])
     n_pose = len(data.q1)
     nominal_tip = machine.tool_pose_np(data.q1, data.q2, data.X, data.Y, data.Z)[0]

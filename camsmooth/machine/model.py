@@ -167,7 +167,20 @@ TABLE_GEOMETRIC: dict[str, tuple[str, str]] = {
     "EA0C": ("rad", "C axis squareness to Y, rotation about x"),
     "EB0C": ("rad", "C axis squareness to X, rotation about y"),
 }
-GEOMETRIC_PARAMETERS: dict[str, tuple[str, str]] = {**ROTARY_GEOMETRIC, **TABLE_GEOMETRIC, **LINEAR_GEOMETRIC}
+#: the location and orientation errors a rotary axis of a machine given by its chain can have
+#: (``chain_axis_errors``): E<P>0<L> the line's offset along the coordinate direction P (made
+#: perpendicular to the axis), E<R>0<L> its tilt about that direction (R the rotation about P: A
+#: about x, B about y, C about z); on an axis along a coordinate direction the ISO 230-1 names
+#: and meanings of the kinds (EX0C, EY0C, EA0C, EB0C for C along z)
+CHAIN_GEOMETRIC: dict[str, tuple[str, str]] = {
+    **{f"E{p}0{a}": ("mm", f"{a} axis line offset along {p.lower()} (a machine given by its chain)")
+       for a in "ABC" for p in "XYZ"},
+    **{f"E{r}0{a}": ("rad", f"{a} axis tilt about {'xyz'['ABC'.index(r)]} (a machine given by its chain)")
+       for a in "ABC" for r in "ABC"},
+}
+GEOMETRIC_PARAMETERS: dict[str, tuple[str, str]] = {
+    **ROTARY_GEOMETRIC, **TABLE_GEOMETRIC, **LINEAR_GEOMETRIC,
+    **{k: v for k, v in CHAIN_GEOMETRIC.items() if k not in ROTARY_GEOMETRIC and k not in TABLE_GEOMETRIC}}
 GEOMETRIC_NAMES: tuple[str, ...] = tuple(GEOMETRIC_PARAMETERS)
 #: spindle and tool errors: the same meaning on every machine kind (relative to the ram or head
 #: that carries the spindle)
@@ -200,7 +213,40 @@ ROTARY_BY_KIND: dict[str, dict[str, tuple[str, str]]] = {
     "BC-table": {**TABLE_GEOMETRIC, **_B_TABLE},
     "BC-head-table": {**TABLE_GEOMETRIC, **_B_HEAD},
 }
-_ROTARY_NAMES = frozenset(n for d in ROTARY_BY_KIND.values() for n in d)
+_PRESET_ROTARY_NAMES = frozenset(n for d in ROTARY_BY_KIND.values() for n in d)
+_ROTARY_NAMES = _PRESET_ROTARY_NAMES | frozenset(CHAIN_GEOMETRIC)
+
+
+@dataclass(frozen=True)
+class AxisError:
+    """One geometric error a rotary axis of a machine given by its chain can have: the axis'
+    name, 'location' (mm: the line moved along ``u``) or 'orientation' (rad: the direction turned
+    about ``u``, right-handed), and ``u`` the unit direction (machine frame at home, perpendicular
+    to the axis)."""
+
+    axis: str
+    what: str
+    u: tuple[float, float, float]
+
+
+def chain_axis_errors(machine: Machine) -> dict[str, AxisError]:
+    """The rotary-axis errors of a machine given by its chain, by name (CHAIN_GEOMETRIC): for each
+    rotary axis with nominal direction d, the two coordinate directions other than the one d lies
+    most along, each made perpendicular to d (Gram-Schmidt), give a location error along it,
+    E<P>0<L>, and an orientation error about it, E<R>0<L>. On an axis along x, y or z these are
+    the ISO 230-1 errors of the kinds: C along z has EX0C, EY0C (offsets in x, y), EA0C, EB0C
+    (tilts about x, y). A line has no location error along itself and no zero offset here."""
+    out: dict[str, AxisError] = {}
+    for ax in machine.description.axes:
+        d = np.asarray(ax.direction, float)
+        k = int(np.argmax(np.abs(d)))
+        for i in (j for j in range(3) if j != k):
+            e = np.eye(3)[i]
+            u = e - (e @ d) * d
+            u = tuple(float(v) for v in u / np.linalg.norm(u))
+            out[f"E{'XYZ'[i]}0{ax.name}"] = AxisError(ax.name, "location", u)
+            out[f"E{'ABC'[i]}0{ax.name}"] = AxisError(ax.name, "orientation", u)
+    return out
 
 
 def spoken_kind(kind: str) -> str:
@@ -210,13 +256,19 @@ def spoken_kind(kind: str) -> str:
 
 def machine_parameters(machine: Machine) -> tuple[str, ...]:
     """The geometric parameters that apply to ``machine``: those of its preset kind
-    (``kind_parameters``); on a chain given explicitly the spindle, tool and linear-axis errors (its
-    rotary-axis errors are not modelled yet)."""
+    (``kind_parameters``); on a chain given explicitly its rotary axes' location and orientation
+    errors (``chain_axis_errors``) and the spindle, tool and linear-axis errors."""
     preset = machine.description.preset
     if preset is None:
-        own = set(SPINDLE_TOOL_GEOMETRIC) | set(LINEAR_GEOMETRIC)
+        own = set(chain_axis_errors(machine)) | set(SPINDLE_TOOL_GEOMETRIC) | set(LINEAR_GEOMETRIC)
         return tuple(n for n in GEOMETRIC_NAMES if n in own)
     return kind_parameters(preset)
+
+
+def spoken_machine(machine: Machine) -> str:
+    """The machine as spoken: "an AC-table machine", or "the machine given by its chain (...)"."""
+    preset = machine.description.preset
+    return f"{spoken_kind(preset)} machine" if preset else f"the machine given by its chain ({machine.describe()})"
 
 
 def kind_parameters(kind: str) -> tuple[str, ...]:
@@ -804,7 +856,7 @@ class ErrorModel:
         parameters), None for a model without rotary-axis errors (it applies to every kind)."""
         if self.kind is not None:
             return self.kind
-        rotary = [n for n, v in self.geometric.items() if n in _ROTARY_NAMES]
+        rotary = [n for n, v in self.geometric.items() if n in _PRESET_ROTARY_NAMES]
         if not rotary:
             return None
         return "table" if any(n in TABLE_GEOMETRIC for n in rotary) else "AB-head"
@@ -825,13 +877,20 @@ class ErrorModel:
         AB-head model on a table machine, a table model on an AB head, an AC-table model on a BC
         table, ...), naming both kinds."""
         own = self.machine_kind()
+        rotary = [n for n, v in self.geometric.items() if n in _ROTARY_NAMES]
         if machine.description.preset is None:
-            rotary = [n for n, v in self.geometric.items() if n in _ROTARY_NAMES and v]
-            if rotary:
-                raise InputError(f"the error model has rotary-axis errors ({', '.join(rotary)}), but the machine is "
-                                 f"given by its chain ({machine.describe()}), whose rotary-axis errors camsmooth does "
-                                 "not model yet: use a model without them (spindle, tool, linear axes, servo, thermal)")
+            own_errors = chain_axis_errors(machine)
+            foreign = [n for n in rotary if n not in own_errors]
+            if self.kind is not None or foreign:
+                what = f"for {spoken_kind(self.kind)} machine" if self.kind else f"with {', '.join(foreign)}"
+                raise InputError(f"the error model is {what}, but the machine is given by its chain "
+                                 f"({machine.describe()}): its rotary-axis errors are {', '.join(own_errors)}")
             return
+        chain_only = [n for n in rotary if n not in _PRESET_ROTARY_NAMES]
+        if chain_only:
+            raise InputError(f"geometric error(s) {', '.join(chain_only)} are errors of a machine given by its chain, "
+                             f"not of {spoken_kind(machine.kind)} machine (its rotary-axis errors: "
+                             f"{', '.join(ROTARY_BY_KIND[machine.kind])})")
         if own is None or own == machine.kind:
             return
         rotary = [n for n in self.geometric if n in _ROTARY_NAMES]
@@ -1054,9 +1113,9 @@ class ErrorModel:
             screws[3] = (w_A, -np.cross(w_A, F_A[:3, 3]))
             screws[4] = (w_B, -np.cross(w_B, F_B[:3, 3]))
         else:
-            if preset is not None:  # a chain given explicitly has no modelled rotary errors (check_machine)
-                for name, (w, point) in self.table_axis_lines(machine).items():
-                    screws[idx[name]] = (w, -np.cross(w, point))
+            lines = self.table_axis_lines(machine) if preset is not None else self.chain_axis_lines(machine)
+            for name, (w, point) in lines.items():
+                screws[idx[name]] = (w, -np.cross(w, point))
             S = self.spindle_frame(_spindle_pivot(machine))
         g = self.get
         if g("EC0Y"):
@@ -1105,6 +1164,31 @@ class ErrorModel:
         else:
             lines["B"] = (rot_x(g("EA0B")) @ rot_z(g("EC0B")) @ np.array([0.0, 1.0, 0.0]),
                           tilt_point + np.array([g("EX0B"), 0.0, g("EZ0B")]))
+        return lines
+
+    def chain_axis_lines(self, machine: Machine) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """The real rotary axis lines of a machine given by its chain, at the home configuration in
+        the chain's frame (workpiece frame; a head axis' point taken from the gauge point): axis name
+        -> (unit direction w, a point on the line, mm). Each nominal line (d, p) becomes the line
+        through p + sum of its location errors along their u, with direction exp([r]) d, r = sum of
+        its orientation errors times their u (``chain_axis_errors``)."""
+        joints = {j.name: j for j in machine.chain.joints if j.kind == "revolute"}
+        errors = chain_axis_errors(machine)
+        lines = {}
+        for name, joint in joints.items():
+            d = np.asarray(joint.direction, float) / np.linalg.norm(joint.direction)
+            p = np.asarray(joint.point, float)
+            r = np.zeros(3)
+            for pname, e in errors.items():
+                if e.axis != name or not self.get(pname):
+                    continue
+                if e.what == "location":
+                    p = p + self.get(pname) * np.asarray(e.u)
+                else:
+                    r = r + self.get(pname) * np.asarray(e.u)
+            w = exp_twist(r / np.linalg.norm(r), np.zeros(3), float(np.linalg.norm(r))).to_numpy()[:3, :3] @ d \
+                if np.any(r) else d
+            lines[name] = (w, p)
         return lines
 
     def spindle_frame(self, pivot_point: Sequence[float]) -> np.ndarray:
@@ -1344,7 +1428,8 @@ def _value(item: Any, unit: str, where: str, source: str) -> float:
     return float(v) if factor == 1.0 else float(v) * factor
 
 
-__all__ = ["GEOMETRIC_NAMES", "GEOMETRIC_PARAMETERS", "LINEAR_GEOMETRIC", "MACHINE_THERMAL", "POSITIONING",
+__all__ = ["AxisError", "CHAIN_GEOMETRIC", "chain_axis_errors", "machine_parameters",
+           "GEOMETRIC_NAMES", "GEOMETRIC_PARAMETERS", "LINEAR_GEOMETRIC", "MACHINE_THERMAL", "POSITIONING",
            "ROTARY_BY_KIND", "ROTARY_GEOMETRIC", "SPINDLE_THERMAL", "SPINDLE_TOOL_GEOMETRIC", "SQUARENESS",
            "STRAIGHTNESS", "TABLE_GEOMETRIC", "THERMAL_ELEMENTS", "Compensation", "ErrorModel", "Prediction",
            "RealChain", "SpindleScrew", "carriage_index", "carriage_rotation", "compensate", "first_order_between",
