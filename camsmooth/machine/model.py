@@ -265,6 +265,19 @@ def machine_parameters(machine: Machine) -> tuple[str, ...]:
     return kind_parameters(preset)
 
 
+def rotary_errors(machine: Machine, what: str) -> dict[str, tuple[str, ...]]:
+    """The machine's rotary-axis errors of one sort per axis: ``what`` 'location' (the lines'
+    offsets, mm) or 'orientation' (their tilts, rad); axis name -> parameter names, e.g. on an
+    AC table {'A': ('EY0A', 'EZ0A'), 'C': ('EX0C', 'EY0C')} for 'location'."""
+    preset = machine.description.preset
+    if preset is None:
+        found = [(e.axis, n) for n, e in chain_axis_errors(machine).items() if e.what == what]
+    else:
+        unit = {"location": "mm", "orientation": "rad"}[what]
+        found = [(n[-1], n) for n, (u, _) in ROTARY_BY_KIND[preset].items() if u == unit]
+    return {a: tuple(n for b, n in found if b == a) for a in machine.rotary if any(b == a for b, _ in found)}
+
+
 def spoken_machine(machine: Machine) -> str:
     """The machine as spoken: "an AC-table machine", or "the machine given by its chain (...)"."""
     preset = machine.description.preset
@@ -1428,7 +1441,7 @@ def _value(item: Any, unit: str, where: str, source: str) -> float:
     return float(v) if factor == 1.0 else float(v) * factor
 
 
-__all__ = ["AxisError", "CHAIN_GEOMETRIC", "chain_axis_errors", "machine_parameters",
+__all__ = ["AxisError", "CHAIN_GEOMETRIC", "chain_axis_errors", "machine_parameters", "rotary_errors",
            "GEOMETRIC_NAMES", "GEOMETRIC_PARAMETERS", "LINEAR_GEOMETRIC", "MACHINE_THERMAL", "POSITIONING",
            "ROTARY_BY_KIND", "ROTARY_GEOMETRIC", "SPINDLE_THERMAL", "SPINDLE_TOOL_GEOMETRIC", "SQUARENESS",
            "STRAIGHTNESS", "TABLE_GEOMETRIC", "THERMAL_ELEMENTS", "Compensation", "ErrorModel", "Prediction",

@@ -1,6 +1,6 @@
 """rotary_location: the rotary axis lines displaced from their nominal places (EY0A, EZ0A, EX0B,
-EZ0B on any kind that has them; EX0C, EY0C on a table; camsmooth.machine.model), those of the
-machine (``machine_parameters``) whose axis moves."""
+EZ0B on any kind that has them; EX0C, EY0C on a table; a chain's own), those of the machine
+(camsmooth.machine.model.rotary_errors) whose axis moves."""
 
 from __future__ import annotations
 
@@ -21,16 +21,12 @@ class RotaryLocation(Geometric):
     channels_seen = TIP_CHANNELS
     what = "The rotary axes are displaced from their nominal lines"
 
-    #: the parameters per rotary axis (the machine's kind keeps those it has)
-    PER_AXIS = {"A": ("EY0A", "EZ0A"), "B": ("EX0B", "EZ0B"), "C": ("EX0C", "EY0C")}
-
     def candidates_for(self, P: Problem) -> list[tuple[Any, ...]]:
-        from camsmooth.machine.model import machine_parameters
+        from camsmooth.machine.model import rotary_errors
 
-        own = set(machine_parameters(P.machine))
         unit, bound, scale = "mm", 5.0, 1e-3
-        return [(n, unit, bound, scale, a) for a, names in self.PER_AXIS.items() if P.knots.moves(a)
-                for n in names if n in own]
+        return [(n, unit, bound, scale, a) for a, names in rotary_errors(P.machine, "location").items()
+                if P.knots.moves(a) for n in names]
 
     def state(self, P: Problem, names: Sequence[str]) -> tuple[str, np.ndarray, str]:
         return rotary_state(P)

@@ -1,5 +1,6 @@
 """rotary_squareness: the rotary axes tilted from their nominal directions (EB0A, EC0A, EA0B,
-EC0B; EA0C, EB0C on a table; METHODS section 3), those of the machine's kind whose axis moves."""
+EC0B; EA0C, EB0C on a table; a chain's own; METHODS section 3), those of the machine
+(camsmooth.machine.model.rotary_errors) whose axis moves."""
 
 from __future__ import annotations
 
@@ -18,16 +19,12 @@ class RotarySquareness(Geometric):
     name = "rotary_squareness"
     what = "The rotary axes are tilted from their nominal directions"
 
-    #: the parameters per rotary axis (the machine's kind keeps those it has)
-    PER_AXIS = {"A": ("EB0A", "EC0A"), "B": ("EA0B", "EC0B"), "C": ("EA0C", "EB0C")}
-
     def candidates_for(self, P: Problem) -> list[tuple[Any, ...]]:
-        from camsmooth.machine.model import machine_parameters
+        from camsmooth.machine.model import rotary_errors
 
-        own = set(machine_parameters(P.machine))
         unit, bound, scale = "rad", 0.05, 1e-6
-        return [(n, unit, bound, scale, a) for a, names in self.PER_AXIS.items() if P.knots.moves(a)
-                for n in names if n in own]
+        return [(n, unit, bound, scale, a) for a, names in rotary_errors(P.machine, "orientation").items()
+                if P.knots.moves(a) for n in names]
 
     def state(self, P: Problem, names: Sequence[str]) -> tuple[str, np.ndarray, str]:
         return rotary_state(P)
