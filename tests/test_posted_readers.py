@@ -343,3 +343,33 @@ def test_heidenhain_jumps_rotation_and_drilling_only(tmp_path):
                                 "6 M30\n7 END PGM D MM\n")
     with pytest.raises(InputError, match=r"only canned cycles \(CYCL DEF 207 line 8 \(2 holes\)\)"):
         read_posted(d)
+
+
+def test_solidworks_cam_apt(tmp_path):
+    """SOLIDWORKS CAM's APT (tests/data/posted/SOURCES.md): CIRCLE/centre,axis without radius,
+    UNIT/MM. The arcs turn counter-clockwise about the axis: every lead-in arc ends tangent to the
+    contour arc that follows it and starts tangent to the straight lead-in before it, and the
+    contour circles keep their radius (18 mm about (15, 15), 5.5 and 5.75 mm about the bore)."""
+    f = DATA / "solidworks_teflon_gasket.apt"
+    prog = load_program(f)
+    assert not any("CIRCLE" in w for w in prog.warnings)
+    cut = ~prog.rapid
+    tip, line = prog.tip, prog.line
+    text = f.read_text().splitlines()
+    for k, ln in enumerate(text, start=1):
+        if ln.startswith("CIRCLE/16.055013,-3.970687,-5."):  # a lead-in arc of radius 1 (the first level)
+            arc = tip[line == k + 1]
+            before = tip[np.flatnonzero(line == k + 1)[0] - 1]
+            assert np.allclose(np.hypot(*(arc[:, :2] - [16.055013, -3.970687]).T), 1.0, atol=1e-5)
+            d_in = arc[0] - before
+            lead = tip[line == k - 1][-1] - tip[np.flatnonzero(line == k - 1)[0] - 1]
+            assert np.dot(d_in[:2], lead[:2]) / np.linalg.norm(d_in[:2]) / np.linalg.norm(lead[:2]) > 0.99
+            nxt = tip[line == k + 4]  # the contour arc about (15, 15) after FEDRAT
+            d_out, d_next = arc[-1] - arc[-2], nxt[0] - arc[-1]
+            assert np.dot(d_out[:2], d_next[:2]) / np.linalg.norm(d_out[:2]) / np.linalg.norm(d_next[:2]) > 0.99
+            assert np.allclose(np.hypot(*(nxt[:, :2] - 15.0).T), 18.0, atol=1e-5)
+    bore = tip[cut & np.isclose(tip[:, 2], -5.0) & (np.hypot(tip[:, 0] - 15, tip[:, 1] - 15) < 6)]
+    r = np.hypot(*(bore[:, :2] - 15.0).T)
+    assert np.isclose(r.max(), 5.75, atol=1e-5) and np.any(np.isclose(r, 5.5, atol=1e-5))
+    out = tmp_path / "g.csv"
+    assert main(["analyze", str(f), "--cl", str(out), "--quiet"]) == 0

@@ -45,6 +45,10 @@ Records read (one per line; ``MAJOR/arg,arg,...`` or a bare major word):
   the CIRCLE line. Points within ``chord_tol`` of the helix as for the arc. NX's own example of a
   helix record (the forum thread below) gives the centre at the height of the end point; only
   the projection of the centre on the plane normal to the axis is used, so either is read.
+- ``CIRCLE/xc,yc,zc,i,j,k`` (SOLIDWORKS CAM: no radius): the next GOTO ends an arc about the
+  centre and axis whose radius is the start point's distance from the axis, counter-clockwise
+  about (i, j, k) by the right-hand rule (the direction its files show: each lead-in arc ends
+  tangent to the arc after it, tests/test_posted_readers.py). ``UNIT/MM`` is read as ``UNITS/``.
 - ``MOVARC/xc,yc,zc,i,j,k,r,ANGLE,s`` (ISO 4343, Fusion / HSM): the next GOTO ends an arc about
   the centre c of radius r, counter-clockwise about (i, j, k) (right-hand rule; the post flips the
   normal for a clockwise arc), sweeping s degrees (0 < s <= 360; 360 with start = end is a full
@@ -262,7 +266,7 @@ def _file_unit(recs: list[_Record], file: str, units: str | None, warnings: list
             raise InputError(f"units must be 'mm' or 'inch', got {units!r}", file=file)
         return units
     for r in recs:
-        if r.major == "UNITS":
+        if r.major in ("UNITS", "UNIT"):
             word = r.args[0].upper() if r.args else ""
             if word not in _UNIT_WORDS:
                 raise InputError(f"unknown units {word or r.text!r} (expected UNITS/MM or UNITS/INCHES)", file=file,
@@ -605,6 +609,9 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
                     if st.last is None:
                         raise InputError(f"{arc.record} before any position: the arc has no start point", file=file,
                                          line=arc.line)
+                    if math.isnan(arc.radius):  # a CIRCLE without radius: the start point's distance from the axis
+                        u0 = np.array(st.last) - arc.centre
+                        arc.radius = float(np.linalg.norm(u0 - (u0 @ arc.normal) * arc.normal))
                     Q = _arc_points(np.array(st.last), np.array(p), arc, chord_tol, file)
                     arc_points += len(Q)
                     if arc_points > MAX_ARC_POINTS_TOTAL:
@@ -655,12 +662,16 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
                     rpm = abs(nums[0])
             elif m == "CIRCLE":
                 args, turns = _circle_times(rec, file)
-                v = _numbers(rec, file, "CIRCLE", tuple(range(7, 12)), args)
+                v = _numbers(rec, file, "CIRCLE", tuple(range(6, 12)), args)
                 c_axis = _unit_axis(np.array(v[3:6]), rec, file, "CIRCLE axis")
-                if not v[6] > 0:
+                if len(v) == 6:
+                    # SOLIDWORKS CAM: centre and axis, no radius (the start point's distance from the
+                    # axis), the motion counter-clockwise about the axis (right-hand rule)
+                    arc = _Arc(np.array(v[:3]) * st.scale, c_axis, math.nan, rec.line, "CIRCLE", turns=turns)
+                elif not v[6] > 0:
                     raise InputError(f"CIRCLE radius must be > 0, got {v[6]:g}", file=file, line=rec.line)
-                # NX gives the axis for a clockwise motion: counter-clockwise about its opposite
-                arc = _Arc(np.array(v[:3]) * st.scale, -c_axis, v[6] * st.scale, rec.line, "CIRCLE", turns=turns)
+                else:  # NX gives the axis for a clockwise motion: counter-clockwise about its opposite
+                    arc = _Arc(np.array(v[:3]) * st.scale, -c_axis, v[6] * st.scale, rec.line, "CIRCLE", turns=turns)
             elif m == "MOVARC":
                 words = [a.upper() for a in rec.args]
                 if len(rec.args) != 9 or words[7] != "ANGLE":
@@ -680,7 +691,7 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
                 cur_xform = len(transforms) - 1
                 if open_tp is not None and open_tp.start == st.count:
                     open_tp.transform = transforms[cur_xform].copy()
-            elif m == "UNITS":
+            elif m in ("UNITS", "UNIT"):  # SOLIDWORKS CAM writes UNIT/MM
                 word = rec.args[0].upper() if rec.args else ""
                 if word not in _UNIT_WORDS:
                     raise InputError(f"unknown units {word or rec.text!r} (expected UNITS/MM or UNITS/INCHES)",
@@ -736,7 +747,7 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
                 axis = _unit_tuple(v[0], v[1], v[2], rec, file)  # the modal axis of 3-number GOTOs
             elif m == "MULTAX" and [a.upper() for a in rec.args] == ["OFF"] and abs(axis[2] - 1.0) > 1e-9:
                 multax_off.append((rec.line, axis))
-            elif m in _SKIPPED or (m == "CYCLE" and [a.upper() for a in rec.args] == ["OFF"]):
+            elif m in _SKIPPED or (m == "CYCLE" and [a.upper() for a in rec.args] in (["OFF"], ["INIT"])):
                 pass
             else:
                 unknown.setdefault(m or rec.text.strip()[:40], []).append(rec.line)
@@ -771,7 +782,12 @@ def read_apt(path: str | os.PathLike, chord_tol: float = DEFAULT_CHORD_TOL, unit
         if len(parts) > 20:
             parts = parts[:20] + [f"and {len(parts) - 20} more"]
         warnings.append(f"records ignored (not applied): {'; '.join(parts)}")
-    return _program(st, transforms, toolpaths, warnings)
+    program = _program(st, transforms, toolpaths, warnings)
+    if program.rapid.all():  # FROM/, RAPID GOTOs, GOHOME only (a drilling CLSF whose holes are reached by rapids)
+        raise InputError(f"no cutting move: all {len(program)} positions are rapid (FROM/, GOTO after RAPID); the file "
+                         "holds no feed motion to analyse or smooth", file=file,
+                         line=int(program.line[0]) if len(program) else None)
+    return program
 
 
 def _mill(d: float, r: float, length: float | None, what: str, rec: _Record, file: str, scale: float,
@@ -849,10 +865,6 @@ def _program(st: _State, transforms: list[np.ndarray], toolpaths: list[ToolPath]
         tp_id[tp.start:tp.stop] = k
     new = ~rapid & np.r_[True, rapid[:-1] | (tp_id[1:] != tp_id[:-1])]
     rows = np.where(rapid, -1, np.cumsum(new) - 1)
-    if rapid.all():  # FROM/, RAPID GOTOs, GOHOME only (a drilling CLSF whose holes are all reached by rapids)
-        raise InputError(f"no cutting move: all {len(rapid)} positions are rapid (FROM/, GOTO after RAPID); the file "
-                         "holds no feed motion to analyse or smooth", file=st.file,
-                         line=int(line[0]) if len(line) else None)
     unknown_feed = ~rapid & ~np.isfinite(feed)
     if unknown_feed.any():
         lines = line[unknown_feed]
