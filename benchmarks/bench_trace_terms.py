@@ -25,6 +25,7 @@ CASES = {  # case: (expected names, term, parameter, truth)
     "backlash_load": (["backlash_load"], "backlash_load", "backlash_load_X", 0.02),
     "delay": (["time_offset"], "time_offset", "offset_s", 0.012),
     "thermal": (["thermal_temperature"], "thermal_temperature", "gain_spindle", 0.012),
+    "thermal_clock": (["thermal_time"], "thermal_time", "gain_time", 0.05),
     "lag": (["servo_lag"], "servo_lag", "Kv_X", 40.0),
     "lag_ar1": (["servo_lag"], "servo_lag", "Kv_X", 40.0),
     "second_order_delay": (["servo_second_order", "time_offset"], "servo_second_order", "wn_X", 120.0),
@@ -44,7 +45,7 @@ def main(seeds: int, only: list[str] | None = None) -> None:
             right, worst, new, t0 = 0, 0.0, 0, time.perf_counter()
             for seed in range(seeds):
                 if case.startswith("thermal"):
-                    path = thermal_trace(d, null=case == "thermal_null", seed=100 + seed)
+                    path = thermal_trace(d, null=case == "thermal_null", seed=100 + seed, clock=case == "thermal_clock")
                 else:
                     path = motion_trace(d, case, seed=100 + seed)
                 f = diagnose_trace(read_trace(path)).findings

@@ -15,7 +15,8 @@ from camsmooth.cli.main import main
 from camsmooth.diagnosis.points import diagnose_points, read_points
 from camsmooth.diagnosis.trace import diagnose_trace, read_trace
 
-NEW = {"servo_second_order", "velocity_limit", "acceleration_limit", "thermal_temperature", "backlash_load"}
+NEW = {"servo_second_order", "velocity_limit", "acceleration_limit", "thermal_temperature", "backlash_load",
+       "thermal_time"}
 DT = 0.002
 NOISE = 1e-3  # mm
 
@@ -117,7 +118,7 @@ def motion_trace(tmp_path, case: str, seed: int = 0):
     return write_csv(tmp_path / f"{case}.csv", t, {"X_cmd": u, "X_act": y, **extra})
 
 
-def thermal_trace(tmp_path, null: bool = False, seed: int = 1):
+def thermal_trace(tmp_path, null: bool = False, seed: int = 1, clock: bool = False):
     """An axis held at 0 for 8 h beside four temperatures; the spindle heats for 4 h then cools.
     Growth = 0.012 mm/degC times the spindle temperature through a 600 s first-order lag (closed
     form of a lag driven by 1 - exp(-t / 1800)), or, for the null, a random walk."""
@@ -132,7 +133,9 @@ def thermal_trace(tmp_path, null: bool = False, seed: int = 1):
     on = t > t1
     T1 = A * (1 - np.exp(-t / th)) - A * np.where(on, 1 - np.exp(-(t - t1) / th), 0.0)
     L1 = A * lagged(t) - A * np.where(on, lagged(t - t1), 0.0)
-    if null:
+    if clock:  # growth that follows time alone: 0.05 mm with a 3000 s time constant, no cool-down
+        y = 0.05 * (1 - np.exp(-t / 3000.0))
+    elif null:
         e = np.cumsum(rng.normal(size=len(t)))
         y = 0.002 * (e - e.mean()) / e.std()
     else:
@@ -200,6 +203,13 @@ def test_nothing_new_is_named_on_a_null(tmp_path, case):
         assert f["named"] == []
     if case == "pitch":  # left unexplained, and located
         assert f["unexplained"]["count"] > 0
+
+
+def test_growth_that_follows_time_is_not_put_down_to_a_temperature(tmp_path):
+    f = diagnose_trace(read_trace(thermal_trace(tmp_path, clock=True))).findings
+    assert f["named"] == ["thermal_time"], f["named"]
+    p = effect(f, "thermal_time")["parameters"]
+    assert p["gain_time"] == pytest.approx(0.05, rel=0.10) and p["tau_time"] == pytest.approx(3000.0, rel=0.10)
 
 
 def test_a_random_walk_beside_temperatures_is_not_growth(tmp_path):

@@ -20,7 +20,8 @@ wn^2 u); each filter is discretised exactly for a piecewise-linear input (first-
 starts at rest on the first command. The result is read at t - offset_s (time_offset: a pure
 delay of every axis) and the recording adds a backlash of -(b/2) sign(last commanded direction),
 a load backlash of -(b/2) sign(load), and on the thermal axis sum_ch gain_ch * L_ch(T_ch - T_ch(0))
-with L_ch a first-order lag of time constant tau_ch. A parameter at its base value (0) switches
+with L_ch a first-order lag of time constant tau_ch, and gain (1 - exp(-(t - t0) / tau)) of growth
+against time. A parameter at its base value (0) switches
 its block off.
 
 Selection (``diagnose_trace``): the same term library, selector and significance rules as the
@@ -51,7 +52,7 @@ GAP_FACTOR = 20.0
 GRID_MAX = 400_000
 #: terms tried on a trace (the library's order decides between equals)
 TRACE_CANDIDATES = ("servo_lag", "time_offset", "backlash", "servo_second_order", "velocity_limit",
-                    "acceleration_limit", "backlash_load", "thermal_temperature")
+                    "acceleration_limit", "backlash_load", "thermal_temperature", "thermal_time")
 KINDS = ("cmd", "act", "load", "vel_cmd", "vel_act", "current")
 _AXIS_COLUMN = re.compile(r"^([A-Za-z0-9]+)_(cmd|act|load|vel_cmd|vel_act|current)$", re.IGNORECASE)
 
@@ -242,7 +243,7 @@ class TraceModel:
     tau: first-order lag 1/Kv per axis; t2: 1/wn of the second-order servo; zeta: its damping
     (1 when unset); iv, ia: 1/vmax, 1/amax (0: no limit); backlash, backlash_load: reversal size b;
     offset_s: pure delay of every axis; thermal: channel -> (gain per deg C, tau s) on
-    ``thermal_axis``."""
+    ``thermal_axis``; drift: (gain, tau s) of growth against time on that axis."""
 
     tau: dict[str, float] = field(default_factory=dict)
     t2: dict[str, float] = field(default_factory=dict)
@@ -254,11 +255,12 @@ class TraceModel:
     offset_s: float = 0.0
     thermal: dict[str, tuple[float, float]] = field(default_factory=dict)
     thermal_axis: str | None = None
+    drift: tuple[float, float] = (0.0, 1.0)
 
     def copy(self) -> TraceModel:
         return TraceModel(dict(self.tau), dict(self.t2), dict(self.zeta), dict(self.iv), dict(self.ia),
                           dict(self.backlash), dict(self.backlash_load), self.offset_s, dict(self.thermal),
-                          self.thermal_axis)
+                          self.thermal_axis, self.drift)
 
 
 def _lag1(u: np.ndarray, h: float, tau: float) -> np.ndarray:
@@ -449,10 +451,13 @@ class TraceSimulator:
         bl = model.backlash_load.get(a, 0.0)
         if bl and a in self.load_sign:
             y = y - 0.5 * bl * self.load_sign[a]
-        if model.thermal and a == model.thermal_axis:
+        if a == model.thermal_axis:
             for ch, (g, tc) in model.thermal.items():
                 if g:
                     y = y + g * self.temperature(ch, tc)
+            g, tc = model.drift
+            if g:
+                y = y + g * (1.0 - np.exp(-(self.t - self.trace.t[0]) / tc))
         return y
 
     def run(self, model: TraceModel) -> np.ndarray:

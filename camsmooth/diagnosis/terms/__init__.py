@@ -16,6 +16,7 @@ from camsmooth.diagnosis.terms.spindle_runout import SpindleRunout
 from camsmooth.diagnosis.terms.spindle_tilt import SpindleTilt
 from camsmooth.diagnosis.terms.thermal import ThermalDrift, ThermalMachine
 from camsmooth.diagnosis.terms.thermal_temperature import ThermalTemperature
+from camsmooth.diagnosis.terms.thermal_time import ThermalTime
 from camsmooth.diagnosis.terms.time_offset import TimeOffset
 from camsmooth.diagnosis.terms.tool_length import ToolLength
 from camsmooth.diagnosis.terms.velocity_limit import AccelerationLimit, VelocityLimit
@@ -25,11 +26,11 @@ LIBRARY: tuple[Term, ...] = (ServoLag(), TimeOffset(), Backlash(), RotaryLocatio
                              LinearPositioning(), LinearStraightness(), LinearSquareness(),
                              # controller traces only (camsmooth.diagnosis.trace)
                              ServoSecondOrder(), VelocityLimit(), AccelerationLimit(), BacklashLoad(),
-                             ThermalTemperature())
+                             ThermalTemperature(), ThermalTime())
 CANDIDATES: tuple[str, ...] = tuple(t.name for t in LIBRARY)
 #: the terms only a controller trace can show (not applicable to a program and its recording)
 TRACE_ONLY: tuple[str, ...] = ("servo_second_order", "velocity_limit", "acceleration_limit", "backlash_load",
-                               "thermal_temperature")
+                               "thermal_temperature", "thermal_time")
 
 
 def term(name: str) -> Term:
@@ -55,6 +56,9 @@ SEPARATING = {
     frozenset({"servo_lag", "acceleration_limit"}):
         "a long move at constant speed separates them: a lag stays behind by v/Kv all along, an acceleration "
         "limit catches up once the speed is reached",
+    frozenset({"thermal_temperature", "thermal_time"}):
+        "a recording through a cool-down (or a change of ambient) with the temperatures logged separates them: "
+        "growth that follows the temperatures turns with them, growth that follows time does not",
     frozenset({"backlash", "backlash_load"}):
         "reversing the motion under a load of one sign (or changing the load while the axis holds still) "
         "separates them",
