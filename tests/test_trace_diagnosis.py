@@ -262,12 +262,14 @@ def test_a_plain_log_read_through_a_column_map(tmp_path, capsys):
     log = tmp_path / "scope.txt"  # a blank-separated log without a header: sample, time, cmd, act
     log.write_text("".join(f"{i} {float(t[i])!r} {float(u[i])!r} {float(y[i])!r}\n" for i in range(len(t))))
     out = tmp_path / "f.json"
-    assert main(["diagnose", "--trace", str(log), "--columns", "t=2,X_cmd=3,X_act=4", "--out", str(out),
-                 "--report", str(tmp_path / "rep")]) == 0
+    # halsampler -t style: the first field counts samples; --sample-period makes it seconds
+    assert main(["diagnose", "--trace", str(log), "--columns", "t=1,X_cmd=3,X_act=4", "--sample-period", "0.002",
+                 "--out", str(out), "--report", str(tmp_path / "rep")]) == 0
     text = capsys.readouterr().out
     assert f"axes X; {len(t)} samples at 500 Hz" in text and "units mm" in text
     f = json.loads(out.read_text())
     assert f["named"] == ["servo_lag"] and f["input"]["samples"] == len(t)
+    assert f["input"]["span_s"] == pytest.approx(t[-1] - t[0])
     assert (tmp_path / "rep" / "report.html").exists() and (tmp_path / "rep" / "trace_X.png").exists()
 
 
