@@ -525,8 +525,9 @@ def _states(trace: Trace, knots: TraceKnots, idx: np.ndarray) -> dict[str, np.nd
 
 
 def _thermal_axis(trace: Trace) -> str | None:
-    """The axis the temperatures act on: the one whose actual departs most from its command
-    (RMS of act - cmd after its mean), among axes whose command is nearly constant when any is."""
+    """The one axis the temperature terms act on (reported in FINDINGS.json as input.thermal_axis):
+    the one whose actual departs most from its command (standard deviation of act - cmd), among
+    the axes whose command is constant when any is (a thermal run holds the axis it measures)."""
     if not trace.temps:
         return None
 
@@ -672,7 +673,7 @@ def diagnose_trace(trace: Trace, options: Options | None = None) -> TraceDiagnos
                "rms_before": base_fit.heldout_rms, "rms_after": final.heldout_rms}
     verdict = (f"named {', '.join(named)}" if named else "nothing named: the actual follows its command within the "
                "noise, or no term of the library explains what is left")
-    findings = {"input": trace.describe(), "named": named, "effects": effects,
+    findings = {"input": {**trace.describe(), "thermal_axis": P.base.thermal_axis}, "named": named, "effects": effects,
                 "rejected": [{k: v for k, v in r.items()} for r in sel["rejected"]],
                 "equivalences": sel["equivalences"], "noise_floor": P.floor_info, "rms": rms, "heldout": heldout,
                 "unexplained": {"count": loc["count"], "fraction_of_time_above": loc["fraction_of_time_above"],
