@@ -264,9 +264,7 @@ class _Klartext:
             return self._m(line, [m for m in ms if m != 140])
         if 91 in ms or 92 in ms:
             self.b.machine_move(line, "M91/M92 (machine-referenced block)")
-            for a in "ABC":
-                if a in w:
-                    self.rot[a] = w[a]
+            self.rot = {**self.rot, **{a: w[a] for a in "ABC" if a in w}}  # a new dict: points keep theirs
             return self._m(line, [m for m in ms if m not in (91, 92)])
         if any(m in (128, 129) for m in ms):
             self._m(line, [m for m in ms if m in (128, 129)])

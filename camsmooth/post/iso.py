@@ -50,7 +50,17 @@ __all__ = ["read_iso", "IsoInterpreter", "DIALECTS"]
 DIALECTS = ("fanuc", "haas", "linuxcnc", "iso")
 _LINEAR = ("X", "Y", "Z")
 _ROTARY = ("A", "B", "C")
-_NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+_NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)"  # no exponent: E is a word (Haas G187 E0.01)
+_NUM_RE = re.compile(_NUM)
+#: a block of plain words only (no parameters or expressions): read with one findall
+_PLAIN = re.compile(r"(?:[A-Za-z][-+]?(?:\d+\.?\d*|\.\d+))+")
+_PAIR = re.compile(r"([A-Za-z])([-+]?(?:\d+\.?\d*|\.\d+))")
+_SPACE = re.compile(r"\s+")
+_BLOCK_NUMBER = re.compile(r"^\s*N\s*\d+\s*", re.I)
+_PROGRAM_NUMBER = re.compile(r"^\s*[O:]\s*\d+\s*$", re.I)
+_O_WORD = re.compile(r"^\s*[oO]\s*(\d+|<[^>]*>)\s*(\w+)")
+_AXES = ("X", "Y", "Z", "A", "B", "C")
+_MOTION_WORDS = frozenset(("X", "Y", "Z", "A", "B", "C", "I", "J", "K", "R", "P", "Q", "L", "E"))
 _PLANES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}  # (first, second, normal) axis indices
 _CYCLES = {73, 74, 76, 81, 82, 83, 84, 85, 86, 87, 88, 89}
 _NO_MOTION = {4.0, 10.0, 11.0, 92.0}
@@ -182,12 +192,13 @@ class IsoInterpreter:
         if code.startswith("/"):
             self.block_delete.append(number)
             code = code.lstrip("/").lstrip("0123456789")
-        code = re.sub(r"^\s*N\s*\d+\s*", "", code, flags=re.I)
+        if code[0] in "Nn":
+            code = _BLOCK_NUMBER.sub("", code)
         if not code.strip() or code.strip() == "%":
             return None
-        if re.match(r"^\s*[O:]\s*\d+\s*$", code, re.I):
+        if code[0] in "Oo:" and _PROGRAM_NUMBER.match(code):
             return None  # a program number
-        m = re.match(r"^\s*[oO]\s*(\d+|<[^>]*>)\s*(\w+)", code)
+        m = _O_WORD.match(code) if code[0] in "Oo" else None
         if m and m.group(2).lower() in ("sub", "endsub", "call", "if", "else", "elseif", "endif", "while",
                                         "endwhile", "do", "repeat", "endrepeat", "return", "break", "continue"):
             raise Skip(f"LinuxCNC o-word {m.group(2).lower()} (control flow and subroutines of o-words are not "
@@ -202,7 +213,7 @@ class IsoInterpreter:
         """An operation name: explicit (words.operation_name), or a comment standing alone on the
         line after a blank line once the current operation has moved (NX's "( NAME )" heading)."""
         t = text.strip()
-        if not t or t.upper().startswith(("MSG,", "DEBUG,", "PRINT,", "LOG")):
+        if not t or t[:3].upper() in ("MSG", "DEB", "PRI", "LOG"):
             return
         name = operation_name(t)
         if name is None and heading and self.b.has_motion() and not tool_comment(t) and re.search(r"[A-Za-z]", t):
@@ -237,7 +248,9 @@ class IsoInterpreter:
 
     def _words(self, number: int, code: str) -> list[tuple[str, float]]:
         """The (letter, value) words of a block's code; ``#`` assignments are done here."""
-        s = re.sub(r"\s+", "", code)
+        s = _SPACE.sub("", code)
+        if _PLAIN.fullmatch(s):  # the common block: letters and numbers only
+            return [(w.upper(), float(v)) for w, v in _PAIR.findall(s)]
         # assignments: '#100=2.5', '#<name>=[#1*2]' (one or several per line)
         while s.startswith("#"):
             m = re.match(r"#(?:<([^>]*)>|(\d+))=(.*)$", s)
@@ -280,11 +293,11 @@ class IsoInterpreter:
                 words.append((ch, self._value(m.group(0), number)))
                 j += m.end()
                 continue
-            m = re.match(_NUM, s[j:])
+            m = _NUM_RE.match(s, j)
             if not m:
                 raise Skip(f"word {ch} has no value ({s[j - 1:j + 10]!r})")
             words.append((ch, float(m.group(0))))
-            j += m.end()
+            j = m.end()
         return words
 
     # ---- one block ---------------------------------------------------------------------------
@@ -404,9 +417,9 @@ class IsoInterpreter:
         if non_modal_machine:
             if any(a in vals for a in (*_LINEAR, *_ROTARY)):
                 self.b.machine_move(line, f"machine-coordinate move (G{g[0]:g})" if g else "machine move")
-                for a in _ROTARY:  # a rotary axis of G28/G53 ends at its value (reference 0 for G28)
+                for a in _ROTARY:  # a rotary axis of G53 ends at its value (a new dict: points keep theirs)
                     if a in vals and any(round(c, 1) == 53.0 for c in g):
-                        self.rot[a] = vals[a]
+                        self.rot = {**self.rot, a: vals[a]}
             return flow
         if no_motion:
             return flow
@@ -503,21 +516,23 @@ class IsoInterpreter:
         self.b.note("G68 (coordinate rotation)", line)
 
     # ---- motion ------------------------------------------------------------------------------
-    def _target(self, vals: dict[str, float]) -> tuple[np.ndarray, dict[str, float]]:
-        p = np.array([self.pos[a] for a in _LINEAR])
+    def _target(self, vals: dict[str, float]) -> tuple[list[float], dict[str, float]]:
+        p = [self.pos["X"], self.pos["Y"], self.pos["Z"]]
         for k, a in enumerate(_LINEAR):
             if a in vals:
                 v = self._len(vals[a])
                 p[k] = v if self.absolute else (0.0 if math.isnan(p[k]) else p[k]) + v
-        rot = dict(self.rot)
-        for a in _ROTARY:
-            if a in vals:
-                rot[a] = vals[a] if self.absolute else rot.get(a, 0.0) + vals[a]
+        rot = self.rot
+        if any(a in vals for a in _ROTARY):
+            rot = dict(self.rot)
+            for a in _ROTARY:
+                if a in vals:
+                    rot[a] = vals[a] if self.absolute else rot.get(a, 0.0) + vals[a]
         return p, rot
 
     def _motion(self, blk: _Block, vals: dict[str, float], motion_now: float | None) -> None:
-        axes = [a for a in (*_LINEAR, *_ROTARY) if a in vals]
-        extra = [w for w in vals if w not in (*_LINEAR, *_ROTARY, "I", "J", "K", "R", "P", "Q", "L", "E")]
+        axes = [a for a in _AXES if a in vals]
+        extra = [w for w in vals if w not in _MOTION_WORDS]
         if extra:
             raise Skip(f"word{'s' if len(extra) > 1 else ''} {', '.join(extra)} not read by this reader")
         for w in ("U", "V", "W"):
@@ -536,9 +551,9 @@ class IsoInterpreter:
             return
         target, rot = self._target(vals)
         if mot in (2.0, 3.0):
-            self._arc(blk, vals, target, rot, ccw=mot == 3.0)
+            self._arc(blk, vals, np.array(target), rot, ccw=mot == 3.0)
         else:
-            if np.isnan(target).any():  # an axis not positioned yet: the point is not known, the axes named are
+            if target[0] != target[0] or target[1] != target[1] or target[2] != target[2]:  # an axis not yet known
                 for k, a in enumerate(_LINEAR):
                     self.pos[a] = float(target[k])
                 self.rot = rot
