@@ -4,6 +4,8 @@ SIGINT and SIGTERM handlers are installed here before anything heavy is imported
 cache, CasADi), so a signal at any moment from start-up to the final rename becomes one exception
 in this process (camsmooth.io.atomic.install_signal_handlers), one message and exit status 130
 (SIGINT) or 143 (SIGTERM). This module imports only the standard library and camsmooth.io.atomic.
+``camsmooth --version`` is answered here, from the installed package's metadata, before the
+command line's heavy imports.
 """
 
 from __future__ import annotations
@@ -16,6 +18,22 @@ from collections.abc import Sequence
 from camsmooth.io.atomic import Terminated, install_signal_handlers, signal_received
 
 EXIT_SIGINT, EXIT_SIGTERM = 130, 143
+
+
+def package_version() -> str:
+    """The installed camsmooth's version (its package metadata, as pip installed it), or a note
+    that it is not installed (run from a source tree)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("camsmooth")
+    except PackageNotFoundError:
+        return "unknown (not installed: pip install -e .)"
+
+
+def version_line() -> str:
+    """What ``camsmooth --version`` prints."""
+    return f"camsmooth {package_version()}"
 
 
 def interrupted(signum: int | None) -> int:
@@ -36,6 +54,10 @@ def entry(argv: Sequence[str] | None = None) -> int:
     """Install the signal handlers, then import and run the command line; after a signal, leave
     without the interpreter's finalisation (half-initialised extension state must not crash
     the exit)."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    if [a for a in args if a != "--debug"] == ["--version"]:  # without importing the command line
+        print(version_line())
+        return 0
     install_signal_handlers()
     code: int | None = None
     try:

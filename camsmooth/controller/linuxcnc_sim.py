@@ -16,6 +16,17 @@ Two tools for tests and benchmarks, both optional (they need the Debian package
   as an unprivileged user (``LINUXCNC_USER``, created when missing and we are root). The
   simulation runs in real time: keep programs short.
 
+One LinuxCNC per machine is what LinuxCNC expects: its start script treats ``/tmp/linuxcnc.lock``
+as "LinuxCNC is still running" and, without a terminal, cleans the other instance up (kills its
+``milltask`` and ``linuxcncsvr`` by name, unloads its HAL); HAL and RTAPI share SysV memory under
+fixed keys, the NML buffers too, ``linuxcncsvr`` listens on TCP port 5005 and ``rtapi_app`` on a
+socket in $HOME. So each run gets its own instance of all of these (``isolation_missing``): new
+IPC, PID, mount and network namespaces (``unshare``, as root) with a private /tmp and /dev/shm,
+and $HOME in the run's folder. Where that is not possible, a run waits (bounded) until no other
+LinuxCNC holds /tmp/linuxcnc.lock rather than clean it up. Either way camsmooth's own runs on a
+machine take turns (an ``flock`` on ``RUN_LOCK``, bounded wait), so two test sessions on two
+cores do not share them. A failed run's RuntimeError carries LinuxCNC's own output and logs.
+
 The configuration follows LinuxCNC's sample configurations (``core_sim.hal``); a ``[DISPLAY]``
 program in Python resets the e-stop, switches the machine on, homes (immediate homing: no
 search), runs the program in auto mode and waits for it.
@@ -23,13 +34,17 @@ search), runs the program in auto mode and waits for it.
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
+import functools
 import os
 import pwd
 import re
 import shutil
 import subprocess
 import tempfile
-import textwrap
+import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -40,13 +55,22 @@ from camsmooth.controller.blocks import programmed_tip_path, tip_deviation
 from camsmooth.controller.linuxcnc import linuxcnc_sense
 from camsmooth.machine.kinematics import Machine
 
-__all__ = ["linuxcnc_missing", "interpret", "Canon", "simulate", "SimRun", "LINUXCNC_USER", "row_samples",
-           "camsmooth_joints"]
+__all__ = ["linuxcnc_missing", "isolation_missing", "interpret", "Canon", "simulate", "SimRun", "LINUXCNC_USER",
+           "ISOLATED_USER", "row_samples", "camsmooth_joints", "RUN_LOCK", "LINUXCNC_LOCK"]
 
 #: the unprivileged user the simulation runs as when we are root
 LINUXCNC_USER = "camsmooth-lcnc"
+#: the user an isolated simulation runs as: one no other LinuxCNC runs as, so that another
+#: instance's clean-up (``kill`` of every ``milltask`` and ``linuxcncsvr`` it sees) cannot end it
+ISOLATED_USER = "camsmooth-lcnc-ns"
 #: the servo period of the simulated machine (s), LinuxCNC's usual 1 ms
 SERVO_PERIOD_S = 0.001
+#: LinuxCNC's own "an instance is up" lock (its start script, scripts/linuxcnc)
+LINUXCNC_LOCK = Path("/tmp/linuxcnc.lock")
+#: camsmooth's simulations on this machine take turns on this file (fcntl.flock)
+RUN_LOCK = Path("/tmp/camsmooth-linuxcnc-sim.lock")
+#: characters of the end of LinuxCNC's output and of each of its logs a failure message carries
+MESSAGE_CHARS = 600
 
 
 def linuxcnc_missing() -> str | None:
@@ -293,29 +317,141 @@ net tool-change-loop iocontrol.0.tool-change iocontrol.0.tool-changed
 """
 
 
-def _user() -> tuple[int, int] | None:
-    """(uid, gid) to run the simulation as: None when we are not root; the LINUXCNC_USER
+def _user(name: str = LINUXCNC_USER) -> tuple[int, int] | None:
+    """(uid, gid) to run the simulation as: None when we are not root; the user ``name``
     (created with useradd when missing) when we are."""
     if os.geteuid() != 0:
         return None
     try:
-        pw = pwd.getpwnam(LINUXCNC_USER)
+        pw = pwd.getpwnam(name)
     except KeyError:
-        subprocess.run(["useradd", "--system", "--no-create-home", LINUXCNC_USER], check=True)
-        pw = pwd.getpwnam(LINUXCNC_USER)
+        subprocess.run(["useradd", "--system", "--no-create-home", name], check=True)
+        pw = pwd.getpwnam(name)
     return pw.pw_uid, pw.pw_gid
 
 
+#: new IPC (HAL, RTAPI and NML shared memory), PID (LinuxCNC's clean-up kills by name), mount
+#: (a private /tmp for its lock and logs, /dev/shm) and network (linuxcncsvr's TCP port) namespaces;
+#: the forked child dies with unshare
+_UNSHARE = ["unshare", "--ipc", "--pid", "--mount-proc", "--mount", "--net", "--propagation", "private",
+            "--kill-child"]
+
+#: run inside the namespaces as root: loopback up, a private /tmp (the run's folder, under /tmp,
+#: bound back at its own path) and /dev/shm, then LinuxCNC as the unprivileged user.
+#: Arguments: folder, its path below /tmp ('' when it is elsewhere), uid, gid ('' '': stay), command.
+_ISOLATE = r"""set -e
+F=$1; REL=$2; U=$3; G=$4; shift 4
+ip link set lo up 2>/dev/null || true
+mount -t tmpfs -o mode=1777 tmpfs /dev/shm
+if [ -n "$REL" ]; then mkdir -p "$F/tmp/$REL"; mount --bind "$F" "$F/tmp/$REL"; fi
+mount --rbind "$F/tmp" /tmp
+cd "$F"
+if [ -n "$U" ]; then exec setpriv --reuid="$U" --regid="$G" --clear-groups "$@"; fi
+exec "$@"
+"""
+
+
+@functools.lru_cache(maxsize=1)
+def isolation_missing() -> str | None:
+    """None when each simulation can run in namespaces of its own (root, ``unshare``, ``setpriv``
+    and the kernel allowing them: probed once), else why not."""
+    if os.geteuid() != 0:
+        return "not root: unshare needs CAP_SYS_ADMIN"
+    missing = [p for p in ("unshare", "setpriv", "mount") if shutil.which(p) is None]
+    if missing:
+        return f"{', '.join(missing)} not found"
+    try:
+        proc = subprocess.run([*_UNSHARE, "sh", "-c", "mount -t tmpfs tmpfs /dev/shm"], capture_output=True,
+                              text=True, stdin=subprocess.DEVNULL, timeout=30)
+    except (OSError, subprocess.SubprocessError) as exc:
+        return f"unshare failed: {exc}"
+    if proc.returncode != 0:
+        return f"unshare failed (exit {proc.returncode}): {proc.stderr.strip()}"
+    return None
+
+
+@contextlib.contextmanager
+def _turn(wait: float) -> Iterator[None]:
+    """Hold RUN_LOCK (fcntl.flock, exclusive) for one simulation; wait at most ``wait`` s for it.
+    RuntimeError naming the holder (its pid, written in the file) when the wait runs out."""
+    fd = os.open(RUN_LOCK, os.O_RDWR | os.O_CREAT, 0o666)
+    try:
+        end = time.monotonic() + wait
+        while True:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                if time.monotonic() >= end:
+                    holder = os.pread(fd, 64, 0).decode(errors="replace").strip() or "unknown"
+                    raise RuntimeError(f"another camsmooth LinuxCNC simulation (pid {holder}) held {RUN_LOCK} for "
+                                       f"{wait:.0f} s: gave up waiting") from None
+                time.sleep(0.5)
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        yield
+    finally:
+        os.close(fd)  # releases the lock
+
+
+def _wait_for_other_linuxcnc(wait: float) -> None:
+    """Without isolation: wait at most ``wait`` s until no LinuxCNC holds LINUXCNC_LOCK (its start
+    script would kill that one), else RuntimeError saying so."""
+    end = time.monotonic() + wait
+    while LINUXCNC_LOCK.exists():
+        if time.monotonic() >= end:
+            raise RuntimeError(f"another LinuxCNC runs on this machine ({LINUXCNC_LOCK} exists) and this simulation "
+                               f"cannot run beside it ({isolation_missing()}): gave up after {wait:.0f} s")
+        time.sleep(0.5)
+
+
+def _tail(text: str, n: int = MESSAGE_CHARS) -> str:
+    text = text.strip()
+    return text if len(text) <= n else "..." + text[-n:]
+
+
+_ERROR_LINE = re.compile(r"error|did not finish|failed|cannot|can't|not found|refus|denied|no such|abort",
+                         re.IGNORECASE)
+
+
+def _failure(what: str, proc: subprocess.CompletedProcess, folder: Path, kept: bool) -> str:
+    """A failed run in words: ``what`` and LinuxCNC's exit status, first the lines of its output
+    and logs that say what went wrong, then the end of each (its output, and the start script's
+    linuxcnc_print.txt / linuxcnc_debug.txt in $HOME, the run's folder). ``kept``: the folder
+    stays (``simulate(keep=...)``) and is named."""
+    texts = {"stderr": proc.stderr or "", "stdout": proc.stdout or ""}
+    for log in (folder / "linuxcnc_print.txt", folder / "linuxcnc_debug.txt"):
+        try:
+            texts[log.name] = log.read_text(errors="replace")
+        except OSError:
+            pass
+    why: list[str] = []
+    for text in texts.values():
+        for ln in text.splitlines():
+            ln = " ".join(ln.split())
+            benign = "You can find more information" in ln or "updating variable file" in ln
+            if _ERROR_LINE.search(ln) and not benign and ln not in why:
+                why.append(ln)
+    head = f"{what} (exit {proc.returncode})" + (": " + "; ".join(why[:6]) if why else "")
+    tails = [f"{name}: {_tail(' '.join(text.split()))}" for name, text in texts.items() if text.strip()]
+    if not tails:
+        tails = ["LinuxCNC wrote nothing"]
+    return " | ".join([head, *tails]) + (f" (configuration and logs in {folder})" if kept else "")
+
+
 def simulate(program: Path | str, machine: Machine, *, timeout: float = 600.0,
-             traj: dict[str, str] | None = None, keep: Path | None = None) -> SimRun:
+             traj: dict[str, str] | None = None, keep: Path | None = None, wait: float | None = None) -> SimRun:
     """Run ``program`` on a headless LinuxCNC simulation of ``machine`` (module docstring) and
     return the commanded joints per servo cycle. traj: extra ``[TRAJ]`` settings (e.g.
-    ``ARC_BLEND_ENABLE``). keep: a folder to leave the configuration and logs in. RuntimeError
-    naming LinuxCNC's message when the run fails."""
+    ``ARC_BLEND_ENABLE``). keep: a folder to leave the configuration and logs in. wait: the most
+    seconds to wait for another simulation (default timeout + 180). RuntimeError naming
+    LinuxCNC's output and logs when the run fails."""
     missing = linuxcnc_missing()
     if missing:
         raise RuntimeError(missing)
-    folder = Path(keep) if keep is not None else Path(tempfile.mkdtemp(prefix="camsmooth-lcnc-"))
+    wait = timeout + 180.0 if wait is None else float(wait)
+    folder = Path(keep) if keep is not None else Path(tempfile.mkdtemp(prefix="camsmooth-lcnc-", dir="/tmp"))
+    folder = folder.resolve()
     folder.mkdir(parents=True, exist_ok=True)
     try:
         ini = _ini(machine, folder, traj)
@@ -324,32 +460,40 @@ def simulate(program: Path | str, machine: Machine, *, timeout: float = 600.0,
         os.chmod(folder / "driver.py", 0o755)
         (folder / "tool.tbl").write_text("T1 P1 Z0 D10 ;\n")
         shutil.copy(program, folder / "program.ngc")
-        user = _user()
+        (folder / "tmp").mkdir(exist_ok=True)
+        os.chmod(folder / "tmp", 0o1777)
+        isolated = isolation_missing() is None
+        user = _user(ISOLATED_USER if isolated else LINUXCNC_USER)
         env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTHON", "VIRTUAL_ENV"))}
         env["PATH"] = "/usr/bin:/bin:/usr/sbin:/sbin"
+        env["HOME"] = str(folder)  # rtapi_app's socket and the start script's logs: the run's own
         if user is not None:
             os.chmod(folder, 0o777)
             for p in folder.iterdir():
                 os.chown(p, *user)
             os.chown(folder, *user)
-            env["HOME"] = str(folder)
         samples = folder / "samples.txt"
-        cmd = ["linuxcnc", str(ini), "--run", str(folder / "program.ngc"), str(samples), str(timeout)]
-        for _attempt in range(2):  # a start right after another LinuxCNC's shutdown can fail at once: retry once
-            # linuxcnc passes the extra arguments after the INI to the DISPLAY program
-            proc = subprocess.run(cmd, cwd=folder, env=env, capture_output=True, text=True, timeout=timeout + 120,
-                                  stdin=subprocess.DEVNULL, user=user[0] if user else None,
-                                  group=user[1] if user else None)
-            if samples.exists() and samples.stat().st_size > 0:
-                break
+        # -r: LinuxCNC's output to us, not to its logs; the arguments after the INI go to the DISPLAY program
+        cmd = ["linuxcnc", "-r", str(ini), "--run", str(folder / "program.ngc"), str(samples), str(timeout)]
+        if isolated:
+            rel = str(folder.relative_to("/tmp")) if folder.is_relative_to("/tmp") else ""
+            uid, gid = (str(user[0]), str(user[1])) if user is not None else ("", "")
+            cmd = [*_UNSHARE, "sh", "-c", _ISOLATE, "sh", str(folder), rel, uid, gid, *cmd]
+        as_user = {} if isolated or user is None else {"user": user[0], "group": user[1]}
+        with _turn(wait):
+            if not isolated:
+                _wait_for_other_linuxcnc(wait)
+            for _attempt in range(2):  # a start right after another LinuxCNC's shutdown can fail at once: retry once
+                proc = subprocess.run(cmd, cwd=folder, env=env, capture_output=True, text=True,
+                                      timeout=timeout + 120, stdin=subprocess.DEVNULL, **as_user)
+                if samples.exists() and samples.stat().st_size > 0:
+                    break
         (folder / "linuxcnc.log").write_text(proc.stdout + "\n--- stderr ---\n" + proc.stderr)
         if not samples.exists() or samples.stat().st_size == 0:
-            raise RuntimeError(f"LinuxCNC simulation recorded nothing (exit {proc.returncode}): "
-                               f"{textwrap.shorten(proc.stderr, 400)}")
+            raise RuntimeError(_failure("LinuxCNC simulation recorded nothing", proc, folder, keep is not None))
         data = np.loadtxt(samples, ndmin=2)
         if proc.returncode != 0 or "program did not finish" in proc.stderr:
-            raise RuntimeError(f"LinuxCNC simulation failed (exit {proc.returncode}): "
-                               f"{textwrap.shorten(proc.stderr, 600)}")
+            raise RuntimeError(_failure("LinuxCNC simulation failed", proc, folder, keep is not None))
         n = data[:, 0]
         return SimRun(t=(n - n[0]) * SERVO_PERIOD_S, joints=data[:, 1:6], line=data[:, 6].astype(np.int64),
                       servo_period=SERVO_PERIOD_S)

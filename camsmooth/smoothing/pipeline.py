@@ -35,6 +35,7 @@ from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl
 from camsmooth.geometry.paths import CCPath, check_contact_with_mesh, check_normals_against_mesh, estimate_feed_dirs
 from camsmooth.geometry.surfaces import Surface, chord_deviation
 from camsmooth.machine.kinematics import Machine, load_machine
+from camsmooth.progress import Steps
 from camsmooth.smoothing.cam import CamProgram
 from camsmooth.smoothing.evaluate import axis_violations, gamma_of
 from camsmooth.smoothing.nlp import program_rates, spline_row
@@ -183,8 +184,12 @@ def smooth(path: CCPath | CamProgram, surface: Surface, machine: Machine | None 
     real = nominal
     if model is not None:
         real = model.apply(nominal)
-    index = MeshIndex(surface.mesh)
-    program = prepare(path, index, cutter, feed, lead_range, tilt_range, prefer_lead, prefer_tilt)
+    # progress: one line naming the step (camsmooth.progress; shown on a terminal only)
+    steps = Steps(3 + (cam is not None) + (method != "none") + (method == "nlp") * (1 + (model is not None)),
+                  enabled=progress)
+    with steps.step("mesh index, orientation windows"):
+        index = MeshIndex(surface.mesh)
+        program = prepare(path, index, cutter, feed, lead_range, tilt_range, prefer_lead, prefer_tilt)
     chord = chord_deviation(surface)
     warnings = cam.warnings() if cam is not None else []
     if chord > tolerance:
@@ -197,17 +202,24 @@ def smooth(path: CCPath | CamProgram, surface: Surface, machine: Machine | None 
     with ProgramSmoother(program, index, nominal, real, cutter, tolerance, opts, workers=workers, model=model,
                          compensate=compensate) as sm:
         if cam is not None:
-            results["cam"] = sm.cam(cam)
-        results["none"] = none = sm.none()
+            with steps.step("cam: the CAM's own axes"):
+                results["cam"] = sm.cam(cam)
+        with steps.step("none: inverse kinematics, clearance"):
+            results["none"] = none = sm.none()
         if method in ("spline", "nlp"):
-            results["spline"], spline_gouge = sm.spline(none)
+            with steps.step("spline"):
+                results["spline"], spline_gouge = sm.spline(none)
         if method == "nlp":
             risk = (none.delta < -tolerance) | spline_gouge
-            results["nlp"] = sm.nlp(results["spline"], risk, "nlp", progress, exact=none)
+            with steps.step("nlp"):
+                results["nlp"] = sm.nlp(results["spline"], risk, "nlp", progress, exact=none)
             if model is not None:
-                results["nlp-ideal"] = sm.nlp(results["spline"], risk, "nlp-ideal", progress, exact=none)
-        for r in results.values():
-            sm.plan(r)
+                with steps.step("nlp-ideal"):
+                    results["nlp-ideal"] = sm.nlp(results["spline"], risk, "nlp-ideal", progress, exact=none)
+        with steps.step("time laws"):
+            for r in results.values():
+                sm.plan(r)
+    steps.close()
     for r in results.values():
         r.metrics.chord_deviation_mm = chord
     return SmoothResult(methods=results, primary=method, machine=nominal, cutter=cutter, surface_mesh=surface.mesh,
