@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from camsmooth.cli.entry import interrupted, signum_of
+from camsmooth.cli.entry import interrupted, signum_of, version_line
 from camsmooth.cli.options import CliParser, angle_range, number, vector3
 from camsmooth.constants import DEFAULT_TOLERANCE_MM
 from camsmooth.errors import CamsmoothError, InputError
@@ -152,7 +152,7 @@ def run_smooth(args: argparse.Namespace) -> int:
         failure = _strict_failure(result) if args.strict else None
         if failure:
             raise StrictFailure(failure)
-        _write_outputs(result, out_csv, gcode, report, args.feed)
+        _write_outputs(result, out_csv, gcode, report, args.feed, progress=not args.quiet)
     if not args.quiet:
         _print_summary(result)
     return EXIT_OK
@@ -202,8 +202,10 @@ def _strict_failure(result: Any) -> str | None:
             + "; nothing written")
 
 
-def _write_outputs(result: Any, out_csv: Path, gcode: Path | None, report: Path | None, feed: float | None) -> None:
-    """Write the result CSV, G-code (the planned feed per block) and report to (temporary) paths."""
+def _write_outputs(result: Any, out_csv: Path, gcode: Path | None, report: Path | None, feed: float | None,
+                   progress: bool = False) -> None:
+    """Write the result CSV, G-code (the planned feed per block) and report to (temporary) paths;
+    progress: a line on a terminal while the report is written (camsmooth.progress)."""
     from camsmooth.io.output import write_gcode, write_result_csv
     from camsmooth.smoothing.feed import block_feeds
 
@@ -214,9 +216,11 @@ def _write_outputs(result: Any, out_csv: Path, gcode: Path | None, report: Path 
         f = block_feeds(r.plan, r.cl, r.rows, programmed) if r.plan is not None else programmed
         write_gcode(gcode, result, result.machine, result.cutter, f)
     if report:
+        from camsmooth.progress import Steps
         from camsmooth.report.smoothing import write_report
 
-        write_report(result, report)
+        with Steps(1, enabled=progress) as steps, steps.step("report: plots, 3D render"):
+            write_report(result, report)
 
 
 def _print_summary(result) -> None:
@@ -359,7 +363,7 @@ def run_analyze(args: argparse.Namespace) -> int:
         lead = np.radians(np.mean(args.lead)) if args.lead else np.radians(11.0)
         tilt = np.radians(np.mean(args.tilt)) if args.tilt else 0.0
         analysis = analyze_program(program, machine, index=index, cutter=cutter, tolerance=args.tolerance,
-                                   feed=args.feed, lead=lead, tilt=tilt)
+                                   feed=args.feed, lead=lead, tilt=tilt, progress=not args.quiet)
         if out_cl is not None:  # the CL program as read (camsmooth.io.program.cl_columns)
             from camsmooth.io.program import cl_of_cc, write_cl_table
 
@@ -373,24 +377,33 @@ def run_analyze(args: argparse.Namespace) -> int:
     if not args.quiet:
         print(f"{analysis.source} ({analysis.format}): {analysis.points} cutting points, "
               f"{len(analysis.toolpaths)} tool path(s)")
-        head = ("tool path", "points", *(f"{r} deg" for r in machine.rotary), "Gamma", "violations", "at feed",
-                "cycle s", "limited by", "min delta")
-        print("{:24s} {:>7s} {:>17s} {:>17s} {:>10s} {:>10s} {:>11s} {:>9s} {:>16s} {:>10s}".format(*head))
-        for tp in analysis.toolpaths:
-            md = "-" if tp.clearance is None else f"{tp.clearance['min_mm']:.4g}"
-            ctrl = f" {tp.controller} {tp.cycle_time_s:.2f} s" if tp.controller else ""
-            r1, r2 = (tp.range_deg[r] for r in machine.rotary)
-            print(f"{tp.name[:24]:24s} {tp.points:7d} {r1[0]:8.2f}..{r1[1]:<7.2f} "
-                  f"{r2[0]:8.2f}..{r2[1]:<7.2f} {tp.gamma:10.4g} "
-                  f"{sum(tp.violations.values()):10d} {sum(tp.violations_programmed.values()):11d} "
-                  f"{tp.cycle_time_optimal_s:9.2f} {tp.limiting or '-':>16s} {md:>10s}{ctrl}")
-        print("violations: under the planned time law (what the program's F words command); 'at feed': at the "
-              "programmed feed, before planning; cycle s: the time-optimal law"
-              + (f" (the {analysis.toolpaths[0].controller} controller's time after it)"
-                 if analysis.toolpaths and analysis.toolpaths[0].controller else ""))
+        _print_analysis(analysis, machine)
         for w in analysis.warnings:
             print(f"camsmooth: warning: {w}", file=sys.stderr)
     return EXIT_OK
+
+
+def _print_analysis(analysis: Any, machine: Any) -> None:
+    """The summary of ``analyze``: one line per tool path, its full name, the machine's rotary axes
+    by name, and each violation named by the limit it breaks ('107 Y travel')."""
+    from camsmooth.smoothing.analysis import named_violations
+
+    width = max([len("tool path")] + [len(tp.name) for tp in analysis.toolpaths])
+    ctrl = next((tp.controller for tp in analysis.toolpaths if tp.controller), "")
+    head = ("points", *(f"{r} deg" for r in machine.rotary), "Gamma", "optimal s", f"{ctrl} s" if ctrl else "",
+            "limited by", "min delta")
+    print(f"{'tool path':{width}s} " + "{:>7s} {:>17s} {:>17s} {:>10s} {:>9s} {:>11s} {:>16s} {:>10s}  {}".format(
+        *head, "violations, planned law | at the programmed feed"))
+    for tp in analysis.toolpaths:
+        md = "-" if tp.clearance is None else f"{tp.clearance['min_mm']:.4g}"
+        r1, r2 = (tp.range_deg[r] for r in machine.rotary)
+        c = f"{tp.cycle_time_s:.2f}" if tp.controller else ""
+        print(f"{tp.name:{width}s} {tp.points:7d} {r1[0]:8.2f}..{r1[1]:<7.2f} {r2[0]:8.2f}..{r2[1]:<7.2f} "
+              f"{tp.gamma:10.4g} {tp.cycle_time_optimal_s:9.2f} {c:>11s} {tp.limiting or '-':>16s} {md:>10s}  "
+              f"{named_violations(tp.violations)} | {named_violations(tp.violations_programmed)}")
+    print("violations: samples over a limit, named by axis and quantity, under the planned time law (what the "
+          "program's F words command) | at the programmed feed, before planning; optimal s: the time-optimal law"
+          + (f"; {ctrl} s: what the {ctrl} controller's planner makes of the program" if ctrl else ""))
 
 
 def demo_outputs(out: str | Path, sample: str) -> tuple[Path, Path, Path]:
@@ -443,7 +456,7 @@ def run_demo(args: argparse.Namespace) -> int:
         result = smooth(program, surface, machine, cutter, feed=2000.0,
                         lead_range=tuple(np.radians([2.0, 20.0])), tilt_range=tuple(np.radians([-15.0, 15.0])),
                         method="nlp", options=SmoothOptions(workers=None), progress=not args.quiet)
-        _write_outputs(result, tmp_csv, tmp_nc, tmp_rep, 2000.0)
+        _write_outputs(result, tmp_csv, tmp_nc, tmp_rep, 2000.0, progress=not args.quiet)
     if not args.quiet:
         _print_summary(result)
         print(f"wrote {csv}, {nc} and {rep / 'report.html'}")
@@ -457,6 +470,8 @@ def build_parser() -> argparse.ArgumentParser:
                               "command line) prints the traceback of an error.",
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--debug", action="store_true", help="print the traceback of an error")
+    parser.add_argument("--version", action="version", version=version_line(),
+                        help="print camsmooth's version (the installed package's) and exit")
     sub = parser.add_subparsers(dest="verb", required=True)
 
     p = sub.add_parser("smooth", help="smooth a program: tool axes, A/B angles, interference check")
