@@ -180,6 +180,26 @@ def test_a_ringing_servo_behind_a_delay_is_named_as_both(tmp_path):
     assert effect(f, "servo_second_order")["parameters"]["wn_X"] == pytest.approx(120.0, rel=0.10)
 
 
+def test_a_servo_loop_that_saturates_is_named_as_lag_and_velocity_limit(tmp_path):
+    """A first-order loop whose velocity Kv (u - y) is clipped to vmax (Kv 40 1/s, vmax 35 mm/s),
+    integrated here by explicit Euler at 10 us (not camsmooth's discretisation) and logged at 2 ms."""
+    T, P = moves()
+    h, step = 1e-5, 200
+    uf = np.interp(np.arange(0.0, T[-1], h), T, P).tolist()
+    y, yk = [], 0.0
+    for k, uk in enumerate(uf):
+        yk += h * min(35.0, max(-35.0, 40.0 * (uk - yk)))
+        if k % step == 0:
+            y.append(yk)
+    t = np.arange(len(y)) * h * step
+    act = np.array(y) + np.random.default_rng(4).normal(0, NOISE, len(y))
+    f = diagnose_trace(read_trace(write_csv(tmp_path / "sat.csv", t, {"X_cmd": np.interp(t, T, P), "X_act": act})))
+    f = f.findings
+    assert sorted(f["named"]) == ["servo_lag", "velocity_limit"], f["named"]
+    assert effect(f, "servo_lag")["parameters"]["Kv_X"] == pytest.approx(40.0, rel=0.10)
+    assert effect(f, "velocity_limit")["parameters"]["vmax_X"] == pytest.approx(35.0, rel=0.10)
+
+
 def test_growth_that_follows_a_temperature_is_named_on_that_channel(tmp_path):
     f = diagnose_trace(read_trace(thermal_trace(tmp_path))).findings
     assert f["named"] == ["thermal_temperature"]

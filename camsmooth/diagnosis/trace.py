@@ -13,11 +13,12 @@ camsmooth.diagnosis.recordings.quantisation_steps) enters its noise floor.
 
 Model (``TraceModel``, internal units: the file's length unit, s; ``TraceSimulator``): the
 command u(t), linearly interpolated between its samples onto a uniform internal grid, passes
-through, in this order, an acceleration limit (the commanded velocity changes by at most amax a
-second), a velocity limit (the position moves by at most vmax a second), a first-order lag
-(tau dy/dt = u - y, servo_lag's tau = 1/Kv) and a second-order servo (y'' + 2 zeta wn y' + wn^2 y =
-wn^2 u); each filter is discretised exactly for a piecewise-linear input (first-order hold) and
-starts at rest on the first command. The result is read at t - offset_s (time_offset: a pure
+through a first-order lag (tau dy/dt = u - y, servo_lag's tau = 1/Kv) that saturates (its velocity
+clipped to vmax and changing by at most amax a second: ``_saturating_loop``), or, without a lag, an
+acceleration limit (the commanded velocity changes by at most amax a second) and a velocity limit
+(the position moves by at most vmax a second); then a second-order servo (y'' + 2 zeta wn y' + wn^2 y
+= wn^2 u). The linear filters are discretised exactly for a piecewise-linear input (first-order
+hold); each starts at rest on the first command. The result is read at t - offset_s (time_offset: a pure
 delay of every axis) and the recording adds a backlash of -(b/2) sign(last commanded direction),
 a load backlash of -(b/2) sign(load), and on the thermal axis sum_ch gain_ch * L_ch(T_ch - T_ch(0))
 with L_ch a first-order lag of time constant tau_ch, and gain (1 - exp(-(t - t0) / tau)) of growth
@@ -347,6 +348,36 @@ def _accel_limit(u: np.ndarray, h: float, amax: float) -> np.ndarray:  # pragma:
     return y
 
 
+@njit(cache=True)
+def _saturating_loop(u: np.ndarray, h: float, tau: float, vmax: float, amax: float
+                     ) -> np.ndarray:  # pragma: no cover - compiled
+    """A first-order position loop that saturates: the axis velocity is (u - y) / tau, clipped to
+    +-vmax, and changes by at most amax a second. Each step takes the exact first-order-hold step
+    of the unsaturated loop and limits the velocity it implies; exact while the loop is linear or
+    saturated over a whole step. From rest on u(0)."""
+    a = np.exp(-h / tau)
+    b0 = 1.0 - tau * (1.0 - a) / h
+    b1 = (1.0 - a) - b0
+    y = np.empty_like(u)
+    y[0] = yk = u[0]
+    w = 0.0
+    for k in range(1, len(u)):
+        v = (a * yk + b0 * u[k] + b1 * u[k - 1] - yk) / h
+        if v > vmax:
+            v = vmax
+        elif v < -vmax:
+            v = -vmax
+        d = v - w
+        if d > amax * h:
+            v = w + amax * h
+        elif d < -amax * h:
+            v = w - amax * h
+        yk += v * h
+        w = v
+        y[k] = yk
+    return y
+
+
 def _direction(u: np.ndarray) -> np.ndarray:
     """Last direction of motion (-1, 0 before the first move, +1) at each grid point."""
     d = np.diff(u, prepend=u[0])
@@ -425,13 +456,16 @@ class TraceSimulator:
         """The axis position on the grid for the command u (one segment, starting at rest)."""
         h = self.knots.h
         ia, iv = model.ia.get(a, 0.0), model.iv.get(a, 0.0)
-        if ia > 0:
-            u = _accel_limit(u, h, 1.0 / ia)
-        if iv > 0:
-            u = _rate_limit(u, h / iv)
         tau = model.tau.get(a, 0.0)
-        if tau > 0:
-            u = _lag1(u, h, tau)
+        if tau > 0 and (ia > 0 or iv > 0):
+            u = _saturating_loop(u, h, tau, 1.0 / iv if iv > 0 else np.inf, 1.0 / ia if ia > 0 else np.inf)
+        else:
+            if ia > 0:
+                u = _accel_limit(u, h, 1.0 / ia)
+            if iv > 0:
+                u = _rate_limit(u, h / iv)
+            if tau > 0:
+                u = _lag1(u, h, tau)
         t2 = model.t2.get(a, 0.0)
         if t2 > 0:
             u = _lag2(u, h, t2, model.zeta.get(a, 1.0))
