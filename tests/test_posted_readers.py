@@ -373,3 +373,19 @@ def test_solidworks_cam_apt(tmp_path):
     assert np.isclose(r.max(), 5.75, atol=1e-5) and np.any(np.isclose(r, 5.5, atol=1e-5))
     out = tmp_path / "g.csv"
     assert main(["analyze", str(f), "--cl", str(out), "--quiet"]) == 0
+
+
+def test_siemens_per_word_dimensions_helix_inch_and_settings(tmp_path):
+    # 840D Fundamentals: X=IC(v) incremental for one word, I=AC(v) an absolute arc centre, TURN=n
+    # extra helix turns, G4 F (dwell seconds, not a feed), FNORM / ADIS (no motion), G700 inch
+    p = _write(tmp_path, "w.mpf", "G710 G90 G17 FNORM\nADIS=0.05\nG0 X10 Y0 Z0\nG1 X=IC(5) F500\n"
+                                  "G4 F2\nG3 X5 Y0 Z-3 I=AC(10) J=AC(0) TURN=1\nG700\nG1 X1 F10\nM30\n")
+    prog = read_posted(p, chord_tol=1e-4)
+    assert np.allclose(prog.tip[prog.line == 4][0], [15, 0, 0]) and prog.feed[prog.line == 4][0] == 500
+    helix = prog.tip[prog.line == 6]
+    assert np.allclose(np.hypot(helix[:, 0] - 10, helix[:, 1]), 5, atol=1e-9)
+    ang = np.unwrap(np.arctan2(helix[:, 1], helix[:, 0] - 10))
+    assert ang[-1] == pytest.approx(3 * np.pi, abs=1e-9) and np.all(np.diff(ang) > 0)  # half a turn + one, CCW
+    assert np.allclose(helix[:, 2], -3 * ang / (3 * np.pi), atol=1e-9)
+    assert np.allclose(prog.tip[-1], [25.4, 0, -3]) and prog.feed[-1] == pytest.approx(254.0)
+    assert prog.toolpaths[0].name == "1" and not any("dropped" in w for w in prog.warnings)

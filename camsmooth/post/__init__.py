@@ -53,9 +53,13 @@ READERS: dict[str, Callable[..., CLProgram]] = {
 DIALECTS = tuple(READERS)
 
 _HEIDENHAIN = re.compile(r"^\s*\d*\s*BEGIN\s+PGM\b", re.I | re.M)
-_SIEMENS = re.compile(r"\b(TRAORI|TRAFOOF|CYCLE8\d\d|CYCLE\d+\s*\(|AROT|ATRANS|SUPA|G153|G500|MSG\s*\(|"
+#: Siemens words (searched outside '( )' comments) and calls (searched in the text itself: their
+#: parentheses are syntax, not comments)
+_SIEMENS = re.compile(r"\b(TRAORI|TRAFOOF|CYCLE8\d\d|AROT|ATRANS|SUPA|G153|G500|G700|G710|FNORM|ADIS|"
                       r"DEF\s+(REAL|INT)|ORIWKS|ORIVECT|ORIAXES|COMPCAD|COMPCURV|SOFT|FFWON|G64[12]|EXTCALL|"
-                      r"T\s*=\s*\"|[XYZ]\s*=\s*(IC|AC|DC)\s*\()", re.I)
+                      r"T\s*=\s*\")", re.I)
+_SIEMENS_CALL = re.compile(r"(\b(MCALL\s+)?CYCLE\d+\s*\(|\b[A-Z]\w*\s*=\s*(IC|AC|DC|ACP|ACN)\s*\(|\bMSG\s*\(|"
+                           r"\bWORKPIECE\s*\()", re.I)
 _LINUXCNC = re.compile(r"(\bM42[89]\b|#<|\bo\d+\s+(sub|call|if|while)\b|\bG64\s*P)", re.I)
 _HAAS = re.compile(r"\bG(234|254|255|187|154)\b", re.I)
 
@@ -67,9 +71,9 @@ def detect_dialect(text: str) -> str:
     head = text[:400_000]
     if _HEIDENHAIN.search(head):
         return "heidenhain"
-    code = re.sub(r"\([^()\n]*\)", "", head)
-    code = "\n".join(ln.split(";", 1)[0] for ln in code.split("\n"))
-    if _SIEMENS.search(code):
+    plain = "\n".join(ln.split(";", 1)[0] for ln in head.split("\n"))
+    code = re.sub(r"\([^()\n]*\)", "", plain)
+    if _SIEMENS.search(code) or _SIEMENS_CALL.search(plain):
         return "siemens"
     if _LINUXCNC.search(head):
         return "linuxcnc"

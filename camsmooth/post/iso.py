@@ -611,7 +611,7 @@ class IsoInterpreter:
         if abs(r1 - r0) > max(0.002 if not self.inch else 0.0002 * INCH_MM, 1e-3 * r0):
             raise Skip(f"arc end point radius {r1:.6g} mm differs from the start radius {r0:.6g} mm")
         turns = 0
-        if "P" in vals and self.dialect in ("linuxcnc", "iso"):
+        if "P" in vals and self.dialect in ("linuxcnc", "iso", "siemens"):
             turns = max(int(vals["P"]) - 1, 0)
         self.b.arc(blk.line, start, end, centre, normal, ccw, self.rot, rot, turns)
 

@@ -40,6 +40,12 @@ _NOTE = {"G64", "G641", "G642", "G643", "G644", "G645", "G60", "G601", "G602", "
          "UPATH", "SPATH", "STOPRE", "G90", "G91", "G17", "G18", "G19", "G40", "CFC", "CFTCP", "CFIN", "DIAMOF",
          "G94", "G95", "G93", "G0", "G1", "G2", "G3", "G00", "G01", "G02", "G03", "WORKPIECE", "ORISON", "ORISOF",
          "FGROUP", "G331", "G332", "SPOS", "M3", "M4", "M5", "M8", "M9"}
+#: settings written as NAME=value or plain words that change no position (path control, feeds, look-ahead)
+_SETTINGS = {"FNORM", "FLIN", "FCUB", "ADIS", "ADISPOS", "CTOL", "OTOL", "CTOLG0", "OTOLG0", "STOPFIFO", "STARTFIFO",
+             "FIFOCTRL", "CFC", "CFTCP", "CFIN", "ORIEULER", "ORIRPY", "ORIVIRT1", "ORIVIRT2", "ORIPATH", "ORIPATHS",
+             "OST", "DRIVE", "COMPSURF", "G60", "G601", "G602", "G603", "G641", "G642", "G643", "G644", "G645",
+             "G64", "G9", "G09", "FGREF", "M17", "RET", "SPOF", "DIAMON", "G450", "G451", "G40", "WALIMON",
+             "WALIMOF", "SUPD", "G190", "G291", "G290", "FB", "SAVE"}
 _FLOW = re.compile(r"^\s*(GOTO[FBC]?|IF|ELSE|ENDIF|LOOP|ENDLOOP|WHILE|ENDWHILE|FOR|ENDFOR|REPEAT|UNTIL)\b", re.I)
 
 
@@ -102,8 +108,11 @@ class _Siemens(IsoInterpreter):
                 self.tcp_vector = False
             elif word == "CYCLE800":
                 self._cycle800(number, tok)
-            elif word == "CYCLE832" or word in ("MSG", "G4"):
+            elif word == "CYCLE832" or word in ("MSG", "WORKPIECE"):
                 self.b.note(f"{word}", number)
+            elif word in ("G4", "G04"):  # dwell: its F or S word is the time, not a feed
+                self.b.note("G4 (dwell)", number)
+                return ""
             elif word == "MCALL":
                 if up == "MCALL":
                     self.mcall = None
@@ -140,13 +149,19 @@ class _Siemens(IsoInterpreter):
                     self.b.note(word, number)
             elif word in ("CIP", "CT", "CT2"):
                 raise Skip(f"{word} (arc through an intermediate point / tangential arc) is not read")
+            elif word in _SETTINGS or (word in _NOTE and "=" in up):
+                self.b.note(word, number)
+            elif word in ("TOFRAME", "TOROT", "PAROT", "MIRROR", "AMIRROR", "SCALE", "ASCALE"):
+                raise Skip(f"{word} (a frame from the tool, a mirror or a scale) is not read")
             elif "=" in up:
                 name, _, val = up.partition("=")
-                if re.match(r"(IC|AC|DC|ACP|ACN)\(", val):
-                    if val.startswith(("DC", "ACP", "ACN", "AC")):
-                        val = val[val.index("(") + 1:-1]
-                    else:
-                        raise Skip(f"{tok} (incremental word IC) is not read")
+                mode = re.match(r"(IC|AC|DC|ACP|ACN)\((.*)\)$", val)
+                if mode:
+                    val = mode.group(2)
+                    val = self._per_word(name, mode.group(1), val, tok)
+                if name == "TURN":  # helix: full turns beyond the end point's angle
+                    out.append(f"P[{self._refs(val)}+1]")
+                    continue
                 if name in ("A3", "B3", "C3"):
                     self.tcp_vector = True
                     name = {"A3": "I", "B3": "J", "C3": "K"}[name]
@@ -158,6 +173,27 @@ class _Siemens(IsoInterpreter):
             else:
                 out.append(self._refs(tok))
         return " ".join(out)
+
+    def _per_word(self, name: str, mode: str, val: str, tok: str) -> str:
+        """The value of ``name=IC(v)`` / ``AC(v)`` / ``DC(v)`` as the block's modal G90/G91 reads it
+        (840D Fundamentals, "Absolute and incremental dimensions"): IC on X Y Z A B C is the current
+        position plus v; AC on the centre words I J K is absolute, turned into the offset from the
+        start point that G2/G3 expect; DC/ACP/ACN (the rotary approach direction) and AC on a
+        position are the value itself."""
+        scale = 1.0 / 25.4 if self.inch else 1.0  # self.pos is mm; the words are in program units
+        if mode == "IC" and name in ("X", "Y", "Z", "A", "B", "C"):
+            base = self.pos[name] * scale if name in "XYZ" else self.rot.get(name, 0.0)
+            if math.isnan(base):
+                raise Skip(f"{tok}: incremental from an unknown position")
+            return f"{base!r}+({self._refs(val)})"
+        if mode == "AC" and name in ("I", "J", "K"):
+            base = self.pos["XYZ"["IJK".index(name)]] * scale
+            if math.isnan(base):
+                raise Skip(f"{tok}: an arc centre from an unknown start point")
+            return f"({self._refs(val)})-{base!r}"
+        if mode == "IC":
+            raise Skip(f"{tok} (IC on {name}) is not read")
+        return val
 
     def _cycle800(self, number: int, tok: str) -> None:
         """CYCLE800(_FR, _TC, _ST, _MODE, _X0, _Y0, _Z0, _A, _B, _C, _X1, _Y1, _Z1, _DIR, ...): the
