@@ -102,6 +102,7 @@ def load_input(args: argparse.Namespace, surface: Any, machine: Any) -> tuple[An
     """The program to smooth (any format of camsmooth.io.program.load_program, detected from the
     content or --format) and the cutter: a CC path as it is, a CL program made a CamProgram on the
     surface (camsmooth.smoothing.cam), with the program's cutter unless the command line names one."""
+    from camsmooth.cli.part import place_and_check, reach_of
     from camsmooth.geometry.clearance import MeshIndex
     from camsmooth.geometry.paths import CCPath
     from camsmooth.io.program import load_program
@@ -113,15 +114,17 @@ def load_input(args: argparse.Namespace, surface: Any, machine: Any) -> tuple[An
 
         program = read_cc_csv(args.path)  # camsmooth's result CSV: its CC path, smoothed again
     if isinstance(program, CCPath):
+        place_and_check(args, surface, program, reach_of(program))
         return program, _cutter(args)
     declared = cutter_of(program) if args.cutter_radius is None and args.corner_radius is None else None
     cutter = _cutter(args, declared)
+    place_and_check(args, surface, program, reach_of(program, cutter))  # the part where the program is
     return cam_program(program, MeshIndex(surface.mesh), cutter, args.tolerance, feed=args.feed,
                        mesh=surface.mesh), cutter
 
 
 def run_smooth(args: argparse.Namespace) -> int:
-    from camsmooth.geometry.surfaces import load_surface
+    from camsmooth.cli.part import load_part
     from camsmooth.machine.kinematics import load_machine
     from camsmooth.smoothing.pipeline import SmoothOptions, smooth
 
@@ -138,7 +141,7 @@ def run_smooth(args: argparse.Namespace) -> int:
         gcode = tx.file(args.gcode) if args.gcode else None
         report = tx.folder(args.report, replace=args.force, keep=inputs) if args.report else None
         options = SmoothOptions(workers=args.workers, dask=args.dask)  # workers None: all cores when worth it
-        surface, machine = load_surface(args.surface), load_machine(args.machine)
+        surface, machine = load_part(args), load_machine(args.machine)  # STEP, mesh or definition
         program, cutter = load_input(args, surface, machine)
         result = smooth(program, surface, machine, cutter,
                         feed=args.feed, lead_range=tuple(np.radians(lead)), tilt_range=tuple(np.radians(tilt)),
@@ -296,13 +299,13 @@ def _check_path_size(n_rows: float, n_points: float) -> None:
 
 
 def run_path(args: argparse.Namespace) -> int:
+    from camsmooth.cli.part import load_part
     from camsmooth.geometry.paths import raster_path_on_mesh, zigzag_extents, zigzag_path
-    from camsmooth.geometry.surfaces import load_surface
     from camsmooth.io.ccpath import write_cc_csv
 
     with output_transaction() as tx:
         out = tx.file(args.output)
-        surf = load_surface(args.surface)
+        surf = load_part(args)
         if surf.parametric is not None and not args.raster:
             length, width = zigzag_extents(surf.parametric, args.along)
             _check_path_size(width / args.stepover + 1, length / args.spacing + 1)
@@ -335,9 +338,9 @@ def run_analyze(args: argparse.Namespace) -> int:
     """`camsmooth analyze`: a program as it is (camsmooth.smoothing.analysis)."""
     import json
 
+    from camsmooth.cli.part import load_part, place_and_check, reach_of
     from camsmooth.geometry.clearance import MeshIndex
     from camsmooth.geometry.paths import CCPath
-    from camsmooth.geometry.surfaces import load_surface
     from camsmooth.io.program import load_program
     from camsmooth.machine.kinematics import load_machine
     from camsmooth.smoothing.analysis import analyze_program
@@ -356,7 +359,10 @@ def run_analyze(args: argparse.Namespace) -> int:
             from camsmooth.post.core import nominal_machine  # a posted program for another kind of machine
 
             machine = nominal_machine(tuple(program.rotary))
-        index = MeshIndex(load_surface(args.surface).mesh) if args.surface else None
+        surface = load_part(args) if args.surface else None
+        if surface is not None:
+            place_and_check(args, surface, program, reach_of(program, args=args))
+        index = MeshIndex(surface.mesh) if surface is not None else None
         cutter = None
         if args.cutter_radius is not None or args.corner_radius is not None or isinstance(program, CCPath):
             cutter = _cutter(args)
@@ -464,6 +470,8 @@ def run_demo(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from camsmooth.cli.part import add_part_args
+
     parser = CliParser(prog="camsmooth", description=__doc__.split("\n\n")[0],
                        epilog="Exit status: 0 done, 1 --strict and a lifted row, 2 bad input (one message), "
                               "70 internal error (a bug), 130 Ctrl-C, 143 SIGTERM. --debug (anywhere on the "
@@ -480,7 +488,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "content")
     p.add_argument("--format", default=None, choices=("apt", "cl-csv", "cc-csv", "gcode"),
                    help="the program's format, when detection should not decide")
-    p.add_argument("--surface", required=True, help="surface mesh (.stl/.obj/.ply) or definition (.toml)")
+    p.add_argument("--surface", required=True, help="the part: CAD (.step/.stp/.iges/.igs; pip install "
+                   "'camsmooth[cad]'), mesh (.stl/.obj/.ply) or definition (.toml)")
+    add_part_args(p)
     p.add_argument("--machine", default=None, help="machine TOML (default: the built-in AB head)")
     _add_cutter_args(p, required=False)
     p.add_argument("--feed", type=number(gt=0, unit="mm/min"), default=None, metavar="F",
@@ -521,7 +531,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=run_smooth)
 
     p = sub.add_parser("path", help="generate a CC path: zig-zag on a definition, or raster by axial drop on a mesh")
-    p.add_argument("--surface", required=True, help="surface definition (.toml) or mesh")
+    p.add_argument("--surface", required=True, help="surface definition (.toml), mesh or CAD part (.step/.iges)")
+    add_part_args(p)
     p.add_argument("--stepover", type=_POSITIVE_MM, required=True, metavar="MM",
                    help="distance between rows (mm, > 0)")
     p.add_argument("--spacing", type=_POSITIVE_MM, required=True, metavar="MM",
@@ -543,7 +554,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the program's format, when detection should not decide (result-csv: camsmooth's own "
                    "result CSV, recognised by its header)")
     p.add_argument("--machine", default=None, help="machine TOML (default: the built-in AB head)")
-    p.add_argument("--surface", default=None, help="surface mesh or definition: adds the clearance of every pose")
+    p.add_argument("--surface", default=None, help="the part (mesh, definition or CAD .step/.iges): adds the "
+                   "clearance of every pose")
+    add_part_args(p)
     p.add_argument("--model", default=None, metavar="MODEL.json",
                    help="the machine's error model (calibrate): evaluate the program on the tool pose the real "
                         "machine executes, as smooth --model does")

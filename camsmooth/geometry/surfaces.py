@@ -868,12 +868,14 @@ def load_definition(path: str | Path) -> ParametricSurface:
 @dataclass
 class Surface:
     """A workpiece surface: triangle mesh (mm, face normals out of the material), optional exact
-    parametric form, the file it came from, and notes about repairs made while loading."""
+    parametric form, the file it came from, and notes about repairs made while loading. brep: the
+    exact CAD part behind the mesh (camsmooth.geometry.step.BRepPart) when read from STEP/IGES."""
 
     mesh: trimesh.Trimesh
     parametric: ParametricSurface | None
     source: str
     notes: list[str] = field(default_factory=list)
+    brep: Any = None
 
 
 def check_mesh_orientation(mesh: trimesh.Trimesh, file: str | None = None) -> str | None:
@@ -992,15 +994,22 @@ def save_mesh(mesh: trimesh.Trimesh, path: str | Path) -> None:
 
 
 def load_surface(path: str | Path, chord_tol: float = 2e-4, max_points: int = 250_000) -> Surface:
-    """Load a workpiece surface from a TOML definition or a mesh file (.stl, .obj, .ply).
+    """Load a workpiece surface from a TOML definition, a mesh file (.stl, .obj, .ply) or a CAD part
+    (.step/.stp, .iges/.igs).
 
     A definition is tessellated with ``tessellate_to_tolerance(chord_tol, max_points)`` and kept
-    as ``Surface.parametric``; a mesh file is checked by ``load_mesh`` (parametric is None).
+    as ``Surface.parametric``; a mesh file is checked by ``load_mesh`` (parametric is None); a CAD
+    part is meshed by OpenCASCADE to the linear deflection ``chord_tol`` mm and measured against
+    its exact faces (camsmooth.geometry.step.load_cad; the exact part is ``Surface.brep``).
     """
     p = Path(path)
     if not p.is_file():
         raise InputError("no such file", file=str(path))
     suffix = p.suffix.lower()
+    from camsmooth.geometry.step import CAD_SUFFIXES, load_cad
+
+    if suffix in CAD_SUFFIXES:
+        return load_cad(p, deflection=chord_tol)
     if suffix == ".toml":
         param = load_definition(p)
         with warnings.catch_warnings(record=True) as caught:
@@ -1018,7 +1027,8 @@ def load_surface(path: str | Path, chord_tol: float = 2e-4, max_points: int = 25
     if suffix in MESH_SUFFIXES:
         mesh, notes = load_mesh(p)
         return Surface(mesh=mesh, parametric=None, source=str(path), notes=notes)
-    raise InputError(f"unknown surface file type '{p.suffix}' (expected .toml, .stl, .obj or .ply)",
+    raise InputError(f"unknown surface file type '{p.suffix}' (expected .toml, .stl, .obj, .ply, .step/.stp or "
+                     ".iges/.igs)",
                      file=str(path))
 
 
@@ -1039,6 +1049,7 @@ SHARP_EDGE = math.radians(30.0)  # dihedral angles above this are features of th
 def chord_deviation(surface: Surface) -> float:
     """Estimated largest deviation (mm) between the mesh and the smooth surface it stands for.
 
+    With a CAD part, the deviation measured against its exact faces (camsmooth.geometry.step).
     With a definition, the tessellation's measured chord error (``grid_chord_error``). From a mesh
     alone: where two faces meet at the dihedral angle theta, a smooth surface through both bends
     by theta over about the distance w between the faces' centroids, so its curvature is
@@ -1049,6 +1060,8 @@ def chord_deviation(surface: Surface) -> float:
     of grid tessellations (1.4x over) and icospheres (2x under): within a factor of 2. Exact meshes of planes give 0.
     """
     mesh = surface.mesh
+    if getattr(surface, "brep", None) is not None:  # a CAD part: measured against its exact faces
+        return float(surface.brep.deviation)
     if surface.parametric is not None and "chord_error" in mesh.metadata:
         return float(mesh.metadata["chord_error"])
     pairs = np.asarray(mesh.face_adjacency)
