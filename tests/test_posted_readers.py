@@ -389,3 +389,43 @@ def test_siemens_per_word_dimensions_helix_inch_and_settings(tmp_path):
     assert np.allclose(helix[:, 2], -3 * ang / (3 * np.pi), atol=1e-9)
     assert np.allclose(prog.tip[-1], [25.4, 0, -3]) and prog.feed[-1] == pytest.approx(254.0)
     assert prog.toolpaths[0].name == "1" and not any("dropped" in w for w in prog.warnings)
+
+
+def test_cli_cl_for_cc_cl_and_own_gcode(tmp_path):
+    """analyze --cl for the other formats: a CC path (ball end, the tip a closed form of the CC
+    point, normal and axis at the default lead of 11 deg), a CL CSV (its own rows back) and
+    camsmooth's own G-code (the tips it was written from, within the written rounding)."""
+    src = (Path(__file__).parent.parent / "surfaces" / "dome_path.csv").read_text().splitlines()
+    cc = tmp_path / "cc.csv"
+    cc.write_text("\n".join(src[:121]) + "\n")
+    out = tmp_path / "cc_cl.csv"
+    assert main(["analyze", str(cc), "--cutter-radius", "0", "--corner-radius", "3", "--cl", str(out),
+                 "--quiet"]) == 0
+    t = read_table(out, required=("x", "y", "z", "i", "j", "k"), text=("operation",))
+    c = read_table(cc, required=("x", "y", "z", "nx", "ny", "nz"))
+    p = np.column_stack([c["x"], c["y"], c["z"]])
+    n = np.column_stack([c["nx"], c["ny"], c["nz"]])
+    ax = np.column_stack([t["i"], t["j"], t["k"]])
+    assert np.allclose(np.column_stack([t["x"], t["y"], t["z"]]), p + 3 * n - 3 * ax, atol=1e-9)
+    assert np.allclose(np.sum(ax * n, axis=1), np.cos(np.radians(11.0)), atol=1e-9)
+    # a CL CSV: its rows back, every one a feed point
+    cl = tmp_path / "cl.csv"
+    cl.write_text("x,y,z,i,j,k,feed\n0,0,0,0,0,1,500\n1,0,0,0,0.6,0.8,500\n2,0,0.5,0,0,1,700\n")
+    out2 = tmp_path / "cl_out.csv"
+    assert main(["analyze", str(cl), "--cl", str(out2), "--quiet"]) == 0
+    t2 = read_table(out2, required=("x", "y", "z", "i", "j", "k", "feed"), text=("operation",))
+    assert np.allclose(np.column_stack([t2["x"], t2["y"], t2["z"], t2["j"], t2["feed"]]),
+                       [[0, 0, 0, 0, 500], [1, 0, 0, 0.6, 500], [2, 0, 0.5, 0, 700]])
+    # camsmooth's own G-code (its writer, camsmooth.io.gcode): the tips it was written from
+    from test_gcode import CUTTER, MACHINE, _method
+
+    from camsmooth.io.gcode import write_gcode
+
+    m, feed = _method()
+    nc = write_gcode(tmp_path / "own.nc", m, MACHINE, CUTTER, feed, safe_height=7.5, dialect="linuxcnc", mode="tcp")
+    out3 = tmp_path / "own_cl.csv"
+    assert main(["analyze", str(nc), "--cl", str(out3), "--quiet"]) == 0
+    t3 = read_table(out3, required=("x", "y", "z", "i", "j", "k", "row"), text=("operation",))
+    assert len(t3) == len(m.rows) and np.array_equal(t3["row"], m.rows)
+    assert np.allclose(np.column_stack([t3["x"], t3["y"], t3["z"]]), m.cl, atol=1e-3)
+    assert np.allclose(np.column_stack([t3["i"], t3["j"], t3["k"]]), m.axis, atol=1e-5)
