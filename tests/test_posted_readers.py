@@ -429,3 +429,61 @@ def test_cli_cl_for_cc_cl_and_own_gcode(tmp_path):
     assert len(t3) == len(m.rows) and np.array_equal(t3["row"], m.rows)
     assert np.allclose(np.column_stack([t3["x"], t3["y"], t3["z"]]), m.cl, atol=1e-3)
     assert np.allclose(np.column_stack([t3["i"], t3["j"], t3["k"]]), m.axis, atol=1e-5)
+
+
+def _canon_arcs(text: str) -> list[tuple[np.ndarray, np.ndarray | None, int, float]]:
+    """Every feed motion of rs274's canonical calls as (end X Y Z mm, arc centre X Y Z mm or None,
+    rotation, the mm of its last printed digit), planes (SELECT_PLANE) and units (USE_LENGTH_UNITS:
+    inch values times 25.4) followed."""
+    out, plane, scale = [], "XY", 1.0
+    order = {"XY": (0, 1, 2), "XZ": (2, 0, 1), "YZ": (1, 2, 0)}  # first, second, normal axis of ARC_FEED
+    for ln in text.splitlines():
+        m = re.search(r"(\w+)\((.*)\)\s*$", ln)
+        if not m:
+            continue
+        name, args = m.group(1), m.group(2)
+        if name == "SELECT_PLANE":
+            plane = args.replace("CANON_PLANE_", "")
+        elif name == "USE_LENGTH_UNITS":
+            scale = 25.4 if "INCHES" in args else 1.0
+        elif name in ("STRAIGHT_FEED", "ARC_FEED"):
+            v = [float(x) for x in args.split(",")]
+            if name == "STRAIGHT_FEED":
+                out.append((np.array(v[:3]) * scale, None, 0, 5e-5 * scale))
+                continue
+            a, b, c = order[plane]
+            end, centre = np.zeros(3), np.full(3, np.nan)
+            end[a], end[b], end[c] = v[0], v[1], v[5]
+            centre[a], centre[b] = v[2], v[3]
+            out.append((end * scale, centre * scale, int(v[4]), 5e-5 * scale))
+    return out
+
+
+@needs_rs274
+def test_arcs_planes_units_against_rs274(tmp_path):
+    """Arcs in G17/G18/G19 with I J K and R (R < 0 over 180 deg), G91 arcs, a helix of P3 turns and
+    an inch arc, block by block against LinuxCNC's interpreter: every block's end, every arc point
+    on the circle about rs274's centre, the turns rs274 counts."""
+    p = _write(tmp_path, "arcs.ngc", "G21 G90 G17\nG0 X0 Y0 Z0\nG1 X10 F300\nG3 X0 Y10 I-10 J0\n"
+                                     "G2 X-10 Y0 Z-2 R10\nG18 G2 X0 Z-12 I10 K0\nG19 G3 Y0 Z-2 J0 K5\n"
+                                     "G17 G91 G1 X5 Y5\nG3 X10 Y0 R-6\nG90 G3 X5 Y5 I-5 J0 Z-5 P3\n"
+                                     "G20 G1 X1 Y1\nG2 X2 Y1 I0.5 J0\nM2\n")
+    prog = read_posted(p, dialect="linuxcnc")
+    canon = _canon_arcs(_rs274(tmp_path, p))
+    cut = np.flatnonzero(~prog.rapid)
+    blocks = [cut[prog.line[cut] == ln] for ln in dict.fromkeys(prog.line[cut])]
+    assert len(blocks) == len(canon)
+    for idx, (end, centre, rot, digit) in zip(blocks, canon, strict=True):
+        pts = prog.tip[idx]
+        assert np.allclose(pts[-1], end, atol=digit + 1e-9)  # rs274 prints 4 decimals (of mm or inch)
+        if centre is not None:
+            normal = np.isnan(centre)
+            rel = (pts - np.where(normal, 0.0, centre))[:, ~normal]
+            r = np.hypot(rel[:, 0], rel[:, 1])
+            assert np.ptp(r) < 1e-3
+            if abs(rot) > 1:  # the helix: |rot| turns begun, the last one partial
+                first, second = np.flatnonzero(~normal)
+                start = prog.tip[idx[0] - 1]
+                ang = np.unwrap(np.arctan2(np.r_[start[second], pts[:, second]] - centre[second],
+                                           np.r_[start[first], pts[:, first]] - centre[first]))
+                assert 2 * np.pi * (abs(rot) - 1) < abs(ang[-1] - ang[0]) <= 2 * np.pi * abs(rot)
