@@ -172,30 +172,34 @@ def test_version_is_the_installed_packages(tmp_path, capsys):
     assert capsys.readouterr().out.strip() == f"camsmooth {want}"
 
 
-def test_progress_shows_the_step_on_a_terminal(tmp_path):
-    """analyze on a terminal (a pty as stderr, 120 columns) shows its progress line naming the
-    tool path being evaluated."""
-    prog = _apt(tmp_path / "two.cls")
+def test_progress_line_on_a_real_terminal():
+    """On a terminal (a pty as stderr, 120 columns) the progress line names each step and its
+    elapsed time, and is cleared at the end. (A pty reporting 0 columns, as a bare pty does, would
+    get an empty tqdm line: Steps falls back to a width.)"""
+    code = ("import time\nfrom camsmooth.progress import Steps\n"
+            "with Steps(2) as s:\n    with s.step('first step'): time.sleep(0.7)\n"
+            "    with s.step('second step'): pass\n")
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    master, slave = pty.openpty()
-    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 120, 0, 0))  # a terminal's size
-    proc = subprocess.Popen([sys.executable, "-m", "camsmooth", "analyze", str(prog)], stdout=subprocess.DEVNULL,
-                            stderr=slave, env=env)
-    os.close(slave)
-    chunks = []
-    while True:
-        try:
-            data = os.read(master, 4096)
-        except OSError:  # the child closed the pty
-            break
-        if not data:
-            break
-        chunks.append(data)
-    proc.wait(timeout=120)
-    os.close(master)
-    shown = b"".join(chunks).decode(errors="replace")
-    assert proc.returncode == 0, shown
-    assert f"camsmooth: 1/2 {NAMES[0]} (24 points)" in shown and f"camsmooth: 2/2 {NAMES[1]}" in shown, shown
+    for cols in (120, 0):
+        master, slave = pty.openpty()
+        fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, cols, 0, 0))
+        proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.DEVNULL, stderr=slave, env=env)
+        os.close(slave)
+        chunks = []
+        while True:
+            try:
+                data = os.read(master, 4096)
+            except OSError:  # the child closed the pty
+                break
+            if not data:
+                break
+            chunks.append(data)
+        proc.wait(timeout=60)
+        os.close(master)
+        shown = b"".join(chunks).decode(errors="replace")
+        assert proc.returncode == 0, shown
+        assert "camsmooth: 1/2 first step [00:00]" in shown and "camsmooth: 2/2 second step" in shown, shown
+        assert shown.endswith("\r"), shown  # cleared (leave=False): the next output starts a clean line
 
 
 class _Terminal(io.StringIO):
