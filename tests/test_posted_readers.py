@@ -487,3 +487,23 @@ def test_arcs_planes_units_against_rs274(tmp_path):
                 ang = np.unwrap(np.arctan2(np.r_[start[second], pts[:, second]] - centre[second],
                                            np.r_[start[first], pts[:, first]] - centre[first]))
                 assert 2 * np.pi * (abs(rot) - 1) < abs(ang[-1] - ang[0]) <= 2 * np.pi * abs(rot)
+
+
+@needs_rs274
+def test_canned_cycle_holes_against_rs274(tmp_path):
+    """G81 (G99: back to R between the modal X Y blocks) and G83 (pecks) holes against the cycles as
+    LinuxCNC expands them: each hole is the deepest feed end rs274 gives at its X Y."""
+    text = ("G21 G90 G17\nG0 X0 Y0 Z20\nG99 G81 X10 Y10 Z-5 R2 F100\nX20\nY20\n"
+            "G98 G83 X30 Y5 Z-8 R1 Q2\nG80\nG0 Z20\nM2\n")
+    with pytest.raises(InputError, match="only canned cycles"):
+        read_posted(_write(tmp_path, "cyc.ngc", text), dialect="linuxcnc")
+    p = _write(tmp_path, "cyc2.ngc", text.replace("G80\n", "G80\nG1 X0 Y0 Z0 F100\n"))
+    prog = read_posted(p, dialect="linuxcnc")
+    assert [c.code for c in prog.cycles] == ["G81", "G83"] and [c.lines for c in prog.cycles] == [[3, 4, 5], [6]]
+    deepest: dict[tuple[float, float], float] = {}
+    for end, _, _, _ in _canon_arcs(_rs274(tmp_path, p)):
+        if end[2] < 0:
+            key = (round(end[0], 4), round(end[1], 4))
+            deepest[key] = min(deepest.get(key, 0.0), end[2])
+    holes = np.vstack([c.holes for c in prog.cycles])
+    assert {(x, y): z for x, y, z in holes.tolist()} == deepest
