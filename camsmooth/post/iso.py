@@ -67,6 +67,7 @@ _NO_MOTION = {4.0, 10.0, 11.0, 92.0}
 _NOTED_G = {5.1: "G05.1 (look-ahead)", 5.0: "G05 (high-speed)", 8.0: "G08 (look-ahead)", 15.0: "G15", 40.0: "G40",
             61.0: "G61", 61.1: "G61.1", 64.0: "G64", 80.0: "G80", 98.0: "G98", 99.0: "G99", 187.0: "G187",
             53.1: "G53.1 (tool along the tilted plane's Z)", 49.0: "G49", 43.0: "G43", 44.0: "G44",
+            103.0: "G103 (Haas look-ahead)", 64.1: "G64.1", 8.1: "G08.1",
             90.1: "G90.1", 91.1: "G91.1", 69.0: "G69", 50.0: "G50", 13.1: "G13.1", 7.1: "G7.1"}
 _SKIP_G = {41.0: "cutter radius compensation (G41): the programmed path is not the tool's",
            42.0: "cutter radius compensation (G42): the programmed path is not the tool's",
