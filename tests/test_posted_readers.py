@@ -507,3 +507,22 @@ def test_canned_cycle_holes_against_rs274(tmp_path):
             deepest[key] = min(deepest.get(key, 0.0), end[2])
     holes = np.vstack([c.holes for c in prog.cycles])
     assert {(x, y): z for x, y, z in holes.tolist()} == deepest
+
+
+def test_haas_program_layout(tmp_path):
+    # Haas mill operator's manual, "G-codes": G28 G91 Z0 (home Z, then G90), G43 H, G187 (smoothness),
+    # G234 (TCPC), G93 inverse time (F = 1 / block time, min); operations named by the comment before
+    # each tool change, the tool comment (T1 D=...) not taken for a name
+    text = ("%\nO1001 (PART)\n(T1 D=10. CR=0. - ZMIN=-5. - FLAT END MILL)\nG90 G94 G17 G49 G40 G80\nG21\n"
+            "G28 G91 Z0.\nG90\n\n(FACE1)\nT1 M6\nS5000 M3\nG54\nG0 X-10. Y0.\nG43 Z15. H1\nG0 Z5.\nG1 Z0. F500.\n"
+            "X50.\nG2 X60. Y10. R10.\nG0 Z15.\nG28 G91 Z0.\nG90\n(SWARF1)\nT2 M6\nG187 P1 E0.01\nG103 P1\n"
+            "G0 G90 G54 X0. Y0. A0. C0.\nG234 H2\nG0 X0. Y0. Z50.\nG93 G1 Z10. A10. C5. F120.\n"
+            "X5. A12. C8. F300.\nG94\nG49\nM30\n%\n")
+    prog = read_posted(_write(tmp_path, "haas.nc", text))
+    assert prog.dialect == "haas"
+    ops = [(t.name, t.kind, t.tool.number) for t in prog.toolpaths]
+    assert ops == [("FACE1", "3-axis", 1), ("SWARF1", "5-axis", 2)]
+    arc = prog.tip[prog.line == 18]  # G2 R10 from (50, 0) to (60, 10): clockwise, under 180 deg, centre (60, 0)
+    assert np.allclose(np.hypot(arc[:, 0] - 60, arc[:, 1]), 10, atol=1e-9) and np.all(arc[:, 0] < 60 + 1e-9)
+    assert prog.feed[-2] == pytest.approx(40 * 120) and prog.feed[-1] == pytest.approx(5 * 300)
+    assert not prog.rapid[-1] and prog.rows[-1] == prog.rows[-2]
