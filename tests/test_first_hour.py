@@ -138,6 +138,35 @@ def test_analyze_report_names_the_machines_rotary_axes(kind, tmp_path, capsys):
     assert f"rotary axes {r1} and {r2}" in fig._suptitle.get_text()
 
 
+def test_analyze_report_of_the_shipped_table_sample(tmp_path, capsys):
+    """The issue's command on the shipped A/C sample (surfaces/dome.cls, cut to its first 125
+    GOTOs, with surfaces/dome_machine.toml, a LinuxCNC machine): exit 0 (was 70), A and C named,
+    the LinuxCNC controller's time in the summary, and the angles those of the closed-form
+    inverse of the file's tool axes on the branch the JSON names (A in (0, 180) deg: A = acos k,
+    C = atan2(i / sin A, -j / sin A))."""
+    lines = (ROOT / "surfaces" / "dome.cls").read_text().splitlines()
+    head = lines[:130] + ["END-OF-PATH"]
+    prog = tmp_path / "dome_head.cls"
+    prog.write_text("\n".join(head) + "\n")
+    out, rep = tmp_path / "a.json", tmp_path / "report"
+    assert main(["analyze", str(prog), "--machine", str(ROOT / "surfaces" / "dome_machine.toml"), "--json", str(out),
+                 "--report", str(rep)]) == 0
+    tp = json.loads(out.read_text())["toolpaths"][0]
+    assert tp["controller"] == "linuxcnc" and "B_range_deg" not in tp
+    ijk = np.array([[float(v) for v in ln.split("/")[1].split(",")[3:6]] for ln in head if ln.startswith("GOTO/")])
+    ijk = ijk[1:]  # the first GOTO follows RAPID: the approach, not a cut
+    assert tp["points"] == len(ijk)
+    assert tp["branch"] == f"A in (0, 180) deg at {len(ijk)} points (the second branch)"
+    a = np.arccos(ijk[:, 2])
+    c = np.degrees(np.unwrap(np.arctan2(ijk[:, 0] / np.sin(a), -ijk[:, 1] / np.sin(a))))
+    assert tp["A_range_deg"] == pytest.approx([np.degrees(a).min(), np.degrees(a).max()], abs=2e-3)
+    assert tp["C_range_deg"] == pytest.approx([c.min(), c.max()], abs=2e-3)
+    html = (rep / "report.html").read_text()
+    assert "<th>A (deg)</th>" in html and "<th>C (deg)</th>" in html and "<th>B (deg)</th>" not in html
+    printed = capsys.readouterr().out
+    assert "linuxcnc s" in printed and "A deg" in printed and "C deg" in printed
+
+
 def test_analyze_names_the_limit_each_violation_breaks(tmp_path, capsys):
     """Y travel of the AB head ends at 60 mm: the pivot (tip + 150 mm x tool axis, METHODS
     section 1) goes past it where Y0 + 150 j > 60; the count, written '<n> Y travel', is in the
