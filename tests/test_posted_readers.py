@@ -526,3 +526,26 @@ def test_haas_program_layout(tmp_path):
     assert np.allclose(np.hypot(arc[:, 0] - 60, arc[:, 1]), 10, atol=1e-9) and np.all(arc[:, 0] < 60 + 1e-9)
     assert prog.feed[-2] == pytest.approx(40 * 120) and prog.feed[-1] == pytest.approx(5 * 300)
     assert not prog.rapid[-1] and prog.rows[-1] == prog.rows[-2]
+
+
+def test_millplus_as_its_post_writes_it(tmp_path):
+    # MillPlus as Autodesk's MillPlus post (millplus.cps) writes it (no MillPlus manual was found):
+    # %PM, G7 A5= B5= C5= (spatial angles, R = Rz(C5) Ry(B5) Rx(A5)), absolute arc centres, B5=360
+    # full circles, G81 Z (depth) + G79 X Y Z calls, G93 the datum shift (not inverse time), G141 TCP
+    p = _write(tmp_path, "mp.nc", "%PM\nN9001\n(GASKET)\nG17\nG74 Z100. L1\nG7 L1=0\nT1 M6\nS5000 M3\nG54 I0\n"
+                                  "G7 A5=30. B5=0. C5=90. L1=1\nG90\nG0 X0. Y0.\nG0 Z5.\nG1 Z0. F500.\nG1 X10. Y0.\n"
+                                  "G3 X0. Y10. I0. J0.\nG2 I0. J0. B5=360 F600.\nG0 Z5.\nG81 Z-5. Y2. F100.\n"
+                                  "G79 X5. Y5. Z0.\nG79 X8. Y5. Z0.\nG7 L1=1\nG93 X10. Y0. Z0.\nG141\n"
+                                  "G0 X0. Y0. Z50. A0. C0.\nG1 X5. A10. C20. F800.\nG40\nG74 Z100. L1\nM30\n")
+    prog = read_posted(p, machine=nominal_machine(("A", "C")))
+    assert prog.dialect == "millplus" and prog.toolpaths[0].name == "GASKET"
+    R = Rotation.from_euler("xyz", [30, 0, 90], degrees=True).as_matrix()
+    assert np.allclose(prog.tip[prog.line == 15][-1], R @ [10, 0, 0])
+    assert np.allclose(prog.axis[prog.line == 15], R[:, 2])
+    circle = (prog.tip[prog.line == 17]) @ R  # back into the plane: a full circle of radius 10 about its origin
+    assert np.allclose(np.hypot(circle[:, 0], circle[:, 1]), 10, atol=1e-9) and np.allclose(circle[-1], [0, 10, 0])
+    (cyc,) = prog.cycles
+    assert np.allclose(cyc.holes, [R @ [5, 5, -5], R @ [8, 5, -5]])
+    tcp = prog.tip[prog.line == 26]
+    assert np.allclose(tcp, [[15, 0, 50]])  # G93 X10: the datum shift, G141: X Y Z the tip
+    assert prog.feed[prog.line == 26][0] == 800.0  # not inverse time

@@ -11,6 +11,7 @@ fanuc / haas   camsmooth.post.iso              (the same reader, Haas words G234
 linuxcnc       camsmooth.post.iso              LinuxCNC (M428/M429 trt TCP, ``#<name>`` params)
 heidenhain     camsmooth.post.heidenhain       Heidenhain Klartext (iTNC 530, TNC 640)
 siemens        camsmooth.post.siemens          Siemens Sinumerik 840D
+millplus       camsmooth.post.millplus         Heidenhain / Philips MillPlus (``%PM``)
 =============  ==============================  =============================================
 
 ``detect_dialect`` tells them from the content; ``read_posted`` reads a file.
@@ -41,6 +42,12 @@ def _heidenhain(path: str, text: str, machine: Any, dialect: str, chord_tol: flo
     return read_heidenhain(path, text, machine, chord_tol)
 
 
+def _millplus(path: str, text: str, machine: Any, dialect: str, chord_tol: float | None) -> CLProgram:
+    from camsmooth.post.millplus import read_millplus
+
+    return read_millplus(path, text, machine, chord_tol)
+
+
 def _siemens(path: str, text: str, machine: Any, dialect: str, chord_tol: float | None) -> CLProgram:
     from camsmooth.post.siemens import read_siemens
 
@@ -49,7 +56,8 @@ def _siemens(path: str, text: str, machine: Any, dialect: str, chord_tol: float 
 
 #: dialect -> reader(path, text, machine, dialect, chord_tol)
 READERS: dict[str, Callable[..., CLProgram]] = {
-    "iso": _iso, "fanuc": _iso, "haas": _iso, "linuxcnc": _iso, "heidenhain": _heidenhain, "siemens": _siemens}
+    "iso": _iso, "fanuc": _iso, "haas": _iso, "linuxcnc": _iso, "heidenhain": _heidenhain, "siemens": _siemens,
+    "millplus": _millplus}
 DIALECTS = tuple(READERS)
 
 _HEIDENHAIN = re.compile(r"^\s*\d*\s*BEGIN\s+PGM\b", re.I | re.M)
@@ -65,12 +73,16 @@ _HAAS = re.compile(r"\bG(234|254|255|187|154)\b", re.I)
 
 
 def detect_dialect(text: str) -> str:
-    """The dialect of a posted program from its content: Heidenhain (``BEGIN PGM``), Siemens (its
+    """The dialect of a posted program from its content: Heidenhain (``BEGIN PGM``), MillPlus (a
+    first line ``%PM``), Siemens (its
     keywords: TRAORI, CYCLE800, AROT, ``X=IC(..)`` ...), LinuxCNC (M428/M429, ``#<name>``,
     o-words), Haas (G234, G254, G187, G154), else ISO/Fanuc."""
     head = text[:400_000]
     if _HEIDENHAIN.search(head):
         return "heidenhain"
+    first = next((ln.strip() for ln in head.split("\n") if ln.strip()), "")
+    if first.upper().startswith("%PM"):
+        return "millplus"
     plain = "\n".join(ln.split(";", 1)[0] for ln in head.split("\n"))
     code = re.sub(r"\([^()\n]*\)", "", plain)
     if _SIEMENS.search(code) or _SIEMENS_CALL.search(plain):

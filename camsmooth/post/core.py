@@ -429,8 +429,9 @@ class Builder:
             stop = int(sel[-1]) + 1 if len(sel) else start
             fr = [self._frames[f] for f in op.frames]
             xf = next((f.matrix() for f in fr if not f.identity), np.eye(4))
-            kind = op.kind if not any(f.rotates for f in fr) or op.kind == "cycle" else "3+2"
             cut = sel[~rapid[sel]] if len(sel) else sel
+            kind = "cycle" if op.kind == "cycle" and not len(cut) else "motion"
+            kind = "3+2" if kind == "motion" and any(f.rotates for f in fr) else kind
             if kind == "motion" and len(cut):
                 moving = np.ptp(q[cut], axis=0).max() > 1e-9
                 kind = "5-axis" if moving else ("3+2" if np.abs(q[cut]).max() > 1e-9 else "3-axis")

@@ -353,7 +353,7 @@ class IsoInterpreter:
                 self.b.note({43.4: "G43.4 (TCP on)", 43.5: "G43.5 (TCP, tool vector I J K)",
                              234.0: "G234 (Haas TCPC on)"}[c], line)
             elif c in (43.0, 44.0, 49.0):
-                if self.dialect != "linuxcnc":  # LinuxCNC: TCP is its kinematics (M428/M429), G43 the length
+                if self.dialect not in ("linuxcnc", "millplus"):  # LinuxCNC: TCP is M428/M429; MillPlus: G141
                     self.b.tcp = False
                 self.tcp_vector = False
                 self.b.note(_NOTED_G[c], line)
