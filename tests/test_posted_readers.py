@@ -549,3 +549,10 @@ def test_millplus_as_its_post_writes_it(tmp_path):
     tcp = prog.tip[prog.line == 26]
     assert np.allclose(tcp, [[15, 0, 50]])  # G93 X10: the datum shift, G141: X Y Z the tip
     assert prog.feed[prog.line == 26][0] == 800.0  # not inverse time
+
+
+def test_latin1_comments(tmp_path):
+    p = tmp_path / "lat.nc"
+    p.write_bytes(b"G21 G90\n(Fr\xe4ser \xd810)\nG0 X0 Y0 Z5\nG1 Z0 F100\nX10\nM30\n")
+    prog = load_program(p)
+    assert np.allclose(prog.tip[-1], [10, 0, 0]) and "read as Latin-1" in prog.warnings[0]

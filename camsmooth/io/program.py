@@ -328,17 +328,18 @@ def _read_gcode(path: str | os.PathLike, **kw: Any) -> CLProgram:
     """camsmooth's own G-code (its ``camsmooth post:`` header) by camsmooth.io.gcode, any other
     (a posted program) by camsmooth.post, the dialect detected from the content."""
     from camsmooth.io.gcode import _POST_TAG, read_gcode
-    from camsmooth.io.table import read_text_file
+    from camsmooth.post import posted_text, read_posted
 
-    text = read_text_file(path, "G-code file")
+    notes: list[str] = []
+    text = posted_text(path, notes)
     if _POST_TAG in "\n".join(text.split("\n", 60)[:60]):
         return read_gcode(path, **{k: v for k, v in kw.items() if k in ("machine",)})
-    from camsmooth.post import read_posted
-
     opts = {k: v for k, v in kw.items() if k in ("machine", "dialect", "chord_tol")}
     if kw.get("machine_given") is False:
         opts["machine"] = None  # the default machine was not chosen for this program: the letters it uses decide
-    return read_posted(path, text=text, **opts)
+    program = read_posted(path, text=text, **opts)
+    program.warnings[:0] = notes
+    return program
 
 
 def _read_result(path: str | os.PathLike, **_: Any) -> CLProgram:

@@ -22,12 +22,13 @@ from __future__ import annotations
 import os
 import re
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 from camsmooth.errors import InputError
 from camsmooth.io.program import CLProgram
 
-__all__ = ["read_posted", "detect_dialect", "READERS", "DIALECTS"]
+__all__ = ["read_posted", "detect_dialect", "posted_text", "READERS", "DIALECTS"]
 
 
 def _iso(path: str, text: str, machine: Any, dialect: str, chord_tol: float | None) -> CLProgram:
@@ -103,14 +104,31 @@ def read_posted(path: str | os.PathLike, text: str | None = None, machine: Any =
 
     machine: a camsmooth Machine (its kinematics in machine mode, its tool axis in TCP mode);
     None: the nominal machine of the rotary letters the program uses, with a warning."""
-    from camsmooth.io.table import read_text_file
-
     file = str(path)
+    notes: list[str] = []
     if text is None:
-        text = read_text_file(path, "G-code file")
+        text = posted_text(path, notes)
     if dialect is None:
         dialect = detect_dialect(text)
     if dialect not in READERS:
         raise InputError(f"unknown dialect {dialect!r} (known: {', '.join(READERS)})", file=file)
     text = text.replace("\t", " ")
-    return READERS[dialect](file, text, machine, dialect, chord_tol)
+    program = READERS[dialect](file, text, machine, dialect, chord_tol)
+    program.warnings[:0] = notes
+    return program
+
+
+def posted_text(path: str | os.PathLike, notes: list[str]) -> str:
+    """The text of a posted program: UTF-8 (a BOM dropped, CRLF and CR read as LF), else Latin-1 with
+    a note (CAM systems on Windows write comments in their code page: '(Fräser Ø10)'; the blocks
+    themselves are ASCII). InputError naming the file when it cannot be read or is UTF-16."""
+    from camsmooth.io.table import read_text_file
+
+    try:
+        return read_text_file(path, "G-code file")
+    except InputError as exc:
+        if "is not UTF-8 text" not in exc.message:
+            raise
+        notes.append(f"{exc.message}: read as Latin-1 (only comments should hold such bytes)")
+    raw = Path(path).read_bytes()
+    return raw.decode("latin-1").replace("\r\n", "\n").replace("\r", "\n")
