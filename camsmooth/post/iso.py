@@ -23,7 +23,8 @@ Applied: G0 G1 G2 G3 (helices and full circles, I J K or R, every plane, P turns
 motion), G17-G19, G20/G21, G90/G91, G90.1/G91.1, G93/G94/G95, G43/G44/G49, G43.4/G43.5/G234
 (TCP), G68.2/G68.3 off/G68.4/G68/G69 and G254/G255, G52 (local shift), G54-G59, G54.1 P, G154 P,
 G110-G129 (recorded), G53/G28/G30 (machine moves), canned cycles, M98/M99 (subprograms in the same
-file, L repeats), Haas M97 P (the block N<P> up to M99), M6/T, M428/M429 (LinuxCNC TCP), ``#`` assignments. Read without effect: G5.1,
+file, L repeats), Haas M97 P (the block N<P> up to M99), M6/T, M428/M429 (LinuxCNC TCP), ``#``
+assignments. Read without effect: G5.1,
 G05 P, G8, G15/G16 off, G40, G61/G64, G80, G98/G99, G187, G10 (data), spindle, coolant and the
 other M words. Named and costing their operation: cutter radius compensation G41/G42 (the path
 is not the tool's), polar / scaling / mirror words, G92, LinuxCNC o-word control flow, words this
@@ -458,7 +459,8 @@ class IsoInterpreter:
                 start = None if p is None else next(
                     (i for i, ln in enumerate(self.lines) if re.match(rf"^\s*N0*{int(p)}(?!\d)", ln, re.I)), None)
                 if start is None:
-                    raise Skip(f"M97 P{p if p is None else int(p)}: no block N{p if p is None else int(p)} in this file")
+                    label = "" if p is None else f"{int(p)}"
+                    raise Skip(f"M97 P{label}: no block N{label} in this file")
                 if depth >= 8:
                     raise Skip("subprograms nested deeper than 8")
                 for _ in range(max(reps, 0)):
