@@ -166,6 +166,30 @@ def test_flat_end_on_a_plane_touches_with_its_lowest_rim_point(lead_deg):
         np.testing.assert_allclose(drop.contact_normal, np.tile(Z, (3, 1)), atol=1e-12)
 
 
+def test_contacts_of_flat_end_poses_on_a_tilted_plane():
+    """CL poses of a flat end on the plane z = x tan(12 deg) (as a CL program gives them): along the
+    normal (a facing program, face contact) the contact is the tip itself; at a lead the rim's
+    lowest point CC = tip + R u; both with the plane's normal, and CC -> CL gives the tips back."""
+    from camsmooth.geometry.contact import contacts
+
+    s = np.radians(12.0)
+    n = np.array([-np.sin(s), 0.0, np.cos(s)])
+    V = np.array([[x, y, x * np.tan(s)] for x, y in ((-40, -40), (60, -40), (60, 40), (-40, 40))], float)
+    plane = MeshIndex(trimesh.Trimesh(V, [[0, 1, 2], [0, 2, 3]], process=False))
+    cc = np.array([[x, y, x * np.tan(s)] for x, y in ((0.0, 0.0), (10.0, 3.0), (20.0, -7.0))])
+    fr = local_frames(np.tile(n, (3, 1)), np.tile([np.cos(s), 0.0, np.sin(s)], (3, 1)))
+    for lead in (0.0, 4.0, 15.0):
+        T = axis_from_lead_tilt(np.full(3, np.radians(lead)), np.array([0.0, 0.3, -0.2]), fr)
+        tips = cc_to_cl(FLAT, cc, np.tile(n, (3, 1)), T)
+        c = contacts(plane, FLAT, tips, T, tolerance=1e-6)
+        assert c.touching.all() and np.all(np.abs(c.clearance) < 1e-9)
+        np.testing.assert_allclose(c.points, cc, atol=1e-9)
+        np.testing.assert_allclose(c.normals, np.tile(n, (3, 1)), atol=1e-9)
+        np.testing.assert_allclose(cc_to_cl(FLAT, c.points, c.normals, T), tips, atol=1e-9)
+        if lead == 0.0:
+            np.testing.assert_allclose(tips, cc, atol=1e-12)
+
+
 def test_ball_end_centre_does_not_depend_on_the_axis():
     """A ball end touching a sphere of radius RS at CC = RS n: the ball's centre is (RS + r) n
     whatever the axis, the tip that centre - r T; the pose touches the sphere's mesh."""

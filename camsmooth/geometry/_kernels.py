@@ -8,7 +8,9 @@ poses or the size of the mesh.
 
 Body model (camsmooth.geometry.cutter): a solid capped cylinder C (axis from ``base`` to
 ``base + height * axis``, radius ``radius``; a segment when ``radius = 0``, a disc when
-``height = 0``) offset by ``off`` (the Minkowski sum with a ball of radius ``off``).  Its signed
+``height = 0``) offset by ``off`` (the Minkowski sum with a ball of radius ``off``): a ball end is
+the segment offset by r, a flat end the cylinder itself (``off = 0``: the torus with r = 0 is
+the bottom disc and the side wall, with a sharp rim), the holder too.  Its signed
 distance ``sd_C(x) - off`` is convex and 1-Lipschitz in x; ``sd_C`` is the formula of
 ``camsmooth.geometry.cutter._cylinder_sd`` with the same branches and subgradient choices
 (scalar code here for the hot loops; the vectorised numpy version there is what the tests'
@@ -34,6 +36,7 @@ PRUNE_TOL = 1e-10     # mm: an element whose lower bound is within this of the b
 GAP_TOL = 1e-12       # mm: an edge minimum is accepted once certified within this of the true minimum
 PARALLEL_EPS = 1e-12  # as camsmooth.geometry.cutter._PARALLEL_EPS (support-point tie rule)
 BARY_TOL = 1e-12      # barycentric tolerance of the facet test
+TOUCH_TOL = 1e-12     # mm: a body this little across a facet's plane touches it (facet test, not deep)
 STACK = 256           # BVH traversal stack; the tree depth is <= log2(F) + 2
 
 # What attains a pose's minimum (to report the contact normal and polish the witness).
@@ -589,7 +592,9 @@ def clearance_kernel(tips, axes, bodies, margin, V, TI, TF, NT):
                         sx, sy, sz = _support(bx, by, bz, ax, ay, az, h, rad, -nx, -ny, -nz)
                         hh = nx * (sx - p0x) + ny * (sy - p0y) + nz * (sz - p0z)
                         side = 1.0
-                        if hh < 0.0:
+                        # (a touching flat end, off = 0, has its rim on the plane: hh = 0 up to
+                        # rounding, a facet contact, not a cut)
+                        if hh < -TOUCH_TOL:
                             sx, sy, sz = _support(bx, by, bz, ax, ay, az, h, rad, nx, ny, nz)
                             hh = nx * (sx - p0x) + ny * (sy - p0y) + nz * (sz - p0z)
                             side = -1.0
