@@ -113,10 +113,10 @@ def _toolpath_table(doc: dict[str, Any]) -> str:
 
 def _limits_table(doc: dict[str, Any]) -> str:
     """The machine's limits, with the range each tool path reaches beside each travel."""
-    def fmt(v: float | None) -> str:
-        return "\u2014" if v is None else f"{v:g}"
+    def fmt(v: float | None, unit: str) -> str:
+        return "none (continuous)" if v is None else f"{v:g} {unit}"
 
-    head = ["axis", "min", "max", "vmax (/s)", "amax (/s\u00b2)", "the program reaches", "samples over a limit"]
+    head = ["axis", "min", "max", "vmax", "amax", "the program reaches", "samples over a limit, planned law"]
     out = ["<table class='summary'>", "<tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr>"]
     for axis, lim in doc["limits"].items():
         unit = lim["unit"]
@@ -126,7 +126,8 @@ def _limits_table(doc: dict[str, Any]) -> str:
         broken = {q: sum(tp["violations"].get(f"{axis} {q}", 0) for tp in doc["toolpaths"])
                   for q in ("travel", "velocity", "acceleration")}
         text = ", ".join(f"{v} {q}" for q, v in broken.items() if v) or "none"
-        cells = [_cell(axis), *(_cell(f"{fmt(lim[k])} {unit}") for k in ("min", "max", "vmax", "amax")),
+        units = {"min": unit, "max": unit, "vmax": f"{unit}/s", "amax": f"{unit}/s\u00b2"}
+        cells = [_cell(axis), *(_cell(fmt(lim[k], units[k])) for k in ("min", "max", "vmax", "amax")),
                  _cell(f"{span} {unit}"), _cell(text, text != "none")]
         out.append("<tr>" + "".join(cells) + "</tr>")
     out.append("</table>")
