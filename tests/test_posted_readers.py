@@ -556,3 +556,10 @@ def test_latin1_comments(tmp_path):
     p.write_bytes(b"G21 G90\n(Fr\xe4ser \xd810)\nG0 X0 Y0 Z5\nG1 Z0 F100\nX10\nM30\n")
     prog = load_program(p)
     assert np.allclose(prog.tip[-1], [10, 0, 0]) and "read as Latin-1" in prog.warnings[0]
+
+
+def test_haas_m97_local_subprogram(tmp_path):
+    # Haas operator's manual, "M97 Local Sub-Program Call": M97 P runs the blocks from N<P> up to M99
+    p = _write(tmp_path, "m97.nc", "G21 G90\nG0 X0 Y0 Z5\nG1 Z0 F100\nM97 P100 L2\nM30\nN100 G91 G1 X2.\nG90\nM99\n")
+    prog = read_posted(p)
+    assert np.allclose(prog.tip[~prog.rapid][:, 0], [0, 2, 4])
