@@ -149,12 +149,11 @@ def arc_points(start: np.ndarray, end: np.ndarray, centre: np.ndarray, normal: n
 
 
 def nominal_machine(letters: tuple[str, str]) -> Any:
-    """The nominal camsmooth machine whose rotary axes are ``letters`` (AB: the default AB head; AC
-    and BC: the preset table machines with their centre at the origin;
-    camsmooth.machine.kinematics.nominal_machine)."""
-    from camsmooth.machine.kinematics import nominal_machine as _nominal
+    """The nominal camsmooth machine whose rotary axes are ``letters`` (the machine package's
+    ``nominal_machine``: A B the default AB head, A C and B C a trunnion centred at the origin)."""
+    from camsmooth.machine.kinematics import nominal_machine as machine_of_letters
 
-    return _nominal(letters)
+    return machine_of_letters(letters)
 
 
 @dataclass
