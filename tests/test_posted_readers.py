@@ -563,3 +563,15 @@ def test_haas_m97_local_subprogram(tmp_path):
     p = _write(tmp_path, "m97.nc", "G21 G90\nG0 X0 Y0 Z5\nG1 Z0 F100\nM97 P100 L2\nM30\nN100 G91 G1 X2.\nG90\nM99\n")
     prog = read_posted(p)
     assert np.allclose(prog.tip[~prog.rapid][:, 0], [0, 2, 4])
+
+
+def test_heidenhain_tcpm_axis_spat(tmp_path):
+    # TNC 640 manual, FUNCTION TCPM: with AXIS SPAT the A B C of an L block are spatial angles (the
+    # tool axis Rz(C) Ry(B) Rx(A) e_z whatever the machine), with AXIS POS the machine's axis positions
+    p = _write(tmp_path, "s.h", "0 BEGIN PGM S MM\n1 FUNCTION TCPM F TCP AXIS SPAT PATHCTRL AXIS\n"
+                                "2 L X+0 Y+0 Z+50 A+0 B+0 C+0 R0 FMAX\n3 L X+5 A+10 B+20 C+30 F500\n"
+                                "4 FUNCTION RESET TCPM\n5 END PGM S MM\n")
+    prog = read_posted(p, machine=nominal_machine(("A", "C")))
+    R = Rotation.from_euler("xyz", [10, 20, 30], degrees=True).as_matrix()
+    assert np.allclose(prog.axis[-1], R[:, 2]) and np.allclose(prog.tip[-1], [5, 0, 50])
+    assert not any("dropped" in w for w in prog.warnings)

@@ -7,8 +7,9 @@ structure blocks), "Path functions" (``L`` straight line with X Y Z A B C, ``IX`
 (pole), ``C`` arc about it to X Y with ``DR+`` counter-clockwise / ``DR-`` clockwise, ``CR`` arc of
 radius ``R+`` (<= 180 deg) or ``R-``; ``LN`` with the tool vector ``TX TY TZ``), "Feed rate": in
 inch programs F is in 0.1 inch/min; "Miscellaneous functions for rotary axes" (M128 / M129 TCPM
-on/off, M91/M92 machine-referenced blocks, M126/M127 shortest path); "FUNCTION TCPM" and
-"FUNCTION RESET TCPM"; "Tilting the working plane: PLANE function" (PLANE SPATIAL SPA SPB SPC:
+on/off, M91/M92 machine-referenced blocks, M126/M127 shortest path); "FUNCTION TCPM" (with
+``AXIS SPAT`` the A B C words are spatial angles: T = Rz(C) Ry(B) Rx(A) e_z, whatever the machine)
+and "FUNCTION RESET TCPM"; "Tilting the working plane: PLANE function" (PLANE SPATIAL SPA SPB SPC:
 rotations about the machine-fixed X, then Y, then Z, R = Rz(SPC) Ry(SPB) Rx(SPA); PLANE EULER
 EULPR EULNU EULROT: R = Rz(PR) Rx(NU) Rz(ROT); PLANE VECTOR BX BY BZ NX NY NZ: Z along N, X along
 the base vector; PLANE RESET; TURN / STAY / MOVE and SEQ words not changing the frame), "Cycles
@@ -56,6 +57,8 @@ class _Klartext:
         self.shift = np.zeros(3)
         self.plane = np.eye(3)
         self.rotation = np.eye(3)
+        self.spatial = False  # FUNCTION TCPM ... AXIS SPAT
+        self.sp: dict[str, float] = {}  # the modal spatial angles under AXIS SPAT (deg)
         self.cycle: tuple[str, float, float] | None = None
         self.cycle7 = False
         self.pending: list[str] = []
@@ -177,11 +180,12 @@ class _Klartext:
             self.pending = []
             return None
         if up.startswith("FUNCTION RESET TCPM"):
-            self.b.tcp = False
+            self.b.tcp = self.spatial = False
             return None
         if up.startswith("FUNCTION TCPM"):
             self.b.tcp = True
-            self.b.note("FUNCTION TCPM", line)
+            self.spatial = bool(re.search(r"\bAXIS\s+SPAT", up))
+            self.b.note("FUNCTION TCPM AXIS SPAT (A B C spatial angles)" if self.spatial else "FUNCTION TCPM", line)
             return None
         if up.startswith("PLANE"):
             self._plane(line, up)
@@ -275,12 +279,15 @@ class _Klartext:
                 end[k] = self._len(w[a])
             if "I" + a in w:
                 end[k] = (0.0 if math.isnan(end[k]) else end[k]) + self._len(w["I" + a])
-        rot = dict(self.rot)
+        spatial = self.b.tcp and self.spatial
+        rot = dict(self.sp if spatial else self.rot)  # AXIS SPAT: the words are spatial angles, not axes
         for a in "ABC":
             if a in w:
                 rot[a] = w[a]
             if "I" + a in w:
                 rot[a] = rot.get(a, 0.0) + w["I" + a]
+        if spatial:
+            self.sp, rot = rot, self.rot
         self.b.F = self.F
         if head in ("C", "CR"):
             if np.isnan(start).any():
@@ -317,6 +324,9 @@ class _Klartext:
             vec = None
             if head == "LN" and all(t in w for t in ("TX", "TY", "TZ")):
                 vec = (w["TX"], w["TY"], w["TZ"])
+            elif spatial:  # AXIS SPAT: A B C are the spatial angles of the tool axis
+                a, b, c = (math.radians(self.sp.get(k, 0.0)) for k in "ABC")
+                vec = tuple((rot_z(c) @ rot_y(b) @ rot_x(a))[:, 2].tolist())
             if any(a in w for a in ("X", "Y", "Z", "A", "B", "C", "IX", "IY", "IZ", "IA", "IB", "IC")):
                 self.b.move(line, rapid, (float(end[0]), float(end[1]), float(end[2])), rot, vec)
         for k, a in enumerate("XYZ"):
