@@ -575,3 +575,21 @@ def test_heidenhain_tcpm_axis_spat(tmp_path):
     R = Rotation.from_euler("xyz", [10, 20, 30], degrees=True).as_matrix()
     assert np.allclose(prog.axis[-1], R[:, 2]) and np.allclose(prog.tip[-1], [5, 0, 50])
     assert not any("dropped" in w for w in prog.warnings)
+
+
+def test_cli_cl_for_a_result_csv(tmp_path):
+    """A camsmooth result CSV (camsmooth.io.output): the CL is its clx,cly,clz and i,j,k, its row ids."""
+    cols = ("row", "idx", "t", "x", "y", "z", "nx", "ny", "nz", "clx", "cly", "clz", "i", "j", "k", "lead", "tilt",
+            "A", "B", "X", "Y", "Z", "delta", "lift", "status")
+    rows = [(7, 0, 0.0, 0, 0, 0, 0, 0, 1, 0.0, 0.0, 1.0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 150, 0.1, 0, "ok"),
+            (7, 1, 0.1, 1, 0, 0, 0, 0, 1, 1.0, 0.0, 1.0, 0, 0.6, 0.8, 0, 0, -36.87, 0, 1, 0, 150, 0.1, 0, "ok"),
+            (9, 0, 0.0, 2, 0, 0, 0, 0, 1, 2.0, 0.5, 1.0, 0, 0, 1, 0, 0, 0, 0, 2, 0.5, 150, 0.1, 0, "ok"),
+            (9, 1, 0.2, 3, 0, 0, 0, 0, 1, 3.0, 0.5, 1.0, 0, 0, 1, 0, 0, 0, 0, 3, 0.5, 150, 0.1, 0, "ok")]
+    f = tmp_path / "result.csv"
+    f.write_text(",".join(cols) + "\n" + "\n".join(",".join(str(v) for v in r) for r in rows) + "\n")
+    out = tmp_path / "cl.csv"
+    assert main(["analyze", str(f), "--cl", str(out), "--quiet"]) == 0
+    t = read_table(out, required=("x", "y", "z", "i", "j", "k", "row"), text=("operation",))
+    assert list(t["row"]) == [7, 7, 9, 9]
+    assert np.allclose(np.column_stack([t["x"], t["y"], t["z"], t["j"]]), [[0, 0, 1, 0], [1, 0, 1, 0.6],
+                                                                            [2, 0.5, 1, 0], [3, 0.5, 1, 0]])
