@@ -227,6 +227,11 @@ def _write_outputs(result: Any, out_csv: Path, gcode: Path | None, report: Path 
 
 
 def _print_summary(result) -> None:
+    from camsmooth.report.headline import headline
+
+    head = headline(result)  # what smoothing bought and cost: the same facts as the report's
+    if head is not None:
+        print(head.text())
     m = result.result.metrics
     ctrl = m.controller or "axes"
     r1, r2 = result.machine.rotary
