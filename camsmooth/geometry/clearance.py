@@ -630,15 +630,20 @@ def _rim_normals(index: MeshIndex, contact: np.ndarray, A: np.ndarray, e: np.nda
     """Contact normals (n of cc_to_cl) where a flat end's sharp rim touches (unit radial
     direction ``e`` of the contact from the axis): the tool's normals there form the cone
     a A - b e (a, b >= 0) and any of them places the tool right (CL = CC - R e); the one closest
-    to the part's normal is taken: the facet's for a facet contact, else that of the face closest
-    to the contact (trimesh), projected onto the cone, with b >= 1e-6 a so that the contact stays
-    on the rim (a part normal along the axis there is a face contact tied with the rim)."""
+    to the part's normal is taken: the facet's for a facet contact, else the mean of the face
+    normals round the vertex nearest the contact, projected onto the cone, with b >= 1e-6 a so
+    that the contact stays on the rim (a part normal along the axis there is a face contact tied
+    with the rim)."""
     m = facet.copy()
-    need = ~np.all(np.isfinite(m), axis=1)
-    if np.any(need):
-        mesh = trimesh.Trimesh(index.vertices, index.faces, process=False)
-        _, _, face = trimesh.proximity.closest_point(mesh, contact[need])
-        m[need] = index.face_normals[face]
+    need = np.flatnonzero(~np.all(np.isfinite(m), axis=1))
+    if len(need):  # a vertex or an edge: the mean of the faces' normals round the nearest vertex
+        _, v = index.tree.query(contact[need])
+        owner, face = _csr_expand(index.vf_ptr, index.vf_faces, np.arange(len(need)), np.asarray(v, np.intp))
+        fn = index.face_normals[face]
+        fn = np.where((_dot(fn, A[need][owner]) < 0.0)[:, None], -fn, fn)
+        acc = np.zeros((len(need), 3))
+        np.add.at(acc, owner, fn)
+        m[need] = acc
     a = _dot(m, A)
     m = np.where((a < 0.0)[:, None], -m, m)
     a = np.abs(a)
