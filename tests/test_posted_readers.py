@@ -593,3 +593,15 @@ def test_cli_cl_for_a_result_csv(tmp_path):
     assert list(t["row"]) == [7, 7, 9, 9]
     assert np.allclose(np.column_stack([t["x"], t["y"], t["z"], t["j"]]), [[0, 0, 1, 0], [1, 0, 1, 0.6],
                                                                             [2, 0.5, 1, 0], [3, 0.5, 1, 0]])
+
+
+def test_g93_block_whose_tip_stands_still(tmp_path):
+    # G93: a block that only turns a rotary axis under TCP moves the tip by 0 mm: its tip feed takes the
+    # feed of the move before it; F0 in G93 (no block time) costs its operation
+    p = _write(tmp_path, "s.nc", "G21 G90\nG43.4 H1\nG0 X0 Y0 Z5 A0 C0\nG93 G1 Z0 F10\nG1 A5 F20\nG1 X5 F30\nG94\n"
+                                 "G49\nM30\n")
+    prog = read_posted(p)
+    assert np.allclose(prog.feed[~prog.rapid], [50, 50, 150])
+    q = _write(tmp_path, "z.nc", "G21 G90\nG0 X0 Y0 Z5\nG93 G1 Z0 F0\nM30\n")
+    with pytest.raises(InputError, match="F0 in inverse time"):
+        read_posted(q)

@@ -518,6 +518,17 @@ class Builder:
             blen = np.bincount(block, weights=chord)  # tip path length per block
             with np.errstate(invalid="ignore"):
                 feed[inv] = blen[block[inv]] * F[inv]
+            # a block whose tool tip does not move (only a rotary axis turns, or nothing): its tip feed
+            # is not defined; it takes the feed of the move before it (or after it, at a row's start)
+            still = inv & (blen[block] <= 1e-9)
+            if still.any():
+                known = ~rapid & np.isfinite(feed) & ~still
+                idx = np.where(known, np.arange(n), -1)
+                prev = np.maximum.accumulate(idx)
+                nxt = np.minimum.accumulate(np.where(known, np.arange(n), n)[::-1])[::-1]
+                src = np.where(prev >= 0, prev, nxt)
+                ok = still & (src < n)
+                feed[ok] = feed[src[ok]]
         turns = np.r_[False, np.any(np.abs(np.diff(q, axis=0)) > 1e-9, axis=1)] if n else np.zeros(0, bool)
         g94_machine = (fm == 94) & ~rapid & (mode == 0) & turns
         if g94_machine.any():

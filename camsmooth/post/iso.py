@@ -413,6 +413,8 @@ class IsoInterpreter:
             f = vals.pop("F")
             if not (abs(f) <= 1e9):
                 raise InputError(f"F{f:g} is not a feed", file=self.file, line=line)
+            if self.b.feed_mode == 93 and not f > 0:
+                raise Skip(f"F{f:g} in inverse time (G93) is not a block time")
             self.b.F = f * INCH_MM if (self.inch and self.b.feed_mode != 93) else f
         for w in ("H", "D"):
             vals.pop(w, None)
