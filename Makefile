@@ -3,7 +3,7 @@ PYTHON ?= $(shell command -v python3.11 || command -v python3)
 VENV := .venv
 BIN := $(VENV)/bin
 
-.PHONY: demo test lint bench clean linuxcnc
+.PHONY: demo test lint bench clean linuxcnc chromium
 
 $(BIN)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -23,7 +23,16 @@ linuxcnc:
 	    linuxcnc-uspace >/dev/null) || echo "camsmooth: apt-get could not install linuxcnc-uspace: LinuxCNC tests skip"; \
 	else echo "camsmooth: LinuxCNC not installed (apt-get install linuxcnc-uspace as root): LinuxCNC tests skip"; fi
 
-test: $(BIN)/.installed linuxcnc
+# Headless Chromium (Debian chromium) renders the reports in the browser tests: installed where
+# apt-get runs as root; elsewhere those tests skip and say so.
+chromium:
+	@if command -v chromium >/dev/null 2>&1; then :; \
+	elif [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
+	    chromium >/dev/null) || echo "camsmooth: apt-get could not install chromium: browser tests skip"; \
+	else echo "camsmooth: Chromium not installed (apt-get install chromium as root): browser tests skip"; fi
+
+test: $(BIN)/.installed linuxcnc chromium
 	$(BIN)/ruff check camsmooth tests examples benchmarks surfaces
 	$(BIN)/python -m pytest
 

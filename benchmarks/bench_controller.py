@@ -18,6 +18,7 @@ tolerance.
 
     .venv/bin/python benchmarks/bench_controller.py [--samples blade,wave] [--rows 3] [--methods none,spline,nlp]
     .venv/bin/python benchmarks/bench_controller.py --sample dome    (the A/C trunnion of surfaces/dome_machine.toml)
+    .venv/bin/python benchmarks/bench_controller.py --sample dome --machine surfaces/nutating_machine.toml
 
 A sample with a machine file beside it (``surfaces/<sample>_machine.toml``) runs on that machine
 (its post set to linuxcnc, machine mode); the others on the default AB head.
@@ -61,14 +62,14 @@ from camsmooth.smoothing.pipeline import smooth  # noqa: E402
 TOLERANCE = 0.005
 
 
-def linuxcnc_machine(sample: str | None = None):
-    """The sample's own machine (``surfaces/<sample>_machine.toml``) when it has one, else the
-    default AB head; the post LinuxCNC's, machine mode."""
+def linuxcnc_machine(sample: str | None = None, machine_file: Path | None = None):
+    """``machine_file`` when given, else the sample's own machine (``surfaces/<sample>_machine.toml``)
+    when it has one, else the default AB head; the post LinuxCNC's, machine mode."""
     import dataclasses
     import tomllib
 
-    own = ROOT / "surfaces" / f"{sample}_machine.toml"
-    if sample is not None and own.is_file():
+    own = machine_file or ROOT / "surfaces" / f"{sample}_machine.toml"
+    if (sample is not None or machine_file is not None) and own.is_file():
         return dataclasses.replace(load_machine(str(own)), post=PostConfig(dialect="linuxcnc", mode="machine"))
     data = tomllib.loads(DEFAULT_MACHINE_TOML)
     data["post"] = {"dialect": "linuxcnc", "mode": "machine"}
@@ -95,8 +96,9 @@ def cam_clsf(path: CCPath, cutter: ToroidalCutter, lead_deg: float = 11.0) -> st
     return "\n".join(lines + ["END-OF-PATH"]) + "\n"
 
 
-def run(sample: str, rows: int, methods: list[str], keep: Path | None) -> list[dict]:
-    machine = linuxcnc_machine(sample)
+def run(sample: str, rows: int, methods: list[str], keep: Path | None, machine_file: Path | None = None
+        ) -> list[dict]:
+    machine = linuxcnc_machine(sample, machine_file)
     shipped = ROOT / "surfaces" / f"{sample}.toml"
     if shipped.exists():
         surf = load_surface(shipped)
@@ -151,6 +153,8 @@ def main() -> None:
     ap.add_argument("--methods", default="cam,none,spline,nlp",
                     help="comma-separated methods (cam: the rows as a CL program with a constant 11 deg lead)")
     ap.add_argument("--keep", type=Path, default=None, help="folder to keep the simulations' files in")
+    ap.add_argument("--machine", type=Path, default=None,
+                    help="run every sample on this machine file (e.g. surfaces/nutating_machine.toml)")
     args = ap.parse_args()
     missing = linuxcnc_missing()
     if missing:
@@ -161,7 +165,7 @@ def main() -> None:
           f"{'tip dev um':>10s} {'model um':>8s}")
     totals: dict[tuple[str, str], list[float]] = {}
     for sample in args.samples.split(","):
-        for row in run(sample, args.rows, args.methods.split(","), args.keep):
+        for row in run(sample, args.rows, args.methods.split(","), args.keep, args.machine):
             print(f"{row['sample']:8s} {row['method']:7s} {row['row']:4d} {row['points']:6d} {row['blocks']:6d} "
                   f"{row['executed']:10.3f} {row['predicted']:11.3f} {row['predicted'] / row['executed'] - 1:+11.2%} "
                   f"{row['optimal']:9.3f} {row['executed'] / row['optimal']:8.2f} {row['bound'] / row['optimal']:9.2f} "
