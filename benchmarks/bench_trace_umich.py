@@ -1,8 +1,9 @@
 """`camsmooth diagnose --trace` on the real Michigan CNC-mill recordings (../shared/data/umich-cnc-mill,
 CC0; see its README), read as a plain log through a column map, as a user would read a drive's
-export: t = row index x 0.1 s, X/Y/Z command and actual positions. Prints, per file, what is named,
-the fitted values and the held-out RMS by time blocks (before -> after), to set beside the
-program-based diagnosis (README: Kv 111 / 127 / 124 1/s fitted on 01-06).
+export: t = row index x 0.1 s, X/Y/Z command and actual positions and commanded velocities (the
+latter mark the rows missing from the log: a commanded jump faster than the commanded velocity).
+Prints, per file, what is named, the fitted values and the held-out RMS by time blocks (before ->
+after), to set beside the program-based diagnosis (README: Kv 111 / 127 / 124 1/s fitted on 01-06).
 
     .venv/bin/python benchmarks/bench_trace_umich.py [DATA_DIR]
 """
@@ -15,7 +16,8 @@ from pathlib import Path
 
 from camsmooth.diagnosis.trace import diagnose_trace, read_trace
 
-COLUMNS = {"t": 1, "X_act": 2, "X_cmd": 5, "Y_act": 13, "Y_cmd": 16, "Z_act": 24, "Z_cmd": 27}
+COLUMNS = {"t": 1, "X_act": 2, "X_cmd": 5, "X_vel_cmd": 6, "Y_act": 13, "Y_cmd": 16, "Y_vel_cmd": 17, "Z_act": 24,
+           "Z_cmd": 27, "Z_vel_cmd": 28}
 
 
 def main(data: Path) -> None:

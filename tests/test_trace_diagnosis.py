@@ -261,7 +261,7 @@ def test_a_real_mill_trace_names_its_lag_as_the_data_show_it():
     tr = read_trace(str(path))
     d = tr.describe()
     assert d["axes"] == ["X", "Y", "Z"] and d["samples"] == 1055 and d["rate_hz"] == pytest.approx(10.0)
-    assert d["optional"]["X"] == ["current", "vel_act"]
+    assert d["optional"]["X"] == ["current", "vel_act", "vel_cmd"] and d["optional"]["Z"] == ["vel_cmd"]
     f = diagnose_trace(tr).findings
     assert f["named"] == ["servo_lag"]  # 10 Hz cannot show ringing, a delay or a limit apart from it
     kv = effect(f, "servo_lag")["parameters"]

@@ -7,8 +7,9 @@ axis ``<AX>_load`` (any unit, its sign matters), ``<AX>_vel_cmd``, ``<AX>_vel_ac
 ``<AX>_current`` (A), and covariates ``temp_<name>`` (deg C). With a column map
 (``columns={"t": 1, "X_cmd": 3, ...}``, 1-based) a plain delimited log (comma, semicolon, tab or
 blanks; with or without a header line) is read the same way. Irregular sampling is kept as
-recorded; a gap (a step above ``GAP_FACTOR`` median sample periods) starts a new segment, where
-the simulation restarts at rest on the command. Each channel's quantisation step (per sample,
+recorded; a gap (a step above ``GAP_FACTOR`` median sample periods, or a commanded jump beyond what
+``<AX>_vel_cmd`` allows: ``breaks``) starts a new segment, where the simulation restarts at rest on
+the command. Each channel's quantisation step (per sample,
 camsmooth.diagnosis.recordings.quantisation_steps) enters its noise floor.
 
 Model (``TraceModel``, internal units: the file's length unit, s; ``TraceSimulator``): the
@@ -264,15 +265,45 @@ class TraceModel:
                           self.thermal_axis, self.drift)
 
 
-def _lag1(u: np.ndarray, h: float, tau: float) -> np.ndarray:
-    """tau y' = u - y, exact for u linear between grid points, y(0) = u(0)."""
-    from scipy.signal import lfilter
-
+def _lag1_coeffs(h: float, tau: float) -> tuple[np.ndarray, np.ndarray]:
+    """(b, a) of tau y' = u - y, exact for u linear between grid points (first-order hold)."""
     a = math.exp(-h / tau)
     b0 = 1.0 - tau * (1.0 - a) / h
-    b1 = (1.0 - a) - b0
-    y, _ = lfilter([b0, b1], [1.0, -a], u, zi=np.array([u[0] * (1.0 - b0)]))
+    return np.array([b0, (1.0 - a) - b0, 0.0]), np.array([1.0, -a, 0.0])
+
+
+@njit(cache=True)
+def _iir(u: np.ndarray, b: np.ndarray, a: np.ndarray, start: np.ndarray) -> np.ndarray:  # pragma: no cover
+    """A second-order (or first-order: b[2] = a[2] = 0) IIR filter with unit DC gain, direct form II
+    transposed, at rest on u at index 0 and at every ``start`` (a restart after a gap)."""
+    y = np.empty_like(u)
+    base = u[0]
+    z1 = 0.0
+    z2 = 0.0
+    for k in range(len(u)):
+        if start[k]:
+            base = u[k]
+            z1 = 0.0
+            z2 = 0.0
+        x = u[k] - base
+        yk = b[0] * x + z1
+        z1 = b[1] * x - a[1] * yk + z2
+        z2 = b[2] * x - a[2] * yk
+        y[k] = yk + base
     return y
+
+
+def _lag1(u: np.ndarray, h: float, tau: float, start: np.ndarray | None = None) -> np.ndarray:
+    """tau y' = u - y, exact for u linear between grid points, at rest on u(0) (and at ``start``)."""
+    b, a = _lag1_coeffs(h, tau)
+    return _iir(u, b, a, _starts(u, start))
+
+
+def _starts(u: np.ndarray, start: np.ndarray | None) -> np.ndarray:
+    if start is None:
+        start = np.zeros(len(u), dtype=np.bool_)
+        start[0] = True
+    return start
 
 
 def _expm(M: np.ndarray) -> np.ndarray:
@@ -290,11 +321,9 @@ def _expm(M: np.ndarray) -> np.ndarray:
     return E
 
 
-def _lag2(u: np.ndarray, h: float, t2: float, zeta: float) -> np.ndarray:
-    """y'' + 2 zeta wn y' + wn^2 y = wn^2 u (wn = 1/t2), exact for u linear between grid points
-    (first-order hold), at rest on u(0)."""
-    from scipy.signal import lfilter
-
+def _lag2_coeffs(h: float, t2: float, zeta: float) -> tuple[np.ndarray, np.ndarray]:
+    """(b, a) of y'' + 2 zeta wn y' + wn^2 y = wn^2 u (wn = 1/t2), exact for u linear between grid
+    points (first-order hold)."""
     wn = 1.0 / t2
     M = np.zeros((4, 4))
     M[:2, :2] = np.array([[0.0, 1.0], [-wn * wn, -2.0 * zeta * wn]]) * h
@@ -305,16 +334,23 @@ def _lag2(u: np.ndarray, h: float, t2: float, zeta: float) -> np.ndarray:
     g0 = E[:2, 2] - g1  # x[k+1] = Phi x[k] + g0 u[k] + g1 u[k+1]
     b = np.array([g1[0], g0[0] - Phi[1, 1] * g1[0] + Phi[0, 1] * g1[1], -Phi[1, 1] * g0[0] + Phi[0, 1] * g0[1]])
     a = np.array([1.0, -np.trace(Phi), Phi[0, 0] * Phi[1, 1] - Phi[0, 1] * Phi[1, 0]])
-    y = lfilter(b, a, u - u[0])
-    return y + u[0]
+    return b, a
+
+
+def _lag2(u: np.ndarray, h: float, t2: float, zeta: float, start: np.ndarray | None = None) -> np.ndarray:
+    """The second-order servo (``_lag2_coeffs``), at rest on u(0) (and at ``start``)."""
+    b, a = _lag2_coeffs(h, t2, zeta)
+    return _iir(u, b, a, _starts(u, start))
 
 
 @njit(cache=True)
-def _rate_limit(u: np.ndarray, step: float) -> np.ndarray:  # pragma: no cover - compiled
-    """y follows u moving at most ``step`` per grid point."""
+def _rate_limit(u: np.ndarray, step: float, start: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
+    """y follows u moving at most ``step`` per grid point (restarting on u at ``start``)."""
     y = np.empty_like(u)
     yk = u[0]
     for k in range(len(u)):
+        if start[k]:
+            yk = u[k]
         d = u[k] - yk
         if d > step:
             d = step
@@ -326,14 +362,19 @@ def _rate_limit(u: np.ndarray, step: float) -> np.ndarray:  # pragma: no cover -
 
 
 @njit(cache=True)
-def _accel_limit(u: np.ndarray, h: float, amax: float) -> np.ndarray:  # pragma: no cover - compiled
+def _accel_limit(u: np.ndarray, h: float, amax: float, start: np.ndarray) -> np.ndarray:  # pragma: no cover
     """The axis velocity w chases the commanded velocity (constant over each grid interval, u
-    being linear there) changing by at most amax a second, from rest; the position is its exact
-    integral (w piecewise linear)."""
+    being linear there) changing by at most amax a second, from rest (and from rest on u at
+    ``start``); the position is its exact integral (w piecewise linear)."""
     y = np.empty_like(u)
     y[0] = yk = u[0]
     w = 0.0
     for k in range(1, len(u)):
+        if start[k]:
+            yk = u[k]
+            w = 0.0
+            y[k] = yk
+            continue
         v = (u[k] - u[k - 1]) / h
         d = v - w
         tr = abs(d) / amax
@@ -349,12 +390,12 @@ def _accel_limit(u: np.ndarray, h: float, amax: float) -> np.ndarray:  # pragma:
 
 
 @njit(cache=True)
-def _saturating_loop(u: np.ndarray, h: float, tau: float, vmax: float, amax: float
+def _saturating_loop(u: np.ndarray, h: float, tau: float, vmax: float, amax: float, start: np.ndarray
                      ) -> np.ndarray:  # pragma: no cover - compiled
     """A first-order position loop that saturates: the axis velocity is (u - y) / tau, clipped to
     +-vmax, and changes by at most amax a second. Each step takes the exact first-order-hold step
     of the unsaturated loop and limits the velocity it implies; exact while the loop is linear or
-    saturated over a whole step. From rest on u(0)."""
+    saturated over a whole step. From rest on u(0), and on u at ``start``."""
     a = np.exp(-h / tau)
     b0 = 1.0 - tau * (1.0 - a) / h
     b1 = (1.0 - a) - b0
@@ -362,6 +403,11 @@ def _saturating_loop(u: np.ndarray, h: float, tau: float, vmax: float, amax: flo
     y[0] = yk = u[0]
     w = 0.0
     for k in range(1, len(u)):
+        if start[k]:
+            yk = u[k]
+            w = 0.0
+            y[k] = yk
+            continue
         v = (a * yk + b0 * u[k] + b1 * u[k - 1] - yk) / h
         if v > vmax:
             v = vmax
@@ -388,6 +434,24 @@ def _direction(u: np.ndarray) -> np.ndarray:
     return np.where(idx > 0, s[idx], s[0])
 
 
+def breaks(trace: Trace) -> np.ndarray:
+    """(n - 1,) True where a new segment starts after sample i: a time gap (a step above
+    ``GAP_FACTOR`` median periods) or, on an axis with ``<AX>_vel_cmd``, a commanded jump further
+    than its commanded velocity allows (|du| > 1.5 dt max(|v_i|, |v_i+1|) + 2 q, q the command's
+    quantisation step: rows missing from the log, as in the Michigan mill traces)."""
+    t = trace.t
+    dt = np.diff(t)
+    out = dt > GAP_FACTOR * trace.dt
+    for a in trace.axes:
+        v = trace.extra[a].get("vel_cmd")
+        if v is None:
+            continue
+        q = quantisation_steps(trace.cmd[a])
+        allow = 1.5 * dt * np.maximum(np.abs(v[1:]), np.abs(v[:-1])) + 2.0 * np.maximum(q[1:], q[:-1])
+        out |= np.abs(np.diff(trace.cmd[a])) > allow
+    return out
+
+
 class TraceKnots:
     """The command on the internal grid (what the terms ask of a program's knots)."""
 
@@ -406,9 +470,11 @@ class TraceKnots:
         self.dir = {a: _direction(self.u[a]) for a in trace.axes}
         self.n = len(self.tg)
         # a gap ends a segment: the simulation restarts at rest on the command after it
-        after = np.flatnonzero(np.diff(t) > GAP_FACTOR * trace.dt) + 1
+        after = np.flatnonzero(breaks(trace)) + 1
         starts = [0] + sorted({int(np.floor((t[i] - t[0]) / h + 1e-9)) for i in after} - {0})
         self.segments = list(zip(starts, starts[1:] + [self.n], strict=True))
+        self.start = np.zeros(self.n, dtype=np.bool_)
+        self.start[starts] = True
 
     def moves(self, a: str) -> bool:
         u = self.u.get(a)
@@ -452,31 +518,29 @@ class TraceSimulator:
             self._lowpassed[key] = np.interp(self.t, kn.tg, y)
         return self._lowpassed[key]
 
-    def servo(self, model: TraceModel, a: str, u: np.ndarray) -> np.ndarray:
-        """The axis position on the grid for the command u (one segment, starting at rest)."""
-        h = self.knots.h
+    def servo(self, model: TraceModel, a: str) -> np.ndarray:
+        """The axis position on the grid (restarting at rest on the command after each gap)."""
+        kn = self.knots
+        u, h, start = kn.u[a], kn.h, kn.start
         ia, iv = model.ia.get(a, 0.0), model.iv.get(a, 0.0)
         tau = model.tau.get(a, 0.0)
         if tau > 0 and (ia > 0 or iv > 0):
-            u = _saturating_loop(u, h, tau, 1.0 / iv if iv > 0 else np.inf, 1.0 / ia if ia > 0 else np.inf)
+            u = _saturating_loop(u, h, tau, 1.0 / iv if iv > 0 else np.inf, 1.0 / ia if ia > 0 else np.inf, start)
         else:
             if ia > 0:
-                u = _accel_limit(u, h, 1.0 / ia)
+                u = _accel_limit(u, h, 1.0 / ia, start)
             if iv > 0:
-                u = _rate_limit(u, h / iv)
+                u = _rate_limit(u, h / iv, start)
             if tau > 0:
-                u = _lag1(u, h, tau)
+                u = _lag1(u, h, tau, start)
         t2 = model.t2.get(a, 0.0)
         if t2 > 0:
-            u = _lag2(u, h, t2, model.zeta.get(a, 1.0))
+            u = _lag2(u, h, t2, model.zeta.get(a, 1.0), start)
         return u
 
     def axis(self, model: TraceModel, a: str) -> np.ndarray:
         kn = self.knots
-        if len(kn.segments) == 1:
-            u = self.servo(model, a, kn.u[a])
-        else:
-            u = np.concatenate([self.servo(model, a, kn.u[a][s:e]) for s, e in kn.segments])
+        u = self.servo(model, a)
         k, f = self.loc(model.offset_s)
         y = u[k] * (1.0 - f) + u[k + 1] * f
         b = model.backlash.get(a, 0.0)
@@ -601,7 +665,7 @@ def prepare_trace(trace: Trace, options: Options | None = None) -> TraceProblem:
     channels = sim_all.channels
     data = np.column_stack([trace.act[a] for a in trace.axes])
     resid = data - sim_all.run(base)
-    segment = np.r_[0, np.cumsum(np.diff(trace.t) > GAP_FACTOR * trace.dt)]
+    segment = np.r_[0, np.cumsum(breaks(trace))]
     floor = np.empty_like(data)
     info: dict[str, dict[str, float]] = {}
     valid = np.ones_like(data, dtype=bool)
