@@ -605,3 +605,13 @@ def test_g93_block_whose_tip_stands_still(tmp_path):
     q = _write(tmp_path, "z.nc", "G21 G90\nG0 X0 Y0 Z5\nG93 G1 Z0 F0\nM30\n")
     with pytest.raises(InputError, match="F0 in inverse time"):
         read_posted(q)
+
+
+def test_heidenhain_plane_relativ(tmp_path):
+    # TNC 640 manual, "PLANE RELATIV": a further rotation about an axis of the plane already tilted
+    p = _write(tmp_path, "r.h", "0 BEGIN PGM R MM\n1 PLANE SPATIAL SPA+0 SPB+0 SPC+90 TURN FMAX\n"
+                                "2 PLANE RELATIV SPA+30 TURN FMAX\n3 L X+0 Y+0 Z+5 R0 FMAX\n4 L X+10 F500\n"
+                                "5 END PGM R MM\n")
+    prog = read_posted(p)
+    R = Rotation.from_euler("ZX", [90, 30], degrees=True).as_matrix()  # intrinsic: about Z, then the new X
+    assert np.allclose(prog.tip[-1], R @ [10, 0, 0]) and np.allclose(prog.axis[-1], R[:, 2])

@@ -12,14 +12,15 @@ on/off, M91/M92 machine-referenced blocks, M126/M127 shortest path); "FUNCTION T
 and "FUNCTION RESET TCPM"; "Tilting the working plane: PLANE function" (PLANE SPATIAL SPA SPB SPC:
 rotations about the machine-fixed X, then Y, then Z, R = Rz(SPC) Ry(SPB) Rx(SPA); PLANE EULER
 EULPR EULNU EULROT: R = Rz(PR) Rx(NU) Rz(ROT); PLANE VECTOR BX BY BZ NX NY NZ: Z along N, X along
-the base vector; PLANE RESET; TURN / STAY / MOVE and SEQ words not changing the frame), "Cycles
+the base vector; PLANE RELATIV SPA|SPB|SPC: one more rotation about an axis of the tilted plane;
+PLANE RESET; TURN / STAY / MOVE and SEQ words not changing the frame), "Cycles
 for coordinate transformation" (CYCL DEF 7 DATUM SHIFT 7.1 X / 7.2 Y / 7.3 Z, CYCL DEF 247 DATUM
 SETTING Q339), "Fixed cycles" (CYCL DEF 200-209 with Q201 depth and Q203 surface coordinate,
 called by CYCL CALL or M99), "Subprograms" (LBL n ... LBL 0, CALL LBL n REP m), "Q parameters"
 (FN 0: Qn = value, Qn = expression).
 
 What is not applied is named and costs its operation: RL/RR radius compensation, CT/CP/RND/CHF,
-PLANE PROJECTED/RELATIV/AXIAL/POINTS, CYCL DEF 19, datum tables (``#``), FN jumps, CALL PGM.
+PLANE PROJECTED/AXIAL/POINTS, CYCL DEF 19, datum tables (``#``), FN jumps, CALL PGM.
 """
 
 from __future__ import annotations
@@ -357,8 +358,14 @@ class _Klartext:
                     raise Skip("PLANE VECTOR whose base vector is along the normal")
                 x /= np.linalg.norm(x)
                 self.plane = np.column_stack([x, np.cross(z, x), z])
+            elif up.startswith("PLANE RELATIV"):  # one rotation about an axis of the plane already tilted
+                m = re.search(r"\b(SPA|SPB|SPC)\s*(" + _VAL + ")", up)
+                if not m:
+                    raise Skip("PLANE RELATIV without SPA, SPB or SPC")
+                turn = {"SPA": rot_x, "SPB": rot_y, "SPC": rot_z}[m.group(1)](math.radians(self._num(m.group(2))))
+                self.plane = self.plane @ turn
             else:
-                raise Skip(f"{' '.join(up.split()[:2])} is not read (SPATIAL, EULER, VECTOR and RESET are)")
+                raise Skip(f"{' '.join(up.split()[:2])} is not read (SPATIAL, EULER, VECTOR, RELATIV and RESET are)")
         self._frame()
         self.b.note("PLANE", line)
         for k in ("Q120", "Q121", "Q122"):  # the rotary positions the control computes for the plane: the
