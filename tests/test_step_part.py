@@ -37,11 +37,11 @@ RNG = np.random.default_rng(30)
 
 def _write_step(shape, path: Path, unit: int | None = None) -> Path:
     """STEP file of an OCP shape; unit: OCCT's write.step.unit (1 = inch) for this file only."""
+    w = STEPControl_Writer()  # first: it sets the STEP parameters to their defaults
     old = Interface_Static.IVal_s("write.step.unit")
     if unit is not None:
         Interface_Static.SetIVal_s("write.step.unit", unit)
     try:
-        w = STEPControl_Writer()
         w.Transfer(shape, STEPControl_AsIs)
         w.Write(str(path))
     finally:
@@ -323,3 +323,24 @@ def test_bad_step_file_named(tmp_path, capsys):
     with pytest.raises(InputError, match=r"bad\.step.*cannot read the file as STEP.*Line \d+"):
         load_surface(bad)
     assert capsys.readouterr().out == ""  # OCCT's parser message is in the error, not on the terminal
+
+
+def test_exact_clearance_against_closed_form(cylsph):
+    """A ball end (r 3, axis +Z) at h above the hemisphere (ball centre at 13 + h from the sphere's
+    centre): the exact clearance is h (closed form); the mesh's differs from it by at most the
+    measured chord deviation."""
+    from camsmooth.geometry.clearance import MeshIndex, clearance
+    from camsmooth.geometry.cutter import ToroidalCutter
+    from camsmooth.geometry.step import exact_clearance
+
+    cutter = ToroidalCutter(R=0.0, r=3.0)
+    h = np.array([0.01, 0.0, -0.02, 0.05, 0.003])
+    phi, az = np.radians([10, 25, 40, 55, 0]), np.radians([0, 37, 100, 200, 0])
+    d = np.c_[np.sin(phi) * np.cos(az), np.sin(phi) * np.sin(az), np.cos(phi)]
+    tips = d * (13 + h)[:, None] + [0, 0, 27.0]  # ball centre minus r along the axis
+    axes = np.tile([0.0, 0.0, 1.0], (len(h), 1))
+    mesh_cl = clearance(MeshIndex(cylsph.mesh), cutter, tips, axes)
+    exact = exact_clearance(cylsph.brep, cutter, tips, axes, mesh_cl.witness)
+    assert exact == pytest.approx(h, abs=1e-7)
+    assert np.all(np.abs(mesh_cl.delta - h) <= cylsph.brep.deviation + 1e-9)
+    assert np.abs(mesh_cl.delta - h).max() > 1e-4  # the mesh's figure is not the exact one

@@ -124,7 +124,7 @@ def load_input(args: argparse.Namespace, surface: Any, machine: Any) -> tuple[An
 
 
 def run_smooth(args: argparse.Namespace) -> int:
-    from camsmooth.cli.part import load_part
+    from camsmooth.cli.part import exact_clearance_report, load_part
     from camsmooth.machine.kinematics import load_machine
     from camsmooth.smoothing.pipeline import SmoothOptions, smooth
 
@@ -158,6 +158,8 @@ def run_smooth(args: argparse.Namespace) -> int:
         _write_outputs(result, out_csv, gcode, report, args.feed, progress=not args.quiet)
     if not args.quiet:
         _print_summary(result)
+        for line in exact_clearance_report(result, surface):  # a CAD part: the worst clearances on its B-rep
+            print(line, file=sys.stderr if line.startswith("camsmooth: warning") else sys.stdout)
     return EXIT_OK
 
 

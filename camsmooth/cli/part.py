@@ -19,7 +19,7 @@ import numpy as np
 from camsmooth.constants import DEFAULT_TOLERANCE_MM
 from camsmooth.errors import InputError
 
-__all__ = ["add_part_args", "part_frame", "load_part", "reach_of", "place_and_check"]
+__all__ = ["add_part_args", "part_frame", "load_part", "reach_of", "place_and_check", "exact_clearance_report"]
 
 CAD_CHORD_SHARE = 0.2   # a CAD part is meshed to this share of the tolerance (linear deflection)
 
@@ -128,3 +128,37 @@ def place_and_check(args: argparse.Namespace, surface: Any, program: Any, reach:
                          part=f"part {args.surface}")
     if result.message:
         raise InputError(result.message, file=getattr(program, "source", None) or getattr(args, "path", None))
+
+
+EXACT_WORST = 5  # poses of the written method whose clearance is re-measured on the exact part
+
+
+def exact_clearance_report(result: Any, surface: Any, worst: int = EXACT_WORST) -> list[str]:
+    """Lines for the summary: the ``worst`` smallest clearances of the written method re-measured on
+    the exact part (camsmooth.geometry.step.exact_clearance: the tool's signed distance minimised
+    over the exact face near the mesh's witness), beside the mesh's figure; a warning line when the
+    exact part is gouged beyond the tolerance where the mesh is not. [] without a B-rep."""
+    brep = getattr(surface, "brep", None)
+    if brep is None:
+        return []
+    from camsmooth.geometry.clearance import MeshIndex, clearance
+    from camsmooth.geometry.step import exact_clearance
+
+    r = result.methods[result.primary]
+    ok = np.flatnonzero(np.isfinite(r.delta))
+    if len(ok) == 0:
+        return []
+    k = ok[np.argsort(r.delta[ok])[:worst]]
+    mesh_cl = clearance(MeshIndex(surface.mesh), result.cutter, r.cl[k], r.axis[k])
+    exact = exact_clearance(brep, result.cutter, r.cl[k], r.axis[k], mesh_cl.witness)
+    tol = float(result.result.metrics.tolerance_mm) if result.result.metrics is not None else DEFAULT_TOLERANCE_MM
+    pts = "; ".join(f"row {int(r.rows[i])} point {int(r.idx[i])}: mesh {1e3 * r.delta[i]:.4g} um, exact "
+                    f"{'-' if not np.isfinite(e) else format(1e3 * e, '.4g')} um"
+                    for i, e in zip(k, exact, strict=True))
+    lines = [f"clearance on the exact part ({Path(brep.source).name}, B-rep; mesh within {1e3 * brep.deviation:.3g} um "
+             f"of it): the {len(k)} smallest of {result.primary}: {pts}"]
+    gouged = [int(i) for i, e in zip(k, exact, strict=True) if np.isfinite(e) and e < -tol <= r.delta[i]]
+    if gouged:
+        lines.append(f"camsmooth: warning: on the exact part, {len(gouged)} of these points gouge beyond the tolerance "
+                     f"({1e3 * tol:.3g} um) where the mesh does not (rows {sorted({int(r.rows[i]) for i in gouged})})")
+    return lines

@@ -62,6 +62,7 @@ import os
 import re
 import sys
 import tempfile
+import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -472,6 +473,8 @@ def load_cad(path: str | Path, deflection: float, angular: float = DEFAULT_ANGUL
         notes.append(note)
     if unit and unit not in ("MM", "MILLIMETRE", "MILLIMETER"):
         notes.append(f"{file}: length unit {unit} in the file, scaled to mm")
+    for note in notes:  # the CLI prints each as one 'camsmooth: warning:' line
+        warnings.warn(note, RuntimeWarning, stacklevel=2)
     part = BRepPart(shape=shape, source=file, unit=unit, deflection=d, angular=angular, mesh_to_brep=m2b,
                     brep_to_mesh=b2m, triangles=len(mesh.faces), measured=measured)
     mesh.metadata["chord_error"] = part.deviation
@@ -504,10 +507,15 @@ def exact_distance(brep: BRepPart, points: Any) -> np.ndarray:
 
 
 def _closest_on_brep(brep: BRepPart, p: np.ndarray) -> tuple[Any, float, float] | None:
-    """The face and (u, v) of the exact part nearest to the point p (part frame)."""
+    """The face and (u, v) of the exact part nearest to the point p (part frame). Where the nearest
+    point is on an edge or a vertex (a seam, a boundary), the face whose surface passes nearest to it."""
+    from OCP.BRep import BRep_Tool
     from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
     from OCP.BRepExtrema import BRepExtrema_DistShapeShape, BRepExtrema_IsInFace
     from OCP.gp import gp_Pnt
+    from OCP.ShapeAnalysis import ShapeAnalysis_Surface
+    from OCP.TopAbs import TopAbs_FACE
+    from OCP.TopExp import TopExp_Explorer
     from OCP.TopoDS import TopoDS
 
     v = BRepBuilderAPI_MakeVertex(gp_Pnt(*map(float, p))).Vertex()
@@ -518,7 +526,18 @@ def _closest_on_brep(brep: BRepPart, p: np.ndarray) -> tuple[Any, float, float] 
         if ext.SupportTypeShape2(k) == BRepExtrema_IsInFace:
             u, w = ext.ParOnFaceS2(k)
             return TopoDS.Face(ext.SupportOnShape2(k)), float(u), float(w)
-    return None
+    q = ext.PointOnShape2(1)
+    best = None
+    ex = TopExp_Explorer(brep.shape, TopAbs_FACE)
+    while ex.More():
+        face = TopoDS.Face(ex.Current())
+        ex.Next()
+        sas = ShapeAnalysis_Surface(BRep_Tool.Surface_s(face))
+        uv = sas.ValueOfUV(q, 1e-7)
+        gap = sas.Gap()
+        if best is None or gap < best[0]:
+            best = (gap, face, uv.X(), uv.Y())
+    return None if best is None else (best[1], float(best[2]), float(best[3]))
 
 
 def exact_clearance(brep: BRepPart, cutter: Any, tips: Any, axes: Any, witness: Any) -> np.ndarray:
