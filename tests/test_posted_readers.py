@@ -614,4 +614,4 @@ def test_heidenhain_plane_relativ(tmp_path):
                                 "5 END PGM R MM\n")
     prog = read_posted(p)
     R = Rotation.from_euler("ZX", [90, 30], degrees=True).as_matrix()  # intrinsic: about Z, then the new X
-    assert np.allclose(prog.tip[-1], R @ [10, 0, 0]) and np.allclose(prog.axis[-1], R[:, 2])
+    assert np.allclose(prog.tip[-1], R @ [10, 0, 5]) and np.allclose(prog.axis[-1], R[:, 2])
