@@ -28,7 +28,7 @@ __all__ = ["DIV_ID", "MAX_AXES", "MAX_PATH_POINTS", "MAX_TRIANGLES", "Scene", "b
 
 MAX_TRIANGLES = 50_000
 MAX_PATH_POINTS = 20_000
-MAX_AXES = 400
+MAX_AXES = 250
 DIV_ID = "camsmooth-view3d"
 _POLE_COLOUR = "#ff7f0e"
 _LIFT_COLOUR = "#000000"
@@ -223,18 +223,20 @@ def view3d_html(scene: Scene, *, height_px: int = 720, max_triangles: int = MAX_
                         "args": [{"visible": [o is None or o == name for o in owner]}]})
     fig = go.Figure(traces)
     fig.update_layout(
-        height=height_px, margin={"l": 0, "r": 0, "t": 40, "b": 0}, paper_bgcolor="white",
+        height=height_px, margin={"l": 0, "r": 0, "t": 10, "b": 0}, paper_bgcolor="white",
         scene={"aspectmode": "data", "xaxis_title": "X (mm)", "yaxis_title": "Y (mm)", "zaxis_title": "Z (mm)",
-               "camera": {"eye": {"x": 1.4, "y": -1.4, "z": 1.0}}},
-        legend={"x": 0.0, "y": 1.0, "bgcolor": "rgba(255,255,255,0.8)", "font": {"size": 12}},
-        updatemenus=[{"type": "buttons", "direction": "right", "x": 1.0, "xanchor": "right", "y": 1.06,
-                      "yanchor": "bottom", "buttons": buttons, "showactive": True}] if len(names) > 1 else [],
+               "camera": {"eye": {"x": 1.25, "y": -1.25, "z": 0.95}}},
+        legend={"x": 0.0, "y": 0.92, "yanchor": "top", "bgcolor": "rgba(255,255,255,0.8)", "font": {"size": 12}},
+        updatemenus=[{"type": "buttons", "direction": "right", "x": 0.0, "xanchor": "left", "y": 1.0,
+                      "yanchor": "top", "buttons": buttons, "showactive": True,
+                      "pad": {"l": 4, "t": 4}}] if len(names) > 1 else [],
     )
     div = fig.to_html(include_plotlyjs=include_plotlyjs, full_html=False, div_id=DIV_ID,
                       config={"displaylogo": False, "responsive": True,
                               "toImageButtonOptions": {"format": "png", "filename": "camsmooth_view3d"}})
+    marks = (["black rings: points lifted along the normal"] if any(la.lifted.any() for la in scene.layers) else []) \
+        + (["orange diamonds: the primary method's passages near the pole"] if len(scene.pole_points) else [])
     cap = ("Drag to rotate, scroll to zoom, right-drag to pan; the buttons show one method (or all), a click on "
-           "a legend entry hides or shows that trace. Tool axes drawn as "
-           f"{length:.3g} mm segments from the tool tip; black rings: points lifted along the normal; "
-           "diamonds: the primary method's passages near the pole. " + "; ".join(notes) + ".")
+           f"a legend entry hides or shows that trace. Tool axes drawn as {length:.3g} mm segments from the tool "
+           "tip" + "".join("; " + m for m in marks) + ". " + "; ".join(notes) + ".")
     return f"<figure class='view3d'>{div}<figcaption>{html.escape(cap)}</figcaption></figure>"
