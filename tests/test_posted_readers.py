@@ -615,3 +615,27 @@ def test_heidenhain_plane_relativ(tmp_path):
     prog = read_posted(p)
     R = Rotation.from_euler("ZX", [90, 30], degrees=True).as_matrix()  # intrinsic: about Z, then the new X
     assert np.allclose(prog.tip[-1], R @ [10, 0, 5]) and np.allclose(prog.axis[-1], R[:, 2])
+
+
+@pytest.mark.parametrize("dialect,mode", [("fanuc", "tcp"), ("fanuc", "machine"), ("siemens", "tcp"),
+                                          ("siemens", "machine"), ("heidenhain", "tcp"), ("linuxcnc", "tcp"),
+                                          ("linuxcnc", "machine"), ("generic", "machine")])
+def test_camsmooth_posts_read_as_posted_programs(tmp_path, dialect, mode):
+    """camsmooth's own writer (camsmooth.io.gcode) in every dialect and mode, its header tag removed so
+    that the posted reader reads it like any program: the tips and axes it was written from (within
+    the 4 decimals written) and the feeds its own reader (read_gcode) gives."""
+    from test_gcode import CUTTER, MACHINE, _method
+
+    from camsmooth.io.gcode import read_gcode, write_gcode
+
+    m, feed = _method()
+    nc = write_gcode(tmp_path / "own.nc", m, MACHINE, CUTTER, feed, safe_height=7.5, dialect=dialect, mode=mode)
+    plain = _write(tmp_path, "plain.nc", nc.read_text().replace("camsmooth post:", "post:"))
+    prog = read_posted(plain, machine=MACHINE)
+    own = read_gcode(nc, machine=MACHINE)
+    cut = ~prog.rapid
+    assert int(cut.sum()) == len(m.rows) and not any("dropped" in w for w in prog.warnings)
+    assert np.allclose(prog.tip[cut], m.cl, atol=2e-4) and np.allclose(prog.axis[cut], m.axis, atol=1e-5)
+    f_own = own.feed[~own.rapid]
+    ok = np.isfinite(f_own)
+    assert ok.sum() >= len(m.rows) - 3 and np.allclose(prog.feed[cut][ok], f_own[ok], rtol=1e-9)

@@ -68,7 +68,9 @@ _SIEMENS = re.compile(r"\b(TRAORI|TRAFOOF|CYCLE8\d\d|AROT|ATRANS|SUPA|G153|G500|
                       r"DEF\s+(REAL|INT)|ORIWKS|ORIVECT|ORIAXES|COMPCAD|COMPCURV|SOFT|FFWON|G64[12]|EXTCALL|"
                       r"T\s*=\s*\")", re.I)
 _SIEMENS_CALL = re.compile(r"(\b(MCALL\s+)?CYCLE\d+\s*\(|\b[A-Z]\w*\s*=\s*(IC|AC|DC|ACP|ACN)\s*\(|\bMSG\s*\(|"
-                           r"\bWORKPIECE\s*\()", re.I)
+                           r"\bWORKPIECE\s*\(|^%_N_)", re.I | re.M)
+#: G70 / G71 as the 840D's inch / metric (a block without the P Q U W words of a turning cycle's G70/G71)
+_SIEMENS_UNITS = re.compile(r"^[^\n(]*\bG7[01]\b(?![^\n]*\b[PQUW]\s*[-+.\d])", re.I | re.M)
 _LINUXCNC = re.compile(r"(\bM42[89]\b|#<|\bo\d+\s+(sub|call|if|while)\b|\bG64\s*P)", re.I)
 _HAAS = re.compile(r"\bG(234|254|255|187|154)\b", re.I)
 
@@ -86,7 +88,7 @@ def detect_dialect(text: str) -> str:
         return "millplus"
     plain = "\n".join(ln.split(";", 1)[0] for ln in head.split("\n"))
     code = re.sub(r"\([^()\n]*\)", "", plain)
-    if _SIEMENS.search(code) or _SIEMENS_CALL.search(plain):
+    if _SIEMENS.search(code) or _SIEMENS_CALL.search(plain) or _SIEMENS_UNITS.search(code):
         return "siemens"
     if _LINUXCNC.search(head):
         return "linuxcnc"

@@ -404,7 +404,8 @@ class Builder:
         F = np.asarray(self._F, float)
         fm = np.asarray(self._fmode, np.int64)
         block = np.asarray(self._block, np.int64)
-        feed = self._feeds(tip, rapid, F, fm, block, mode, q, warnings)
+        curved = self._curved_lengths(machine, xyz, qr, mode, fid, block, rapid, np.asarray(self._fmode, np.int64))
+        feed = self._feeds(tip, rapid, F, fm, block, mode, q, warnings, curved)
         # operations: drop the skipped ones
         keep = np.ones(n, bool)
         for k, op in enumerate(self.ops):
@@ -501,10 +502,37 @@ class Builder:
     def tcp_or_machine_points(self) -> bool:
         return any(self._fid[i] == 0 or not self._frames[self._fid[i]].rotates for i in range(len(self._fid)))
 
+    def _curved_lengths(self, machine: Any, xyz: np.ndarray, qr: np.ndarray, mode: np.ndarray, fid: np.ndarray,
+                        block: np.ndarray, rapid: np.ndarray, fm: np.ndarray) -> dict[int, float]:
+        """Tool-tip path length (mm) of the inverse-time straight blocks in machine mode that turn a
+        rotary axis: the controller interpolates the joints linearly, so the tip follows a curve, whose
+        length camsmooth.io.gcode.tip_path_lengths gives (the forward kinematics sampled and
+        Richardson-extrapolated). Block id -> length; other blocks keep their chords."""
+        n = len(xyz)
+        if n < 2:
+            return {}
+        k = np.arange(1, n)
+        sel = k[(fm[k] == 93) & ~rapid[k] & (mode[k] == 0) & (mode[k - 1] == 0) & (fid[k] == fid[k - 1])
+                & (block[k] != block[k - 1]) & np.any(np.abs(qr[k] - qr[k - 1]) > 1e-12, axis=1)]
+        sel = sel[[not self._frames[f].rotates for f in fid[sel]]] if len(sel) else sel
+        if not len(sel):
+            return {}
+        single = np.bincount(block, minlength=int(block.max()) + 1)[block[sel]] == 1  # straight blocks only
+        sel = sel[single]
+        if not len(sel):
+            return {}
+        from camsmooth.io.gcode import tip_path_lengths
+
+        j1 = np.column_stack([xyz[sel], qr[sel]])
+        j0 = np.column_stack([xyz[sel - 1], qr[sel - 1]])
+        return dict(zip(block[sel].tolist(), tip_path_lengths(machine, j0, j1).tolist(), strict=True))
+
     def _feeds(self, tip: np.ndarray, rapid: np.ndarray, F: np.ndarray, fm: np.ndarray, block: np.ndarray,
-               mode: np.ndarray, q: np.ndarray, warnings: list[str]) -> np.ndarray:
+               mode: np.ndarray, q: np.ndarray, warnings: list[str], curved: dict[int, float] | None = None
+               ) -> np.ndarray:
         """Feed (mm/min) per point (module docstring); a warning where machine-mode G94 moves turn a
-        rotary axis (F is then the joints' feed, not the tip's)."""
+        rotary axis (F is then the joints' feed, not the tip's). curved: block id -> tip path length
+        (mm) where it is not the chord (``_curved_lengths``)."""
         n = len(tip)
         feed = np.where(rapid, np.nan, F)
         if n == 0:
@@ -516,6 +544,8 @@ class Builder:
         if inv.any():
             chord = np.r_[0.0, np.linalg.norm(np.diff(tip, axis=0), axis=1)]
             blen = np.bincount(block, weights=chord)  # tip path length per block
+            for b, length in (curved or {}).items():
+                blen[b] = length
             with np.errstate(invalid="ignore"):
                 feed[inv] = blen[block[inv]] * F[inv]
             # a block whose tool tip does not move (only a rotary axis turns, or nothing): its tip feed
