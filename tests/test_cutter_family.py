@@ -375,10 +375,12 @@ def _nx_clsf(tips: np.ndarray, axes: np.ndarray, rows: list[slice]) -> str:
 
 def _dome_sd_min(tip: np.ndarray, T: np.ndarray, cutter: ToroidalCutter) -> float:
     """Minimum of the tool's signed distance over the dome's exact surface z = 10 - (x^2 + y^2)
-    / 200 (surfaces/dome.toml) near the tool: a 0.1 mm grid, then a 1 um grid about its best."""
+    / 200 on [-30, 30]^2 (surfaces/dome.toml) near the tool: a 0.1 mm grid, then a 1 um grid about
+    its best."""
     def sd_on(x, y):
         p = np.stack([x, y, 10.0 - (x * x + y * y) / 200.0], -1)
-        return _sd_tool(cutter, tip, T, p)
+        on_part = (np.abs(x) <= 30.0) & (np.abs(y) <= 30.0)  # u_range, v_range of surfaces/dome.toml
+        return np.where(on_part, _sd_tool(cutter, tip, T, p), np.inf)
 
     reach = cutter.radius + float(cutter.shank_length) * np.linalg.norm(T[:2]) + 1.0
     g = np.arange(-reach, reach, 0.1)
