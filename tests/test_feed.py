@@ -166,6 +166,25 @@ def test_short_line_never_reaches_the_feed_triangle():
     assert plan.limiting == "X acceleration" and plan.feed_plan.max() < F
 
 
+@pytest.mark.parametrize("L,expect", [
+    (10.0, lambda v, a, L: L / v + v / a),           # a trapezoid: it reaches the feed
+    (0.01, lambda v, a, L: 2 * np.sqrt(L / a)),      # a triangle: it never does
+])
+def test_a_row_of_one_straight_block_is_its_closed_form(L, expect):
+    """A row of two points (one G1 block from rest to rest: a CL program's single move) has a finite
+    time law, the closed form of the block (X amax 500 mm/s^2, feed 3000 mm/min), with rest at both
+    ends; the rates of a two-point row are its segment's."""
+    from camsmooth.smoothing.nlp import program_rates
+
+    m = _machine(X={"amax": 500.0})
+    tip = np.array([[0.0, 0.0, 0.0], [L, 0.0, 0.0]])
+    plan = plan_row(m, _row(m, tip, np.zeros(2), np.zeros(2)), tip, np.full(2, 3000.0))
+    assert plan.cycle_time == pytest.approx(expect(50.0, 500.0, L), rel=1e-9)
+    assert plan.t_plan[0] == 0.0 and plan.feed_plan.tolist() == [0.0, 0.0]
+    r = program_rates(np.array([0.0, L, 5.0]), np.array([0.0, 1.0, 0.0]), np.array([0, 0, 1]))
+    assert r.vel.tolist() == [L, L, 0.0] and r.acc.tolist() == [0.0, 0.0, 0.0]
+
+
 def test_pure_rotary_move_is_the_rotary_trapezoid():
     """The tip stays put while A turns 60 deg: the tip feed is 0 throughout (the programmed feed
     says nothing about such a block), the pivot swings on a circle of radius L_p, and with the

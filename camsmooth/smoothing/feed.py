@@ -243,8 +243,29 @@ def row_path(machine: Machine, q: np.ndarray, tip: np.ndarray, feed: np.ndarray)
     qk, pk = q[keep], tip[keep]
     # feed of each kept segment: the block that ends at its end point
     fseg = feed[keep][1:] / 60.0
+    owner = np.cumsum(keep) - 1
+    ds_k = ds_all[keep[1:]]
+    if m == 2:
+        # one straight block from rest to rest: TOPP-RA's constant s'' per segment cannot leave rest
+        # on a single segment (its time would be infinite). Its exact law is a trapezoid (or a
+        # triangle) of the path's acceleration a and speed v on the straight joint path, so the
+        # gridpoints go where it switches, s_a = v^2 / (2 a) from either end, which makes the
+        # discretisation exact.
+        length = ds_k[0]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rate = np.abs(qk[1] - qk[0]) / length  # |dq_j / ds| on the straight joint path
+            v = min(fseg[0] * length / max(np.linalg.norm(pk[1] - pk[0]), 1e-300), float(np.min(vmax / rate)))
+            a = float(np.min(amax / rate))
+        s_a = v * v / (2.0 * a) if np.isfinite(v) and a > 0 else 0.5 * length
+        w = np.array([0.0, s_a / length, 1.0 - s_a / length, 1.0]) if 2.0 * s_a < length else np.array([0.0, 0.5, 1.0])
+        w = w[:, None]
+        qk, pk = qk[0] + w * (qk[1] - qk[0]), pk[0] + w * (pk[1] - pk[0])
+        ds_k = np.diff(w[:, 0]) * length
+        fseg = np.full(len(ds_k), fseg[0])
+        owner = owner * len(ds_k)
+        m = len(w)
     fpt = np.minimum(np.r_[fseg[0], fseg], np.r_[fseg, fseg[-1]])  # mm/s bound at each kept point
-    s_mm = np.r_[0.0, np.cumsum(ds_all[keep[1:]])]
+    s_mm = np.r_[0.0, np.cumsum(ds_k)]
     # scale s so that s'^2 ~ 1 at the velocity bound (chord estimate of the bound's median)
     ds = np.diff(s_mm)
     chord_q = np.abs(np.diff(qk, axis=0)) / ds[:, None]
@@ -269,7 +290,7 @@ def row_path(machine: Machine, q: np.ndarray, tip: np.ndarray, feed: np.ndarray)
         slope = np.max(np.nan_to_num(seg / np.diff(s)[:, None], nan=0.0), axis=1)  # per segment, s' <= 1 / slope
     x_seg = np.where(slope > 0, 1.0 / np.maximum(slope, 1e-300) ** 2, _UNLIMITED)
     x_feed = np.minimum(x_feed, np.minimum(np.r_[x_seg, _UNLIMITED], np.r_[_UNLIMITED, x_seg]))
-    return RowPath(n=len(q), keep=keep, owner=np.cumsum(keep) - 1, s=s, scale=scale, spline=spline, q=qk,
+    return RowPath(n=len(q), keep=keep, owner=owner, s=s, scale=scale, spline=spline, q=qk,
                    dq=spline(s, 1), ddq=spline(s, 2), dp=dp, feed_bound=fpt, x_feed=x_feed,
                    vmax=np.minimum(vmax, _UNLIMITED), amax=np.minimum(amax, _UNLIMITED), jmax=jmax,
                    tip_spline=tip_spline)
