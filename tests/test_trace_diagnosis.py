@@ -375,3 +375,9 @@ def test_points_recover_setup_scale_and_squareness(tmp_path, capsys):
 def test_points_of_a_true_machine_name_only_the_setup(tmp_path):
     f = diagnose_points(read_points(pattern(tmp_path, 0.0, 0.0, 0.0, seed=11)))
     assert f["named"] == [] and f["setup"]["rotation_deg"] == pytest.approx(0.05, abs=0.002)
+    few = tmp_path / "four.csv"  # four holes: the setup alone, each hole predicted from the other three
+    lines = open(pattern(tmp_path, seed=12)).read().splitlines()
+    few.write_text("\n".join([lines[0], lines[1], lines[7], lines[29], lines[35]]) + "\n")
+    f = diagnose_points(read_points(str(few)))
+    assert f["named"] == [] and f["setup"]["offset_x_mm"] == pytest.approx(0.3, abs=0.01)
+    assert f["heldout"]["scheme"].startswith("each point")

@@ -117,7 +117,8 @@ def _radial(nom: np.ndarray, meas: np.ndarray, p: Mapping[str, float]) -> np.nda
 
 def spatial_folds(nom: np.ndarray) -> np.ndarray:
     """Quadrant of each point about the median nominal x and y (0..3); quadrants with fewer than
-    2 points are merged into their neighbour in x."""
+    2 points are merged into their neighbour in x; when a fold would leave fewer than 3 points to
+    fit, each point is its own fold (leave one out)."""
     qx = nom[:, 0] > np.median(nom[:, 0])
     qy = nom[:, 1] > np.median(nom[:, 1])
     f = qx.astype(int) + 2 * qy.astype(int)
@@ -125,6 +126,8 @@ def spatial_folds(nom: np.ndarray) -> np.ndarray:
         if 0 < np.sum(f == k) < 2:
             f[f == k] = k ^ 1
     _, f = np.unique(f, return_inverse=True)
+    if len(np.unique(f)) < 2 or np.bincount(f).max() > len(nom) - 3:
+        return np.arange(len(nom))  # too few points for quadrants: leave one point out at a time
     return f
 
 
@@ -221,8 +224,10 @@ def diagnose_points(pts: Points) -> dict[str, Any]:
     return {"input": pts.describe(), "setup": setup_out,
             "setup_uncertainty": {_REPORT[n][0]: unc[n] for n in setup}, "named": named, "effects": effects,
             "rejected": rejected, "residual_rms_mm": float(np.sqrt(np.mean(rad * rad))),
-            "heldout": {"scheme": f"{int(folds.max()) + 1} spatial folds (quadrants about the median nominal x, y): "
-                                  "each predicted by the fit on the others",
+            "heldout": {"scheme": ("each point predicted by the fit on the others (too few points for quadrants)"
+                                   if int(folds.max()) + 1 == len(nom) else
+                                   f"{int(folds.max()) + 1} spatial folds (quadrants about the median nominal x, y): "
+                                   "each predicted by the fit on the others"),
                         "rms_setup_only_mm": h0, "rms_final_mm": h_cur},
             "unexplained": {"robust_sigma_mm": sigma, "points_beyond": located, "rms_by_fold_mm": quad},
             "verdict": f"named {', '.join(named)}" if named else "nothing named beyond the setup"}
