@@ -7,6 +7,7 @@ program end to end, NLP scaling on one row, and the demo.
     python benchmarks/bench_pipeline.py program1m [--surface blade] [--stepover 0.06 --spacing 0.08]
     python benchmarks/bench_pipeline.py scaling [--sizes 1000,10000,100000]
     python benchmarks/bench_pipeline.py demo
+    python benchmarks/bench_pipeline.py finish [--names blade,wave]
 
 Settings (the demo's unless said): toroidal cutter R = 4, r = 1 mm, lead 2:20 deg, tilt -15:15 deg,
 the default AB head (A, B +-100 deg, 60 deg/s, 300 deg/s^2), tolerance 0.005 mm, feed from the
@@ -340,6 +341,80 @@ def bench_scaling(sizes: list[int], repeats: int = 3) -> None:
               f"{gamma(T, t):11.4g} {gamma(m.tool_axis_np(A, B), t):10.4g} {st.status}")
 
 
+def bench_finish(names: list[str]) -> bool:
+    """Gamma and cycle time with and without a finish budget (--max-scallop): per sample, nlp free,
+    then held to the 'none' program's largest scallop (the constant preferred lead's finish) and to
+    halfway between that and the free nlp's; the scallop recomputed here from the output axes
+    (camsmooth.smoothing.finish on lead/tilt in frames built here), the limits, windows and
+    clearance from the output arrays (``independent_checks``), and every row over its budget must
+    be one the pipeline names."""
+    print("== finish: nlp without and with a finish budget (the largest scallop between adjacent passes)")
+    head = (f"{'sample':>7s} {'method':>6s} {'budget um':>9s} {'Gamma':>10s} {'optimal s':>9s} {'ctrl s':>8s} "
+            f"{'peak A/B deg/s2':>16s} {'scallop um':>10s} {'missed rows':>11s} {'viol':>5s} {'run s':>6s}")
+    lines, ok = [], True
+    for name in names:
+        more, good = _finish_sample(name)
+        lines += more
+        ok &= good
+    print(head)
+    print("\n".join(lines))
+    print("PASS" if ok else "FAIL")
+    return ok
+
+
+def _finish_sample(name: str) -> tuple[list[str], bool]:
+    """``bench_finish`` on one sample: its table lines and whether every check held."""
+    from camsmooth.geometry.curvature import surface_curvature_tensors
+    from camsmooth.smoothing.finish import neighbour_stepover, point_scallop
+    from camsmooth.smoothing.orientation import lead_tilt_from_axis
+    from camsmooth.smoothing.pipeline import SmoothOptions
+
+    lines, ok = [], True
+    machine = _sample_machine(name)
+    path = read_cc_csv(ROOT / "surfaces" / f"{name}_path.csv")
+    surf = load_surface(_mesh_file(name))
+    index = MeshIndex(surf.mesh)
+    frames = local_frames(path.normals, path.feed_dirs)
+    K = surface_curvature_tensors(index.vertices, path.points, frames, tree=index.tree)
+    step = neighbour_stepover(path.points, path.rows, reach=2 * (CUTTER.R + CUTTER.r))
+
+    def run(budget: float | None):
+        t0 = time.perf_counter()
+        res = smooth(path, surf, machine, CUTTER, lead_range=LEAD, tilt_range=TILT, method="nlp", tolerance=TOL,
+                     options=SmoothOptions(max_scallop=budget))
+        return res, time.perf_counter() - t0
+
+    def line(res, method: str, budget: float | None, dt: float) -> float:
+        nonlocal ok
+        r = res.methods[method]
+        lead, tilt = lead_tilt_from_axis(r.axis, frames)
+        h = point_scallop(CUTTER, lead, tilt, K, step)
+        m = r.metrics
+        if method == "nlp":
+            chk = independent_checks(res, machine, LEAD, TILT, index)
+            viol = sum(chk[k] for k in ("travel", "velocity", "acceleration", "lead", "tilt", "below_tol"))
+            ok &= viol == 0
+        else:
+            viol = sum(m.violations.values())
+        if budget is not None:
+            unnamed = set(np.unique(r.rows[h - budget > 1e-5]).tolist()) - {x.row for x in m.scallop_missed}
+            ok &= not unnamed
+        lines.append(f"{name:>7s} {method:>6s} {('-' if budget is None else format(1e3 * budget, '.4g')):>9s} "
+                     f"{m.gamma:10.4g} {m.cycle_time_optimal_s:9.2f} {m.cycle_time_s:8.2f} "
+                     f"{m.peak_A_acc_plan:7.4g}/{m.peak_B_acc_plan:<8.4g} {1e3 * np.nanmax(h):10.4g} "
+                     f"{len(m.scallop_missed):11d} {viol:5d} {dt:6.1f}")
+        print(lines[-1], flush=True)
+        return float(np.nanmax(h))
+
+    free, dt = run(None)
+    h_none = line(free, "none", None, 0.0)
+    h_nlp = line(free, "nlp", None, dt)
+    for budget in (h_none, 0.5 * (h_none + h_nlp)):
+        res, dt = run(budget)
+        line(res, "nlp", budget, dt)
+    return lines, ok
+
+
 def bench_demo() -> None:
     print("== `camsmooth demo` (blade: smooth + CSV + G-code + report with the 3D render)")
     with tempfile.TemporaryDirectory() as d:
@@ -364,7 +439,11 @@ def main() -> int:
     p = sub.add_parser("scaling")
     p.add_argument("--sizes", default="1000,10000,100000")
     sub.add_parser("demo")
+    p = sub.add_parser("finish")
+    p.add_argument("--names", default="blade,wave")
     a = ap.parse_args()
+    if a.what == "finish":
+        return 0 if bench_finish([s for s in a.names.split(",") if s]) else 1
     if a.what == "samples":
         return 0 if bench_samples([s for s in a.names.split(",") if s], not a.no_reference, a.machine) else 1
     if a.what == "row10k":

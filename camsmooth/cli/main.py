@@ -140,7 +140,8 @@ def run_smooth(args: argparse.Namespace) -> int:
         out_csv = tx.file(args.output)
         gcode = tx.file(args.gcode) if args.gcode else None
         report = tx.folder(args.report, replace=args.force, keep=inputs) if args.report else None
-        options = SmoothOptions(workers=args.workers, dask=args.dask)  # workers None: all cores when worth it
+        options = SmoothOptions(workers=args.workers, dask=args.dask,  # workers None: all cores when worth it
+                                max_scallop=args.max_scallop)
         surface, machine = load_part(args), load_machine(args.machine)  # STEP, mesh or definition
         program, cutter = load_input(args, surface, machine)
         result = smooth(program, surface, machine, cutter,
@@ -237,18 +238,25 @@ def _print_summary(result) -> None:
     m = result.result.metrics
     ctrl = m.controller or "axes"
     r1, r2 = result.machine.rotary
-    head = ("method", "Gamma", f"peak|{r1}''|", f"peak|{r2}''|", "min delta", "violations", "at feed", "optimal s",
-            f"{ctrl} s", "limited by", "time s")
-    print("{:8s} {:>12s} {:>10s} {:>10s} {:>10s} {:>10s} {:>8s} {:>9s} {:>11s} {:>16s} {:>8s}".format(*head))
+    head = ("method", "Gamma", f"peak|{r1}''|", f"peak|{r2}''|", "min delta", "scallop um", "violations", "at feed",
+            "optimal s", f"{ctrl} s", "limited by", "time s")
+    print("{:8s} {:>12s} {:>10s} {:>10s} {:>10s} {:>10s} {:>10s} {:>8s} {:>9s} {:>11s} {:>16s} {:>8s}".format(*head))
     for name, r in result.methods.items():
         mm = r.metrics
         nviol = sum(mm.violations.values())
         nfeed = sum(mm.violations_programmed.values())
+        sc = getattr(mm, "scallop_max_um", None)
         print(f"{name:8s} {mm.gamma:12.4g} {mm.peak_A_acc_plan:10.4g} {mm.peak_B_acc_plan:10.4g} "
-              f"{mm.min_delta:10.4g} {nviol:10d} {nfeed:8d} {mm.cycle_time_optimal_s:9.2f} {mm.cycle_time_s:11.2f} "
-              f"{mm.limiting or '-':>16s} {mm.runtime_s:8.2f}")
+              f"{mm.min_delta:10.4g} {'-' if sc is None else format(sc, '.4g'):>10s} {nviol:10d} {nfeed:8d} "
+              f"{mm.cycle_time_optimal_s:9.2f} {mm.cycle_time_s:11.2f} {mm.limiting or '-':>16s} {mm.runtime_s:8.2f}")
     print("peaks (deg/s^2) and violations under the planned time law; 'at feed': violations at the programmed "
-          "feed, before planning")
+          "feed, before planning; scallop: the largest between adjacent passes")
+    for name, r in result.methods.items():
+        for miss in getattr(r.metrics, "scallop_missed", []):
+            print(f"camsmooth: warning: {name}: row {miss.row}: finish budget missed at {miss.points} point"
+                  f"{'s' * (miss.points > 1)}: scallop {miss.scallop_um:.4g} um against {miss.budget_um:.4g} um at "
+                  f"point {miss.idx} (no lead/tilt of the windows within the machine's limits meets it)",
+                  file=sys.stderr)
     if m.controller:
         dev = (f"; its tool tip within {1e3 * m.controller_deviation_mm:.3g} um of the programmed path at every servo "
                f"cycle" if m.controller_deviation_mm is not None else "")
@@ -517,6 +525,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--tolerance", type=_POSITIVE_MM, default=DEFAULT_TOLERANCE_MM, metavar="MM",
                    help=f"the part's allowed deviation (mm, default {DEFAULT_TOLERANCE_MM:g}): a clearance below "
                    "-MM is a gouge, for every clearance decision")
+    p.add_argument("--max-scallop", type=_POSITIVE_MM, default=None, metavar="MM",
+                   help="finish budget: the largest scallop between adjacent passes (mm) nlp may leave at any point "
+                   "(from the cutter's effective radius at its lead and tilt, the surface's curvature and the "
+                   "stepover measured on the path); with a CAM program, nlp is also held to the CAM's own scallop "
+                   "plus the tolerance; rows that cannot meet it are named with the size")
     p.add_argument("--workers", type=number(ge=1, le=1024, integer=True, unit=""), default=None, metavar="N",
                    help="processes for the rows (default: all cores for programs of 5000 points or more)")
     p.add_argument("--dask", default=None, metavar="ADDRESS",

@@ -35,6 +35,7 @@ import numpy as np
 
 from camsmooth import __version__
 from camsmooth.io.atomic import atomic_dir
+from camsmooth.smoothing.finish import effective_radius
 from camsmooth.smoothing.result import MethodResult, Metrics, SmoothResult
 
 #: PNG files of a report, in display order (``scene_3d.png`` only when rendering worked).
@@ -590,6 +591,9 @@ def method_summary(m: MethodResult) -> dict[str, Any]:
         "gouge_line": _gouge_line(mt),
         "limiting": mt.limiting if mt is not None else "",
         "mapped_points": mt.mapped_points if mt is not None else None,
+        "scallop_max_um": mt.scallop_max_um if mt is not None else None,
+        "scallop_budget_um": mt.scallop_budget_um if mt is not None else None,
+        "scallop_missed": list(mt.scallop_missed) if mt is not None else [],
         "lifted_beyond_tolerance": mt.lifted_beyond_tolerance if mt is not None else 0,
         "blocked": list(mt.blocked) if mt is not None else [],
         "unreachable_clear": list(mt.unreachable_clear) if mt is not None else [],
@@ -671,7 +675,16 @@ def _verdict_html(order: list[str], summaries: dict[str, dict[str, Any]], primar
             tp, _ = _total(s["violations_programmed"])
             viol += f"; {tp} at the programmed feed"
         bad = total > 0 or (s["worst"] is not None and s["worst"][0] < s["gouge_line"])
-        parts = [p for p in (cyc, binds, peaks, viol, html.escape(_clearance_text(s["worst"]))) if p]
+        finish = ""
+        if s["scallop_max_um"] is not None:
+            finish = f"largest scallop {_fmt(s['scallop_max_um'], '.3g')} \u00b5m"
+            if s["scallop_missed"]:
+                k = len(s["scallop_missed"])
+                finish += f" (finish budget missed on {k} row{'s' * (k > 1)})"
+                bad = True
+            elif s["scallop_budget_um"] is not None:
+                finish += " (within the finish budget)"
+        parts = [p for p in (cyc, binds, peaks, finish, viol, html.escape(_clearance_text(s["worst"]))) if p]
         items.append(f"<li class='{'badline' if bad else ''}'><b>{tag}</b>: " + "; ".join(parts) + ".</li>")
     return "<ul class='verdict'>" + "".join(items) + "</ul>"
 
@@ -802,37 +815,24 @@ def _pole_html(result: SmoothResult) -> str:
 
 def stepover_mm(cc: np.ndarray, rows: np.ndarray) -> float:
     """The path's stepover (mm): the median over rows of the median distance from a row's CC
-    points to the nearest point of the row before it (NaN for a single row)."""
-    from scipy.spatial import cKDTree
+    points to the row before it (camsmooth.smoothing.finish.neighbour_stepover; NaN for a single
+    row)."""
+    from camsmooth.smoothing.finish import neighbour_stepover
 
-    starts = _row_starts(rows)
-    ends = np.r_[starts[1:], len(rows)]
-    cc = np.asarray(cc, float)
-    per = []
-    for (a0, b0), (a1, b1) in zip(zip(starts[:-1], ends[:-1], strict=True), zip(starts[1:], ends[1:], strict=True),
-                                  strict=True):
-        d, _ = cKDTree(cc[a0:b0]).query(cc[a1:b1])
-        per.append(float(np.median(d)))
+    d = neighbour_stepover(cc, rows)[:, 0]
+    rows = np.asarray(rows)
+    per = [float(np.median(d[rows == row])) for row in np.unique(rows) if np.isfinite(d[rows == row]).any()]
     return float(np.median(per)) if per else float("nan")
 
 
-def effective_radius(cutter: Any, lead: np.ndarray, tilt: np.ndarray) -> np.ndarray:
-    """Effective cutting radius across the feed (mm) per point: 1 / the cutter's curvature across
-    the feed, R / sin(lead) + r at zero tilt (docs/METHODS.md section 1.3; Euler's formula for
-    tilt, camsmooth.smoothing.orientation.cutter_curvature_tensors)."""
-    from camsmooth.smoothing.orientation import cutter_curvature_tensors
-
-    K = cutter_curvature_tensors(float(cutter.R), float(cutter.r), np.asarray(lead, float), np.asarray(tilt, float))
-    with np.errstate(divide="ignore"):
-        return 1.0 / K[..., 1, 1]
-
-
 def scallop_um(r_eff: np.ndarray, stepover: float) -> np.ndarray:
-    """Scallop height (um) of a cutter section of radius r_eff (mm) at the stepover (mm),
-    h = r_eff - sqrt(r_eff^2 - (s/2)^2) (docs/METHODS.md section 1.3); NaN where r_eff < s/2."""
-    r = np.asarray(r_eff, float)
-    with np.errstate(invalid="ignore"):
-        return 1e3 * (r - np.sqrt(r * r - (0.5 * stepover) ** 2))
+    """Scallop height (um) of a cutter section of radius r_eff (mm) at the stepover (mm) on a flat:
+    camsmooth.smoothing.finish.scallop_height with no surface curvature, h = r_eff - sqrt(r_eff^2
+    - (s/2)^2) (docs/METHODS.md section 1.3); inf where r_eff < s/2."""
+    from camsmooth.smoothing.finish import scallop_height
+
+    with np.errstate(divide="ignore"):
+        return 1e3 * scallop_height(1.0 / np.asarray(r_eff, float), 0.0, stepover)
 
 
 def _geometry_html(result: SmoothResult, order: list[str]) -> str:
@@ -846,13 +846,18 @@ def _geometry_html(result: SmoothResult, order: list[str]) -> str:
     head = ["method", "lead (deg) median [min, max]", "tilt (deg) median [min, max]",
             "effective radius across the feed (mm) median [min]",
             f"scallop at stepover {_fmt(s_over, '.3g')} mm (\u00b5m) median [max]"]
+    budgets = [result.methods[n].metrics.scallop_budget_um for n in order
+               if result.methods[n].metrics is not None and result.methods[n].metrics.scallop_budget_um is not None]
     out = ["<table class='geometry'>", "<tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr>"]
     for name in order:
         m = result.methods[name]
         lead, tilt = np.degrees(np.asarray(m.lead, float)), np.degrees(np.asarray(m.tilt, float))
         r_eff = effective_radius(c, m.lead, m.tilt)
         ok = np.isfinite(r_eff)
-        h = scallop_um(r_eff[ok], s_over) if np.isfinite(s_over) else np.full(int(ok.sum()), np.nan)
+        if m.scallop is not None:  # per point: its curvature and its neighbours (camsmooth.smoothing.finish)
+            h = 1e3 * np.asarray(m.scallop, float)
+        else:
+            h = scallop_um(r_eff[ok], s_over) if np.isfinite(s_over) else np.full(int(ok.sum()), np.nan)
 
         def stat(v: np.ndarray, worst: Any, spec: str = ".3g") -> str:
             v = v[np.isfinite(v)]
@@ -865,6 +870,9 @@ def _geometry_html(result: SmoothResult, order: list[str]) -> str:
         cells = [name, span(lead), span(tilt), stat(r_eff[ok], np.min), stat(h, np.max)]
         out.append("<tr>" + "".join(f"<td>{html.escape(x)}</td>" for x in cells) + "</tr>")
     out.append("</table>")
+    if budgets:
+        out.append(f"<p class='small'>Finish budget: at most {min(budgets):.4g} \u00b5m of scallop at the tightest "
+                   "point (--max-scallop, or the CAM program's own scallop plus the tolerance).</p>")
     return "\n".join(out)
 
 
@@ -886,6 +894,13 @@ def _notice(order: list[str], summaries: dict[str, dict[str, Any]], primary: str
                                 if b.best_clearance_mm is not None else "") + "</li>")
             if len(s[key]) > 20:
                 items.append(f"<li><b>{tag}</b>: \u2026 and {len(s[key]) - 20} more such points</li>")
+        for miss in s["scallop_missed"][:20]:
+            items.append(f"<li><b>{tag}</b>: row {miss.row}: finish budget missed at {miss.points} point"
+                         f"{'s' * (miss.points > 1)}: scallop {miss.scallop_um:.4g} \u00b5m against "
+                         f"{miss.budget_um:.4g} \u00b5m at point {miss.idx}</li>")
+        if len(s["scallop_missed"]) > 20:
+            items.append(f"<li><b>{tag}</b>: \u2026 and {len(s['scallop_missed']) - 20} more rows missing the finish "
+                         "budget</li>")
         if s["unreachable"]:
             pts = [f"(row {r}, point {i})" for r, i in s["unreachable"]]
             items.append(f"<li><b>{tag}</b>: unreachable points (no axis solution within the travel): "
@@ -1104,10 +1119,12 @@ def _html(result: SmoothResult, order: list[str], folder: Path, title: str | Non
         ("Cutting geometry: effective radius and scallop",
          _geometry_html(result, order)
          + "<p class='small'>What lead and tilt do across the feed: a toroidal cutter (ring radius R, corner "
-           "radius r) tilted forward by the lead cuts like a circle of radius R / sin(lead) + r across the feed "
-           "(Euler's formula with tilt), and leaves scallops h = r_eff - sqrt(r_eff\u00b2 - (s/2)\u00b2) "
-           "between passes a stepover s apart on a flat (docs/METHODS.md section 1.3). The stepover is the "
-           "median distance between neighbouring rows' CC points.</p>"),
+           "radius r) tilted forward by the lead and sideways by the tilt sweeps a profile of radius "
+           "(R / sin(lead) + r) cos\u00b2(tilt) + r sin\u00b2(tilt) across the feed, and leaves scallops "
+           "h = r_eff - sqrt(r_eff\u00b2 - (s/2)\u00b2) between passes a stepover s apart on a flat "
+           "(docs/METHODS.md section 1.3). The scallop column is per point: the surface's curvature across the "
+           "feed and the distance to the neighbouring rows at that point (camsmooth.smoothing.finish); the "
+           "stepover in its heading is the median distance between neighbouring rows' CC points.</p>"),
         ("Setup", _setup_html(result)),
     ]
     parts = [

@@ -803,11 +803,14 @@ class ClearanceRelief:
 
 def clearance_elastic(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_window: np.ndarray,
                       tilt_window: np.ndarray, bounds: LeadBounds, A0: np.ndarray, B0: np.ndarray,
-                      backoff: float = BACKOFF) -> ClearanceRelief:
+                      backoff: float = BACKOFF, weights: tuple[np.ndarray, np.ndarray] | None = None
+                      ) -> ClearanceRelief:
     """The row of RowNLP with its limits and windows hard (as enforced) and the accessibility
     map's floor and ceiling soft: minimise the sum of the per-point amounts (rad) by which the lead
     stays outside its clear region. Points with a positive amount are those the machine's limits
-    keep out of their clear region. Angles rad, times s."""
+    keep out of their clear region. ``weights``: (floor, ceiling) per point (N,) weights of those
+    amounts (default 1; a finish budget's ceiling weighs less than clearance, so the limits give
+    up the finish before the clearance, camsmooth.smoothing.rows). Angles rad, times s."""
     n = len(t)
     D1, D2 = fd_operators(t)
     lim = enforced_limits(machine, backoff)
@@ -843,7 +846,9 @@ def clearance_elastic(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_
                           np.zeros(len(s.nz))])
     ubx = np.concatenate([np.ravel(np.column_stack([full(n, L1.max), full(n, L2.max)])),
                           full(len(s.nz), inf)])
-    solver = ca.nlpsol("clearance_elastic", "ipopt", {"x": ca.vertcat(x, s), "f": ca.sum1(s), "g": g},
+    w = (np.ones(len(s.nz)) if weights is None
+         else np.concatenate([np.asarray(weights[0], float)[fl], np.asarray(weights[1], float)[ce]]))
+    solver = ca.nlpsol("clearance_elastic", "ipopt", {"x": ca.vertcat(x, s), "f": ca.dot(ca.DM(w), s), "g": g},
                        {"ipopt.print_level": 0, "print_time": 0, "ipopt.sb": "yes", "ipopt.max_iter": 1000,
                         "ipopt.tol": 1e-10, "ipopt.constr_viol_tol": 1e-10})
     x0 = np.concatenate([np.clip(np.ravel(np.column_stack([A0, B0])), lbx[:2 * n], ubx[:2 * n]),

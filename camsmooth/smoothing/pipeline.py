@@ -38,6 +38,7 @@ from camsmooth.machine.kinematics import Machine, load_machine
 from camsmooth.progress import Steps
 from camsmooth.smoothing.cam import CamProgram
 from camsmooth.smoothing.evaluate import axis_violations, gamma_of
+from camsmooth.smoothing.finish import lead_ceiling, neighbour_stepover, point_scallop
 from camsmooth.smoothing.nlp import program_rates, spline_row
 from camsmooth.smoothing.orientation import (
     Orientation,
@@ -48,7 +49,7 @@ from camsmooth.smoothing.orientation import (
 )
 from camsmooth.smoothing.parallel import RowPool, default_workers
 from camsmooth.smoothing.pole import PolePassage, find_passages, pole_start
-from camsmooth.smoothing.result import MethodResult, Metrics, PointNote, SmoothResult, interferes
+from camsmooth.smoothing.result import MethodResult, Metrics, PointNote, ScallopMiss, SmoothResult, interferes
 from camsmooth.smoothing.rows import (
     RowContext,
     RowOptions,
@@ -76,12 +77,17 @@ class SmoothOptions:
     PARALLEL_MIN_POINTS points or more, else 1; the command line's default) and dask (None,
     "local" or a scheduler address: rows on a Dask cluster). More than one worker starts
     processes the forkserver way: a script calling ``smooth`` then needs the usual
-    ``if __name__ == "__main__":`` guard, which is why the API's default is one."""
+    ``if __name__ == "__main__":`` guard, which is why the API's default is one. max_scallop (mm):
+    the scallop 'nlp' may leave at any point (camsmooth.smoothing.finish; None: no bound);
+    cam_scallop: when the input is a CAM program with its own axes, 'nlp''s scallop may exceed the
+    CAM program's at no point by more than the tolerance (the tighter of the two applies)."""
 
     spline_step: int = 10
     rows: RowOptions = field(default_factory=RowOptions)
     workers: int | None = 1
     dask: str | None = None
+    max_scallop: float | None = None  # mm: the finish budget of 'nlp' at every point (camsmooth.smoothing.finish)
+    cam_scallop: bool = True  # with a CAM program: 'nlp' no rougher than it anywhere, within the tolerance
 
 
 def row_times(points: np.ndarray, feed_mm_min: np.ndarray) -> np.ndarray:
@@ -103,6 +109,8 @@ class Program:
     idx: np.ndarray
     slices: tuple[slice, ...]
     orientation: Orientation
+    curvature: np.ndarray | None = None  # (N, 2, 2) the surface's curvature tensors (1/mm, basis X_L, Y_L)
+    stepover: np.ndarray | None = None  # (N, 2) mm to the previous and the next row (camsmooth.smoothing.finish)
 
     def __len__(self) -> int:
         return len(self.t)
@@ -135,7 +143,9 @@ def prepare(path: CCPath, index: MeshIndex, cutter: ToroidalCutter, feed: float 
     orient = initial_orientation(frames, K_s, cutter.R, cutter.r, lead_range, tilt_range, prefer_lead, prefer_tilt,
                                  point_name=lambda i: f"row {path.rows[i]}, point {idx[i]}")
     t = np.concatenate([row_times(path.points[s], feed_arr[s]) for s in slices])
-    return Program(path=path, frames=frames, t=t, feed=feed_arr, idx=idx, slices=slices, orientation=orient)
+    step = neighbour_stepover(path.points, path.rows, reach=2.0 * (cutter.R + cutter.r))
+    return Program(path=path, frames=frames, t=t, feed=feed_arr, idx=idx, slices=slices, orientation=orient,
+                   curvature=K_s, stepover=step)
 
 
 def smooth(path: CCPath | CamProgram, surface: Surface, machine: Machine | None = None,
@@ -209,6 +219,7 @@ def smooth(path: CCPath | CamProgram, surface: Surface, machine: Machine | None 
         if method in ("spline", "nlp"):
             with steps.step("spline"):
                 results["spline"], spline_gouge = sm.spline(none)
+        sm.budget = scallop_budget(opts, results.get("cam"), tolerance, n)
         if method == "nlp":
             risk = (none.delta < -tolerance) | spline_gouge
             with steps.step("nlp"):
@@ -230,6 +241,41 @@ def smooth(path: CCPath | CamProgram, surface: Surface, machine: Machine | None 
                                 "chord_deviation": chord, "total_runtime_s": time.perf_counter() - t_start})
 
 
+def scallop_budget(options: SmoothOptions, cam: MethodResult | None, tolerance: float, n: int) -> np.ndarray | None:
+    """The scallop (mm) 'nlp' may leave per point: ``options.max_scallop`` and, with a CAM
+    program (its result ``cam``) and ``options.cam_scallop``, the CAM program's own scallop plus
+    the tolerance (mm), whichever is smaller (inf where neither applies); None when neither
+    applies anywhere."""
+    limit = np.full(n, np.inf)
+    if options.max_scallop is not None:
+        if not (np.isfinite(options.max_scallop) and options.max_scallop > 0):
+            raise InputError(f"the scallop budget must be a positive length in mm, got {options.max_scallop}")
+        limit[:] = float(options.max_scallop)
+    if cam is not None and options.cam_scallop and cam.scallop is not None:
+        own = np.where(np.isfinite(cam.scallop), cam.scallop + tolerance, np.inf)
+        limit = np.minimum(limit, own)
+    return limit if np.isfinite(limit).any() else None
+
+
+#: a point misses its finish budget when its scallop exceeds it by more than this (mm)
+BUDGET_SLACK_MM = 1e-5
+
+
+def budget_misses(res: MethodResult, budget: np.ndarray) -> list[ScallopMiss]:
+    """Per row, where the method's scallop exceeds the budget (mm) by more than BUDGET_SLACK_MM:
+    the worst point, its scallop and budget (um) and how many points miss."""
+    over = np.asarray(res.scallop, float) - budget
+    with np.errstate(invalid="ignore"):
+        bad = over > BUDGET_SLACK_MM
+    out = []
+    for row in np.unique(res.rows[bad]):
+        k = np.flatnonzero(bad & (res.rows == row))
+        i = k[np.argmax(over[k])]
+        out.append(ScallopMiss(row=int(row), idx=int(res.idx[i]), scallop_um=float(1e3 * res.scallop[i]),
+                               budget_um=float(1e3 * budget[i]), points=len(k)))
+    return out
+
+
 class ProgramSmoother:
     """The methods over one prepared program: 'none', 'spline' and 'nlp' (module docstring),
     their clearance checks and their results. A context manager: worker processes (or the Dask
@@ -246,6 +292,7 @@ class ProgramSmoother:
                               tolerance=self.tolerance, options=options.rows, key=uuid.uuid4().hex,
                               source=program.path.source)
         self.pool = RowPool(self.ctx, workers=workers, dask=options.dask)
+        self.budget: np.ndarray | None = None  # (N,) mm: the finish budget of 'nlp' (``scallop_budget``)
         adopt_index(self.ctx, index)  # rows run here (serially) share this process's search structure
 
     def __enter__(self) -> ProgramSmoother:
@@ -340,9 +387,14 @@ class ProgramSmoother:
                 start = pole_start(self.nominal, o.axis, p.path.rows, p.t, exact_q)
                 pole_rows = np.isin(p.path.rows, [q.row for q in passages])
                 A0, B0 = np.where(pole_rows, start[:, 0], A0), np.where(pole_rows, start[:, 1], B0)
+        cap = None
+        if self.budget is not None:
+            cap = lead_ceiling(self.cutter, self.budget, p.curvature, p.stepover, o.lead_window, o.tilt_window)
         tasks = [RowTask(row=int(p.path.rows[s.start]), t=p.t[s], frames=p.frames[s], cc=p.path.points[s],
                          normals=p.path.normals[s], lead_window=o.lead_window[s], tilt_window=o.tilt_window[s],
-                         A0=A0[s], B0=B0[s], risk=risk[s], machine=machine, pole=pole[s]) for s in p.slices]
+                         A0=A0[s], B0=B0[s], risk=risk[s], machine=machine, pole=pole[s],
+                         lead_cap=None if cap is None else cap.ceiling[s], has_cap=None if cap is None else cap.has[s])
+                 for s in p.slices]
         sols: list[RowSolution] = self.pool.map(solve_row, tasks, progress=f"{label} rows" if progress else None)
         cat = lambda name: np.concatenate([getattr(s, name) for s in sols])  # noqa: E731
         A, B, delta, lift = cat("A"), cat("B"), cat("delta"), cat("lift")
@@ -369,6 +421,9 @@ class ProgramSmoother:
                                          lift_mm=float(lift[i])) for i in np.flatnonzero(unreach)]
         if passages:
             m.pole = self._pole_costs(passages, res.axis, exact.axis)
+        if self.budget is not None:
+            m.scallop_budget_um = float(1e3 * np.min(self.budget))
+            m.scallop_missed = budget_misses(res, self.budget)
         return res
 
     def _pole_costs(self, passages: list[PolePassage], T: np.ndarray, T_exact: np.ndarray) -> list[PolePassage]:
@@ -457,7 +512,11 @@ class ProgramSmoother:
                            lead_window=o.lead_window if lead_window is None else lead_window,
                            tilt_window=o.tilt_window if tilt_window is None else tilt_window,
                            compound_acc=comp, feed_dirs=p.frames[:, :, 0])
+        if p.curvature is not None and p.stepover is not None:
+            res.scallop = point_scallop(self.cutter, lead, tilt, p.curvature, p.stepover)
         res.metrics = self.metrics(res, g, unreachable, runtime)
+        if res.scallop is not None and np.isfinite(res.scallop).any():
+            res.metrics.scallop_max_um = float(1e3 * np.nanmax(res.scallop))
         if modelled:
             # ideal (the intended CL point and the axis the ideal machine would give for the
             # same A, B) against the predicted real machine, with and without compensation

@@ -51,6 +51,19 @@ class PointNote:
 
 
 @dataclass(kw_only=True)
+class ScallopMiss:
+    """A row whose finish budget could not be met (camsmooth.smoothing.pipeline.budget_misses):
+    its id, the index of its worst point, the scallop there and the budget (um), and how many of
+    its points miss."""
+
+    row: int
+    idx: int
+    scallop_um: float
+    budget_um: float
+    points: int
+
+
+@dataclass(kw_only=True)
 class Metrics:
     """Summary of one method's program (camsmooth.smoothing.pipeline.ProgramSmoother.metrics).
 
@@ -73,7 +86,9 @@ class Metrics:
     clear region. With an error model: the largest tip error (um) with and without compensation
     and the axis error (urad). chord_deviation_mm: the mesh's estimated chord deviation. pole: the
     passages near the pole of the outer rotary axis (camsmooth.smoothing.pole.PolePassage, nlp
-    methods; with what each cost in Gamma)."""
+    methods; with what each cost in Gamma). scallop_max_um: the largest scallop between adjacent
+    passes (um, camsmooth.smoothing.finish; None where unknown); scallop_budget_um: the tightest
+    finish budget the method was held to (um; None: none), scallop_missed: the rows that miss it."""
 
     gamma: float
     peak_A_acc: float
@@ -113,6 +128,9 @@ class Metrics:
     compensated: bool | None = None
     chord_deviation_mm: float | None = None
     pole: list[Any] = field(default_factory=list)
+    scallop_max_um: float | None = None
+    scallop_budget_um: float | None = None
+    scallop_missed: list[ScallopMiss] = field(default_factory=list)
 
 
 @dataclass(kw_only=True)
@@ -160,6 +178,7 @@ class MethodResult:
     plan: Any = None  # camsmooth.smoothing.feed.FeedPlan: the time-optimal time law of this program
     controller: Any = None  # camsmooth.controller.ControllerPlan: the blocks and the controller's timing
     lead_clear: np.ndarray | None = None  # (N, 2) the accessibility map's lead floor, ceiling (rad; NaN: none)
+    scallop: np.ndarray | None = None  # (N,) mm: the scallop toward the neighbouring passes (smoothing.finish)
 
     def __len__(self) -> int:
         return len(self.t)

@@ -60,6 +60,7 @@ from camsmooth.geometry.clearance import MeshIndex, clearance
 from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl
 from camsmooth.geometry.frames import lead_tilt_from_axis
 from camsmooth.machine.kinematics import Machine
+from camsmooth.smoothing.finish import merge_ceilings
 from camsmooth.smoothing.nlp import (
     BACKOFF,
     LeadBounds,
@@ -89,6 +90,7 @@ REFINE_MARGIN = np.radians(0.05)  # rad: a floor moved to the exact boundary goe
 LIFT_STEPS = 12  # re-checks of the fallback lift along the normal (secant steps after the first)
 MAX_RELIEFS = 2  # soft-clearance re-solves per row (module docstring, step 2)
 RELIEF_TOL = 1e-7  # rad: a point whose lead stays this far outside its clear region gives it up
+CLEARANCE_WEIGHT = 1e3  # in the relief, a radian outside the clear region costs this many of the finish budget's
 
 
 @dataclass(frozen=True)
@@ -128,7 +130,9 @@ class RowTask:
     (N, 3), lead/tilt windows (N, 2) rad, warm start (A0, B0) rad and the points where an
     orientation evaluated before gouged (``risk``, (N,) bool); ``machine`` indexes
     RowContext.machines; ``pole`` the programmed tool axis' angle from the pole of the outer
-    rotary axis (N,) rad, for naming a passage the windows cannot contain (None: not known)."""
+    rotary axis (N,) rad, for naming a passage the windows cannot contain (None: not known);
+    ``lead_cap`` and ``has_cap`` the lead ceiling c0 + c1 tilt + c2 tilt^2 (rad, (N, 3)) a finish
+    budget sets (camsmooth.smoothing.finish.lead_ceiling; None: no budget)."""
 
     row: int
     t: np.ndarray
@@ -142,6 +146,8 @@ class RowTask:
     risk: np.ndarray
     machine: int = 0
     pole: np.ndarray | None = None
+    lead_cap: np.ndarray | None = None  # (N, 3) the finish budget's lead ceiling (camsmooth.smoothing.finish)
+    has_cap: np.ndarray | None = None  # (N,) where it applies
 
 
 @dataclass(frozen=True)
@@ -265,6 +271,13 @@ def solve_row(ctx: RowContext, task: RowTask) -> RowSolution:
     refine = np.zeros(n, bool)
     gave_up = np.zeros(n, bool)  # mapped points whose clear region the limits keep the axis out of
     reliefs = 0
+    # the finish budget's lead ceiling, merged with the map's clearance ceiling where both apply
+    cap = np.zeros((n, 3)) if task.lead_cap is None else np.array(task.lead_cap, float)
+    has_cap = np.zeros(n, bool) if task.has_cap is None else np.asarray(task.has_cap, bool).copy()
+
+    def ceilings() -> tuple[np.ndarray, np.ndarray]:
+        return merge_ceilings(ceiling, has_ceiling, cap, has_cap, tw)
+
     for rounds in range(1, opts.max_rounds + 1):  # noqa: B007
         t0 = time.perf_counter()
         if to_map.any():
@@ -288,7 +301,8 @@ def solve_row(ctx: RowContext, task: RowTask) -> RowSolution:
             knots[:] = True  # the last round solves every point, so its program meets every limit
         kk = np.flatnonzero(knots)
         nlp = w.nlp(ctx, task.machine, len(kk), backoff)
-        bounds = LeadBounds(floor[kk], ceiling[kk], has_floor[kk], has_ceiling[kk])
+        ceil_m, has_m = ceilings()
+        bounds = LeadBounds(floor[kk], ceil_m[kk], has_floor[kk], has_m[kk])
         if len(kk) < n:  # each knot holds the tightest window of the points around it, narrowed
             eps = KNOT_MARGIN * _knot_margin(task, kk, max(L.amax for L in mach.rotary_limits()))
             lw_k = _narrowed(_around(lw, kk), eps)
@@ -301,18 +315,24 @@ def solve_row(ctx: RowContext, task: RowTask) -> RowSolution:
         if not st.success and len(kk) < n:
             knots[:], backoff = True, BACKOFF  # the knots' wider back-off may be what binds: solve whole
             continue
-        if not st.success and reliefs < MAX_RELIEFS and (has_floor.any() or has_ceiling.any()):
+        if not st.success and reliefs < MAX_RELIEFS and (has_floor.any() or has_ceiling.any() or has_cap.any()):
             # the clear regions of the map may be what no program within the limits reaches (a
             # floor climbing to the window's top before a blocked stretch): soft clearance names
             # those points, which keep only the windows and fall back to the lift
             reliefs += 1
+            ceil_m, has_m = ceilings()
+            clear_w = np.full(n, CLEARANCE_WEIGHT)  # the map's bounds give way after the finish budget's
             relief = clearance_elastic(mach, task.t, task.frames, lw, tw,
-                                       LeadBounds(floor, ceiling, has_floor, has_ceiling), A, B, backoff=nlp.backoff)
+                                       LeadBounds(floor, ceil_m, has_floor, has_m), A, B, backoff=nlp.backoff,
+                                       weights=(clear_w, np.where(has_ceiling, CLEARANCE_WEIGHT, 1.0)))
             if relief.feasible:
                 # those points keep the clear side as near as the limits allow: their floor
-                # (ceiling) moves down (up) by what the limits keep the lead from
-                short = (relief.floor_short > RELIEF_TOL) | (relief.ceiling_short > RELIEF_TOL)
+                # (ceiling) moves down (up) by what the limits keep the lead from; a finish
+                # budget's ceiling too (its miss is named with its size by the pipeline)
+                up = relief.ceiling_short > RELIEF_TOL
+                short = (relief.floor_short > RELIEF_TOL) | (up & has_ceiling)
                 gave_up |= short
+                cap[:, 0] += np.where(has_cap & up, relief.ceiling_short + RELIEF_TOL, 0.0)
                 floor[:, 0] -= np.where(relief.floor_short > RELIEF_TOL, relief.floor_short + RELIEF_TOL, 0.0)
                 ceiling[:, 0] += np.where(relief.ceiling_short > RELIEF_TOL, relief.ceiling_short + RELIEF_TOL, 0.0)
                 A, B = relief.A, relief.B  # meets the limits and windows: a start IPOPT can leave
@@ -325,7 +345,7 @@ def solve_row(ctx: RowContext, task: RowTask) -> RowSolution:
             break
         if len(kk) < n:
             A, B = (CubicSpline(task.t[kk], q)(task.t) for q in (A_k, B_k))
-            off = _off_limits(mach, task, A, B, lw, tw) & ~knots
+            off = _off_limits(mach, task, A, B, lw, tw, ceilings()) & ~knots
             if off.any():  # the interpolation left a limit or a window: those points become knots
                 knots |= binary_dilation(off, np.ones(5, bool))
                 to_map[:] = refine[:] = False
@@ -417,10 +437,11 @@ def knot_stride(t: np.ndarray, knot_dt: float) -> int:
 
 
 def _off_limits(machine: Machine, task: RowTask, A: np.ndarray, B: np.ndarray, lw: np.ndarray,
-                tw: np.ndarray) -> np.ndarray:
+                tw: np.ndarray, ceiling: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Points where an interpolated program leaves the travel, the velocity or acceleration limit
-    (the finite differences of camsmooth.smoothing.nlp, against the true limits) or the lead/tilt
-    windows (rad)."""
+    (the finite differences of camsmooth.smoothing.nlp, against the true limits), the lead/tilt
+    windows (rad) or a lead ceiling (coefficients (N, 3), where (N,): the finish budget's and the
+    map's)."""
     D1, D2 = fd_operators(task.t)
     off = np.zeros(len(A), bool)
     for L, q in zip(machine.rotary_limits(), (A, B), strict=True):
@@ -435,6 +456,9 @@ def _off_limits(machine: Machine, task: RowTask, A: np.ndarray, B: np.ndarray, l
     lead, tilt = lead_tilt_from_axis(machine.tool_axis_np(A, B), task.frames)
     eps = 1e-9
     off |= (lead < lw[:, 0] - eps) | (lead > lw[:, 1] + eps) | (tilt < tw[:, 0] - eps) | (tilt > tw[:, 1] + eps)
+    if ceiling is not None:
+        coef, has = ceiling
+        off |= has & (lead > coef[:, 0] + coef[:, 1] * tilt + coef[:, 2] * tilt ** 2 + eps)
     return off
 
 
