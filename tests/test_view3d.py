@@ -104,3 +104,29 @@ def test_headline_at_the_programmed_feed_without_a_controller_model():
                          "limit violations 3 -> 0 (B acceleration 3 -> none)",
                          "worst clearance 1 \u00b5m -> 2 \u00b5m"]
     assert [f.better for f in h.facts] == [None, True, False, True, None]  # clear either way: neither
+
+
+def test_analyzed_program_in_3d_one_layer_per_tool_path_without_rapids():
+    """surfaces/dome.cls as analyze reads it: its FINISH tool path's cutting points, each row's
+    rapid approach left out, every point's tool axis from the file's GOTO i, j, k."""
+    from pathlib import Path
+
+    from camsmooth.io.program import load_program
+    from camsmooth.report.view3d import scene_of_program
+
+    cls = Path(__file__).resolve().parents[1] / "surfaces" / "dome.cls"
+    prog = load_program(cls)
+    scene = scene_of_program(prog)
+    assert [la.name for la in scene.layers] == [tp.name for tp in prog.toolpaths] == ["FINISH"]
+    assert scene.layer_kind == "tool path" and scene.vertices is None
+    cut, after_rapid = [], False  # a GOTO right after RAPID is reached by a rapid move: not a cut
+    for ln in cls.read_text().splitlines():
+        if ln.startswith("GOTO/") and not after_rapid:
+            cut.append([float(v) for v in ln.split("/")[1].split(",")[:6]])
+        after_rapid = ln.strip() == "RAPID"
+    cut = np.array(cut)
+    la = scene.layers[0]
+    np.testing.assert_allclose(la.cl, cut[:, :3], atol=1e-9)
+    np.testing.assert_allclose(la.axis, cut[:, 3:] / np.linalg.norm(cut[:, 3:], axis=1, keepdims=True), atol=1e-6)
+    frag = view3d_html(scene)
+    assert "FINISH: tool-tip path" in frag and "the buttons show" not in frag  # one tool path: no buttons

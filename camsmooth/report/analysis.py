@@ -135,11 +135,12 @@ def _limits_table(doc: dict[str, Any]) -> str:
 
 
 def write_analysis_report(analysis: Any, series: dict[str, np.ndarray], machine: Any, out_dir: str | os.PathLike,
-                          *, replace: bool = False) -> Path:
+                          *, replace: bool = False, scene: Any = None) -> Path:
     """Write report.html and its figure into ``out_dir`` (its own files replaced atomically,
     others left alone; ``replace`` replaces the folder). ``analysis``: a ProgramAnalysis;
     ``series``: per point of the program, 't' (s) and '<rotary axis> angle|velocity|acceleration'
-    (deg, deg/s, deg/s^2) for the axes of ``machine.rotary``."""
+    (deg, deg/s, deg/s^2) for the axes of ``machine.rotary``; ``scene``: the program in 3D
+    (camsmooth.report.view3d.Scene, interactive in the page), None for none."""
     with atomic_dir(out_dir, replace=replace) as tmp:
         if series:
             _save_png(axes_figure(series, machine), tmp / AXES_FILE)
@@ -162,6 +163,10 @@ def write_analysis_report(analysis: Any, series: dict[str, np.ndarray], machine:
                    "the machine's limits.")
             sections.append((f"Rotary axes {names}", f"<figure>{_img_tag(tmp / AXES_FILE, f'rotary axes {names}')}"
                              f"<figcaption>{html.escape(cap)}</figcaption></figure>"))
+        if scene is not None and scene.layers:
+            from camsmooth.report.view3d import view3d_html
+
+            sections.append(("Tool paths in 3D", view3d_html(scene)))
         setup = [("program", f"{doc['source']} ({doc['format']})"),
                  ("machine", f"{machine.name} ({machine.kind}; rotary axes {names})")]
         sections.append(("Setup", "<table class='setup'>" + "".join(

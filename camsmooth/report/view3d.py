@@ -24,11 +24,12 @@ from typing import Any
 import numpy as np
 
 __all__ = ["DIV_ID", "MAX_AXES", "MAX_PATH_POINTS", "MAX_TRIANGLES", "Scene", "browser_mesh", "scene_of",
-           "view3d_html"]
+           "scene_of_program", "view3d_html"]
 
 MAX_TRIANGLES = 50_000
 MAX_PATH_POINTS = 20_000
 MAX_AXES = 250
+MAX_BUTTONS = 8  # more layers (an analyzed program's tool paths): the legend alone toggles them
 DIV_ID = "camsmooth-view3d"
 _POLE_COLOUR = "#ff7f0e"
 _LIFT_COLOUR = "#000000"
@@ -52,13 +53,15 @@ class PathLayer:
 @dataclass(frozen=True)
 class Scene:
     """What the view draws: the part (vertices (V, 3) mm, triangles (F, 3)) or None, the layers
-    in legend order, and the points to mark as pole passages ((K, 3) mm with a label each)."""
+    in legend order, the points to mark as pole passages ((K, 3) mm with a label each) and what
+    a layer is."""
 
     vertices: np.ndarray | None
     faces: np.ndarray | None
     layers: list[PathLayer]
     pole_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     pole_labels: Sequence[str] = ()
+    layer_kind: str = "method"  # what a layer is, for the caption: 'method' or 'tool path'
 
 
 def browser_mesh(vertices: np.ndarray, faces: np.ndarray, max_triangles: int = MAX_TRIANGLES
@@ -127,6 +130,34 @@ def scene_of(result: Any, colours: Mapping[str, str], order: Sequence[str], show
                  np.concatenate(pts) if pts else np.zeros((0, 3)), labels)
 
 
+_PALETTE = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#17becf", "#bcbd22", "#7f7f7f",
+            "#ff7f0e")
+
+
+def scene_of_program(program: Any, mesh: Any = None) -> Scene:
+    """The Scene of a ``camsmooth.io.program.CLProgram`` as ``analyze`` reads it: one layer per tool
+    path (its cutting points, rapid moves left out; named by the operation), the part ``mesh``
+    (trimesh-like) when given. Points without a tool axis (a 3-axis file) draw their path only."""
+    m = _mesh_arrays(mesh)
+    tip = np.asarray(program.tip, float).reshape(-1, 3)
+    axis = (np.asarray(program.axis, float).reshape(-1, 3) if program.axis is not None
+            else np.full_like(tip, np.nan))
+    rows = np.asarray(program.rows)
+    layers, seen = [], set()
+    for k, tp in enumerate(program.toolpaths):
+        sel = np.arange(tp.start, tp.stop)
+        sel = sel[rows[sel] >= 0]
+        if not len(sel):
+            continue
+        name = tp.name or f"tool path {k + 1}"
+        while name in seen:
+            name += "'"
+        seen.add(name)
+        layers.append(PathLayer(name, _PALETTE[len(layers) % len(_PALETTE)], tip[sel], axis[sel], rows[sel],
+                                np.zeros(len(sel), bool)))
+    return Scene(m[0] if m else None, m[1] if m else None, layers, layer_kind="tool path")
+
+
 def _every(n: int, limit: int) -> int:
     return max(1, int(np.ceil(n / max(limit, 1))))
 
@@ -184,22 +215,24 @@ def view3d_html(scene: Scene, *, height_px: int = 720, max_triangles: int = MAX_
     allp = allp[np.isfinite(allp).all(axis=1)]
     diag = float(np.linalg.norm(np.ptp(allp, axis=0))) if len(allp) else 1.0
     length = axis_length_mm if axis_length_mm is not None else (0.08 * diag if diag > 0 else 1.0)
+    # each method is the whole program; tool paths share one budget
+    share = scene.layer_kind != "method"
+    total = sum(len(la.cl) for la in scene.layers)
+    steps: dict[str, set[int]] = {"path": set(), "axes": set()}
     for la in scene.layers:
         vis: bool | str = True if la.visible else "legendonly"
-        step = _every(len(la.cl), max_path_points)
+        step = _every(total if share else len(la.cl), max_path_points)
         path = _broken(la.cl, la.rows, step)
         traces.append(go.Scatter3d(**_xyz(path), mode="lines", name=f"{la.name}: tool-tip path",
                                    legendgroup=la.name, visible=vis, connectgaps=False, hoverinfo="name",
                                    line={"color": la.colour, "width": 3}))
-        astep = _every(len(la.cl), max_axes)
+        astep = _every(total if share else len(la.cl), max_axes)
         traces.append(go.Scatter3d(**_xyz(_segments(la.cl, la.axis, length, astep)), mode="lines",
                                    name=f"{la.name}: tool axes", legendgroup=la.name, visible=vis, connectgaps=False,
                                    hoverinfo="name", line={"color": la.colour, "width": 2}, opacity=0.8))
         owner += [la.name, la.name]
-        if step > 1:
-            notes.append(f"{la.name}: path drawn through every {step}th point")
-        notes.append(f"{la.name}: tool axes at every {astep}th point" if astep > 1 else
-                     f"{la.name}: tool axes at every point")
+        steps["path"].add(step)
+        steps["axes"].add(astep)
         k = np.flatnonzero(la.lifted)
         if len(k):
             k = k[:: _every(len(k), max_axes)]
@@ -216,27 +249,32 @@ def view3d_html(scene: Scene, *, height_px: int = 720, max_triangles: int = MAX_
                                    text=[scene.pole_labels[i] for i in k] if scene.pole_labels else None,
                                    hoverinfo="text", marker={"symbol": "diamond", "size": 4, "color": _POLE_COLOUR}))
         owner.append(None)
+    for what, st in (("paths drawn through", steps["path"]), ("tool axes drawn at", steps["axes"])):
+        if st and max(st) > 1:
+            notes.append(f"{what} every {'/'.join(f'{v}th' for v in sorted(st))} point")
     names = [la.name for la in scene.layers]
     buttons = [{"label": "all methods", "method": "restyle", "args": [{"visible": [True] * len(traces)}]}]
     for name in names:
-        buttons.append({"label": name, "method": "restyle",
+        buttons.append({"label": name if len(name) <= 24 else name[:23] + "\u2026", "method": "restyle",
                         "args": [{"visible": [o is None or o == name for o in owner]}]})
     fig = go.Figure(traces)
     fig.update_layout(
         height=height_px, margin={"l": 0, "r": 0, "t": 10, "b": 0}, paper_bgcolor="white",
         scene={"aspectmode": "data", "xaxis_title": "X (mm)", "yaxis_title": "Y (mm)", "zaxis_title": "Z (mm)",
-               "camera": {"eye": {"x": 1.25, "y": -1.25, "z": 0.95}}},
+               "camera": {"eye": {"x": 1.45, "y": -1.45, "z": 1.05}}},
         legend={"x": 0.0, "y": 0.92, "yanchor": "top", "bgcolor": "rgba(255,255,255,0.8)", "font": {"size": 12}},
         updatemenus=[{"type": "buttons", "direction": "right", "x": 0.0, "xanchor": "left", "y": 1.0,
                       "yanchor": "top", "buttons": buttons, "showactive": True,
-                      "pad": {"l": 4, "t": 4}}] if len(names) > 1 else [],
+                      "pad": {"l": 4, "t": 4}}] if 1 < len(names) <= MAX_BUTTONS else [],
     )
     div = fig.to_html(include_plotlyjs=include_plotlyjs, full_html=False, div_id=DIV_ID,
                       config={"displaylogo": False, "responsive": True,
                               "toImageButtonOptions": {"format": "png", "filename": "camsmooth_view3d"}})
     marks = (["black rings: points lifted along the normal"] if any(la.lifted.any() for la in scene.layers) else []) \
         + (["orange diamonds: the primary method's passages near the pole"] if len(scene.pole_points) else [])
-    cap = ("Drag to rotate, scroll to zoom, right-drag to pan; the buttons show one method (or all), a click on "
-           f"a legend entry hides or shows that trace. Tool axes drawn as {length:.3g} mm segments from the tool "
-           "tip" + "".join("; " + m for m in marks) + ". " + "; ".join(notes) + ".")
+    buttons_say = f"the buttons show one {scene.layer_kind} (or all), " if 1 < len(names) <= MAX_BUTTONS else ""
+    cap = (f"Drag to rotate, scroll to zoom, right-drag to pan; {buttons_say}a click on a legend entry hides or shows "
+           f"that trace. Tool axes drawn as {length:.3g} mm segments from the tool tip"
+           + "".join("; " + m for m in marks) + ". " + "; ".join(notes).capitalize()[:1] + "; ".join(notes)[1:]
+           + ("." if notes else ""))
     return f"<figure class='view3d'>{div}<figcaption>{html.escape(cap)}</figcaption></figure>"
