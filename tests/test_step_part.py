@@ -287,11 +287,12 @@ def _cl_csv(path: Path, tips: np.ndarray) -> Path:
 
 def test_cli_step_surface_frame_check_and_part_frame(tmp_path, capsys):
     """analyze --surface PART.step: a program 300 mm off is refused (exit 2) with the offset named;
-    --part-frame 300,0,0 places the part and the program is analysed against it."""
+    --part-frame -300,0,0 (a negative first number, not an option) places the part and the program
+    is analysed against it."""
     step = _write_step(_freeform_face(), tmp_path / "free.step")
     xs, ys = np.meshgrid(np.linspace(20, 80, 10), np.linspace(20, 60, 10))
     cc = np.c_[xs.ravel(), ys.ravel(), _height(xs, ys).ravel()]
-    tips = cc + [300.0, 0.0, 0.0]  # a ball end's tip is within r of the surface: here on it
+    tips = cc - [300.0, 0.0, 0.0]  # a ball end's tip is within r of the surface: here on it
     prog = _cl_csv(tmp_path / "p.csv", tips)
     base = ["analyze", str(prog), "--surface", str(step), "--cutter-radius", "0", "--corner-radius", "3",
             "--tolerance", "0.1", "--quiet"]
@@ -299,8 +300,8 @@ def test_cli_step_surface_frame_check_and_part_frame(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "not in the same frame" in err[0] and "work offset" in err[0]
     offset = [float(v) for v in re.search(r"--part-frame (\S+)$", err[0]).group(1).split(",")]
-    assert np.allclose(offset, [300.0, 0.0, 0.0], atol=0.1)  # the tips are on the surface here
-    assert main(base + ["--part-frame", "300,0,0"]) == 0
+    assert np.allclose(offset, [-300.0, 0.0, 0.0], atol=0.1)  # the tips are on the surface here
+    assert main(base + ["--part-frame", "-300,0,0"]) == 0
     assert main(base + ["--part-frame", "msys"]) == 2
     assert "needs a CLSF with an MSYS record" in capsys.readouterr().err
 
