@@ -392,9 +392,13 @@ def run_analyze(args: argparse.Namespace) -> int:
         if out_json is not None:
             out_json.write_text(json.dumps(analysis.to_json(), indent=2) + "\n", encoding="utf-8")
         if report is not None:
+            from camsmooth.io.program import cl_of_cc
             from camsmooth.report.analysis import write_analysis_report
+            from camsmooth.report.view3d import scene_of_program
 
-            write_analysis_report(analysis, analysis.series, machine, report)
+            cl = cl_of_cc(program, cutter, lead, tilt) if isinstance(program, CCPath) else program
+            write_analysis_report(analysis, analysis.series, machine, report,
+                                  scene=scene_of_program(cl, surface.mesh if surface is not None else None))
     if not args.quiet:
         print(f"{analysis.source} ({analysis.format}): {analysis.points} cutting points, "
               f"{len(analysis.toolpaths)} tool path(s)")
