@@ -233,7 +233,8 @@ def test_inch_step_is_read_in_mm(tmp_path):
     assert "CONVERSION_BASED_UNIT('INCH'" in text
     coords = [float(c) for pt in re.findall(r"CARTESIAN_POINT\('',\(([^)]*)\)", text) for c in pt.split(",")]
     assert max(coords) == pytest.approx(30 / 25.4, rel=1e-9)
-    surf = load_surface(path, chord_tol=0.01)
+    with pytest.warns(RuntimeWarning, match="length unit INCH in the file, scaled to mm"):
+        surf = load_surface(path, chord_tol=0.01)
     assert np.allclose(surf.mesh.extents, [10, 20, 30], atol=1e-9)
     assert surf.brep.unit == "INCH"
     assert any("INCH" in n and "mm" in n for n in surf.notes)
