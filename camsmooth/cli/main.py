@@ -109,6 +109,10 @@ def load_input(args: argparse.Namespace, surface: Any, machine: Any) -> tuple[An
     from camsmooth.smoothing.cam import cam_program, cutter_of
 
     program = load_program(args.path, args.format, machine=machine)
+    if not isinstance(program, CCPath) and (program.modes is not None or getattr(args, "operations", None)):
+        from camsmooth.post.rewrite import select_operations  # a posted program: its chosen operations
+
+        program = select_operations(program, getattr(args, "operations", None))
     if not isinstance(program, CCPath) and program.format == "result-csv":
         from camsmooth.io.ccpath import read_cc_csv
 
@@ -156,7 +160,8 @@ def run_smooth(args: argparse.Namespace) -> int:
         failure = _strict_failure(result) if args.strict else None
         if failure:
             raise StrictFailure(failure)
-        _write_outputs(result, out_csv, gcode, report, args.feed, progress=not args.quiet)
+        _write_outputs(result, out_csv, gcode, report, args.feed, progress=not args.quiet,
+                       posted=program if getattr(getattr(program, "program", None), "modes", None) else None)
     if not args.quiet:
         _print_summary(result)
         for line in exact_clearance_report(result, surface):  # a CAD part: the worst clearances on its B-rep
@@ -209,9 +214,11 @@ def _strict_failure(result: Any) -> str | None:
 
 
 def _write_outputs(result: Any, out_csv: Path, gcode: Path | None, report: Path | None, feed: float | None,
-                   progress: bool = False) -> None:
+                   progress: bool = False, posted: Any = None) -> None:
     """Write the result CSV, G-code (the planned feed per block) and report to (temporary) paths;
-    progress: a line on a terminal while the report is written (camsmooth.progress)."""
+    progress: a line on a terminal while the report is written (camsmooth.progress). posted: the
+    CamProgram of a posted input: the G-code is that program with the smoothed blocks written in
+    (camsmooth.post.rewrite)."""
     from camsmooth.io.output import write_gcode, write_result_csv
     from camsmooth.smoothing.feed import block_feeds
 
@@ -220,7 +227,18 @@ def _write_outputs(result: Any, out_csv: Path, gcode: Path | None, report: Path 
         r = result.result
         programmed = np.asarray(result.inputs["feed"], float)
         f = block_feeds(r.plan, r.cl, r.rows, programmed) if r.plan is not None else programmed
-        write_gcode(gcode, result, result.machine, result.cutter, f)
+        if posted is not None:
+            from camsmooth.post import posted_text
+            from camsmooth.post.rewrite import rewrite_posted
+
+            cl = posted.program
+            new = rewrite_posted(posted_text(cl.source, []), cl, r, posted.source_index, result.machine,
+                                 np.broadcast_to(np.asarray(f, float), (len(r.rows),)))
+            for w in new.warnings:
+                print(f"camsmooth: warning: {w}", file=sys.stderr)
+            Path(gcode).write_text(new.text)
+        else:
+            write_gcode(gcode, result, result.machine, result.cutter, f)
     if report:
         from camsmooth.progress import Steps
         from camsmooth.report.smoothing import write_report
@@ -543,7 +561,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--compensate", action="store_true", help="with --model: command the axes so the "
                    "predicted real tool tip is the ideal one")
     p.add_argument("-o", "--output", required=True, help="output CSV (columns: README, 'File formats')")
-    p.add_argument("--gcode", default=None, help="also write G-code (G01 X Y Z A B F)")
+    p.add_argument("--gcode", default=None, help="also write G-code (G01 X Y Z A B F); from a posted program, that "
+                   "program in its dialect and mode with the smoothed blocks written in (camsmooth.post.rewrite)")
+    p.add_argument("--operations", default=None, metavar="NAME,...",
+                   help="the operations of a posted program to smooth (names as analyze --cl gives them; default "
+                   "every simultaneous five-axis one); the others are written as they are")
     p.add_argument("--report", default=None, metavar="DIR",
                    help="also write a report (PNG plots, render, report.html) into the folder DIR; its own files "
                         "are replaced, other files there are left alone")

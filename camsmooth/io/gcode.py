@@ -101,7 +101,7 @@ from camsmooth.io.table import read_text_file
 from camsmooth.smoothing.evaluate import WRITTEN_DECIMALS, written_joints
 from camsmooth.smoothing.result import MethodResult, SmoothResult, describe_inputs
 
-__all__ = ["write_gcode", "read_gcode", "tip_path_lengths", "DEFAULT_SAFE_HEIGHT_MM", "DIALECTS"]
+__all__ = ["write_gcode", "read_gcode", "tip_path_lengths", "format_blocks", "DEFAULT_SAFE_HEIGHT_MM", "DIALECTS"]
 
 #: Default retract height between rows, along the tool axis (mm).
 DEFAULT_SAFE_HEIGHT_MM = 10.0
@@ -570,6 +570,19 @@ def _blocks(d: Dialect, mode: str, mv: Any, coords: np.ndarray, F: np.ndarray, l
             out.append(d.comment(f"row {row}: {cnt} points"))
         out.extend(block[a_:b_])
     return out
+
+
+def format_blocks(dialect: str, coords: np.ndarray, F: np.ndarray, rapid: np.ndarray, letters: str,
+                  inverse_time: bool) -> list[str]:
+    """The motion blocks of ``dialect`` (a key of DIALECTS) exactly as ``write_gcode`` formats them,
+    one line per block: coords (M, 5) the words of ``letters`` (X Y Z mm, rotary deg, as they are
+    to be written), F (M,) the F word (1/min with ``inverse_time``: on every feed block, 7
+    significant digits; else mm/min, 1 decimal, written where it changes), rapid (M,) bool. No row
+    comments, no annotations (camsmooth.post.rewrite writes blocks into a posted program)."""
+    coords = np.asarray(coords, float).reshape(-1, len(letters))
+    rapid = np.asarray(rapid, bool)
+    mv = _Moves(np.zeros((len(coords), 5)), np.zeros((len(coords), 3)), rapid, np.asarray(F, float))
+    return _blocks(DIALECTS[dialect], "machine" if inverse_time else "tcp", mv, coords, F, letters)
 
 
 def _annotations(d: Dialect, mv: Any, rapid: np.ndarray) -> np.ndarray:

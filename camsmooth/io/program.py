@@ -177,6 +177,9 @@ class CLProgram:
     dialect: str | None = None
     cycles: list[Cycle] = field(default_factory=list)
     work_offset: str | None = None
+    #: a posted program's per point modes (camsmooth.post.core.Builder.finish): 'tcp' (0 machine, 1 TCP,
+    #: 2 dynamic work offset), 'feed_mode' (93, 94, 95), 'frame_origin' (N, 3) mm, 'frame_rotates'
+    modes: dict[str, np.ndarray] | None = None
 
     def __post_init__(self) -> None:
         self.tip = np.asarray(self.tip, dtype=float).reshape(-1, 3)

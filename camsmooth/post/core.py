@@ -473,6 +473,10 @@ class Builder:
                          rotary=tuple(letters))  # type: ignore[arg-type]
         prog.dialect = self.dialect
         prog.cycles = cycles_kept
+        # per point what its block meant (camsmooth.post.rewrite writes new blocks in the same mode)
+        origin = np.array([self._frames[f].o for f in fid], float).reshape(-1, 3)
+        turned = np.array([self._frames[f].rotates for f in fid], bool)
+        prog.modes = {"tcp": mode[idx], "feed_mode": fm[idx], "frame_origin": origin[idx], "frame_rotates": turned[idx]}
         prog.work_offset = self.work_offset
         return prog
 
