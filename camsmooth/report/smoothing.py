@@ -1034,7 +1034,9 @@ def write_report(result: SmoothResult, out_dir: str | os.PathLike, *, title: str
     Contents: PLOT_FILES (matplotlib PNGs, cumulative program time on x), ``scene_3d.png``
     (pyvista, surface with tool axes before ('none') and after (primary method); absent with a
     note in the HTML when rendering is unavailable or ``render_3d`` is False) and ``report.html``
-    (self-contained, PNGs embedded as base64 data URIs; summary table per method and a red notice
+    (self-contained, PNGs embedded as base64 data URIs; the headline of what the primary method
+    bought and cost against the program as brought, camsmooth.report.headline; an interactive 3D
+    view with plotly.js inlined, camsmooth.report.view3d; summary table per method and a red notice
     of unclean rows and unreachable points). Angles in degrees, lengths in mm. Series longer than
     ``max_plot_points`` are drawn as a min/max envelope per bin; at most ``max_axis_segments``
     tool axes per method are drawn in 3D. An exception leaves no (partial) folder behind and an
