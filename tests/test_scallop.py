@@ -223,6 +223,13 @@ def test_max_scallop_is_met_at_every_point_with_every_limit_and_window(wave, bud
     assert r.metrics.violations.get("interference", 0) == 0 and sum(r.metrics.violations.values()) == 0
     # the price: the budget costs smoothness
     assert r.metrics.gamma >= free.methods["nlp"].metrics.gamma
+    # the report's verdict gives every method's largest scallop, and says the budget held
+    from camsmooth.report.smoothing import _verdict_html, method_summary
+
+    order = list(held.methods)
+    verdict = _verdict_html(order, {n: method_summary(held.methods[n]) for n in order}, "nlp")
+    assert verdict.count("largest scallop") == len(order) and "within the finish budget" in verdict
+    assert f"largest scallop {r.metrics.scallop_max_um:.3g}" in verdict
 
 
 def _curvature(result, frames):

@@ -677,7 +677,9 @@ def _verdict_html(order: list[str], summaries: dict[str, dict[str, Any]], primar
         bad = total > 0 or (s["worst"] is not None and s["worst"][0] < s["gouge_line"])
         finish = ""
         if s["scallop_max_um"] is not None:
-            finish = f"largest scallop {_fmt(s['scallop_max_um'], '.3g')} \u00b5m"
+            finish = (f"largest scallop {_fmt(s['scallop_max_um'], '.3g')} \u00b5m" if np.isfinite(s["scallop_max_um"])
+                      else "adjacent passes that do not overlap somewhere (the effective radius below half the "
+                      "stepover: no finite scallop)")
             if s["scallop_missed"]:
                 k = len(s["scallop_missed"])
                 finish += f" (finish budget missed on {k} row{'s' * (k > 1)})"

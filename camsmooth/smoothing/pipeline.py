@@ -238,7 +238,8 @@ def smooth(path: CCPath | CamProgram, surface: Surface, machine: Machine | None 
                         inputs={"path": path.source, "surface": surface.source, "feed": program.feed,
                                 "lead_range": tuple(lead_range), "tilt_range": tuple(tilt_range), "model": model,
                                 "compensate": compensate, "real_machine": real, "tolerance": tolerance,
-                                "chord_deviation": chord, "total_runtime_s": time.perf_counter() - t_start})
+                                "chord_deviation": chord, "max_scallop": opts.max_scallop,
+                                "total_runtime_s": time.perf_counter() - t_start})
 
 
 def scallop_budget(options: SmoothOptions, cam: MethodResult | None, tolerance: float, n: int) -> np.ndarray | None:

@@ -230,8 +230,9 @@ def describe_inputs(inputs: dict[str, Any]) -> list[tuple[str, str]]:
     degrees and s, rounded, for the report's Setup table and the G-code header."""
     labels = {"path": "program", "surface": "surface", "feed": "programmed feed", "lead_range": "lead window",
               "tilt_range": "tilt window", "tolerance": "tolerance", "chord_deviation": "mesh chord deviation",
-              "model": "error model", "compensate": "compensated", "total_runtime_s": "run time"}
-    units = {"tolerance": " mm", "chord_deviation": " mm", "total_runtime_s": " s"}
+              "model": "error model", "compensate": "compensated", "total_runtime_s": "run time",
+              "max_scallop": "finish budget (largest scallop)"}
+    units = {"tolerance": " mm", "chord_deviation": " mm", "total_runtime_s": " s", "max_scallop": " mm"}
     rows: list[tuple[str, str]] = []
     for key, value in inputs.items():
         if key == "real_machine" or value is None or (key == "compensate" and inputs.get("model") is None):
