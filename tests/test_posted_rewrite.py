@@ -119,3 +119,153 @@ def test_rs274_runs_the_output(dome_round_trip):
     tips = res.select(["clx", "cly", "clz"]).to_numpy()
     d = np.linalg.norm(tip[None, :, :] - tips[:, None, :], axis=2).min(axis=1)
     assert d.max() < TIP_TOL_MM
+
+
+# ---- Fanuc G43.4 and Siemens TRAORI programs written as the manuals show --------------------
+def _cl_rows(machine):
+    """The two dome rows' CL data (tips mm, unit axes) with rotary angles (deg) from the machine's
+    inverse kinematics, per row."""
+    prog = load_program(DATA / "dome_two_rows.cls")
+    out = []
+    for sl in prog.row_slices():
+        tip, axis = prog.tip[sl], prog.axis[sl]
+        ik = machine.solve_row(axis, tip)
+        out.append((tip, axis, np.degrees(np.column_stack([ik.A, ik.B]))))
+    return out
+
+
+def _w(v: np.ndarray) -> str:
+    return " ".join(f"{c}{x:.4f}" for c, x in zip("XYZAC", v, strict=True))
+
+
+def _posted_tcp(machine, dialect: str) -> str:
+    """A shop's TCP program of the dome rows. Fanuc: Series 30i-B operator's manual (B-64484EN),
+    "Tool center point control" (G43.4 H.. ; rotary axis positions type 1 ; G49 cancels), G94 feed
+    per minute, '%' tape marks, 'O' number. Siemens: SINUMERIK 840D sl programming manual job
+    planning (6FC5398-2BP40), "Transformations: three-, four- and five-axis transformation (TRAORI)"
+    (TRAORI on, TRAFOOF off), G71 metric, ';' comments."""
+    fanuc = dialect == "fanuc"
+    c = (lambda s: f"({s})") if fanuc else (lambda s: f";{s}")
+    lines = ["%", "O1000 (DOME FINISH)"] if fanuc else [";DOME FINISH", "G71 G90 G17 G40"]
+    if fanuc:
+        lines += ["G21 G90 G17 G40 G49 G80"]
+    lines += ["G54", "T1 M6" if fanuc else "T1 D1", *([] if fanuc else ["M6"]), "S12000 M3", "M8",
+              "(Operation Name: FINISH_5AX)" if fanuc else ";(FINISH_5AX)", "G94",
+              "G43.4 H1" if fanuc else "TRAORI"]
+    for k, (tip, axis, q) in enumerate(_cl_rows(machine)):
+        lines.append(c(f"pass {k + 1}"))
+        above = np.r_[tip[0] + 10.0 * axis[0], q[0]]
+        lines.append("G0 " + _w(above))
+        lines.append("G1 " + _w(np.r_[tip[0] + 0.5 * axis[0], q[0]]) + " F800.")  # plunge to 0.5 mm above
+        lines.append("G1 " + _w(np.r_[tip[0], q[0]]) + " F2000.")
+        lines += ["G1 " + _w(np.r_[t, a]) for t, a in zip(tip[1:], q[1:], strict=True)]
+        lines.append("G0 " + _w(np.r_[tip[-1] + 10.0 * axis[-1], q[-1]]))
+    lines += ["G49" if fanuc else "TRAFOOF", "M9", "M5", c("Operation Name: FACE") if fanuc else ";(FACE)",
+              "G0 X-20. Y-20. Z15. A0. C0.", "G1 Z10. F800.", "G1 X20.", "G1 Y-10.", "G0 Z30.",
+              "G91 G28 Z0." if fanuc else "G0 SUPA Z0", *(["G90"] if fanuc else []), "M30", *(["%"] if fanuc else [])]
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize("dialect", ["fanuc", "siemens"])
+def test_tcp_dialects_round_trip(tmp_path, dialect):
+    machine = load_machine(DOME_MACHINE)
+    src = tmp_path / ("dome.nc" if dialect == "fanuc" else "dome.mpf")
+    src.write_text(_posted_tcp(machine, dialect))
+    prog_in = load_program(src, machine=machine, machine_given=True)
+    assert prog_in.dialect == ("iso" if dialect == "fanuc" else "siemens")
+    assert [tp.name for tp in prog_in.toolpaths][:2] == ["FINISH_5AX", "FACE"]
+    out, csv = _smooth(tmp_path, src, DOME_MACHINE)
+    res = pl.read_csv(csv)
+    a, b = src.read_text().splitlines(), out.read_text().splitlines()
+    # every line that is not a cutting G1 of FINISH_5AX is in the output, unchanged and in order
+    end = next(i for i, ln in enumerate(a) if ln in ("G49", "TRAFOOF"))
+    kept = [ln for i, ln in enumerate(a) if not (i < end and _is_cut(ln))]
+    it = iter(b)
+    assert all(any(x == y for y in it) for x in kept)
+    new = [ln for ln in b if ln.startswith("G01 ")]
+    assert len(new) == len(res)  # one block per smoothed point, in the writer's format
+    prog = load_program(out, machine=machine, machine_given=True)
+    assert prog.dialect == prog_in.dialect
+    tips = res.select(["clx", "cly", "clz"]).to_numpy()
+    axes = res.select(["i", "j", "k"]).to_numpy()
+    d = np.linalg.norm(prog.tip[None, :, :] - tips[:, None, :], axis=2)
+    k = d.argmin(axis=1)
+    # TCP: X Y Z is the tip as written (4 decimals), the axis from A C rounded to 4 decimals of a degree
+    assert d[np.arange(len(k)), k].max() <= np.sqrt(3) * 5e-5 + 1e-9
+    assert np.linalg.norm(prog.axis[k] - axes, axis=1).max() < AXIS_TOL
+    # cycle time at the written feeds (G94, F modal): sum of chord / F over the smoothed blocks
+    feeds, f = [], None
+    for ln in b:
+        m = re.search(r"F([\d.]+)", ln)
+        f = float(m.group(1)) if m else f
+        if ln.startswith("G01 "):
+            feeds.append(f)
+    rows, t_opt = res["row"].to_numpy(), res["t_opt"].to_numpy()
+    for r in np.unique(rows):
+        sel = np.flatnonzero(rows == r)
+        chord = np.linalg.norm(np.diff(np.round(tips[sel], 4), axis=0), axis=1)
+        commanded = float(np.sum(60.0 * chord / np.asarray(feeds)[sel[1:]]))
+        planned = float(t_opt[sel[-1]] - t_opt[sel[0]])
+        assert abs(commanded - planned) <= 5e-3 * planned, (r, commanded, planned)
+    got = analyze_program(prog, machine).toolpaths[0]
+    exact = CLProgram(tip=prog.tip.copy(), axis=prog.axis.copy(), rows=prog.rows, feed=prog.feed, rapid=prog.rapid,
+                      line=prog.line, toolpaths=prog.toolpaths, source=prog.source, format=prog.format,
+                      angles=prog.angles, rotary=prog.rotary)
+    exact.tip[k], exact.axis[k] = tips, axes
+    ref = analyze_program(exact, machine).toolpaths[0]
+    assert abs(got.gamma - ref.gamma) <= 5e-3 * ref.gamma
+    assert abs(got.cycle_time_optimal_s - ref.cycle_time_optimal_s) <= 5e-3 * ref.cycle_time_optimal_s
+
+
+# ---- the same CL data through two posts: two dialects, two machines --------------------------
+def _method_result(machine, rows_cl):
+    """A MethodResult of the CL rows on ``machine`` (angles from its inverse kinematics, linear
+    axes from its chain), the other fields empty: what write_gcode reads."""
+    from camsmooth.smoothing.result import MethodResult
+
+    tip = np.vstack([t for t, _, _ in rows_cl])
+    axis = np.vstack([a for _, a, _ in rows_cl])
+    rows = np.concatenate([np.full(len(t), k) for k, (t, _, _) in enumerate(rows_cl)])
+    idx = np.concatenate([np.arange(len(t)) for t, _, _ in rows_cl])
+    q = np.vstack([np.column_stack([(ik := machine.solve_row(a, t)).A, ik.B]) for t, a, _ in rows_cl])
+    n, z, z3 = len(tip), np.zeros(len(tip)), np.zeros((len(tip), 3))
+    return MethodResult(method="none", rows=rows, idx=idx, t=z, cc=tip, normals=axis, cl=tip, axis=axis, lead=z,
+                        tilt=z, A=q[:, 0], B=q[:, 1], A_vel=z, B_vel=z, A_acc=z, B_acc=z,
+                        xyz=machine.linear_axes(tip, q[:, 0], q[:, 1]), delta=z, lift=z, lead_window=np.zeros((n, 2)),
+                        tilt_window=np.zeros((n, 2)), compound_acc=z, feed_dirs=z3)
+
+
+def test_cross_post_consistency(tmp_path):
+    """Fanuc G43.4 (TCP) on the A/C trunnion of the dome sample and Siemens in machine mode (G93
+    joints) on the nutating B-head / C-table machine, both from camsmooth's writer, read back by the
+    posted readers: the same tips within the posts' rounding and the same axes within 0.01 deg."""
+    from camsmooth.geometry.cutter import ToroidalCutter
+    from camsmooth.io.gcode import write_gcode
+    from camsmooth.post import read_posted
+
+    ac = load_machine(DOME_MACHINE)
+    nut = load_machine(ROOT / "surfaces" / "nutating_machine.toml")
+    cl = load_program(DATA / "dome_two_rows.cls")
+    rows_cl = [(cl.tip[sl], cl.axis[sl], None) for sl in cl.row_slices()]
+    cutter = ToroidalCutter(R=4.0, r=1.0)
+    got = {}
+    for name, machine, dialect, mode in (("fanuc", ac, "fanuc", "tcp"), ("siemens", nut, "siemens", "machine")):
+        path = tmp_path / f"{name}.nc"
+        write_gcode(path, _method_result(machine, rows_cl), machine, cutter, 2000.0, dialect=dialect, mode=mode)
+        prog = read_posted(path, machine=machine)
+        assert prog.dialect == ("iso" if name == "fanuc" else "siemens")
+        got[name] = (prog.tip[~prog.rapid], prog.axis[~prog.rapid])
+    ref_tip, ref_axis = cl.cutting().tip, cl.cutting().axis
+    # TCP: the tip as written; machine mode: joints rounded to 5e-5 mm / 5e-5 deg, the tip moved by
+    # the rotary rounding times the lever from the rotary axes to the tip (nutating: gauge 300 mm,
+    # C axis within 80 mm of the dome's points)
+    e = np.radians(5e-5)
+    bounds = {"fanuc": np.sqrt(3) * 5e-5, "siemens": np.sqrt(3) * 5e-5 + e * (300.0 + 200.0) + e * 130.0}
+    for name, (tip, axis) in got.items():
+        assert len(tip) == len(ref_tip)
+        assert np.linalg.norm(tip - ref_tip, axis=1).max() <= bounds[name] + 1e-9, name
+        ang = np.degrees(np.arccos(np.clip(np.sum(axis * ref_axis, axis=1), -1, 1)))
+        assert ang.max() < 0.01 / 2, name
+    (t1, a1), (t2, a2) = got["fanuc"], got["siemens"]
+    assert np.linalg.norm(t1 - t2, axis=1).max() <= bounds["fanuc"] + bounds["siemens"]
+    assert np.degrees(np.arccos(np.clip(np.sum(a1 * a2, axis=1), -1, 1))).max() < 0.01
