@@ -104,6 +104,7 @@ CASES = [  # R, r, lead (deg), tilt (deg), stepover (mm)
     (5.0, 1.0, 20.0, 10.0, 1.0),
     (5.0, 2.0, 11.0, -5.0, 1.0),
     (5.0, 0.0, 3.0, 0.0, 2.0),  # flat end
+    (5.0, 0.0, 6.0, 5.0, 1.0),
 ]
 
 
@@ -148,6 +149,40 @@ def test_curvature_for_scallop_inverts_the_scallop():
     assert np.all(np.diff(scallop_height(np.linspace(0.03, 0.4, 50), 0.02, 1.0)) > 0)  # monotone in kappa
 
 
+@pytest.mark.parametrize("R, r", [(4.0, 1.0), (5.0, 0.0), (0.0, 3.0)])
+def test_the_lead_ceiling_keeps_the_scallop_within_the_budget(R, r):
+    """At every tilt of the window, a lead on the fitted ceiling leaves at most the budget, and
+    (where the ceiling lies inside the lead window) not much less: the bound is tight."""
+    from camsmooth.smoothing.finish import lead_ceiling
+
+    rng = np.random.default_rng(1)
+    n = 300
+    cut = SimpleNamespace(R=R, r=r)
+    K = np.zeros((n, 2, 2))
+    K[:, 0, 0], K[:, 1, 1] = rng.uniform(-0.02, 0.02, n), rng.uniform(-0.02, 0.02, n)
+    K[:, 0, 1] = K[:, 1, 0] = rng.uniform(-0.005, 0.005, n)
+    step = rng.uniform(0.5, 2.0, (n, 2))
+    lw = np.tile(np.radians([2.0, 20.0]), (n, 1))
+    tw = np.tile(np.radians([-15.0, 15.0]), (n, 1))
+    h_free = point_scallop(cut, np.full(n, lw[0, 1]), np.zeros(n), K, step)  # the roughest lead of the window
+    budget = h_free * rng.uniform(0.5, 1.2, n)
+    b = lead_ceiling(cut, budget, K, step, lw, tw)
+    if R == 0:  # a ball end's scallop does not depend on the lead: no ceiling can help or is needed
+        assert not (b.has & ~b.short).any()
+        return
+    assert b.has.any() and (~b.has).any()
+    for u in np.linspace(0.0, 1.0, 7):
+        tilt = tw[:, 0] + u * (tw[:, 1] - tw[:, 0])
+        cap = b.ceiling[:, 0] + b.ceiling[:, 1] * tilt + b.ceiling[:, 2] * tilt ** 2
+        inside = b.has & ~b.short & (cap >= lw[:, 0]) & (cap <= lw[:, 1])
+        h = point_scallop(cut, cap, tilt, K, step)
+        assert np.all(h[inside] <= budget[inside] * (1 + 1e-9))
+        assert np.median(h[inside] / budget[inside]) > 0.97  # tight where it binds
+    # where no lead of the window meets the budget, the point says so
+    h_min = point_scallop(cut, np.full(n, lw[0, 0]), np.zeros(n), K, step)
+    assert np.all(b.short[h_min > budget * 1.01])
+
+
 def test_neighbour_stepover_is_the_distance_to_the_adjacent_rows():
     """Three rows 2.5 mm apart, the middle one staggered by half a point spacing: the distance
     is to the neighbouring polylines (2.5 mm), not to their points (sqrt(2.5^2 + 0.5^2))."""
@@ -161,6 +196,21 @@ def test_neighbour_stepover_is_the_distance_to_the_adjacent_rows():
     np.testing.assert_allclose(d[inner], 2.5, atol=1e-12)
     assert np.all(np.isnan(d[rows == 0, 0])) and np.all(np.isnan(d[rows == 7, 1]))
     assert np.all(np.isnan(d[rows == 2, 1])) and np.all(np.isnan(d[rows == 7, 0]))  # 75 mm: not a neighbour
+
+
+def test_the_budget_is_the_tighter_of_max_scallop_and_the_cam_programs_own_plus_the_tolerance():
+    from camsmooth.errors import InputError
+    from camsmooth.smoothing.pipeline import scallop_budget
+
+    cam = SimpleNamespace(scallop=np.array([0.010, 0.030, np.nan, 0.002]))
+    tol = 0.005
+    np.testing.assert_allclose(scallop_budget(SmoothOptions(max_scallop=0.02), cam, tol, 4),
+                               [0.015, 0.02, 0.02, 0.007])
+    np.testing.assert_allclose(scallop_budget(SmoothOptions(), cam, tol, 4), [0.015, 0.035, np.inf, 0.007])
+    assert scallop_budget(SmoothOptions(cam_scallop=False), cam, tol, 4) is None  # the default off: no bound
+    assert scallop_budget(SmoothOptions(), None, tol, 4) is None  # a CC path: no CAM program to compare with
+    with pytest.raises(InputError, match="scallop"):
+        scallop_budget(SmoothOptions(max_scallop=-1.0), None, tol, 4)
 
 
 # ----------------------------------------------------------------------------------------------
