@@ -269,3 +269,42 @@ def test_cross_post_consistency(tmp_path):
     (t1, a1), (t2, a2) = got["fanuc"], got["siemens"]
     assert np.linalg.norm(t1 - t2, axis=1).max() <= bounds["fanuc"] + bounds["siemens"]
     assert np.degrees(np.arccos(np.clip(np.sum(a1 * a2, axis=1), -1, 1))).max() < 0.01
+
+
+# ---- from APT: the program carries the input's tool call, spindle, coolant and work offset ----
+@needs_rs274
+def test_apt_setup_written_and_run(tmp_path):
+    """LOAD/TOOL,1, SPINDL/RPM,12000,CLW and COOLNT/FLOOD in the CLSF, --work-offset G55: the LinuxCNC
+    program has them in the order a shop runs them, and rs274 executes them (its canonical calls)."""
+    feed = "FEDRAT/MMPM,2000.0000"
+    text = (DATA / "dome_two_rows.cls").read_text().replace(feed, f"SPINDL/RPM,12000,CLW\nCOOLNT/FLOOD\n{feed}", 1)
+    src = tmp_path / "dome.cls"
+    src.write_text(text)
+    out, _ = _smooth(tmp_path, src, DOME_MACHINE, "--work-offset", "G55")
+    lines = out.read_text().splitlines()
+    order = [lines.index(x) for x in ("G55", "T1 M6", "S12000 M3", "M8", "G93", "M9", "M5", "M30")]
+    assert order == sorted(order)
+    canon_file = tmp_path / "canon.txt"
+    tbl = tmp_path / "tool.tbl"
+    tbl.write_text("T1 P1 Z0 D10 ;\n")
+    subprocess.run(["rs274", "-t", str(tbl), "-g", str(out), str(canon_file)], capture_output=True, text=True,
+                   stdin=subprocess.DEVNULL, timeout=120, check=False)
+    canon = canon_file.read_text()
+    calls = [c for c in ("SET_G5X_OFFSET(2", "CHANGE_TOOL(", "SET_SPINDLE_SPEED(0, 12000", "START_SPINDLE_CLOCKWISE",
+                         "FLOOD_ON", "STRAIGHT_FEED", "FLOOD_OFF", "STOP_SPINDLE_TURNING", "PROGRAM_END")]
+    at = 0
+    for c in calls:  # each after the one before (the tool change stops the spindle on its own too)
+        at = canon.find(c, at)
+        assert at >= 0, c
+
+
+def test_bad_work_offset_and_operation(tmp_path, capsys):
+    args = ["smooth", str(DATA / "dome_ac_linuxcnc.ngc"), "--surface", str(DOME), "--machine", str(DOME_MACHINE),
+            "--lead", "0:20", "--tilt", "-10:10", "--cutter-radius", "4", "--corner-radius", "1",
+            "-o", str(tmp_path / "r.csv"), "--gcode", str(tmp_path / "o.ngc")]
+    assert main([*args, "--work-offset", "G99"]) == 2
+    assert "--work-offset 'G99'" in capsys.readouterr().err
+    assert main([*args, "--operations", "ROUGH"]) == 2
+    err = capsys.readouterr().err
+    assert "no operation ROUGH" in err and "FINISH_5AX" in err and "Traceback" not in err
+    assert not (tmp_path / "o.ngc").exists() and not (tmp_path / "r.csv").exists()

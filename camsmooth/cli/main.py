@@ -113,6 +113,12 @@ def load_input(args: argparse.Namespace, surface: Any, machine: Any) -> tuple[An
         from camsmooth.post.rewrite import select_operations  # a posted program: its chosen operations
 
         program = select_operations(program, getattr(args, "operations", None))
+        if program.modes is not None and getattr(args, "gcode", None):
+            from camsmooth.post.rewrite import WRITER_DIALECT
+
+            if program.dialect not in WRITER_DIALECT:  # said before the smoothing, not after
+                raise InputError(f"--gcode: writing smoothed blocks into a {program.dialect} program is not supported "
+                                 f"(supported: {', '.join(sorted(WRITER_DIALECT))})", file=program.source)
     if not isinstance(program, CCPath) and program.format == "result-csv":
         from camsmooth.io.ccpath import read_cc_csv
 
@@ -133,6 +139,9 @@ def run_smooth(args: argparse.Namespace) -> int:
     from camsmooth.smoothing.pipeline import SmoothOptions, smooth
 
     _check_outputs_options(args)
+    from camsmooth.post.setup import parse_work_offset
+
+    parse_work_offset(args.work_offset)  # a bad --work-offset fails before the computation
     lead, tilt = args.lead, args.tilt
     for opt, value, (lo, hi) in (("--prefer-lead", args.prefer_lead, lead), ("--prefer-tilt", args.prefer_tilt, tilt)):
         if value is not None and not lo <= value <= hi:
@@ -160,8 +169,9 @@ def run_smooth(args: argparse.Namespace) -> int:
         failure = _strict_failure(result) if args.strict else None
         if failure:
             raise StrictFailure(failure)
-        _write_outputs(result, out_csv, gcode, report, args.feed, progress=not args.quiet,
-                       posted=program if getattr(getattr(program, "program", None), "modes", None) else None)
+        posted = program if getattr(getattr(program, "program", None), "modes", None) else None
+        _write_outputs(result, out_csv, gcode, report, args.feed, progress=not args.quiet, posted=posted,
+                       setup=None if posted is not None else _shop_setup(args, program))
     if not args.quiet:
         _print_summary(result)
         for line in exact_clearance_report(result, surface):  # a CAD part: the worst clearances on its B-rep
@@ -213,12 +223,20 @@ def _strict_failure(result: Any) -> str | None:
             + "; nothing written")
 
 
+def _shop_setup(args: argparse.Namespace, program: Any) -> Any:
+    """The tool call, spindle, coolant and work offset the CAM input names (camsmooth.post.setup)."""
+    from camsmooth.post.setup import shop_setup
+
+    return shop_setup(getattr(program, "program", None), args.path, getattr(args, "work_offset", None))
+
+
 def _write_outputs(result: Any, out_csv: Path, gcode: Path | None, report: Path | None, feed: float | None,
-                   progress: bool = False, posted: Any = None) -> None:
+                   progress: bool = False, posted: Any = None, setup: Any = None) -> None:
     """Write the result CSV, G-code (the planned feed per block) and report to (temporary) paths;
     progress: a line on a terminal while the report is written (camsmooth.progress). posted: the
     CamProgram of a posted input: the G-code is that program with the smoothed blocks written in
-    (camsmooth.post.rewrite)."""
+    (camsmooth.post.rewrite); setup: the input's tool call, spindle, coolant and work offset for
+    camsmooth's own program (camsmooth.post.setup.ShopSetup)."""
     from camsmooth.io.output import write_gcode, write_result_csv
     from camsmooth.smoothing.feed import block_feeds
 
@@ -238,7 +256,7 @@ def _write_outputs(result: Any, out_csv: Path, gcode: Path | None, report: Path 
                 print(f"camsmooth: warning: {w}", file=sys.stderr)
             Path(gcode).write_text(new.text)
         else:
-            write_gcode(gcode, result, result.machine, result.cutter, f)
+            write_gcode(gcode, result, result.machine, result.cutter, f, setup=setup)
     if report:
         from camsmooth.progress import Steps
         from camsmooth.report.smoothing import write_report
@@ -566,6 +584,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--operations", default=None, metavar="NAME,...",
                    help="the operations of a posted program to smooth (names as analyze --cl gives them; default "
                    "every simultaneous five-axis one); the others are written as they are")
+    p.add_argument("--work-offset", default=None, metavar="G54",
+                   help="the work offset --gcode selects where the input names none (G54 ... G59, G54.1 P<n>, "
+                   "G500 ... G599); the tool call, spindle and coolant come from the APT/CLSF input")
     p.add_argument("--report", default=None, metavar="DIR",
                    help="also write a report (PNG plots, render, report.html) into the folder DIR; its own files "
                         "are replaced, other files there are left alone")

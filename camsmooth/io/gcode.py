@@ -413,7 +413,7 @@ def _simple_items(inputs: dict[str, Any]) -> Iterable[tuple[str, str]]:
 def write_gcode(path: str | os.PathLike, result: SmoothResult | MethodResult, machine: Any, cutter: Any,
                 feed_mm_min: float | np.ndarray, *, safe_height: float = DEFAULT_SAFE_HEIGHT_MM,
                 check_limits: bool = True, dialect: str | None = None, mode: str | None = None,
-                program_name: str = "CAMSMOOTH", tolerance: float | None = None) -> Path:
+                program_name: str = "CAMSMOOTH", tolerance: float | None = None, setup: Any = None) -> Path:
     """Write a method's program as five-axis G-code to ``path`` atomically (module docstring).
 
     result: a SmoothResult (its primary method) or one MethodResult: rows, idx, cl (tool tip,
@@ -426,7 +426,9 @@ def write_gcode(path: str | os.PathLike, result: SmoothResult | MethodResult, ma
     With ``check_limits`` every commanded joint value (pivot X Y Z, A, B), the retracts included,
     is checked against ``machine.limits``: InfeasibleError naming the axis, travel, row and point.
     InputError for a feed that is not finite and > 0, non-finite coordinates, an unknown dialect or
-    mode, machine mode on Heidenhain, tcp mode on the generic dialect.
+    mode, machine mode on Heidenhain, tcp mode on the generic dialect. setup: the tool call,
+    spindle, coolant and work offset the input names (camsmooth.post.setup.ShopSetup), written
+    after the program start (before the TCP command), M9 M5 before the end; None writes neither.
     """
     post = getattr(machine, "post", None)
     dname = dialect or (post.dialect if post is not None else "generic")
@@ -518,12 +520,23 @@ def write_gcode(path: str | os.PathLike, result: SmoothResult | MethodResult, ma
     F, still = _block_feeds(machine, mv, mode)
     lines = _program_open(d, program_name) + _header(d, mode, machine, cutter, method, inputs, n, h, still,
                                                      tolerance)
-    lines += _program_start(d, mode, tcp_on, tool_no, tolerance)
+    start = _program_start(d, mode, tcp_on, tool_no, tolerance)
+    if setup is not None and not setup.empty:  # the input's tool call, spindle, coolant, work offset
+        blocks = setup.start_blocks(d.name)
+        at = len(d.start) if not d.klartext else 0
+        if d.klartext and any(b.startswith("TOOL CALL") for b in blocks):
+            start = start[1:]  # the setup's TOOL CALL (with the spindle speed) replaces the writer's
+        start = start[:at] + blocks + start[at:]
+    lines += start
     deg = np.degrees
     coords = np.column_stack([mv.joints[:, :3] if mode == "machine" else mv.tips,
                               deg(mv.joints[:, 3:]) * _sense(d, machine)])
     lines += _blocks(d, mode, mv, coords, F, "XYZ" + "".join(getattr(machine, "rotary", ("A", "B"))))
-    lines += _program_end(d, mode, tcp_off, program_name)
+    end = _program_end(d, mode, tcp_off, program_name)
+    if setup is not None and not setup.empty:
+        at = len(end) - len(d.home) - len(d.end) - int(d.klartext) - int(d.percent)
+        end = end[:at] + setup.end_blocks() + end[at:]
+    lines += end
     if d.klartext:
         lines = [f"{k} {ln}" for k, ln in enumerate(lines)]
     path = Path(path)
