@@ -308,3 +308,40 @@ def test_bad_work_offset_and_operation(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "no operation ROUGH" in err and "FINISH_5AX" in err and "Traceback" not in err
     assert not (tmp_path / "o.ngc").exists() and not (tmp_path / "r.csv").exists()
+
+
+def test_arc_blocks_rewritten_as_their_points(tmp_path):
+    """A Fanuc TCP row with a G02 arc (Fanuc 30i operator's manual, "Circular interpolation", G17 I J)
+    written back with its own poses: the arc becomes G01 blocks through the reader's interpolated
+    points (chordal error <= 1 um), which read back on the circle; the other lines are kept."""
+    from types import SimpleNamespace
+
+    from camsmooth.post import read_posted
+    from camsmooth.post.core import nominal_machine
+    from camsmooth.post.rewrite import rewrite_posted
+
+    text = ("%\nO2000\nG21 G90 G17\nG54\nT1 M6\nS8000 M3\n(Operation Name: ARCS)\nG94\nG43.4 H1\n"
+            "G0 X0 Y0 Z10. A10. C0\nG1 Z0 F500.\nG1 X10. A12. C5.\nG2 X20. Y0 I5. J0 A14. C10.\nG1 X30. A15. C12.\n"
+            "G0 Z10.\nG49\nM5\nM30\n%\n")
+    src = tmp_path / "arc.nc"
+    src.write_text(text)
+    machine = nominal_machine(("A", "C"))
+    prog = read_posted(src, machine=machine)
+    cut = np.flatnonzero(prog.rows >= 0)
+    q = prog.angles[cut]
+    result = SimpleNamespace(rows=prog.rows[cut], idx=np.arange(len(cut)), cl=prog.tip[cut], A=q[:, 0], B=q[:, 1],
+                             xyz=machine.linear_axes(prog.tip[cut], q[:, 0], q[:, 1]))
+    new = rewrite_posted(text, prog, result, cut, machine, np.full(len(cut), 500.0))
+    out = new.text.splitlines()
+    kept = [ln for ln in text.splitlines() if not re.match(r"G[12] ", ln)]
+    it = iter(out)
+    assert all(any(x == y for y in it) for x in kept)
+    assert sum(ln.startswith("G01 ") for ln in out) == len(cut) > 20
+    (tmp_path / "out.nc").write_text(new.text)
+    back = read_posted(tmp_path / "out.nc", machine=machine)
+    on_arc = (back.tip[:, 0] > 10 + 1e-6) & (back.tip[:, 0] < 20 - 1e-6) & ~back.rapid
+    r = np.hypot(back.tip[on_arc, 0] - 15.0, back.tip[on_arc, 1])
+    assert on_arc.sum() > 20 and np.abs(r - 5.0).max() < 1e-4
+    assert np.all(back.tip[on_arc, 1] >= -1e-4)  # G02 from (10, 0) to (20, 0) about (15, 0): through +Y
+    c = np.degrees(back.angles[~back.rapid][:, 1])
+    assert np.all(np.diff(c) >= -1e-9) and abs(c[-1] - 12.0) < 1e-9  # C linear along the arc, as written

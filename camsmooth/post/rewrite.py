@@ -247,6 +247,10 @@ def rewrite_posted(text: str, program: CLProgram, result: Any, source_index: np.
             f_in = next((m.group(1) for ln in reversed(lines[:hi]) for m in [_last_f(ln)] if m), None)
             if f_in is not None and not math.isclose(float(f_in), float(np.round(F[-1], 1)), abs_tol=0.05):
                 out.append(f"F{f_in}")
+        modal = _modal_motion(lines[:hi])
+        if modal in (2, 3) and _relies_on_modal(lines[hi:]):
+            warnings.append(f"{file}, line {hi + 1}: the block after the smoothed blocks moves in the modal G{modal} "
+                            "of the input's last cutting block, which the smoothed G01 blocks replaced: check it")
         cursor = hi + 1
     out.extend(lines[cursor - 1:])
     new_text = "\n".join(out) + ("\n" if trailing else "")
@@ -256,3 +260,25 @@ def rewrite_posted(text: str, program: CLProgram, result: Any, source_index: np.
 def _last_f(line: str) -> re.Match[str] | None:
     ms = list(_F_WORD.finditer(_code(line)))
     return ms[-1] if ms else None
+
+
+_MOTION = re.compile(r"(?<![A-Z_.\d])G0?([0-3])(?![\d.])")
+_AXIS = re.compile(r"(?<![A-Z_])[XYZABC]\s*=?\s*[-+.\d]")
+
+
+def _modal_motion(lines: list[str]) -> int | None:
+    """The motion G code (0-3) in force after ``lines``."""
+    for ln in reversed(lines):
+        ms = _MOTION.findall(_code(ln))
+        if ms:
+            return int(ms[-1])
+    return None
+
+
+def _relies_on_modal(lines: list[str]) -> bool:
+    """Whether the next block with axis words in ``lines`` has no motion G code of its own."""
+    for ln in lines:
+        code = _code(ln)
+        if _AXIS.search(code):
+            return not _MOTION.search(code)
+    return False
