@@ -166,23 +166,54 @@ def _posted_tcp(machine, dialect: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-@pytest.mark.parametrize("dialect", ["fanuc", "siemens"])
+def _klartext(v: np.ndarray) -> str:
+    return " ".join(f"{c}{x:+.3f}" for c, x in zip("XYZAC", v, strict=True))
+
+
+def _posted_heidenhain(machine) -> str:
+    """The dome rows as a Heidenhain Klartext program: TNC 640 user's manual (Klartext), "FUNCTION
+    TCPM" (tool-centre-point management, the successor of M128; FUNCTION RESET TCPM cancels), L
+    blocks with R0 FMAX rapids, TOOL CALL with the spindle speed, '* -' section headings."""
+    lines = ["BEGIN PGM DOME MM", "* - FINISH_5AX", "TOOL CALL 1 Z S12000", "M3", "M8",
+             "FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS"]
+    for k, (tip, axis, q) in enumerate(_cl_rows(machine)):
+        lines.append(f"; pass {k + 1}")
+        lines.append("L " + _klartext(np.r_[tip[0] + 10.0 * axis[0], q[0]]) + " R0 FMAX")
+        lines.append("L " + _klartext(np.r_[tip[0] + 0.5 * axis[0], q[0]]) + " F800")
+        lines.append("L " + _klartext(np.r_[tip[0], q[0]]) + " F2000")
+        lines += ["L " + _klartext(np.r_[t, a]) for t, a in zip(tip[1:], q[1:], strict=True)]
+        lines.append("L " + _klartext(np.r_[tip[-1] + 10.0 * axis[-1], q[-1]]) + " R0 FMAX")
+    lines += ["FUNCTION RESET TCPM", "M9", "M5", "* - FACE", "L X-20 Y-20 Z+15 A+0 C+0 R0 FMAX", "L Z+10 F800",
+              "L X+20", "L Y-10", "L Z+30 R0 FMAX", "M30", "END PGM DOME MM"]
+    return "\n".join(f"{k} {ln}" for k, ln in enumerate(lines)) + "\n"
+
+
+@pytest.mark.parametrize("dialect", ["fanuc", "siemens", "heidenhain"])
 def test_tcp_dialects_round_trip(tmp_path, dialect):
     machine = load_machine(DOME_MACHINE)
-    src = tmp_path / ("dome.nc" if dialect == "fanuc" else "dome.mpf")
-    src.write_text(_posted_tcp(machine, dialect))
+    src = tmp_path / {"fanuc": "dome.nc", "siemens": "dome.mpf", "heidenhain": "dome.h"}[dialect]
+    src.write_text(_posted_heidenhain(machine) if dialect == "heidenhain" else _posted_tcp(machine, dialect))
     prog_in = load_program(src, machine=machine, machine_given=True)
-    assert prog_in.dialect == ("iso" if dialect == "fanuc" else "siemens")
+    assert prog_in.dialect == ("iso" if dialect == "fanuc" else dialect)
     assert [tp.name for tp in prog_in.toolpaths][:2] == ["FINISH_5AX", "FACE"]
     out, csv = _smooth(tmp_path, src, DOME_MACHINE)
     res = pl.read_csv(csv)
     a, b = src.read_text().splitlines(), out.read_text().splitlines()
-    # every line that is not a cutting G1 of FINISH_5AX is in the output, unchanged and in order
-    end = next(i for i, ln in enumerate(a) if ln in ("G49", "TRAFOOF"))
-    kept = [ln for i, ln in enumerate(a) if not (i < end and _is_cut(ln))]
+    klartext = dialect == "heidenhain"
+    if klartext:  # the blocks are numbered again: compare their text, and the numbers run 0, 1, 2, ...
+        assert [int(ln.split()[0]) for ln in b] == list(range(len(b)))
+        a, b = [ln.split(" ", 1)[1] for ln in a], [ln.split(" ", 1)[1] for ln in b]
+
+    def cuts(ln: str) -> bool:
+        return ln.startswith("L ") and "FMAX" not in ln if klartext else _is_cut(ln)
+
+    # every line that is not a cutting block of FINISH_5AX is in the output, unchanged and in order
+    end = next(i for i, ln in enumerate(a) if ln in ("G49", "TRAFOOF", "FUNCTION RESET TCPM"))
+    kept = [ln for i, ln in enumerate(a) if not (i < end and cuts(ln))]
     it = iter(b)
     assert all(any(x == y for y in it) for x in kept)
-    new = [ln for ln in b if ln.startswith("G01 ")]
+    written = re.compile(r"L X[+-]\d+\.\d{4} " if klartext else r"G01 ")  # the writer's blocks: 4 decimals
+    new = [ln for ln in b if written.match(ln)]
     assert len(new) == len(res)  # one block per smoothed point, in the writer's format
     prog = load_program(out, machine=machine, machine_given=True)
     assert prog.dialect == prog_in.dialect
@@ -198,7 +229,7 @@ def test_tcp_dialects_round_trip(tmp_path, dialect):
     for ln in b:
         m = re.search(r"F([\d.]+)", ln)
         f = float(m.group(1)) if m else f
-        if ln.startswith("G01 "):
+        if written.match(ln):
             feeds.append(f)
     rows, t_opt = res["row"].to_numpy(), res["t_opt"].to_numpy()
     for r in np.unique(rows):

@@ -9,7 +9,9 @@ chosen, the footer), and lines inside a replaced span that hold no point (a comm
 before the first new block whose input point came after them. Non-motion words of a replaced
 block (``G93``, ``M8``, ``S``, ``T``, ``D``, ``H``) are written as a block of their own before its
 replacement; in feed per minute the input's F in force after the span is restored (``F...``
-block) when it is not the last one written, so the kept blocks run at their own feed.
+block) when it is not the last one written, so the kept blocks run at their own feed (not in
+Klartext, whose kept blocks without an F run at the last one written). Heidenhain Klartext: the
+blocks are numbered again in order (the input's blocks keep their text, their number moves).
 
 New blocks: the dialect's block format of camsmooth's writer (camsmooth.io.gcode.format_blocks:
 4 decimals, mm and deg), in the input's mode at those points: machine mode X Y Z the machine's
@@ -19,7 +21,8 @@ input's value at the row's first point (an unwound C stays unwound). Feed: inver
 F = 1 / block time, 1/min) where the input's block was G93 -- machine mode on the tip path the
 joints' linear interpolation gives (camsmooth.io.gcode's rule), TCP mode on the tip's chord --
 else the planned feed (mm/min). Not rewritten (InputError naming the operation): inch programs,
-feed per revolution, a tilted or shifted frame, Haas's dynamic work offset, Heidenhain Klartext.
+feed per revolution, a tilted or shifted frame, Haas's dynamic work offset, Heidenhain blocks
+without M128 / FUNCTION TCPM.
 """
 
 from __future__ import annotations
@@ -38,11 +41,13 @@ __all__ = ["WRITER_DIALECT", "select_operations", "rewrite_posted", "Rewritten"]
 
 #: the posted reader's dialect -> the writer's (camsmooth.io.gcode.DIALECTS) whose blocks it takes
 WRITER_DIALECT = {"iso": "fanuc", "fanuc": "fanuc", "haas": "fanuc", "millplus": "generic", "linuxcnc": "linuxcnc",
-                  "siemens": "siemens"}
+                  "siemens": "siemens", "heidenhain": "heidenhain"}
 #: rotary words that differ by more than this from the input's at a row's start (deg, after whole
 #: turns) are named: the smoothing chose the other inverse-kinematics branch there
 BRANCH_WARN_DEG = 20.0
-_INCH = {"siemens": re.compile(r"\bG70\b|\bG700\b"), "iso": re.compile(r"\bG20\b")}
+_INCH = {"siemens": re.compile(r"\bG70\b|\bG700\b"), "iso": re.compile(r"\bG20\b"),
+         "heidenhain": re.compile(r"\bBEGIN\s+PGM\s+\S+\s+INCH\b")}
+_NEW = "\x00"  # marks the lines the rewrite writes, until Klartext's blocks are numbered
 _KEEP_WORD = re.compile(r"(?<![A-Z_])([GMSTDH])\s*(\d+(?:\.\d+)?)")
 _F_WORD = re.compile(r"(?<![A-Z_])F\s*=?\s*([-+]?(?:\d+\.?\d*|\.\d+))")
 
@@ -130,7 +135,8 @@ def rewrite_posted(text: str, program: CLProgram, result: Any, source_index: np.
     trailing = bool(lines) and lines[-1] == ""
     if trailing:
         lines = lines[:-1]
-    inch = _INCH["siemens" if dialect == "siemens" else "iso"]
+    klartext = dialect == "heidenhain"
+    inch = _INCH[dialect if dialect in _INCH else "iso"]
     for k, ln in enumerate(lines, start=1):
         if inch.search(_code(ln)):
             raise InputError("inch programs are not rewritten (camsmooth writes mm blocks)", file=file, line=k)
@@ -163,6 +169,10 @@ def rewrite_posted(text: str, program: CLProgram, result: Any, source_index: np.
         if np.any(tcp == 2) or len(np.unique(tcp)) > 1:
             raise InputError(f"operation '{name}': dynamic work offset or a mode change inside a row: not rewritten",
                              file=file, line=int(program.line[pts[0]]))
+        if klartext and np.any(tcp == 0):
+            raise InputError(f"operation '{name}': Heidenhain machine-mode blocks (no M128 / FUNCTION TCPM) have no "
+                             "inverse-time feed to hold the tip's feed: not rewritten", file=file,
+                             line=int(program.line[pts[0]]))
         if np.any(fm == 95) or len(np.unique(fm)) > 1:
             raise InputError(f"operation '{name}': feed per revolution or a feed-mode change inside a row: not "
                              "rewritten", file=file, line=int(program.line[pts[0]]))
@@ -224,7 +234,7 @@ def rewrite_posted(text: str, program: CLProgram, result: Any, source_index: np.
                     minutes = np.maximum(minutes, dq[:, j] / lim.vmax / 60.0)
             F = 1.0 / np.maximum(minutes, 1e-6 / 60.0)
         coords = np.column_stack([q[:, :3] if not mode_tcp else tips, np.degrees(q[:, 3:]) * sense])
-        blocks = format_blocks(wd, coords, F, np.zeros(len(q), bool), letters, inverse)
+        blocks = [_NEW + b for b in format_blocks(wd, coords, F, np.zeros(len(q), bool), letters, inverse)]
         n_blocks += len(blocks)
         # the input lines of the span: a point's block is replaced; its other words and the lines
         # without a point are kept before the new block that follows them
@@ -233,27 +243,29 @@ def rewrite_posted(text: str, program: CLProgram, result: Any, source_index: np.
         for ln_no in range(lo, hi + 1):
             raw = lines[ln_no - 1]
             if ln_no in point_lines:
-                extra = [f"{w}{v}" for w, v in _KEEP_WORD.findall(_code(raw))
-                         if not (w == "G" and float(v) in (0.0, 1.0, 2.0, 3.0))]
+                extra = [f"{w}{v}" for w, v in _KEEP_WORD.findall(_code(_unnumbered(raw) if klartext else raw))
+                         if not (w == "G" and float(v) in (0.0, 1.0, 2.0, 3.0)) and (w == "M" or not klartext)]
                 if extra:
-                    out.append(" ".join(extra))
+                    out.append(_NEW + " ".join(extra))
                 while k < len(blocks) and src_line[k] <= ln_no:
                     out.append(blocks[k])
                     k += 1
             else:
                 out.append(raw)
         out.extend(blocks[k:])
-        if not inverse:  # the feed in force after the span is the input's again
+        if not inverse and not klartext:  # the feed in force after the span is the input's again
             f_in = next((m.group(1) for ln in reversed(lines[:hi]) for m in [_last_f(ln)] if m), None)
             if f_in is not None and not math.isclose(float(f_in), float(np.round(F[-1], 1)), abs_tol=0.05):
-                out.append(f"F{f_in}")
+                out.append(f"{_NEW}F{f_in}")
         modal = _modal_motion(lines[:hi])
         if modal in (2, 3) and _relies_on_modal(lines[hi:]):
             warnings.append(f"{file}, line {hi + 1}: the block after the smoothed blocks moves in the modal G{modal} "
                             "of the input's last cutting block, which the smoothed G01 blocks replaced: check it")
         cursor = hi + 1
     out.extend(lines[cursor - 1:])
-    new_text = "\n".join(out) + ("\n" if trailing else "")
+    if klartext:
+        out = _numbered(out)
+    new_text = "\n".join(ln.removeprefix(_NEW) for ln in out) + ("\n" if trailing else "")
     return Rewritten(text=new_text, operations=ops, rows=len(spans), blocks=n_blocks, warnings=warnings)
 
 
@@ -282,3 +294,28 @@ def _relies_on_modal(lines: list[str]) -> bool:
         if _AXIS.search(code):
             return not _MOTION.search(code)
     return False
+
+
+_BLOCK_NO = re.compile(r"^\s*(\d+)\s+")
+
+
+def _unnumbered(line: str) -> str:
+    return _BLOCK_NO.sub("", line, count=1)
+
+
+def _numbered(lines: list[str]) -> list[str]:
+    """Klartext blocks numbered in order from the first block's number: the input's numbered
+    blocks keep their text with the new number, the new blocks get one, other lines (a cycle's
+    continuation lines, blank lines) are left as they are."""
+    first = next((int(m.group(1)) for ln in lines for m in [_BLOCK_NO.match(ln)] if m), 0)
+    out, k = [], first
+    for ln in lines:
+        if ln.startswith(_NEW):
+            out.append(f"{k} {ln[len(_NEW):]}")
+            k += 1
+        elif _BLOCK_NO.match(ln):
+            out.append(f"{k} {_unnumbered(ln)}")
+            k += 1
+        else:
+            out.append(ln)
+    return out
