@@ -487,12 +487,14 @@ def run_demo(args: argparse.Namespace) -> int:
         raise InputError(f"sample {name!r} not found in {samples} (expected {path.name} and {name}.ply or "
                          f"{name}.stl)")
     out = Path(args.out)
-    csv, nc, rep = demo_outputs(out, name)
-    cutter = ToroidalCutter(R=4.0, r=1.0)
     machine_file = samples / f"{name}_machine.toml"  # a sample made for another machine ships its machine
+    if args.machine is not None:  # the sample on another machine: its outputs carry the machine's name
+        machine_file = Path(args.machine)
+    csv, nc, rep = demo_outputs(out, name if args.machine is None else f"{name}_{machine_file.stem}")
+    cutter = ToroidalCutter(R=4.0, r=1.0)
     from camsmooth.machine.kinematics import load_machine
 
-    machine = load_machine(machine_file if machine_file.is_file() else None)
+    machine = load_machine(machine_file if machine_file.is_file() or args.machine is not None else None)
     with output_transaction() as tx:
         tmp_csv, tmp_nc = tx.file(csv), tx.file(nc)
         tmp_rep = tx.folder(rep, replace=args.force, keep=(path, mesh))
@@ -653,6 +655,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "an A/C trunnion "
                    "table through the pole of its C axis)")
     p.add_argument("--samples", default=None, help="folder of the samples (default: the repository's surfaces/)")
+    p.add_argument("--machine", default=None, metavar="M.toml",
+                   help="run the sample on this machine instead of its own (e.g. surfaces/nutating_machine.toml); "
+                        "the outputs are named SAMPLE_MACHINE_smoothed.*")
     p.add_argument("--force", action="store_true", help="replace the folder OUT/SAMPLE_report whole")
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=run_demo)

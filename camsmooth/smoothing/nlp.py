@@ -116,9 +116,10 @@ class ProgramRates:
 
 def program_rates(q: np.ndarray, t: np.ndarray, rows: np.ndarray) -> ProgramRates:
     """Velocities and second differences of q(t) (N or (N, k)) over a program whose rows are runs
-    of equal ``rows`` (each at least 3 points), vectorised over the whole program; per point,
-    velocity as np.gradient (second order inside a row, one-sided at its ends) and acceleration
-    as the three-point second difference (a row's end points repeat their neighbour)."""
+    of equal ``rows``, vectorised over the whole program; per point, velocity as np.gradient
+    (second order inside a row, one-sided at its ends) and acceleration as the three-point second
+    difference (a row's end points repeat their neighbour; 0 in a row of one or two points, which
+    has none)."""
     q = np.asarray(q, float)
     t = np.asarray(t, float)
     rows = np.asarray(rows)
@@ -131,16 +132,19 @@ def program_rates(q: np.ndarray, t: np.ndarray, rows: np.ndarray) -> ProgramRate
     hl, hr = h[mid - 1].reshape(shape), h[mid].reshape(shape)
     vl, vr = (q[mid] - q[mid - 1]) / hl, (q[mid + 1] - q[mid]) / hr
     sec = 2 * (vr - vl) / (hl + hr)
-    vel = np.empty_like(q)
+    vel = np.zeros_like(q)
     vel[mid] = (hl * vr + hr * vl) / (hl + hr)  # np.gradient's second-order interior formula
     start = np.flatnonzero(np.r_[True, ~same])
     end = np.flatnonzero(np.r_[~same, True])
-    vel[start] = (q[start + 1] - q[start]) / h[start].reshape(shape)
-    vel[end] = (q[end] - q[end - 1]) / h[end - 1].reshape(shape)
-    acc = np.empty_like(q)
+    size = end - start + 1
+    s2, e2 = start[size >= 2], end[size >= 2]  # a one-point row stands still; a two-point row has no curvature
+    vel[s2] = (q[s2 + 1] - q[s2]) / h[s2].reshape(shape)
+    vel[e2] = (q[e2] - q[e2 - 1]) / h[e2 - 1].reshape(shape)
+    acc = np.zeros_like(q)
     acc[mid] = sec
-    acc[start] = acc[start + 1]
-    acc[end] = acc[end - 1]
+    s3, e3 = start[size >= 3], end[size >= 3]
+    acc[s3] = acc[s3 + 1]
+    acc[e3] = acc[e3 - 1]
     return ProgramRates(seg_vel, seg, sec, mid, vel, acc)
 
 
