@@ -134,12 +134,14 @@ BUGS: tuple[Bug, ...] = (
         ("tests/test_failure_injection.py",)),
     Bug("strict-writes", "`cli smooth --strict`", "the refusal comes after the outputs are written",
         (("camsmooth/cli/main.py",
-          "            raise StrictFailure(failure)\n"
-          "        _write_outputs(result, out_csv, gcode, report, args.feed)\n    if not args.quiet:\n",
-          "            pass\n"
-          "        _write_outputs(result, out_csv, gcode, report, args.feed)\n"
+          "            raise StrictFailure(failure)\n",
+          "            pass\n"),
+         ("camsmooth/cli/main.py",
+          "                       setup=None if posted is not None else _shop_setup(args, program))\n"
+          "    if not args.quiet:\n",
+          "                       setup=None if posted is not None else _shop_setup(args, program))\n"
           "    if failure:  # after the transaction: the outputs are in place\n"
-          "        raise StrictFailure(failure)\n    if not args.quiet:\n"),),
+          "        raise StrictFailure(failure)\n    if not args.quiet:\n")),
         ("tests/test_cli_verbs.py",)),
     # ---- issue 21 item 5: the classes the whole suite missed ----------------------------------------
     Bug("branch-count-side", "`analysis` branch label (class c)",
