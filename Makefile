@@ -34,7 +34,7 @@ chromium:
 
 test: $(BIN)/.installed linuxcnc chromium
 	$(BIN)/ruff check camsmooth tests examples benchmarks surfaces
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n 2
 
 bench: $(BIN)/.installed
 	$(BIN)/python benchmarks/bench_pipeline.py

@@ -1,5 +1,5 @@
-"""`camsmooth diagnose --trace` on the real Michigan CNC-mill recordings (shared/data/umich-cnc-mill beside the repository,
-CC0; see its README), read as a plain log through a column map, as a user would read a drive's
+"""`camsmooth diagnose --trace` on the real Michigan CNC-mill recordings (shared/data/umich-cnc-mill, beside
+the repository; CC0; see its README), read as a plain log through a column map, as a user would read a drive's
 export: t = row index x 0.1 s, X/Y/Z command and actual positions and commanded velocities (the
 latter mark the rows missing from the log: a commanded jump faster than the commanded velocity).
 Prints, per file, what is named, the fitted values and the held-out RMS by time blocks (before ->

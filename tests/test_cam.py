@@ -134,7 +134,10 @@ def test_cl_program_far_from_the_mesh_is_one_message_and_writes_nothing(files, t
     (tmp_path / "far.cls").write_text(_clsf(far, axes))
     rc, err = _run(["smooth", str(tmp_path / "far.cls"), "--surface", str(d / "plane.stl"), "--lead", "2:20",
                     "--tilt", "-10:10", "-o", str(tmp_path / "o.csv"), "--gcode", str(tmp_path / "o.nc")], capsys)
-    assert rc == 2 and "far.cls" in err and "touch the mesh" in err and len(err.strip().splitlines()) == 1
+    # named as a frame mismatch, with the offset that would put the program on the part (about 50 mm up)
+    assert rc == 2 and "far.cls" in err and "not in the same frame" in err and len(err.strip().splitlines()) == 1
+    offset = [float(v) for v in err.rsplit("--part-frame", 1)[1].split()[0].split(",")]
+    assert abs(offset[2] - 50.0) < 6.0  # within the cutter's size: the tips are not on the surface
     assert sorted(p.name for p in tmp_path.iterdir()) == ["far.cls"]
 
 

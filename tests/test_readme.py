@@ -42,3 +42,28 @@ def test_make_demo_writes_what_the_readme_says():
     csv, nc, report = demo_outputs(args.out, args.sample)
     assert promised == {csv.as_posix(), nc.as_posix(), (report / "report.html").as_posix()}
 
+
+
+def test_the_figures_the_readme_states_are_what_the_code_does():
+    """The README's figures are the code's: the default machine's travel, speed, acceleration and
+    pivot (`load_machine(None)`), the default tolerance (`smooth --help`) and the preset kinds."""
+    import numpy as np
+
+    from camsmooth.cli.main import build_parser
+    from camsmooth.machine.kinematics import MACHINE_KINDS, load_machine
+
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    said = re.search(r"an AB swivel head \(A, B in \[(-?\d+), (\d+)\] deg, (\d+) deg/s, (\d+) deg/s\^2, pivot\s+"
+                     r"(\d+) mm\)", readme)
+    assert said, "the README states the default machine"
+    lo, hi, v, a, pivot = (float(x) for x in said.groups())
+    m = load_machine(None)
+    for ax in ("A", "B"):
+        lim = m.limits[ax]
+        assert np.allclose(np.degrees([lim.min, lim.max, lim.vmax, lim.amax]), [lo, hi, v, a])
+    assert m.pivot == pivot and m.rotary == ("A", "B")
+    tol = float(re.search(r"`--tolerance` \(default ([\d.]+) mm\)", readme).group(1))
+    smooth = build_parser()._subparsers._group_actions[0].choices["smooth"]
+    assert next(a.default for a in smooth._actions if a.dest == "tolerance") == tol
+    kinds = re.search(r"a preset kind \((.*?)\)", readme.replace("\n", " ")).group(1)
+    assert re.findall(r"`([A-Z-]+[a-z-]*)`", kinds) == list(MACHINE_KINDS)

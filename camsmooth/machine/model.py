@@ -318,16 +318,19 @@ def _units_for(unit: str) -> dict[str, float]:
 # ----------------------------------------------------------------------------------------------
 # small rigid-body helpers (numpy, constant)
 def rot_x(a: float) -> np.ndarray:
+    """Rotation by ``a`` rad about +X (right-hand rule)."""
     c, s = math.cos(a), math.sin(a)
     return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
 
 def rot_y(a: float) -> np.ndarray:
+    """Rotation by ``a`` rad about +Y (right-hand rule)."""
     c, s = math.cos(a), math.sin(a)
     return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
 def rot_z(a: float) -> np.ndarray:
+    """Rotation by ``a`` rad about +Z (right-hand rule)."""
     c, s = math.cos(a), math.sin(a)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 

@@ -48,6 +48,7 @@ import numpy as np
 
 from camsmooth.errors import InputError
 from camsmooth.io.program import CLProgram, Cycle, Tool, ToolPath
+from camsmooth.machine.model import rot_x, rot_y, rot_z  # the one set of rotation helpers
 
 __all__ = ["Builder", "Frame3", "Skip", "rot_x", "rot_y", "rot_z", "arc_points", "nominal_machine", "INCH_MM",
            "CHORD_TOL_MM", "MAX_WORD"]
@@ -67,24 +68,6 @@ class Skip(Exception):
     def __init__(self, reason: str) -> None:
         super().__init__(reason)
         self.reason = reason
-
-
-def rot_x(a: float) -> np.ndarray:
-    """Rotation by ``a`` rad about +X (right-hand rule)."""
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
-
-
-def rot_y(a: float) -> np.ndarray:
-    """Rotation by ``a`` rad about +Y (right-hand rule)."""
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-
-
-def rot_z(a: float) -> np.ndarray:
-    """Rotation by ``a`` rad about +Z (right-hand rule)."""
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 @dataclass(frozen=True)

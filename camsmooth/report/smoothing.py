@@ -408,21 +408,6 @@ def _save_png(fig: Any, path: Path) -> None:
 
 # ----------------------------------------------------------------------------------------------
 # 3D scene (child process)
-def _mesh_arrays(mesh: Any) -> tuple[np.ndarray, np.ndarray] | None:
-    """(vertices (V,3), triangles (F,3)) of a trimesh-like or pyvista surface, or None."""
-    if mesh is None:
-        return None
-    if hasattr(mesh, "vertices") and hasattr(mesh, "faces"):
-        v = np.asarray(mesh.vertices, dtype=float)
-        f = np.asarray(mesh.faces, dtype=np.int64)
-        if f.ndim == 2 and f.shape[1] == 3:
-            return v, f
-    if hasattr(mesh, "points") and hasattr(mesh, "triangulate"):
-        surf = (mesh.extract_surface() if hasattr(mesh, "extract_surface") else mesh).triangulate()
-        return np.asarray(surf.points, dtype=float), np.asarray(surf.regular_faces, dtype=np.int64)
-    return None
-
-
 def _axis_segments(m: MethodResult, length: float, max_segments: int) -> np.ndarray:
     """(K, 2, 3) segments from the CL point along the tool axis, every step-th point."""
     cl = np.asarray(m.cl, dtype=float).reshape(-1, 3)
@@ -438,7 +423,9 @@ def _scene_inputs(result: SmoothResult, max_segments: int) -> tuple[dict[str, np
     before = result.methods.get("none")
     after = result.result
     pts = [np.asarray(after.cl, float).reshape(-1, 3)]
-    mesh = _mesh_arrays(result.surface_mesh)
+    from camsmooth.report.view3d import mesh_arrays  # the one mesh converter of the reports
+
+    mesh = mesh_arrays(result.surface_mesh)
     if mesh is not None:
         pts.append(mesh[0])
     allp = np.concatenate(pts)

@@ -87,7 +87,7 @@ def browser_mesh(vertices: np.ndarray, faces: np.ndarray, max_triangles: int = M
             f"part decimated from {len(f):,} to {len(fv):,} triangles for the browser")
 
 
-def _mesh_arrays(mesh: Any) -> tuple[np.ndarray, np.ndarray] | None:
+def mesh_arrays(mesh: Any) -> tuple[np.ndarray, np.ndarray] | None:
     """(vertices (V,3), triangles (F,3)) of a trimesh-like or pyvista surface, or None."""
     if mesh is None:
         return None
@@ -106,7 +106,7 @@ def scene_of(result: Any, colours: Mapping[str, str], order: Sequence[str], show
     """The Scene of a ``camsmooth.smoothing.result.SmoothResult``: its surface mesh, one layer per
     method in ``order`` (colour from ``colours``; visible at first: ``shown``, or every method when
     empty), the primary method's pole passages (metrics.pole) marked at their closest point."""
-    mesh = _mesh_arrays(getattr(result, "surface_mesh", None))
+    mesh = mesh_arrays(getattr(result, "surface_mesh", None))
     layers = []
     for name in order:
         m = result.methods[name]
@@ -138,7 +138,7 @@ def scene_of_program(program: Any, mesh: Any = None) -> Scene:
     """The Scene of a ``camsmooth.io.program.CLProgram`` as ``analyze`` reads it: one layer per tool
     path (its cutting points, rapid moves left out; named by the operation), the part ``mesh``
     (trimesh-like) when given. Points without a tool axis (a 3-axis file) draw their path only."""
-    m = _mesh_arrays(mesh)
+    m = mesh_arrays(mesh)
     tip = np.asarray(program.tip, float).reshape(-1, 3)
     axis = (np.asarray(program.axis, float).reshape(-1, 3) if program.axis is not None
             else np.full_like(tip, np.nan))
