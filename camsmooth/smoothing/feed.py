@@ -374,7 +374,18 @@ def plan_from_speed(rp: RowPath, sd: np.ndarray) -> RowPlan:
     x = sd ** 2
     dsc = np.diff(s)
     u = np.diff(x) / (2.0 * dsc)  # s'' per segment, consistent with t below
-    dt = 2.0 * dsc / (sd[:-1] + sd[1:])
+    den = sd[:-1] + sd[1:]
+    dt = 2.0 * dsc / np.where(den > 0.0, den, 1.0)
+    rest = np.flatnonzero(den <= 0.0)
+    if rest.size:
+        # a segment with both ends at rest (the discretisation found no speed at either, e.g. the
+        # last segment of a row where the spline bends sharply): it takes its rest-to-rest time,
+        # a triangle at the path acceleration its axes allow at both ends, not an infinite one
+        rate = np.maximum(np.abs(dq[rest]), np.abs(dq[rest + 1]))
+        with np.errstate(divide="ignore"):
+            a_path = np.min(np.where(rate > 0.0, al / np.maximum(rate, 1e-300), np.inf), axis=1)
+        a_path = np.where(np.isfinite(a_path) & (a_path > 0.0), a_path, _UNLIMITED)
+        dt[rest] = 2.0 * np.sqrt(dsc[rest] / a_path)
     t = np.r_[0.0, np.cumsum(dt)]
 
     # which constraint binds: ratio of value to limit at each end of each segment
