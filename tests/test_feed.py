@@ -413,7 +413,8 @@ def test_planner_agrees_with_the_toppra_package(n):
     assert abs(a.cycle_time / b.cycle_time - 1) < 1e-4
 
 
-def test_a_segment_left_at_rest_at_both_ends_takes_its_rest_to_rest_time():
+@pytest.mark.parametrize("left", [0.0, 1e-8])  # exactly at rest, or within rounding of it (met on a real row)
+def test_a_segment_left_at_rest_at_both_ends_takes_its_rest_to_rest_time(left):
     """Where the discretisation leaves both ends of a segment at rest (a stop at the last interior
     gridpoint, met on a real CLSF's row), the segment takes the triangle of the path acceleration
     its axes allow, 2 sqrt(ds / a), not an infinite time. A straight line along X (amax_X 500
@@ -425,7 +426,7 @@ def test_a_segment_left_at_rest_at_both_ends_takes_its_rest_to_rest_time():
     tip = np.column_stack([np.linspace(0.0, 10.0, n), np.zeros(n), np.zeros(n)])
     rp = row_path(m, _row(m, tip, np.zeros(n), np.zeros(n)), tip, np.full(n, 3000.0))
     sd = forward_backward(rp.s, rp.dq, rp.ddq, rp.amax, np.minimum(rp.x_feed, 1e12))
-    sd[-2] = 0.0  # both ends of the last segment at rest
+    sd[-2] = left  # both ends of the last segment at rest
     plan = plan_from_speed(rp, sd)
     ds_mm = 10.0 / (n - 1)
     assert np.isfinite(plan.cycle_time)

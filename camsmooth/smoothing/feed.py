@@ -224,6 +224,10 @@ class RowPath:
     tip_spline: CubicSpline
 
 
+#: a path speed s' below this share of the row's largest is rest (``plan_from_speed``)
+REST_SPEED = 1e-6
+
+
 def row_path(machine: Machine, q: np.ndarray, tip: np.ndarray, feed: np.ndarray) -> RowPath | None:
     """The row's geometric path and constraint data (module docstring); None when the row has
     fewer than two distinct points. Arguments as in ``plan_row``."""
@@ -375,8 +379,10 @@ def plan_from_speed(rp: RowPath, sd: np.ndarray) -> RowPlan:
     dsc = np.diff(s)
     u = np.diff(x) / (2.0 * dsc)  # s'' per segment, consistent with t below
     den = sd[:-1] + sd[1:]
+    # at rest: 0, or within rounding of 0 (1e-8 against s' ~ 1 at the velocity bound, the scaled s)
+    still = sd <= REST_SPEED * max(float(sd.max(initial=0.0)), 1e-300)
     dt = 2.0 * dsc / np.where(den > 0.0, den, 1.0)
-    rest = np.flatnonzero(den <= 0.0)
+    rest = np.flatnonzero(still[:-1] & still[1:])
     if rest.size:
         # a segment with both ends at rest (the discretisation found no speed at either, e.g. the
         # last segment of a row where the spline bends sharply): it takes its rest-to-rest time,
