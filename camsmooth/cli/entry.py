@@ -1,7 +1,8 @@
 """The ``camsmooth`` command's entry (``python -m camsmooth`` and the installed script).
 
 SIGINT and SIGTERM handlers are installed here before anything heavy is imported (numpy, numba's
-cache, CasADi), so a signal at any moment from start-up to the final rename becomes one exception
+cache, CasADi); a signal before, from camsmooth.__main__'s first statement on, was noted there
+and ends the command here. So a signal at any moment from start-up to the final rename becomes one exception
 in this process (camsmooth.io.atomic.install_signal_handlers), one message and exit status 130
 (SIGINT) or 143 (SIGTERM). This module imports only the standard library and camsmooth.io.atomic.
 ``camsmooth --version`` is answered here, from the installed package's metadata, before the
@@ -50,10 +51,11 @@ def signum_of(exc: BaseException) -> int:
     return signal.SIGTERM if isinstance(exc, Terminated) else signal.SIGINT
 
 
-def entry(argv: Sequence[str] | None = None) -> int:
+def entry(argv: Sequence[str] | None = None, early: Sequence[int] = ()) -> int:
     """Install the signal handlers, then import and run the command line; after a signal, leave
     without the interpreter's finalisation (half-initialised extension state must not crash
-    the exit)."""
+    the exit). ``early``: the signals noted before (camsmooth.__main__), which end the command
+    before it starts."""
     args = list(sys.argv[1:] if argv is None else argv)
     if [a for a in args if a != "--debug"] == ["--version"]:  # without importing the command line
         print(version_line())
@@ -61,11 +63,13 @@ def entry(argv: Sequence[str] | None = None) -> int:
     install_signal_handlers()
     code: int | None = None
     try:
+        if early:
+            raise KeyboardInterrupt
         from camsmooth.cli.main import main
 
         code = main(argv)
     except KeyboardInterrupt as exc:  # during the imports (main() handles its own)
-        code = interrupted(signal_received() or signum_of(exc))
+        code = interrupted(signal_received() or (early[0] if early else signum_of(exc)))
     # the command is over (its outputs committed or removed): a signal from here on is ignored;
     # left to the interpreter's finalisation (which resets Python's handlers to the default
     # action) it would kill the process with the outputs in place
