@@ -47,18 +47,21 @@ What else is left out, and why (each run must stay within minutes to an hour on 
 Usage (from the repository root, with the project's venv):
     python benchmarks/mutation.py                        # all modules
     python benchmarks/mutation.py --modules cutter terms --max-children 2
+    python benchmarks/mutation.py --modules pole --commit HEAD   # the last commit, not the working tree
 Takes minutes per module (the list printed at the end gives the wall time of each). Not part of CI.
 """
 
 from __future__ import annotations
 
 import argparse
+import io
 import json
 import os
 import random
 import shutil
 import subprocess
 import sys
+import tarfile
 import tempfile
 import time
 from dataclasses import dataclass, field
@@ -153,6 +156,37 @@ TARGETS: dict[str, Target] = {
     "output": Target(("camsmooth/io/output.py",), ("tests/test_output.py", "tests/test_result_csv_columns.py")),
     "atomic": Target(("camsmooth/io/atomic.py",),
                      ("tests/test_atomic.py", "tests/test_output.py", "tests/test_atomic_folders.py")),
+    # issue #31 item 3: the modules changed since the targets above (machine/kinematics, controller/* and io/gcode
+    # were being rewritten by other work when these were added and are not here yet)
+    "iso230": Target(("camsmooth/diagnosis/iso230.py",),
+                     ("tests/test_iso230.py", "tests/test_oracles_hand.py")),
+    # the selection's slow tests (test_diagnosis_issue20.py fits models for a minute) only reach batch_sum_sd
+    # through the selector: the direct tests of the two functions are run
+    "significance": Target(("camsmooth/diagnosis/significance.py",), (
+        "tests/test_oracles_hand.py",
+        "tests/test_diagnosis_issue20.py::test_batch_means_standard_error")),
+    "apt": Target(("camsmooth/io/apt.py",), (
+        "tests/test_apt_records.py", "tests/test_apt_helix.py", "tests/test_apt_corpus.py", "tests/test_formats.py",
+        "tests/test_fuzz_readers.py", "tests/test_invariants.py", "-k",
+        "not pole and not passage and not c_follows and not turned_about_c and not clear_region and not scaling "
+        "and not feed_drop"), sample=300),
+    # the jerk-limited law: every mutant that reaches it reruns jerk-limited plans (seconds each, minutes with
+    # the direct-NLP reference of test_jerk.py): a sample
+    "jerk": Target(("camsmooth/smoothing/jerk.py",), (
+        "tests/test_jerk.py", "tests/test_invariants.py", "-k",
+        "jerk or limit or binding or default_machine or piece or nodes or rates"), sample=60),
+    "pole": Target(("camsmooth/smoothing/pole.py",), (
+        "tests/test_invariants.py",
+        "tests/test_samples.py::test_dome_sample_passes_the_pole_of_its_machines_c_axis", "-k",
+        "pole or passage or cone")),
+    "post-words": Target(("camsmooth/post/words.py",), (
+        "tests/test_posted_readers.py", "tests/test_posts_tables.py",
+        "-k", "not dome")),
+    # the posted-program reader core (builder, frames, arcs, feeds) against the reader and rewrite tests (the
+    # rewrite tests run LinuxCNC's rs274 on the output): a sample of its mutants
+    "post-core": Target(("camsmooth/post/core.py",), (
+        "tests/test_posted_readers.py", "tests/test_posted_rewrite.py",
+        "tests/test_invariants.py::test_posted_g20_and_g21_programs_read_the_same"), sample=250),
 }
 
 # Reviewed equivalent mutants: "path::function: before -> after" (Mutant.key) -> why no test can tell the
@@ -1155,8 +1189,15 @@ class ModuleResult:
         return (self.count("killed", "timeout") / n) if n else 1.0
 
 
-def _copy_repository(dst: Path) -> None:
-    """Copy the files git knows (tracked + untracked, not ignored) into dst."""
+def _copy_repository(dst: Path, commit: str | None = None) -> None:
+    """Copy the files git knows (tracked + untracked, not ignored) into dst; with ``commit``, that
+    commit's tree instead (``git archive``: other work in progress in the working tree stays out)."""
+    if commit:
+        archive = subprocess.run(["git", "archive", "--format=tar", commit], cwd=ROOT, check=True,
+                                 capture_output=True).stdout
+        with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
+            tar.extractall(dst, filter="data")
+        return
     out = subprocess.run(["git", "ls-files", "-co", "--exclude-standard", "-z"], cwd=ROOT, check=True,
                          capture_output=True).stdout.decode()
     for rel in filter(None, out.split("\0")):
@@ -1281,12 +1322,12 @@ def _sampled(work: Path, mutants: list[Mutant]) -> list[Mutant]:
     return [m for m in mutants if m.name in names]
 
 
-def run_module(module: str, max_children: int, keep: bool, seed: int = 1) -> ModuleResult:
+def run_module(module: str, max_children: int, keep: bool, seed: int = 1, commit: str | None = None) -> ModuleResult:
     target = TARGETS[module]
     work = Path(tempfile.mkdtemp(prefix=f"camsmooth-mutation-{module}-"))
     t0 = time.perf_counter()
     try:
-        _copy_repository(work)
+        _copy_repository(work, commit)
         _configure(work, target)
         if target.functions:
             _restrict(work, target)
@@ -1373,6 +1414,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="core modules to mutate (default: all)")
     ap.add_argument("--max-children", type=int, default=2, help="parallel mutmut workers (default 2)")
     ap.add_argument("--seed", type=int, default=1, help="seed of the mutant sample of sampled modules (default 1)")
+    ap.add_argument("--commit", metavar="REV",
+                    help="mutate a copy of this commit's tree (e.g. HEAD) instead of the working tree")
     ap.add_argument("--keep", action="store_true", help="keep the temporary copies (mutmut show works there)")
     ap.add_argument("--report", nargs="+", metavar="COPY",
                     help="print the table again from copies kept by --keep (with the current EQUIVALENT table)")
@@ -1397,7 +1440,7 @@ def main(argv: list[str] | None = None) -> int:
         only += f" (a random sample of {t.sample} mutants, seed {args.seed})" if t.sample else ""
         print(f"[{module}] mutating {', '.join(t.paths)}{only} against {' '.join(t.tests)}", flush=True)
         try:
-            results.append(run_module(module, args.max_children, args.keep, args.seed))
+            results.append(run_module(module, args.max_children, args.keep, args.seed, args.commit))
         except RuntimeError as exc:   # one module's failure does not lose the others' results
             print(exc, flush=True)
             failed.append(module)
