@@ -298,6 +298,7 @@ def _print_summary(result) -> None:
                f"cycle" if m.controller_deviation_mm is not None else "")
         print(f"cycle times: 'optimal' is the time-optimal law under the axes' limits; '{ctrl}' what the {ctrl} "
               f"controller's planner makes of the program as written ({m.blocks} cut blocks{dev})")
+        _print_floor(result)
     if m.pole:
         _print_pole(result)
     for w in result.warnings:
@@ -322,6 +323,18 @@ def _print_summary(result) -> None:
     if m.unreachable:
         print(f"camsmooth: warning: {len(m.unreachable)} unreachable points, first {m.unreachable[:5]}",
               file=sys.stderr)
+
+
+def _print_floor(result) -> None:
+    """Per method whose controller has a floor (camsmooth.controller, e.g. LinuxCNC): the least time
+    any program of straight blocks through its points can take there, beside its predicted time."""
+    from camsmooth.controller import floor_text
+
+    for name, r in result.methods.items():
+        mm = r.metrics
+        if mm.controller and mm.controller_floor_s is not None:
+            print(f"{name}: {floor_text(mm.controller, mm.controller_floor_s, mm.cycle_time_s)} "
+                  f"({mm.cycle_time_s / max(mm.controller_floor_s, 1e-12):.3f}x the floor)")
 
 
 def _print_pole(result) -> None:

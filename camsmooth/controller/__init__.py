@@ -21,13 +21,14 @@ from camsmooth.controller.blocks import (
     ControllerPlan,
     Planner,
     decimate,
+    place,
     predict,
 )
 from camsmooth.controller.linuxcnc import LinuxCNCPlanner
 from camsmooth.machine.kinematics import Machine
 
 __all__ = ["PLANNERS", "PATH_TOLERANCE_SHARE", "BLOCK_TOLERANCE_SHARE", "EXECUTED_TOLERANCE_SHARE", "planner_for",
-           "ControllerPlan", "Planner", "decimate", "predict", "LinuxCNCPlanner"]
+           "floor_text", "ControllerPlan", "Planner", "decimate", "place", "predict", "LinuxCNCPlanner"]
 
 #: share of the user's tolerance the controller's own blend tolerance gets (LinuxCNC ``G64 P``): its
 #: bound on how far a blend cuts an XYZ corner, which holds the corner of a row's entry move; the
@@ -43,3 +44,11 @@ def planner_for(machine: Machine, tolerance: float) -> Planner | None:
     post = getattr(machine, "post", None)
     cls = PLANNERS.get(getattr(post, "dialect", ""))
     return cls(tolerance=PATH_TOLERANCE_SHARE * tolerance) if cls is not None else None
+
+
+def floor_text(controller: str, floor_s: float, program_s: float) -> str:
+    """The floor beside the prediction, as ``smooth`` and the report say it: the controller (by its
+    planner's name, e.g. 'linuxcnc'), its floor and the program's predicted time (s)."""
+    title = getattr(PLANNERS.get(controller), "title", controller)
+    return (f"{title} cannot run straight blocks through these points in less than {floor_s:.4g} s; "
+            f"this program: {program_s:.4g} s")

@@ -31,8 +31,8 @@ import numpy as np
 from camsmooth.geometry.paths import _row_runs
 from camsmooth.machine.kinematics import Machine
 
-__all__ = ["BLOCK_TOLERANCE_SHARE", "MAX_BLOCK_POINTS", "block_reach", "decimate", "ControllerPlan", "Planner",
-           "predict"]
+__all__ = ["BLOCK_TOLERANCE_SHARE", "MAX_BLOCK_POINTS", "block_reach", "decimate", "place", "row_entry",
+           "ControllerPlan", "Planner", "predict"]
 
 #: share of the user's tolerance the longer blocks may use: their tip curves keep every dropped tip
 #: this close; the blends then get what is left up to EXECUTED_TOLERANCE_SHARE, checked on the
@@ -195,11 +195,13 @@ def block_reach(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarr
     return ok
 
 
-def decimate(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray, tolerance: float) -> np.ndarray:
+def decimate(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray, tolerance: float, *,
+             ok: np.ndarray | None = None) -> np.ndarray:
     """Points that end a block (bool (N,)): every row's first and last point, and greedily the
     farthest point (at most MAX_BLOCK_POINTS on) whose block keeps the skipped tips within
     ``BLOCK_TOLERANCE_SHARE * tolerance`` (``block_reach``; module docstring). q: (N, 5) X Y Z mm
-    A B rad; tip: (N, 3) the tool tips the program must pass (mm, workpiece frame)."""
+    A B rad; tip: (N, 3) the tool tips the program must pass (mm, workpiece frame); ok: that
+    ``block_reach`` when already computed."""
     n = len(np.asarray(q))
     keep = np.zeros(n, bool)
     if n == 0:
@@ -208,7 +210,9 @@ def decimate(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
     last_of_row = np.zeros(n, bool)
     last_of_row[ends - 1] = True
     row_end = np.repeat(ends - 1, ends - starts)
-    reach = block_reach(machine, rows, q, tip, BLOCK_TOLERANCE_SHARE * float(tolerance)).sum(axis=1)
+    if ok is None:
+        ok = block_reach(machine, rows, q, tip, BLOCK_TOLERANCE_SHARE * float(tolerance))
+    reach = np.asarray(ok).sum(axis=1)
     i = 0
     while i < n:  # one step per block, not per point
         keep[i] = True
@@ -217,6 +221,49 @@ def decimate(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
             continue
         i = min(i + int(reach[i]), int(row_end[i]))
     keep[ends - 1] = True
+    return keep
+
+
+def row_entry(machine: Machine, q: np.ndarray, entry_height: float, entry_feed: float) -> tuple[np.ndarray, float]:
+    """Where a row's entry feed move starts and how long it takes, as the G-code writer writes it:
+    ``entry_height`` mm up the tool axis from the row's first point q (5,) (X Y Z mm, rotary rad),
+    at ``entry_feed`` mm/min. Returns the joints (5,) and the time (s)."""
+    _, axis = machine.tool_pose_np(q[3], q[4], q[0], q[1], q[2])
+    entry_q = np.array(q, float)
+    entry_q[:3] += entry_height * np.asarray(axis, float).reshape(3)
+    return entry_q, 60.0 * entry_height / float(entry_feed)
+
+
+def place(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray, t_opt: np.ndarray,
+          tolerance: float, *, entry_height: float, entry_feed: np.ndarray, real: Machine | None = None) -> np.ndarray:
+    """Points that end a block (bool (N,)), chosen against the planner model's executed time: among
+    the blocks that keep the skipped tips within ``BLOCK_TOLERANCE_SHARE * tolerance`` (mm) on
+    ``real`` (the machine the tips are on, default ``machine``; ``block_reach``), the block ends the
+    planner runs soonest (``Planner.block_ends``, a dynamic programme over the row's points), per
+    row where the model runs them faster than ``decimate``'s longest blocks (else those). t_opt:
+    (N,) s from each row's start, the law whose differences the blocks command; rows are entered
+    as ``predict`` enters them (entry_height mm, entry_feed (R,) mm/min). The tip at every servo
+    cycle is then held by ``predict``, as for any blocks."""
+    rows = np.asarray(rows)
+    q = np.asarray(q, float)
+    t_opt = np.asarray(t_opt, float)
+    ok = block_reach(real or machine, rows, q, tip, BLOCK_TOLERANCE_SHARE * float(tolerance))
+    keep = decimate(real or machine, rows, q, tip, tolerance, ok=ok)
+    starts, ends = _row_bounds(rows)
+    for r, (a, b) in enumerate(zip(starts, ends, strict=True)):
+        if b - a < 3:
+            continue
+        entry_q, entry_time = row_entry(machine, q[a], entry_height, float(entry_feed[r]))
+        found = planner.block_ends(machine, q[a:b], t_opt[a:b], ok[a:b], entry_q, entry_time)
+        if found is None:
+            continue
+        old, new = a + np.flatnonzero(keep[a:b]), a + np.asarray(found)
+        if len(old) == len(new) and np.array_equal(old, new):
+            continue
+        took = [planner.row_run(machine, q[k], np.diff(t_opt[k]), entry_q, entry_time)[0].end[-1] for k in (old, new)]
+        if took[1] < took[0]:
+            keep[a:b] = False
+            keep[new] = True
     return keep
 
 
@@ -231,7 +278,10 @@ class ControllerPlan:
     feed_plan: (N,) mm/min, the controller's tool-tip feed at each point (block average);
     row_ids, row_cycle_time: (R,) s per row; cycle_time: s, the sum over rows (rapids not counted);
     row_deviation: (R,) mm, the largest distance of the model's tool tip from the programmed path
-    over the row's servo cycles (0 where it was not checked).
+    over the row's servo cycles (0 where it was not checked); row_floor: (R,) s, the least time any
+    program of straight blocks through the row's points can take on this controller within the
+    user's tolerance (``Planner.row_floor``; None where the controller has no floor or the
+    tolerance was not given): row_cycle_time can come down to it, never below.
     """
 
     controller: str
@@ -243,6 +293,12 @@ class ControllerPlan:
     row_cycle_time: np.ndarray
     cycle_time: float
     row_deviation: np.ndarray
+    row_floor: np.ndarray | None = None
+
+    @property
+    def floor(self) -> float | None:
+        """s, the sum of ``row_floor`` over the rows (None without one)."""
+        return None if self.row_floor is None else float(np.sum(self.row_floor))
 
     @property
     def blocks(self) -> int:
@@ -266,6 +322,20 @@ class Planner(Protocol):
     """A model of a controller's trajectory planner (camsmooth.controller.linuxcnc.LinuxCNCPlanner)."""
 
     name: str
+    title: str
+
+    def block_ends(self, machine: Machine, q: np.ndarray, t_opt: np.ndarray, ok: np.ndarray, entry_q: np.ndarray,
+                   entry_time: float) -> np.ndarray | None:
+        """The block ends of one row (indices into its points q (n, 5)) the controller runs
+        soonest among the blocks ok (n, K) allows (``block_reach``), None if it cannot tell; t_opt
+        (n,) s, the commanded law; the row entered from rest at entry_q by a move of entry_time s."""
+        ...
+
+    def row_floor(self, machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
+                  feed: np.ndarray | None, tolerance: float) -> np.ndarray | None:
+        """(R,) s per row: the least time any program of straight blocks through the points can take
+        on the controller within ``tolerance`` (mm), None if unknown. feed (N,) mm/min or None."""
+        ...
 
     def row_run(self, machine: Machine, q_blocks: np.ndarray, block_time: np.ndarray, entry: np.ndarray,
                 entry_time: float) -> tuple[RowRun, np.ndarray]:
@@ -281,6 +351,9 @@ class Planner(Protocol):
 EXECUTED_TOLERANCE_SHARE = 0.8
 #: rounds of lengthening the blocks whose blends go too far, at most
 _ROUNDS = 20
+#: a block whose own tip curve comes farther than this share of the executed limit from the
+#: programmed path is split back into the program's points (its blends get the rest)
+_SPLIT_SHARE = 0.9
 
 
 def _blend_excess(run: RowRun, dev: np.ndarray, limit: float, n_blocks: int) -> np.ndarray:
@@ -309,7 +382,7 @@ def _hold_row(planner: Planner, machine: Machine, q: np.ndarray, k: np.ndarray, 
     (s), the blocks' end times (s from the row's start, starting with 0) and the largest
     deviation of the last run (mm, 0 when not checked)."""
     if path is not None and len(k) > 1:
-        split = (_chord_deviation(machine, q, k, path, at) > 0.9 * limit) & (np.diff(k) > 1)
+        split = (_chord_deviation(machine, q, k, path, at) > _SPLIT_SHARE * limit) & (np.diff(k) > 1)
         if split.any():
             k = np.r_[np.concatenate([np.arange(k[j], k[j + 1]) if split[j] else k[j:j + 1]
                                       for j in range(len(k) - 1)]), k[-1]]
@@ -333,7 +406,7 @@ def _hold_row(planner: Planner, machine: Machine, q: np.ndarray, k: np.ndarray, 
 
 def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
             t_opt: np.ndarray, keep: np.ndarray, *, entry_height: float, entry_feed: np.ndarray,
-            tolerance: float | None = None) -> ControllerPlan:
+            tolerance: float | None = None, feed: np.ndarray | None = None) -> ControllerPlan:
     """The controller's timing of a program written in the blocks ``keep`` with the block times
     of the time-optimal law ``t_opt`` (s from each row's start). q: (N, 5) X Y Z mm A B rad;
     tip: (N, 3) mm. Each row is entered by a feed move of ``entry_height`` mm along the tool axis
@@ -345,9 +418,12 @@ def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray,
     (``programmed_tip_path``): a block whose own tip curve comes too near the limit is split back
     into the program's points, and a block whose blend goes farther is lengthened and the row
     run again, at most _ROUNDS times (``_hold_row``). ``row_deviation`` is what the last run gives; the
-    plan's ``keep`` has the split blocks' points."""
+    plan's ``keep`` has the split blocks' points. With the tolerance, ``row_floor`` is the planner's
+    floor through the same points (``Planner.row_floor``; feed (N,) mm/min the programmed tip feed,
+    None: unknown)."""
     rows = np.asarray(rows)
     keep = np.array(keep, bool)
+    prog_feed = None if feed is None else np.asarray(feed, float)
     n = len(rows)
     starts, ends = _row_bounds(rows)
     block_time = np.zeros(n)
@@ -359,10 +435,7 @@ def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray,
     for r, (a, b) in enumerate(zip(starts, ends, strict=True)):
         k = a + np.flatnonzero(keep[a:b])
         bt = np.zeros(0)
-        _, axis = machine.tool_pose_np(q[a, 3], q[a, 4], q[a, 0], q[a, 1], q[a, 2])
-        entry_q = q[a].copy()
-        entry_q[:3] += entry_height * np.asarray(axis, float).reshape(3)
-        entry_time = 60.0 * entry_height / float(entry_feed[r])
+        entry_q, entry_time = row_entry(machine, q[a], entry_height, float(entry_feed[r]))
         tk = np.zeros(1)
         if len(k) > 1:
             path = None
@@ -383,6 +456,10 @@ def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray,
         feed[a:b] = np.interp(s, s[k - a][1:], fb) if len(fb) else 0.0
         feed[a] = 0.0
         feed[b - 1] = 0.0
+    floor = None
+    if tolerance is not None and n:
+        floor = planner.row_floor(machine, rows, q, tip, prog_feed, float(tolerance))
     return ControllerPlan(controller=planner.name, keep=keep, block_time=block_time, t_plan=t_ctrl,
                           feed_plan=feed, row_ids=rows[starts].astype(np.int64), row_cycle_time=row_cycle,
-                          cycle_time=float(row_cycle.sum()), row_deviation=row_dev)
+                          cycle_time=float(row_cycle.sum()), row_deviation=row_dev,
+                          row_floor=None if floor is None else np.asarray(floor, float))

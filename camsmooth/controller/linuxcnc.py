@@ -106,6 +106,33 @@ def _limits(machine: Machine) -> tuple[np.ndarray, np.ndarray]:
     return vmax * deg, amax * deg
 
 
+def _move_limits(dq: np.ndarray, vmax: np.ndarray, amax: np.ndarray, servo_period: float, vlim: float
+                 ) -> tuple[np.ndarray, ...]:
+    """Steps 2-3 of the module docstring for straight moves dq (..., 5) (X Y Z mm A B deg, signed):
+    length (mm, deg for a pure rotary move), v_ini, acceleration, largest speed (sample rate and
+    [TRAJ] MAX_LINEAR_VELOCITY ``vlim`` included), pure-rotary flag and unit XYZ direction."""
+    d = np.abs(dq)
+    d[d < _TINY] = 0.0
+    lin = np.linalg.norm(d[..., :3], axis=-1)
+    ang = np.linalg.norm(d[..., 3:], axis=-1)
+    pure_rot = (lin == 0) & (ang > 0)
+    dtot = np.where(pure_rot, ang, lin)
+    # emccanon: only the axes of the move's kind count for a pure move, all of them for a combined
+    # one (the linear distance sets the length)
+    use = np.ones_like(d, bool)
+    use[pure_rot, :3] = False
+    use[(lin > 0) & (ang == 0), 3:] = False
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tv = np.where(use & (d > 0), d / vmax, 0.0).max(axis=-1)
+        ta = np.where(use & (d > 0), d / amax, 0.0).max(axis=-1)
+        v_ini = np.where(tv > 0, dtot / tv, np.inf)
+        acc = np.where(ta > 0, dtot / ta, np.inf)
+    maxvel = np.minimum(v_ini, dtot / (servo_period * _MIN_SEGMENT_CYCLES))
+    maxvel = np.where(pure_rot, maxvel, np.minimum(maxvel, vlim))
+    direction = np.where((lin > 0)[..., None], dq[..., :3] / np.maximum(lin, 1e-300)[..., None], 0.0)
+    return dtot, v_ini, acc, maxvel, pure_rot, direction
+
+
 def canon_segments(start: np.ndarray, joints: np.ndarray, rapid: np.ndarray, fword: np.ndarray,
                    inverse_time: np.ndarray, machine: Machine, *, servo_period: float = SERVO_PERIOD_S,
                    v_limit: float | None = None, tolerance: float = 0.0) -> Segments:
@@ -118,32 +145,13 @@ def canon_segments(start: np.ndarray, joints: np.ndarray, rapid: np.ndarray, fwo
     """
     vmax, amax = _limits(machine)
     q = np.vstack([np.asarray(start, float)[None, :], np.asarray(joints, float)])
-    d = np.abs(np.diff(q, axis=0))
-    d[d < _TINY] = 0.0
-    lin = np.linalg.norm(d[:, :3], axis=1)
-    ang = np.linalg.norm(d[:, 3:], axis=1)
-    pure_rot = (lin == 0) & (ang > 0)
-    dtot = np.where(pure_rot, ang, lin)
-    # emccanon: only the axes of the move's kind count for a pure move, all of them for a combined
-    # one (the linear distance sets the length)
-    use = np.ones_like(d, bool)
-    use[pure_rot, :3] = False
-    use[(lin > 0) & (ang == 0), 3:] = False
-    with np.errstate(divide="ignore", invalid="ignore"):
-        tv = np.where(use & (d > 0), d / vmax, 0.0).max(axis=1)
-        ta = np.where(use & (d > 0), d / amax, 0.0).max(axis=1)
-        v_ini = np.where(tv > 0, dtot / tv, np.inf)
-        acc = np.where(ta > 0, dtot / ta, np.inf)
+    vlim = float(np.max(vmax[:3])) if v_limit is None else float(v_limit)
+    dtot, v_ini, acc, maxvel, pure_rot, direction = _move_limits(np.diff(q, axis=0), vmax, amax, servo_period, vlim)
     fword = np.asarray(fword, float)
     rate = np.where(np.asarray(inverse_time, bool), dtot * fword / 60.0, fword / 60.0)
     rapid = np.asarray(rapid, bool)
     reqvel = np.where(rapid, v_ini, np.minimum(rate, v_ini))
-    vlim = float(np.max(vmax[:3])) if v_limit is None else float(v_limit)
-    maxvel = np.minimum(v_ini, dtot / (servo_period * _MIN_SEGMENT_CYCLES))
-    maxvel = np.where(pure_rot, maxvel, np.minimum(maxvel, vlim))
     stop = np.r_[rapid[1:] != rapid[:-1], True]
-    lin_d = np.diff(q[:, :3], axis=0)
-    direction = np.where((lin > 0)[:, None], lin_d / np.maximum(lin, 1e-300)[:, None], 0.0)
     return Segments(length=dtot, reqvel=reqvel, maxvel=maxvel, acc=acc, rapid=rapid, pure_rotary=pure_rot,
                     stop_after=stop, direction=direction, tolerance=float(tolerance))
 
@@ -286,6 +294,108 @@ def _run(length: np.ndarray, reqvel: np.ndarray, maxvel: np.ndarray, acc: np.nda
     return start, done, head[:cyc], head_progress[:cyc], next_progress[:cyc]
 
 
+@njit(cache=True)
+def _solo(length: float, vcap: float, acc_h: float) -> tuple[float, float]:  # pragma: no cover - compiled
+    """A segment on its own from rest to rest at acceleration acc_h, speed at most vcap: its time
+    (s) and top speed (the trapezoid of ``_update``, without the servo cycles)."""
+    if length <= 0.0:
+        return 0.0, 0.0
+    v_peak = np.sqrt(acc_h * length)
+    if v_peak <= vcap:
+        return 2.0 * length / v_peak, v_peak
+    return length / vcap + vcap / acc_h, vcap
+
+
+@njit(cache=True)
+def _lag(lp: float, vp: float, ap: float, tp: float, dp: np.ndarray, ln: float, vn: float, an: float,
+         dn: np.ndarray, tolerance: float) -> float:  # pragma: no cover - compiled
+    """Time (s) from the start of segment p to the start of the segment n after it: p runs on its
+    own (time tp, top speed vp) and n starts once p decelerates below the blend speed of
+    ``_run`` (tpComputeBlendVelocity, the ``G64 P`` cap included)."""
+    t_reach = min(lp / max(vp, 1e-300), ln / max(vn, 1e-300))
+    t_blend = min(t_reach, max(vp / ap, vn / an))
+    bv = min(vp, t_blend * ap)
+    if tolerance > 0.0:
+        dot = dp[0] * dn[0] + dp[1] * dn[1] + dp[2] * dn[2]
+        cos_theta = np.cos(np.arccos(min(max(-dot, -1.0), 1.0)) / 2.0)
+        if cos_theta > np.sin(_MIN_ARC_ANGLE):
+            bv = min(bv, 2.0 * np.sqrt(ap * tolerance / cos_theta))
+    return tp - bv / ap
+
+
+@njit(cache=True)
+def _place_row(ok: np.ndarray, length: np.ndarray, vcap: np.ndarray, acc_h: np.ndarray, direction: np.ndarray,
+               entry: np.ndarray, entry_dir: np.ndarray, tolerance: float,
+               dt: float) -> tuple[float, np.ndarray]:  # pragma: no cover - compiled
+    """The block ends of one row of n points that end its last block soonest on the planner
+    (``LinuxCNCPlanner.block_ends``). ok (n, K): block from point i over k + 1 points allowed;
+    length, vcap, acc_h (n, K) and direction (n, K, 3) of that block's segment; entry: (3,)
+    length, vcap, acc_h of the row's entry move, entry_dir its direction.
+
+    The row as a chain of parabolic blends (``_run``): each segment runs its own trapezoid, the
+    next starts once it decelerates below the blend speed (``_lag``) but not before the segment
+    before it has ended (two segments move at once), on a servo cycle. A state is the last block
+    (its end point and its points); it keeps the earliest start of that block and, for it, when the
+    block before it ends. Returns the last block's end (s from the entry move's start) and the
+    block ends (indices, 0 and n - 1 included)."""
+    n, K = ok.shape
+    big = 1e300
+    start = np.full((n, K), big)
+    before_end = np.full((n, K), big)
+    back = np.full((n, K), -1, np.int64)
+    T = np.zeros((n, K))
+    V = np.zeros((n, K))
+    for i in range(n):
+        for k in range(K):
+            if ok[i, k] and i + k + 1 <= n - 1:
+                T[i, k], V[i, k] = _solo(length[i, k], vcap[i, k], acc_h[i, k])
+    te, ve = _solo(entry[0], entry[1], entry[2])
+    for k in range(min(K, n - 1)):
+        if ok[0, k]:
+            s = max(0.0, _lag(entry[0], ve, entry[2], te, entry_dir, length[0, k], V[0, k], acc_h[0, k],
+                              direction[0, k], tolerance))
+            start[k + 1, k] = np.ceil(s / dt - 1e-9) * dt
+            before_end[k + 1, k] = te
+    for j in range(1, n - 1):
+        for k in range(K):
+            if start[j, k] >= big:
+                continue
+            i = j - k - 1
+            end_here = start[j, k] + T[i, k]
+            for k2 in range(K):
+                j2 = j + k2 + 1
+                if j2 > n - 1:
+                    break
+                if not ok[j, k2]:
+                    continue
+                s = max(before_end[j, k], start[j, k] + _lag(length[i, k], V[i, k], acc_h[i, k], T[i, k],
+                                                             direction[i, k], length[j, k2], V[j, k2], acc_h[j, k2],
+                                                             direction[j, k2], tolerance))
+                s = np.ceil(s / dt - 1e-9) * dt
+                if s < start[j2, k2] - 1e-12 or (s < start[j2, k2] + 1e-12 and end_here < before_end[j2, k2]):
+                    start[j2, k2] = s
+                    before_end[j2, k2] = end_here
+                    back[j2, k2] = k
+    best = big
+    bk = -1
+    for k in range(min(K, n - 1)):
+        if start[n - 1, k] < big:
+            f = start[n - 1, k] + T[n - 2 - k, k]
+            if f < best:
+                best, bk = f, k
+    ends = np.empty(n, np.int64)
+    m = 0
+    j, k = n - 1, bk
+    ends[m] = j
+    while j > 0 and k >= 0:
+        pk = back[j, k]
+        j = j - k - 1
+        m += 1
+        ends[m] = j
+        k = pk
+    return best, ends[:m + 1][::-1].copy()
+
+
 #: longest block (in points) the lower bound of ``least_row_times`` considers
 LEAST_TIME_BLOCK_POINTS = 64
 
@@ -375,6 +485,54 @@ class LinuxCNCPlanner:
     v_limit: float | None = None
     tolerance: float = 0.0
     name: str = "linuxcnc"
+    title: str = "LinuxCNC"
+
+    def block_ends(self, machine: Machine, q: np.ndarray, t_opt: np.ndarray, ok: np.ndarray, entry_q: np.ndarray,
+                   entry_time: float) -> np.ndarray | None:
+        """The block ends of one row (indices into its points, the first and last included) that
+        LinuxCNC runs soonest, among the blocks ``ok`` allows: (n, K) bool, block from point i over
+        k + 1 points (camsmooth.controller.blocks.block_reach). q (n, 5) X Y Z mm A B rad; t_opt (n,)
+        s, the time law whose differences the G93 blocks command; the row is entered from rest at
+        entry_q by a feed move of entry_time s, as in ``row_run``. Dynamic programme over the block
+        ends on this model's chain of parabolic blends (``_place_row``: each segment's own trapezoid
+        at half its acceleration, the next started at the blend speed, two segments at a time): a
+        row of short blocks runs at sqrt(a/2 L) per block, and a shorter block after a longer one
+        waits, so neither the fewest blocks nor the longest first is the fastest choice. None where
+        no chain of moving blocks goes through the row (a repeated point)."""
+        q = np.asarray(q, float)
+        t_opt = np.asarray(t_opt, float)
+        n, K = np.asarray(ok).shape
+        if n < 2:
+            return np.arange(n)
+        vmax, amax = _limits(machine)
+        vlim = float(np.max(vmax[:3])) if self.v_limit is None else float(self.v_limit)
+        deg = np.array([1.0, 1.0, 1.0, 180.0 / np.pi, 180.0 / np.pi])
+        i = np.arange(n)[:, None]
+        j = np.minimum(i + np.arange(1, K + 1)[None, :], n - 1)
+        dq = (q[j] - q[i]) * deg
+        length, v_ini, acc, maxvel, _, direction = _move_limits(dq, vmax, amax, self.servo_period, vlim)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            vcap = np.minimum(np.minimum(length / np.maximum(t_opt[j] - t_opt[i], 1e-6), v_ini), maxvel)
+        allowed = np.asarray(ok, bool) & (i + np.arange(1, K + 1)[None, :] <= n - 1) & (length > 0)
+        el, ev, ea, emax, _, ed = _move_limits((q[0] - np.asarray(entry_q, float)) * deg, vmax, amax,
+                                               self.servo_period, vlim)
+        entry = np.array([float(el), min(float(el) / max(entry_time, 1e-6), float(ev), float(emax)), 0.5 * float(ea)])
+        if not entry[0] > 0:  # no entry move: the row starts at rest
+            entry = np.array([0.0, 0.0, 1.0])
+        best, ends = _place_row(allowed, length, vcap, 0.5 * acc, np.ascontiguousarray(direction), entry,
+                                np.asarray(ed, float), self.tolerance, self.servo_period)
+        if not np.isfinite(best) or best >= 1e300 or ends[0] != 0:
+            return None  # no chain of moving blocks through the row (repeated points): no choice made
+        return ends
+
+    def row_floor(self, machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
+                  feed: np.ndarray | None, tolerance: float) -> np.ndarray:
+        """The floor (s, per row in order of appearance): the least time any program of straight
+        blocks through the row's points can take on LinuxCNC 2.9 within ``tolerance`` (mm), by
+        ``least_row_times``. q (N, 5) X Y Z mm A B rad; tip (N, 3) mm; feed (N,) mm/min, the
+        programmed tip feed (None: unknown, then the feed does not bound a block)."""
+        f = np.full(len(q), np.inf) if feed is None else np.where(np.asarray(feed, float) > 0, feed, np.inf)
+        return least_row_times(machine, rows, q, tip, f, tolerance)
 
     def segments(self, machine: Machine, start: np.ndarray, joints: np.ndarray, rapid: np.ndarray,
                  fword: np.ndarray, inverse_time: np.ndarray) -> Segments:

@@ -569,6 +569,8 @@ def method_summary(m: MethodResult) -> dict[str, Any]:
         "controller": mt.controller if mt is not None else "",
         "controller_deviation_mm": (float(mt.controller_deviation_mm) if mt is not None
                                     and mt.controller_deviation_mm is not None else nan),
+        "controller_floor_s": (float(mt.controller_floor_s) if mt is not None
+                               and mt.controller_floor_s is not None else nan),
         "violations_programmed": dict(mt.violations_programmed) if mt is not None else {},
         "peak_A_acc_plan": float(mt.peak_A_acc_plan) if mt is not None else nan,
         "peak_B_acc_plan": float(mt.peak_B_acc_plan) if mt is not None else nan,
@@ -639,6 +641,8 @@ def _named(text: str, rotary: Sequence[str]) -> str:
 def _verdict_html(order: list[str], summaries: dict[str, dict[str, Any]], primary: str,
                   rotary: Sequence[str] = ("A", "B")) -> str:
     """One line per method, primary first: the answers a CAM programmer looks for first."""
+    from camsmooth.controller import floor_text
+
     items = []
     for name in sorted(order, key=lambda n: n != primary):
         s = summaries[name]
@@ -648,6 +652,8 @@ def _verdict_html(order: list[str], summaries: dict[str, dict[str, Any]], primar
             cyc += f", {_fmt(s['cycle_time_s'], '.4g')} s on the {html.escape(s['controller'])} controller"
             if np.isfinite(s["controller_deviation_mm"]):
                 cyc += f" (tool tip within {_fmt(1e3 * s['controller_deviation_mm'], '.3g')} \u00b5m of the path)"
+            if np.isfinite(s["controller_floor_s"]):
+                cyc += f"; {html.escape(floor_text(s['controller'], s['controller_floor_s'], s['cycle_time_s']))}"
         share = s["binding_share"]
         where = " in the time-optimal law" if s["controller"] else ""
         binds = (f"binds most{where}: {html.escape(s['limiting'])}"
@@ -745,16 +751,20 @@ def _rows_html(m: MethodResult, rotary: Sequence[str] = ("A", "B")) -> str:
     ra, rb = program_rates(m.A, t, m.rows), program_rates(m.B, t, m.rows)
     opt = list(getattr(mt, "row_cycle_time_optimal_s", []) or []) if mt is not None else []
     ctl = list(mt.row_cycle_time_s) if mt is not None and mt.controller else []
+    floor = list(getattr(mt, "row_controller_floor_s", []) or []) if ctl else []
     n = len(starts)
     if len(opt) != n:
         opt = [float(t[b - 1] - t[a]) for a, b in zip(starts, ends, strict=True)]
+    if len(floor) != n:
+        floor = []
     keep = np.arange(n)
     note = ""
     if n > MAX_TABLE_ROWS:
         keep = np.sort(np.argsort(opt)[::-1][:MAX_TABLE_ROWS])
         note = f"<p class='small'>{n} rows: the {MAX_TABLE_ROWS} slowest are listed.</p>"
     head = ["row", "points", "cycle time optimal (s)"] + (
-        [f"cycle time {mt.controller} (s)"] if ctl else []) + [
+        [f"cycle time {mt.controller} (s)"] if ctl else []) + (
+        [f"least time on {mt.controller}, any straight blocks (s)"] if floor else []) + [
         f"peak |{rotary[0]}'| / |{rotary[1]}'| (deg/s), {law}",
         f"peak |{rotary[0]}''| / |{rotary[1]}''| (deg/s\u00b2), {law}",
         "min \u03b4 (\u00b5m) at point"]
@@ -765,7 +775,8 @@ def _rows_html(m: MethodResult, rotary: Sequence[str] = ("A", "B")) -> str:
         d = np.asarray(m.delta[a:b], float)
         dk = int(np.nanargmin(d)) if np.isfinite(d).any() else None
         dtxt = "\u2014" if dk is None else f"{1e3 * d[dk]:.3g} at {int(m.idx[a + dk])}"
-        cells = [str(int(m.rows[a])), str(b - a), _fmt(opt[k], ".4g")] + ([_fmt(ctl[k], ".4g")] if ctl else []) + [
+        cells = [str(int(m.rows[a])), str(b - a), _fmt(opt[k], ".4g")] + ([_fmt(ctl[k], ".4g")] if ctl else []) + (
+            [_fmt(floor[k], ".4g")] if floor else []) + [
             f"{_fmt(deg(np.abs(ra.vel[a:b]).max()), '.3g')} / {_fmt(deg(np.abs(rb.vel[a:b]).max()), '.3g')}",
             f"{_fmt(deg(np.abs(ra.acc[a:b]).max()), '.4g')} / {_fmt(deg(np.abs(rb.acc[a:b]).max()), '.4g')}", dtxt]
         out.append("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in cells) + "</tr>")

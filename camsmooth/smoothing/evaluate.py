@@ -108,10 +108,10 @@ def time_law(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
     mm, feed (N,) programmed tip feed mm/min (None: unknown, then ``t_plan`` must be given).
     plan: an already computed time-optimal plan (else planned here); t_plan: the law the program
     itself commands (a written program's block times), used instead of the plan's; keep: the
-    points that end a controller block (None: camsmooth.controller.decimate, as the writer
+    points that end a controller block (None: camsmooth.controller.place, as the writer
     does); real: the machine the tips are decimated on (an error model's, default ``machine``);
     tolerance: mm, the user's."""
-    from camsmooth.controller import decimate, planner_for, predict
+    from camsmooth.controller import place, planner_for, predict
     from camsmooth.io.gcode import DEFAULT_SAFE_HEIGHT_MM
 
     rows = np.asarray(rows)
@@ -128,8 +128,6 @@ def time_law(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
                cycle_time=float(row_opt.sum()), row_cycle_time=row_opt)
     planner = planner_for(machine, tolerance)
     if planner is not None and len(rows):
-        if keep is None:
-            keep = decimate(real or machine, rows, q, tip, tolerance)
         starts = [s.start for s in row_slices(rows)]
         entry = np.asarray(feed, float)[starts] if feed is not None else np.full(len(starts), np.nan)
         if not np.all(np.isfinite(entry) & (entry > 0)):
@@ -138,8 +136,11 @@ def time_law(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
             chord = np.linalg.norm(tip[nxt] - tip[starts], axis=1)
             dt = np.maximum(t_plan[nxt] - t_plan[starts], 1e-9)
             entry = np.where(np.isfinite(entry) & (entry > 0), entry, 60.0 * chord / dt)
+        if keep is None:  # the blocks the controller runs soonest (camsmooth.controller.place)
+            keep = place(planner, machine, rows, q, tip, t_plan, tolerance, entry_height=DEFAULT_SAFE_HEIGHT_MM,
+                         entry_feed=entry, real=real)
         ctrl = predict(planner, machine, rows, q, tip, t_plan, np.asarray(keep, bool),
-                       entry_height=DEFAULT_SAFE_HEIGHT_MM, entry_feed=entry, tolerance=tolerance)
+                       entry_height=DEFAULT_SAFE_HEIGHT_MM, entry_feed=entry, tolerance=tolerance, feed=feed)
         law.update(controller=ctrl, cycle_time=float(ctrl.cycle_time), row_cycle_time=np.asarray(ctrl.row_cycle_time))
     return TimeLaw(**law)
 

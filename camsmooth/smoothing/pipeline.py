@@ -475,6 +475,9 @@ class ProgramSmoother:
             m.controller = law.controller.controller
             m.blocks = law.controller.blocks
             m.controller_deviation_mm = float(np.max(law.controller.row_deviation, initial=0.0))
+            if law.controller.row_floor is not None:
+                m.controller_floor_s = law.controller.floor
+                m.row_controller_floor_s = law.controller.row_floor.tolist()
         viol, peaks = axis_violations(self.nominal, q, law.t_plan, p.path.rows)
         m.violations = {**viol, **{k: v for k, v in m.violations_programmed.items() if k not in viol}}
         r1, r2 = self.nominal.rotary

@@ -80,7 +80,10 @@ class Metrics:
     makes of the program (camsmooth.controller, where camsmooth has a model of it, else the
     time-optimal figures): cycle_time_s, row_cycle_time_s, controller (its name, '' for none),
     blocks (cut blocks written), controller_deviation_mm (the largest distance of the tool tip the
-    controller's planner model commands at any servo cycle from the programmed path). Row NLP work (nlp
+    controller's planner model commands at any servo cycle from the programmed path),
+    controller_floor_s and row_controller_floor_s (the least time any program of straight blocks
+    through the program's points can take on that controller within the tolerance, s, in total
+    and per row; None / [] where the controller has no floor). Row NLP work (nlp
     methods): IPOPT iterations, rounds, points mapped, clearance evaluations, times (s), the
     points lifted because their whole window is blocked or the limits kept them out of their
     clear region. With an error model: the largest tip error (um) with and without compensation
@@ -111,6 +114,8 @@ class Metrics:
     controller: str = ""
     blocks: int | None = None
     controller_deviation_mm: float | None = None
+    controller_floor_s: float | None = None
+    row_controller_floor_s: list[float] = field(default_factory=list)
     limiting: str = ""
     row_cycle_time_s: list[float] = field(default_factory=list)
     ipopt_iterations: int = 0

@@ -1,0 +1,213 @@
+"""LinuxCNC at its limit (camsmooth.controller): the floor ``smooth`` prints beside the prediction
+(the least time any program of straight blocks through the points can take on LinuxCNC 2.9) and
+the block placement chosen against the planner model's executed time.
+
+Checked against independent computations: the floor against every choice of block ends of a
+short row, the placement against every choice of block ends run through the planner model, and
+against the longest blocks within the tolerance (``decimate``, the placement before) on the model.
+No LinuxCNC needed (benchmarks/bench_controller.py runs the programs on it).
+"""
+
+from __future__ import annotations
+
+import itertools
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from camsmooth.controller import EXECUTED_TOLERANCE_SHARE, decimate, place, planner_for, predict
+from camsmooth.controller.blocks import (
+    BLOCK_TOLERANCE_SHARE,
+    block_reach,
+    programmed_tip_path,
+    row_entry,
+    tip_deviation,
+)
+from camsmooth.controller.blocks import tool_tips as fk_tips
+from camsmooth.machine.kinematics import DEFAULT_MACHINE_TOML, machine_from_dict
+from camsmooth.smoothing.feed import axis_limits
+
+TOL = 0.005
+FEED = 2000.0
+ENTRY_MM = 10.0
+
+
+def _machine():
+    import tomllib
+
+    data = tomllib.loads(DEFAULT_MACHINE_TOML)
+    data["post"] = {"dialect": "linuxcnc", "mode": "machine"}
+    return machine_from_dict(data, "<test machine>")
+
+
+def _joints(r) -> np.ndarray:
+    """(N, 5) X Y Z mm and the rotary axes rad of a method's program."""
+    rot = getattr(r, "rotary", None)
+    if rot is not None and hasattr(rot, "values"):
+        return np.column_stack([r.xyz, rot.values])
+    return np.column_stack([r.xyz] + [getattr(r, name) for name in ("A", "B")])  # before the axes were named
+
+
+def _short_rows(m, n: int = 12):
+    """Two short rows: a tip arc of rising curvature with B turning unevenly (the blocks the
+    tolerance allows vary along it, 1 to 5 points), and a straight one with A and B turning."""
+    s = np.linspace(0.0, 1.0, n)
+    th = np.radians(s + s ** 2)
+    tip1 = np.column_stack([400 * np.sin(th), np.zeros(n), 400 * (1 - np.cos(th))])
+    rot1 = np.column_stack([np.zeros(n), np.radians(np.sin(2.5 * s))])
+    tip2 = np.column_stack([np.linspace(0, 9, n), np.full(n, 5.0), np.zeros(n)])
+    rot2 = np.column_stack([np.radians(np.linspace(0, 3, n)), np.radians(2.0 * s ** 2)])
+    tip, rot = np.vstack([tip1, tip2]), np.vstack([rot1, rot2])
+    q = np.column_stack([m.linear_axes(tip, rot[:, 0], rot[:, 1]), rot])
+    return np.repeat([0, 1], n), q, tip
+
+
+def _brute_floor(m, q, tip, ok, feed_mm_s):
+    """The floor's definition, by every choice of block ends of one row: each block lasts at least
+    its tip chord over the feed, its largest joint move over that joint's speed, and (when it turns
+    a rotary axis) sqrt(2 max_i |d_i| / a_i), the parabolic blend at half the acceleration."""
+    vmax, amax, _ = axis_limits(m)
+    n = len(q)
+    best = np.inf
+    for mask in itertools.product([False, True], repeat=n - 2):
+        ends = [0] + [i + 1 for i, on in enumerate(mask) if on] + [n - 1]
+        total = 0.0
+        for i, j in zip(ends[:-1], ends[1:], strict=True):
+            if not ok[i, j - i - 1]:
+                total = np.inf
+                break
+            d = np.abs(q[j] - q[i])
+            rest = np.sqrt(2 * np.max(d / amax)) if d[3:].max() > 0 else 0.0
+            total += max(np.linalg.norm(tip[j] - tip[i]) / feed_mm_s, np.max(d / vmax), rest)
+        best = min(best, total)
+    return best
+
+
+def test_the_floor_is_the_least_time_over_every_choice_of_block_ends_and_below_the_prediction():
+    """The controller plan's floor (what ``smooth`` prints) on two short rows: per row the least
+    floor cost over all 2^(n-2) choices of block ends (brute force of the definition), and below
+    the time the planner model predicts for the program camsmooth writes."""
+    from camsmooth.smoothing.evaluate import time_law
+
+    m = _machine()
+    rows, q, tip = _short_rows(m)
+    law = time_law(m, rows, q, tip, np.full(len(rows), FEED), tolerance=TOL)
+    ctrl = law.controller
+    assert ctrl is not None and ctrl.row_floor is not None
+    for r in range(2):
+        sel = rows == r
+        ok = block_reach(m, np.zeros(sel.sum(), int), q[sel], tip[sel], TOL, 64)
+        want = _brute_floor(m, q[sel], tip[sel], ok, FEED / 60.0)
+        assert ctrl.row_floor[r] == pytest.approx(want, rel=1e-12)
+        assert ctrl.row_floor[r] < ctrl.row_cycle_time[r]
+    assert ctrl.floor == pytest.approx(ctrl.row_floor.sum())
+
+
+def test_block_ends_are_within_a_percent_of_the_best_choice_on_the_model():
+    """The placement's dynamic programme (``LinuxCNCPlanner.block_ends``) on a short row: its
+    blocks, run through the planner model, take at most 1% longer than the best of every choice of
+    block ends the tolerance allows (each run through the model), and no longer than the longest
+    blocks (``decimate``)."""
+    m = _machine()
+    rows, q, tip = _short_rows(m)
+    p = planner_for(m, TOL)
+    sel = rows == 0
+    q, tip = q[sel], tip[sel]
+    n = len(q)
+    t = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(tip, axis=0), axis=1))] / (FEED / 60.0)
+    ok = block_reach(m, np.zeros(n, int), q, tip, BLOCK_TOLERANCE_SHARE * TOL)
+    entry_q, entry_time = row_entry(m, q[0], ENTRY_MM, FEED)
+
+    def run(ends: np.ndarray) -> float:
+        return float(p.row_run(m, q[ends], np.diff(t[ends]), entry_q, entry_time)[0].end[-1])
+
+    best = np.inf
+    choices = 0
+    for mask in itertools.product([False, True], repeat=n - 2):
+        ends = np.r_[0, 1 + np.flatnonzero(mask), n - 1]
+        if all(ok[i, j - i - 1] for i, j in zip(ends[:-1], ends[1:], strict=True) if j - i <= ok.shape[1]) \
+                and np.diff(ends).max() <= ok.shape[1]:
+            best = min(best, run(ends))
+            choices += 1
+    assert choices > 20  # the tolerance leaves a real choice
+    dp = p.block_ends(m, q, t, ok, entry_q, entry_time)
+    assert dp[0] == 0 and dp[-1] == n - 1 and np.all(np.diff(dp) > 0)
+    assert all(ok[i, j - i - 1] for i, j in zip(dp[:-1], dp[1:], strict=True))
+    greedy = np.flatnonzero(decimate(m, np.zeros(n, int), q, tip, TOL))
+    assert run(dp) <= best * 1.01
+    assert run(dp) <= run(greedy) + 1e-9
+
+
+@pytest.fixture(scope="module")
+def blade_rows():
+    """Two rows of the shipped blade, smoothed (nlp) for a LinuxCNC machine."""
+    from camsmooth.geometry.cutter import ToroidalCutter
+    from camsmooth.geometry.paths import CCPath
+    from camsmooth.geometry.surfaces import load_surface
+    from camsmooth.io.ccpath import read_cc_csv
+    from camsmooth.smoothing.pipeline import smooth
+
+    root = Path(__file__).resolve().parent.parent / "surfaces"
+    path = read_cc_csv(root / "blade_path.csv")
+    k = np.isin(path.rows, np.unique(path.rows)[20:22])
+    path = CCPath(points=path.points[k], normals=path.normals[k], rows=path.rows[k], source=path.source)
+    return smooth(path, load_surface(root / "blade.toml"), _machine(), ToroidalCutter(R=4.0, r=1.0), feed=FEED,
+                  method="nlp", tolerance=TOL)
+
+
+def test_placement_is_never_slower_than_the_longest_blocks_and_keeps_the_tip_within_the_tolerance(blade_rows):
+    """Every method's program of two blade rows: per row, the planner model's time of the placed
+    blocks (what the pipeline writes) is no longer than that of the longest blocks within the
+    tolerance (the placement before), and the model's tool tip, recomputed here from the written
+    blocks and times at every servo cycle, stays within EXECUTED_TOLERANCE_SHARE of the tolerance
+    of the path the full-density program commands."""
+    m = blade_rows.machine
+    p = planner_for(m, TOL)
+    for name, r in blade_rows.methods.items():
+        q = _joints(r)
+        c = r.controller
+        entry_feed = np.full(len(c.row_ids), FEED)
+        old = predict(p, m, r.rows, q, r.cl, r.plan.t_plan, decimate(m, r.rows, q, r.cl, TOL),
+                      entry_height=ENTRY_MM, entry_feed=entry_feed, tolerance=TOL)
+        new = predict(p, m, r.rows, q, r.cl, r.plan.t_plan,
+                      place(p, m, r.rows, q, r.cl, r.plan.t_plan, TOL, entry_height=ENTRY_MM, entry_feed=entry_feed),
+                      entry_height=ENTRY_MM, entry_feed=entry_feed, tolerance=TOL)
+        assert np.allclose(new.row_cycle_time, c.row_cycle_time)  # the pipeline's blocks are these
+        assert np.all(new.row_cycle_time <= old.row_cycle_time + 1e-9), (name, new.row_cycle_time, old.row_cycle_time)
+        for rid in c.row_ids:
+            sel = np.flatnonzero(r.rows == rid)
+            k = sel[c.keep[sel]]
+            entry_q, entry_time = row_entry(m, q[sel[0]], ENTRY_MM, FEED)
+            path = programmed_tip_path(m, q[sel], fk_tips(m, entry_q[None])[0])
+            _, joints = p.row_run(m, q[k], c.block_time[k[1:]], entry_q, entry_time)
+            assert tip_deviation(fk_tips(m, joints), path).max() <= EXECUTED_TOLERANCE_SHARE * TOL + 1e-6, name
+
+
+def test_smooth_prints_the_floor_beside_the_prediction(blade_rows, capsys):
+    """``smooth``'s summary line per method: 'LinuxCNC cannot run straight blocks through these
+    points in less than X s; this program: Y s', X the floor of the program's points recomputed
+    here (least_row_times at the whole tolerance and the programmed feed), Y the predicted time,
+    X <= Y; the report's row table carries the floor per row."""
+    from camsmooth.cli.main import _print_floor
+    from camsmooth.controller.linuxcnc import least_row_times
+    from camsmooth.report.smoothing import _rows_html
+
+    _print_floor(blade_rows)
+    out = capsys.readouterr().out
+    m = blade_rows.machine
+    for name, r in blade_rows.methods.items():
+        got = re.search(rf"^{name}: LinuxCNC cannot run straight blocks through these points in less than "
+                        r"([\d.e+-]+) s; this program: ([\d.e+-]+) s", out, re.M)
+        assert got, out
+        floor, program = float(got.group(1)), float(got.group(2))
+        want = least_row_times(m, r.rows, _joints(r), r.cl, np.full(len(r.rows), FEED), TOL)
+        assert floor == pytest.approx(want.sum(), rel=1e-3)
+        assert program == pytest.approx(r.metrics.cycle_time_s, rel=1e-3)
+        assert floor <= program
+        assert np.allclose(r.metrics.row_controller_floor_s, want)
+    html = _rows_html(blade_rows.methods["nlp"], tuple(m.rotary))
+    assert "least time on linuxcnc" in html
+    for v in blade_rows.methods["nlp"].metrics.row_controller_floor_s:
+        assert f"<td>{v:.4g}</td>" in html
