@@ -16,7 +16,8 @@ from camsmooth.diagnosis.points import diagnose_points, read_points
 from camsmooth.diagnosis.trace import diagnose_trace, read_trace
 
 NEW = {"servo_second_order", "velocity_limit", "acceleration_limit", "thermal_temperature", "backlash_load",
-       "thermal_time"}
+       "thermal_time", "quantisation"}
+Q = 0.003  # mm, the scale step of the quantisation cases
 DT = 0.002
 NOISE = 1e-3  # mm
 
@@ -108,6 +109,14 @@ def motion_trace(tmp_path, case: str, seed: int = 0):
             y += d * (np.where(x < D, x * x / (2 * D), x - D / 2) if D > 0 else x)
     elif case == "delay":  # a pure transport delay of 12 ms
         y = np.interp(t - 0.012, T, P)
+    elif case in ("staircase", "staircase_lag", "rounded_noise"):
+        # the measured channel rounded to a 3 um scale, written as the scale's counts times Q; the
+        # noise is before the rounding: 0.15 um (the steps fall where the position puts them) or,
+        # for the null, 3 um (a logger's last digit under noise: where each step falls is hidden)
+        y = superpose(t, T, P, ramp_first_order(1 / 40.0)) if case == "staircase_lag" else u
+        sd = Q if case == "rounded_noise" else 0.05 * Q
+        counts = np.round((y + rng.normal(0.0, sd, len(t))) / Q)
+        return write_csv(tmp_path / f"{case}.csv", t, {"X_cmd": u, "X_act": counts * Q})
     elif case == "backlash_load":
         load = np.sin(2 * np.pi * t / 0.7 + 0.3)
         y = u - 0.5 * 0.02 * np.sign(load)
@@ -223,6 +232,33 @@ def test_nothing_new_is_named_on_a_null(tmp_path, case):
         assert f["named"] == []
     if case == "pitch":  # left unexplained, and located
         assert f["unexplained"]["count"] > 0
+
+
+# ---- quantisation of the measured channel ------------------------------------------------------------
+def test_a_staircase_is_named_as_quantisation_with_its_step(tmp_path):
+    """X_act = Q round(X_cmd / Q) (noise 0.05 Q before the rounding): the step within 10% and the
+    whole staircase (share 1)."""
+    f = diagnose_trace(read_trace(motion_trace(tmp_path, "staircase"))).findings
+    assert f["named"] == ["quantisation"], f["named"]
+    e = effect(f, "quantisation")
+    assert e["parameters"]["q_X"] == pytest.approx(Q, rel=0.10)
+    assert e["parameters"]["share_X"] == pytest.approx(1.0, rel=0.10)
+    assert e["units"]["q_X"] == "mm" and "steps of 0.003 mm" in e["sentence"]
+    assert e["heldout_rms_after"]["X_act"] < 0.5 * e["heldout_rms_before"]["X_act"]
+
+
+def test_a_staircase_behind_a_lag_is_named_as_both(tmp_path):
+    f = diagnose_trace(read_trace(motion_trace(tmp_path, "staircase_lag"))).findings
+    assert sorted(f["named"]) == ["quantisation", "servo_lag"], f["named"]
+    assert effect(f, "servo_lag")["parameters"]["Kv_X"] == pytest.approx(40.0, rel=0.10)
+    assert effect(f, "quantisation")["parameters"]["q_X"] == pytest.approx(Q, rel=0.10)
+
+
+def test_rounding_that_noise_hides_is_not_named(tmp_path):
+    """The channel lies on the grid, but 1 step of noise before the rounding hides where each step
+    falls: the staircase is not a deterministic effect and nothing is named."""
+    f = diagnose_trace(read_trace(motion_trace(tmp_path, "rounded_noise"))).findings
+    assert f["named"] == [], f["named"]
 
 
 def test_growth_that_follows_time_is_not_put_down_to_a_temperature(tmp_path):

@@ -440,11 +440,14 @@ def _failure(what: str, proc: subprocess.CompletedProcess, folder: Path, kept: b
 
 
 def simulate(program: Path | str, machine: Machine, *, timeout: float = 600.0,
-             traj: dict[str, str] | None = None, keep: Path | None = None, wait: float | None = None) -> SimRun:
+             traj: dict[str, str] | None = None, keep: Path | None = None, wait: float | None = None,
+             hal: str | None = None) -> SimRun:
     """Run ``program`` on a headless LinuxCNC simulation of ``machine`` (module docstring) and
     return the commanded joints per servo cycle. traj: extra ``[TRAJ]`` settings (e.g.
     ``ARC_BLEND_ENABLE``). keep: a folder to leave the configuration and logs in. wait: the most
-    seconds to wait for another simulation (default timeout + 180). RuntimeError naming
+    seconds to wait for another simulation (default timeout + 180). hal: the HAL file's text instead
+    of the loop-back one (it must feed ``sampler.0``, cfg ``fffffs``, whose pins 0-4 land in
+    ``SimRun.joints``, as benchmarks/hal_reference.py does). RuntimeError naming
     LinuxCNC's output and logs when the run fails."""
     missing = linuxcnc_missing()
     if missing:
@@ -455,7 +458,7 @@ def simulate(program: Path | str, machine: Machine, *, timeout: float = 600.0,
     folder.mkdir(parents=True, exist_ok=True)
     try:
         ini = _ini(machine, folder, traj)
-        (folder / "sim.hal").write_text(_HAL)
+        (folder / "sim.hal").write_text(_HAL if hal is None else hal)
         (folder / "driver.py").write_text(_DRIVER)
         os.chmod(folder / "driver.py", 0o755)
         (folder / "tool.tbl").write_text("T1 P1 Z0 D10 ;\n")
@@ -545,7 +548,7 @@ def row_runs(machine: Machine, result: Any, program_text: str, run: SimRun) -> l
 
     joints = camsmooth_joints(machine, run.joints)
     tip, _ = machine.tool_pose_np(joints[:, 3], joints[:, 4], joints[:, 0], joints[:, 1], joints[:, 2])
-    q = np.column_stack([result.xyz, result.A, result.B])
+    q = np.column_stack([result.xyz, result.rotary.values])
     ctrl, plan = result.controller, result.plan
     out = []
     for rid, k in row_samples(program_text, run).items():

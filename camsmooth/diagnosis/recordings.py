@@ -151,7 +151,10 @@ def uniform_grid(values: np.ndarray, min_distinct: int = 10, written: float = 0.
     lie within 1e-3 q (plus half the written step ``written``, the rounding of the file) of a grid
     point. The step is refined over the whole span (total span / total grid steps), so rounding
     of the written values does not accumulate. Relative to the data, so a channel of small range
-    is judged on its own gaps."""
+    is judged on its own gaps. Where the values never take neighbouring grid points (a fast axis
+    sampled slowly: the smallest gap is 2 or 3 steps), the smallest gap divided by 2 .. ``DIVISORS``
+    is tried as well, the coarsest grid that holds the values being the step; a divided step must
+    stay above twice the written step (else any written value would lie on it)."""
     v = np.asarray(values, float)
     u = np.unique(v[np.isfinite(v)][:200000])
     if len(u) < min_distinct:
@@ -161,11 +164,28 @@ def uniform_grid(values: np.ndarray, min_distinct: int = 10, written: float = 0.
     span = float(u[-1] - u[0])
     if not q0 > 0.0 or span / q0 > 1e8 or q0 < 1e-12 * max(float(np.max(np.abs(u))), 1e-300):
         return 0.0
+    for k in range(1, DIVISORS + 1):
+        if k > 1 and (q0 / k <= 2.0 * written or span * k / q0 > 1e8):
+            break
+        q = _grid_of(u, gaps, q0 / k, written)
+        if q > 0.0:
+            return q
+    return 0.0
+
+
+#: the largest divisor of the smallest gap between values ``uniform_grid`` tries as the step
+DIVISORS = 6
+
+
+def _grid_of(u: np.ndarray, gaps: np.ndarray, q0: float, written: float) -> float:
+    """The step near q0 of a uniform grid holding the sorted distinct values u (``uniform_grid``), or 0."""
     q = q0
     for lim in (4.0, 16.0, 64.0, 256.0, 1024.0, math.inf):
         # refine q on the gaps of up to lim steps (their step counts are unambiguous), then wider
         steps = np.round(gaps / q)
         sel = steps <= lim
+        if not sel.any():  # a divided step: the smallest gap is more steps than lim
+            continue
         q = float(np.sum(gaps[sel]) / np.sum(steps[sel]))
     steps = np.round(gaps / q)
     k = np.concatenate([[0.0], np.cumsum(steps)])

@@ -23,7 +23,9 @@ hold); each starts at rest on the first command. The result is read at t - offse
 delay of every axis) and the recording adds a backlash of -(b/2) sign(last commanded direction),
 a load backlash of -(b/2) sign(load), and on the thermal axis sum_ch gain_ch * L_ch(T_ch - T_ch(0))
 with L_ch a first-order lag of time constant tau_ch, and gain (1 - exp(-(t - t0) / tau)) of growth
-against time. A parameter at its base value (0) switches
+against time. Last, the quantisation of the measured channel adds g (E[Q(y + n)] - y): Q the
+rounding to the act channel's own value grid (``TraceSimulator.quant_grid``), n a jitter of
+``QUANT_JITTER`` of the step (a smooth staircase). A parameter at its base value (0) switches
 its block off.
 
 Selection (``diagnose_trace``): the same term library, selector and significance rules as the
@@ -44,7 +46,7 @@ import numpy as np
 from numba import njit
 
 from camsmooth.diagnosis.problem import Options, locate_intervals, noise_floor
-from camsmooth.diagnosis.recordings import quantisation_steps
+from camsmooth.diagnosis.recordings import quantisation_steps, uniform_grid
 from camsmooth.errors import InputError
 from camsmooth.io.table import Table, read_table, read_text_file
 
@@ -54,7 +56,10 @@ GAP_FACTOR = 20.0
 GRID_MAX = 400_000
 #: terms tried on a trace (the library's order decides between equals)
 TRACE_CANDIDATES = ("servo_lag", "time_offset", "backlash", "servo_second_order", "velocity_limit",
-                    "acceleration_limit", "backlash_load", "thermal_temperature", "thermal_time")
+                    "acceleration_limit", "backlash_load", "thermal_temperature", "thermal_time", "quantisation")
+#: the jitter (fraction of the step) under which the quantisation term's staircase is averaged: its
+#: steps are ramps about 0.1 q wide, so a position term's derivative stays finite across them
+QUANT_JITTER = 0.02
 KINDS = ("cmd", "act", "load", "vel_cmd", "vel_act", "current")
 _AXIS_COLUMN = re.compile(r"^([A-Za-z0-9]+)_(cmd|act|load|vel_cmd|vel_act|current)$", re.IGNORECASE)
 
@@ -245,7 +250,8 @@ class TraceModel:
     tau: first-order lag 1/Kv per axis; t2: 1/wn of the second-order servo; zeta: its damping
     (1 when unset); iv, ia: 1/vmax, 1/amax (0: no limit); backlash, backlash_load: reversal size b;
     offset_s: pure delay of every axis; thermal: channel -> (gain per deg C, tau s) on
-    ``thermal_axis``; drift: (gain, tau s) of growth against time on that axis."""
+    ``thermal_axis``; drift: (gain, tau s) of growth against time on that axis; quant: the share
+    of the act channel's rounding per axis (0: none, 1: all)."""
 
     tau: dict[str, float] = field(default_factory=dict)
     t2: dict[str, float] = field(default_factory=dict)
@@ -258,11 +264,12 @@ class TraceModel:
     thermal: dict[str, tuple[float, float]] = field(default_factory=dict)
     thermal_axis: str | None = None
     drift: tuple[float, float] = (0.0, 1.0)
+    quant: dict[str, float] = field(default_factory=dict)
 
     def copy(self) -> TraceModel:
         return TraceModel(dict(self.tau), dict(self.t2), dict(self.zeta), dict(self.iv), dict(self.ia),
                           dict(self.backlash), dict(self.backlash_load), self.offset_s, dict(self.thermal),
-                          self.thermal_axis, self.drift)
+                          self.thermal_axis, self.drift, dict(self.quant))
 
 
 def _lag1_coeffs(h: float, tau: float) -> tuple[np.ndarray, np.ndarray]:
@@ -424,6 +431,21 @@ def _saturating_loop(u: np.ndarray, h: float, tau: float, vmax: float, amax: flo
     return y
 
 
+def rounded_mean(y: np.ndarray, q: np.ndarray, v0: float, jitter: float) -> np.ndarray:
+    """E[v0 + q round((y + n - v0) / q)] for n ~ N(0, (jitter q)^2), per sample (y where q = 0):
+    the rounding, its steps turned into ramps about 2 jitter q wide (only the neighbouring grid
+    points are reached: jitter well below 1/2)."""
+    from scipy.special import ndtr
+
+    on = q > 0
+    qs = np.where(on, q, 1.0)
+    m = np.round((y - v0) / qs)
+    r = y - v0 - m * qs
+    s = jitter * qs
+    e = v0 + qs * (m + ndtr((r - 0.5 * qs) / s) - ndtr((-0.5 * qs - r) / s))
+    return np.where(on, e, y)
+
+
 def _direction(u: np.ndarray) -> np.ndarray:
     """Last direction of motion (-1, 0 before the first move, +1) at each grid point."""
     d = np.diff(u, prepend=u[0])
@@ -498,6 +520,22 @@ class TraceSimulator:
         self.channels = tuple(f"{a}_act" for a in trace.axes)
         self.load_sign = {a: np.sign(trace.extra[a]["load"][idx]) for a in trace.axes if "load" in trace.extra[a]}
         self._lowpassed: dict[tuple[str, float], np.ndarray] = {}
+        self._grid: dict[str, tuple[np.ndarray, float]] = {}
+
+    def quant_grid(self, a: str) -> tuple[np.ndarray, float]:
+        """(step q at each sample, origin v0) of axis a's act channel (file units): a uniform grid
+        v0 + k q of its values when there is one, else the written decimals or figures per sample
+        (origin 0); q = 0 where none is evident."""
+        if a not in self._grid:
+            x = self.trace.act[a]
+            q = quantisation_steps(x)
+            grid = uniform_grid(x, written=float(np.min(q[q > 0], initial=0.0)))
+            v0 = 0.0
+            if grid > 0.0:
+                q = np.full(len(x), grid)
+                v0 = float(x[0] + np.median(np.mod(x - x[0] + 0.5 * grid, grid) - 0.5 * grid))
+            self._grid[a] = (q[self.idx], v0)
+        return self._grid[a]
 
     def loc(self, offset: float) -> tuple[np.ndarray, np.ndarray]:
         """Grid index and fraction of each sample time minus ``offset`` (s)."""
@@ -556,6 +594,10 @@ class TraceSimulator:
             g, tc = model.drift
             if g:
                 y = y + g * (1.0 - np.exp(-(self.t - self.trace.t[0]) / tc))
+        g = model.quant.get(a, 0.0)
+        if g:
+            q, v0 = self.quant_grid(a)
+            y = y + g * (rounded_mean(y, q, v0, QUANT_JITTER) - y)
         return y
 
     def run(self, model: TraceModel) -> np.ndarray:
@@ -720,6 +762,11 @@ def _report_effect(P: TraceProblem, name: str, names: Sequence[str], x: np.ndarr
     from camsmooth.diagnosis.terms import term
 
     par, unc, unit = term(name).report(names, x, sd)
+    if name == "quantisation":  # the step is the act channel's own grid (read from the data, not fitted)
+        for n in names:
+            a = n[3:]
+            q = P.sim_all.quant_grid(a)[0]
+            par[f"q_{a}"], unc[f"q_{a}"], unit[f"q_{a}"] = float(np.median(q[q > 0])), 0.0, "unit"
     if name == "backlash":  # trace units as read (the library's term assumes rad for A, B, C)
         par = {f"backlash_{n[2:]}": float(v) for n, v in zip(names, x, strict=True)}
         unc = {f"backlash_{n[2:]}": float(s) for n, s in zip(names, sd, strict=True)}

@@ -8,6 +8,7 @@ from camsmooth.diagnosis.terms.backlash import Backlash
 from camsmooth.diagnosis.terms.backlash_load import BacklashLoad
 from camsmooth.diagnosis.terms.base import Param, Term
 from camsmooth.diagnosis.terms.linear import LinearPositioning, LinearSquareness, LinearStraightness
+from camsmooth.diagnosis.terms.quantisation import Quantisation
 from camsmooth.diagnosis.terms.rotary_location import RotaryLocation
 from camsmooth.diagnosis.terms.rotary_squareness import RotarySquareness
 from camsmooth.diagnosis.terms.servo_lag import ServoLag
@@ -26,11 +27,11 @@ LIBRARY: tuple[Term, ...] = (ServoLag(), TimeOffset(), Backlash(), RotaryLocatio
                              LinearPositioning(), LinearStraightness(), LinearSquareness(),
                              # controller traces only (camsmooth.diagnosis.trace)
                              ServoSecondOrder(), VelocityLimit(), AccelerationLimit(), BacklashLoad(),
-                             ThermalTemperature(), ThermalTime())
+                             ThermalTemperature(), ThermalTime(), Quantisation())
 CANDIDATES: tuple[str, ...] = tuple(t.name for t in LIBRARY)
 #: the terms only a controller trace can show (not applicable to a program and its recording)
 TRACE_ONLY: tuple[str, ...] = ("servo_second_order", "velocity_limit", "acceleration_limit", "backlash_load",
-                               "thermal_temperature", "thermal_time")
+                               "thermal_temperature", "thermal_time", "quantisation")
 
 
 def term(name: str) -> Term:

@@ -75,6 +75,16 @@ class ServoSecondOrder(Term):
         return f"The servo responds as a second-order system, overshooting and ringing ({'; '.join(parts)}" \
                f"{none_text(none)})"
 
+    def unresolvable(self, P: Problem, names: Sequence[str], x: np.ndarray, sd: np.ndarray) -> str | None:
+        """A response faster than the sampling is not a finding: 1/wn below one sample period on every
+        axis (a ZOH-discretised controller's own filters leave such a rest on a noise-free trace)."""
+        t2 = {n[3:]: float(v) for n, v in zip(names, x, strict=True) if n.startswith("T2_")}
+        if t2 and all(v < P.dt for v in t2.values()):
+            worst = max(t2, key=lambda a: t2[a])
+            return (f"1/wn ({t2[worst] * 1e3:.3g} ms on {worst}) is below the sample period ({P.dt * 1e3:.3g} ms): "
+                    "a response faster than the sampling is not resolvable on this recording")
+        return None
+
     def state(self, P: Problem, names: Sequence[str]) -> tuple[str, np.ndarray, str]:
         a = names[0].split("_", 1)[1]
         return f"commanded acceleration {a}", P.states[f"acc_{a}"], "unit/s^2"
