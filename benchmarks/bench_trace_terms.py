@@ -16,7 +16,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from camsmooth.diagnosis.trace import diagnose_trace, read_trace  # noqa: E402
-from tests.test_trace_diagnosis import NEW, effect, motion_trace, thermal_trace  # noqa: E402
+from tests.test_trace_diagnosis import NEW, Q, effect, motion_trace, thermal_trace  # noqa: E402
 
 CASES = {  # case: (expected names, term, parameter, truth)
     "second_order": (["servo_second_order"], "servo_second_order", "wn_X", 120.0),
@@ -29,6 +29,9 @@ CASES = {  # case: (expected names, term, parameter, truth)
     "lag": (["servo_lag"], "servo_lag", "Kv_X", 40.0),
     "lag_ar1": (["servo_lag"], "servo_lag", "Kv_X", 40.0),
     "second_order_delay": (["servo_second_order", "time_offset"], "servo_second_order", "wn_X", 120.0),
+    "staircase": (["quantisation"], "quantisation", "q_X", Q),
+    "staircase_lag": (["servo_lag", "quantisation"], "quantisation", "q_X", Q),
+    "rounded_noise": ([], None, None, None),
     "pitch": ([], None, None, None),
     "white": ([], None, None, None),
     "coloured": ([], None, None, None),
