@@ -97,8 +97,9 @@ def cam_clsf(path: CCPath, cutter: ToroidalCutter, lead_deg: float = 11.0) -> st
     return "\n".join(lines + ["END-OF-PATH"]) + "\n"
 
 
-def run(sample: str, rows: int, methods: list[str], keep: Path | None, machine_file: Path | None = None
-        ) -> list[dict]:
+def smoothed(sample: str, rows: int, methods: list[str], machine_file: Path | None = None):
+    """(machine, cutter, SmoothResult) of ``rows`` rows from the middle of the sample's path,
+    smoothed for LinuxCNC (``linuxcnc_machine``) at 2000 mm/min and TOLERANCE."""
     machine = linuxcnc_machine(sample, machine_file)
     shipped = ROOT / "surfaces" / f"{sample}.toml"
     if shipped.exists():
@@ -123,10 +124,16 @@ def run(sample: str, rows: int, methods: list[str], keep: Path | None, machine_f
     res = smooth(program, surf, machine, cutter, feed=2000.0,
                  lead_range=tuple(np.radians([2.0, 20.0])), tilt_range=tuple(np.radians([-15.0, 15.0])),
                  method="nlp", tolerance=TOLERANCE)
+    return machine, cutter, res
+
+
+def run(sample: str, rows: int, methods: list[str], keep: Path | None, machine_file: Path | None = None
+        ) -> list[dict]:
+    machine, cutter, res = smoothed(sample, rows, methods, machine_file)
     out = []
     for m in methods:
         r = res.methods[m]
-        q = np.column_stack([r.xyz, r.A, r.B])
+        q = np.column_stack([r.xyz, r.rotary.values])
         bound = dict(zip(r.controller.row_ids, least_row_times(machine, r.rows, q, r.cl, np.full(len(q), 2000.0),
                                                                TOLERANCE), strict=True))
         model_dev = dict(zip(r.controller.row_ids, r.controller.row_deviation, strict=True))

@@ -39,6 +39,7 @@ from camsmooth.geometry.clearance import MeshIndex, clearance  # noqa: E402
 from camsmooth.geometry.cutter import ToroidalCutter  # noqa: E402
 from camsmooth.geometry.surfaces import load_surface  # noqa: E402
 from camsmooth.io.ccpath import read_cc_csv  # noqa: E402
+from camsmooth.machine.axes import RotaryValues  # noqa: E402
 from camsmooth.machine.kinematics import load_machine, machine_from_dict  # noqa: E402
 from camsmooth.smoothing.nlp import RowNLP, gamma, spline_row  # noqa: E402
 from camsmooth.smoothing.orientation import axis_from_lead_tilt, local_frames  # noqa: E402
@@ -70,7 +71,7 @@ def independent_checks(res, machine, lead_range, tilt_range, index: MeshIndex) -
     and the exact clearance of the final poses."""
     r = res.methods["nlp"]
     out = {"travel": 0, "velocity": 0, "acceleration": 0, "lead": 0, "tilt": 0}
-    for name, q in zip(machine.rotary, (r.A, r.B), strict=True):
+    for name, q in r.rotary.items():
         lim = machine.limits[name]
         out["travel"] += int(np.sum((q < lim.min - 1e-12) | (q > lim.max + 1e-12)))
         for row in np.unique(r.rows):
@@ -103,10 +104,10 @@ def reference_gamma(res, program, machine, index: MeshIndex) -> tuple[float, flo
     A, B = np.empty(len(p)), np.empty(len(p))
     rng = np.random.default_rng(0)
     for s in p.slices:
-        starts = {m: (res.methods[m].A[s], res.methods[m].B[s]) for m in ("none", "spline", "nlp")}
-        sp = res.methods["spline"]
-        starts["spline+noise"] = (sp.A[s] + rng.uniform(-0.01, 0.01, s.stop - s.start),
-                                  sp.B[s] + rng.uniform(-0.01, 0.01, s.stop - s.start))
+        starts = {m: res.methods[m].rotary.take(s).pair for m in ("none", "spline", "nlp")}
+        sp = res.methods["spline"].rotary.take(s)
+        starts["spline+noise"] = (sp.first + rng.uniform(-0.01, 0.01, s.stop - s.start),
+                                  sp.second + rng.uniform(-0.01, 0.01, s.stop - s.start))
         row = int(p.path.rows[s.start])
         if any(q.row == row for q in res.methods["nlp"].metrics.pole):  # its own way past the pole
             starts["continuation"] = reference_nlp.continuation_start(
@@ -231,7 +232,7 @@ def bench_row10k(repeats: int = 3) -> bool:
         for _ in range(repeats):
             t0 = time.perf_counter()
             ref = reference_nlp.solve(m, program.t, program.frames, o.lead_window, o.tilt_window,
-                                      {"spline": (res.methods["spline"].A, res.methods["spline"].B)})
+                                      {"spline": res.methods["spline"].rotary.pair})
             naive.append(time.perf_counter() - t0)
             naive_solve.append(ref.solve_s)
         out = read_result(d / "out.csv")
@@ -329,16 +330,16 @@ def bench_scaling(sizes: list[int], repeats: int = 3) -> None:
     for n in sizes:
         t, fr, T = synthetic_row(n)
         ik = m.solve_row(T)
-        As, Bs = spline_row(ik.A, ik.B, t)
+        start = RotaryValues.of(m.rotary, *spline_row(*ik.rotary.pair, t))
         times = []
         for _ in range(repeats if n <= 20000 else 1):
             nlp = RowNLP(m, n)
-            A, B, st = nlp.solve(t, fr, As, Bs, np.tile(LEAD, (n, 1)), np.tile(TILT, (n, 1)))
+            q, st = nlp.solve(t, fr, start, np.tile(LEAD, (n, 1)), np.tile(TILT, (n, 1)))
             times.append(st.time_s)
         best, med = min(times), float(np.median(times))
         print(f"{n:8d} {nlp.build_s:7.3f} {best:11.3f} / {med:6.3f} {nlp.build_s + med:8.3f} {st.iterations:6d} "
               f"{st.rounds:6d} {st.rows:6d}/{st.total_rows:<7d} {n / (nlp.build_s + med):9.0f} "
-              f"{gamma(T, t):11.4g} {gamma(m.tool_axis_np(A, B), t):10.4g} {st.status}")
+              f"{gamma(T, t):11.4g} {gamma(m.tool_axis_np(*q.pair), t):10.4g} {st.status}")
 
 
 def bench_finish(names: list[str]) -> bool:
@@ -401,7 +402,7 @@ def _finish_sample(name: str) -> tuple[list[str], bool]:
             ok &= not unnamed
         lines.append(f"{name:>7s} {method:>6s} {('-' if budget is None else format(1e3 * budget, '.4g')):>9s} "
                      f"{m.gamma:10.4g} {m.cycle_time_optimal_s:9.2f} {m.cycle_time_s:8.2f} "
-                     f"{m.peak_A_acc_plan:7.4g}/{m.peak_B_acc_plan:<8.4g} {1e3 * np.nanmax(h):10.4g} "
+                     f"{m.peak_acc_plan[0]:7.4g}/{m.peak_acc_plan[1]:<8.4g} {1e3 * np.nanmax(h):10.4g} "
                      f"{len(m.scallop_missed):11d} {viol:5d} {dt:6.1f}")
         print(lines[-1], flush=True)
         return float(np.nanmax(h))

@@ -79,6 +79,7 @@ def _cl_seeds() -> list[tuple[str, bytes]]:
 
 def _gcode_seeds(folder: Path) -> list[tuple[str, bytes]]:
     from camsmooth.io.gcode import write_gcode
+    from camsmooth.machine.axes import RotaryValues
     from camsmooth.machine.kinematics import load_machine
     from camsmooth.smoothing.result import MethodResult
 
@@ -90,7 +91,10 @@ def _gcode_seeds(folder: Path) -> list[tuple[str, bytes]]:
     T = machine.tool_axis_np(a, b)
     z0 = np.zeros(m)
     res = MethodResult(method="nlp", rows=k // 5, idx=k % 5, t=z0, cc=tip, normals=T, cl=tip, axis=T, lead=z0,
-                       tilt=z0, A=a, B=b, A_vel=z0, B_vel=z0, A_acc=z0, B_acc=z0, xyz=machine.linear_axes(tip, a, b),
+                       tilt=z0, rotary=RotaryValues.of(machine.rotary, a, b),
+                       rotary_vel=RotaryValues.zeros(machine.rotary, m),
+                       rotary_acc=RotaryValues.zeros(machine.rotary, m),
+                       xyz=machine.linear_axes(tip, a, b),
                        delta=z0, lift=z0, lead_window=np.zeros((m, 2)), tilt_window=np.zeros((m, 2)),
                        compound_acc=z0)
     cutter = type("C", (), {"R": 3.0, "r": 1.0})()

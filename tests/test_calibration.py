@@ -276,14 +276,14 @@ def test_cli_predict(tmp_path, machine, capsys):
     cols = ["row", "idx", "t", "x", "y", "z", "nx", "ny", "nz", "lead", "tilt", "A", "B", "X", "Y", "Z",
             "delta"]
     table = np.column_stack([np.zeros(n), np.arange(n), np.linspace(0, 5, n), cc, normals, np.full(n, 10.0),
-                             np.zeros(n), np.degrees(ik.A), np.degrees(ik.B), ik.xyz, np.zeros(n)])
+                             np.zeros(n), np.degrees(ik.rotary["A"]), np.degrees(ik.rotary["B"]), ik.xyz, np.zeros(n)])
     path = tmp_path / "out.csv"
     path.write_text(",".join(cols) + "\n" + "\n".join(",".join(f"{v:.12g}" for v in r) for r in table) + "\n")
     assert _cli(["predict", path, "--model", tmp_path / "m.json", "-o", tmp_path / "pred.csv"]) == 0
     out = capsys.readouterr().out
     assert "tool-tip deviation max" in out
     got = cal.read_table(tmp_path / "pred.csv", ("real_clx", "tip_dev_um", "real_lead", "real_tilt"))
-    pred = model.predict(machine, ik.A, ik.B, *ik.xyz.T)
+    pred = model.predict(machine, *ik.rotary.pair, *ik.xyz.T)
     assert np.allclose(got["tip_dev_um"], pred.tip_dev_um, rtol=1e-6)
     # an A squareness error about z turns the axis about z: at B != 0 that shows up as tilt
     assert np.max(np.abs(got["real_tilt"])) > 1e-4 and np.allclose(got["real_lead"], 10.0, atol=0.01)

@@ -95,7 +95,7 @@ def test_decimated_blocks_keep_every_dropped_tip_within_their_share(blade_rows):
     the tolerance; fewer blocks than points."""
     r = blade_rows.methods["nlp"]
     m = blade_rows.machine
-    q = np.column_stack([r.xyz, r.A, r.B])
+    q = np.column_stack([r.xyz, r.rotary.values])
     keep = r.controller.keep
     assert keep.sum() < 0.9 * len(keep)
     k = np.flatnonzero(keep)
@@ -181,7 +181,7 @@ def test_linuxcnc_interpreter_reads_the_program_and_its_positions_and_times(blad
         pytest.skip("TCP mode needs the M428/M429 remaps of LinuxCNC's sample configurations")
     canon = interpret(ngc, ini=_trt_config(tmp_path) / "xyzac-trt.ini" if mode == "tcp" else None)
     keep = r.controller.keep
-    pts = np.column_stack([r.xyz if mode == "machine" else r.cl, np.degrees(r.A), np.degrees(r.B)])[keep]
+    pts = np.column_stack([r.xyz if mode == "machine" else r.cl, np.degrees(r.rotary.values)])[keep]
     cut = ~canon.rapid
     cut &= np.abs(canon.joints[:, 2]) < 1e3  # not the final G53 retract
     # each row: the entry feed move (onto the first point) and the row's blocks
@@ -273,7 +273,8 @@ def test_blade_rows_on_linuxcnc_take_the_predicted_time_and_stay_within_the_tole
     run = simulate(ngc, m, timeout=120)
     rows = row_runs(m, r, ngc.read_text(), run)
     assert sorted(x.row for x in rows) == sorted(int(x) for x in np.unique(r.rows))
-    bound = least_row_times(m, r.rows, np.column_stack([r.xyz, r.A, r.B]), r.cl, np.full(len(r.rows), 2000.0), 0.005)
+    bound = least_row_times(m, r.rows, np.column_stack([r.xyz, r.rotary.values]), r.cl, np.full(len(r.rows), 2000.0),
+                            0.005)
     model_dev = dict(zip(r.controller.row_ids, r.controller.row_deviation, strict=True))
     least = dict(zip(r.controller.row_ids, bound, strict=True))
     for x in rows:
@@ -347,7 +348,7 @@ def test_the_blocks_keep_the_models_tool_tip_within_the_tolerance_at_every_servo
 
     r, m = blade_rows.methods["nlp"], blade_rows.machine
     p = planner_for(m, 0.005)
-    q = np.column_stack([r.xyz, r.A, r.B])
+    q = np.column_stack([r.xyz, r.rotary.values])
     worst_written, worst_optimal = 0.0, 0.0
     for rid in np.unique(r.rows):
         sel = np.flatnonzero(r.rows == rid)
@@ -429,7 +430,7 @@ def test_least_row_times_is_below_what_the_model_predicts_for_every_method(blade
 
     m = blade_rows.machine
     for r in blade_rows.methods.values():
-        q = np.column_stack([r.xyz, r.A, r.B])
+        q = np.column_stack([r.xyz, r.rotary.values])
         feed = np.full(len(q), 2000.0)
         bound = least_row_times(m, r.rows, q, r.cl, feed, 0.005)
         assert np.all(bound < r.controller.row_cycle_time)

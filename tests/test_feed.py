@@ -261,8 +261,8 @@ def test_near_singular_orientation_against_independent_solve():
     beta, phi = np.radians(8 - 6 * u), np.radians(-40 + 80 * u + 10 * np.sin(6 * u))
     T = np.column_stack([np.cos(beta), np.sin(beta) * np.sin(phi), np.sin(beta) * np.cos(phi)])
     ik = m.solve_row(T)
-    assert np.degrees(ik.B).max() > 87.9 and len(ik.unreachable) == 0
-    q = np.column_stack([m.linear_axes(tip, ik.A, ik.B), ik.A, ik.B])
+    assert np.degrees(ik.rotary["B"]).max() > 87.9 and len(ik.unreachable) == 0
+    q = np.column_stack([m.linear_axes(tip, *ik.rotary.pair), *ik.rotary.pair])
     feed = np.full(n, 3000.0)
     plan = plan_row(m, q, tip, feed)
     t_ref = reference_time(m, q, tip, feed)
@@ -358,7 +358,7 @@ def test_plan_method_on_a_pipeline_result():
     feed = res.inputs["feed"]
     plan = plan_method(m, r, feed)
     assert list(plan.row_ids) == list(dict.fromkeys(r.rows.tolist()))
-    q = np.column_stack([r.xyz, r.A, r.B])
+    q = np.column_stack([r.xyz, r.rotary.values])
     for row in plan.row_ids:
         k = r.rows == row
         assert plan.t_plan[k][0] == 0.0

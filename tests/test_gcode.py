@@ -32,6 +32,7 @@ from pygcode.gcodes import (
 from camsmooth.errors import InputError
 from camsmooth.io.gcode import DIALECTS, read_gcode, write_gcode
 from camsmooth.io.program import load_program
+from camsmooth.machine.axes import RotaryValues
 from camsmooth.machine.kinematics import load_machine, machine_from_dict
 from camsmooth.smoothing.result import MethodResult
 
@@ -68,8 +69,9 @@ def _method(seed: int = 3) -> tuple[MethodResult, np.ndarray]:
     n = len(rows)
     idx = np.concatenate([np.arange(np.sum(rows == k)) for k in range(3)])
     z0 = np.zeros(n)
-    m = MethodResult(method="nlp", rows=rows, idx=idx, t=z0, cc=cl, normals=T, cl=cl, axis=T, lead=z0, tilt=z0, A=A,
-                     B=B, A_vel=z0, B_vel=z0, A_acc=z0, B_acc=z0, xyz=MACHINE.linear_axes(cl, A, B), delta=z0, lift=z0,
+    m = MethodResult(method="nlp", rows=rows, idx=idx, t=z0, cc=cl, normals=T, cl=cl, axis=T, lead=z0, tilt=z0,
+                     rotary=RotaryValues.of(("A", "B"), A, B), rotary_vel=RotaryValues.zeros(("A", "B"), n),
+                     rotary_acc=RotaryValues.zeros(("A", "B"), n), xyz=MACHINE.linear_axes(cl, A, B), delta=z0, lift=z0,
                      lead_window=np.zeros((n, 2)), tilt_window=np.zeros((n, 2)), compound_acc=z0)
     feed = 600.0 + 900.0 * rng.random(n)
     return m, feed
@@ -186,7 +188,7 @@ def test_dialect_mode_rebuilds_tip_path_and_feed(tmp_path, dialect, mode):
     np.testing.assert_allclose(c.axis, m.axis, atol=1e-5)
     np.testing.assert_allclose(c.feed[1:], feed[1:], rtol=1e-3)  # the first point of the program has no block
     assert [s.stop - s.start for s in c.row_slices()] == [int(np.sum(m.rows == k)) for k in range(3)]
-    np.testing.assert_allclose(np.degrees(c.angles), np.degrees(np.column_stack([m.A, m.B])), atol=0.5e-4 + 1e-9)
+    np.testing.assert_allclose(np.degrees(c.angles), np.degrees(m.rotary.values), atol=0.5e-4 + 1e-9)
 
 
 def test_ab_sign_convention():
@@ -211,7 +213,8 @@ def test_sign_convention_in_written_program(tmp_path):
     n = 3
     z0 = np.zeros(n)
     m = MethodResult(method="cam", rows=np.zeros(n, int), idx=np.arange(n), t=z0, cc=cl, normals=T, cl=cl, axis=T,
-                     lead=z0, tilt=z0, A=ik.A, B=ik.B, A_vel=z0, B_vel=z0, A_acc=z0, B_acc=z0, xyz=ik.xyz, delta=z0,
+                     lead=z0, tilt=z0, rotary=ik.rotary, rotary_vel=RotaryValues.zeros(("A", "B"), n),
+                     rotary_acc=RotaryValues.zeros(("A", "B"), n), xyz=ik.xyz, delta=z0,
                      lift=z0, lead_window=np.zeros((n, 2)), tilt_window=np.zeros((n, 2)), compound_acc=z0)
     text = write_gcode(tmp_path / "s.nc", m, MACHINE, CUTTER, 500.0, dialect="linuxcnc", mode="tcp").read_text()
     blocks, _ = _pygcode_blocks(text, "linuxcnc")

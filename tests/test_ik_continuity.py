@@ -34,9 +34,9 @@ def test_a_sweep_is_continuous_and_exact(a0, a1):
     A = np.radians(np.linspace(a0, a1, 601))
     B = np.full_like(A, np.radians(17.0))
     r = m.solve_row(_axis(A, B), previous=(A[0], B[0]))
-    np.testing.assert_allclose(r.A, A, atol=1e-9)
-    np.testing.assert_allclose(r.B, B, atol=1e-9)
-    assert np.max(np.abs(np.diff(r.A))) <= 1.001 * np.radians(abs(a1 - a0) / 600)
+    np.testing.assert_allclose(r.rotary["A"], A, atol=1e-9)
+    np.testing.assert_allclose(r.rotary["B"], B, atol=1e-9)
+    assert np.max(np.abs(np.diff(r.rotary["A"]))) <= 1.001 * np.radians(abs(a1 - a0) / 600)
     assert r.unreachable.size == 0
 
 
@@ -46,8 +46,8 @@ def test_zero_to_three_hundred_from_the_default_seed():
     A = np.radians(np.linspace(0.0, 300.0, 301))
     B = np.full_like(A, np.radians(5.0))
     r = m.solve_row(_axis(A, B))
-    np.testing.assert_allclose(r.A, A, atol=1e-9)
-    assert np.degrees(np.max(np.abs(np.diff(r.A)))) < 1.01
+    np.testing.assert_allclose(r.rotary["A"], A, atol=1e-9)
+    assert np.degrees(np.max(np.abs(np.diff(r.rotary["A"])))) < 1.01
 
 
 def test_b_sweep_through_ninety_degrees_stays_on_its_branch():
@@ -58,8 +58,8 @@ def test_b_sweep_through_ninety_degrees_stays_on_its_branch():
     B = np.radians(np.linspace(0.0, 150.0, 400))  # step 0.376 deg: no point at 90
     A = np.full_like(B, np.radians(20.0))
     r = m.solve_row(_axis(A, B), previous=(A[0], B[0]))
-    np.testing.assert_allclose(r.B, B, atol=1e-8)
-    np.testing.assert_allclose(r.A, A, atol=1e-6)
+    np.testing.assert_allclose(r.rotary["B"], B, atol=1e-8)
+    np.testing.assert_allclose(r.rotary["A"], A, atol=1e-6)
 
 
 def test_rows_chained_from_the_previous_end():
@@ -70,9 +70,9 @@ def test_rows_chained_from_the_previous_end():
     B = np.radians(10.0 + 5.0 * np.sin(np.linspace(0.0, 6.0, 341)))
     T = _axis(A, B)
     r1 = m.solve_row(T[:170], previous=(0.0, B[0]))
-    r2 = m.solve_row(T[170:], previous=(r1.A[-1], r1.B[-1]))
-    np.testing.assert_allclose(np.concatenate([r1.A, r2.A]), A, atol=1e-9)
-    np.testing.assert_allclose(np.concatenate([r1.B, r2.B]), B, atol=1e-9)
+    r2 = m.solve_row(T[170:], previous=(r1.rotary["A"][-1], r1.rotary["B"][-1]))
+    np.testing.assert_allclose(np.concatenate([r1.rotary["A"], r2.rotary["A"]]), A, atol=1e-9)
+    np.testing.assert_allclose(np.concatenate([r1.rotary["B"], r2.rotary["B"]]), B, atol=1e-9)
 
 
 def test_wrap_with_a_single_reachable_branch():
@@ -82,8 +82,8 @@ def test_wrap_with_a_single_reachable_branch():
     A = np.radians(np.linspace(100.0, 199.0, 200))
     B = np.full_like(A, np.radians(-30.0))
     r = m.solve_row(_axis(A, B), previous=(A[0], B[0]))
-    np.testing.assert_allclose(r.A, A, atol=1e-9)
-    np.testing.assert_allclose(r.B, B, atol=1e-9)
+    np.testing.assert_allclose(r.rotary["A"], A, atol=1e-9)
+    np.testing.assert_allclose(r.rotary["B"], B, atol=1e-9)
 
 
 def test_unreachable_stretch_keeps_the_row_continuous():
@@ -95,5 +95,5 @@ def test_unreachable_stretch_keeps_the_row_continuous():
     r = m.solve_row(_axis(A, B))
     expected = np.flatnonzero(np.degrees(A) > 100.0 + 1e-7)
     np.testing.assert_array_equal(r.unreachable, expected)
-    np.testing.assert_allclose(r.A, A, atol=1e-9)
-    assert np.max(np.abs(np.diff(r.A))) < np.radians(0.6)
+    np.testing.assert_allclose(r.rotary["A"], A, atol=1e-9)
+    assert np.max(np.abs(np.diff(r.rotary["A"]))) < np.radians(0.6)

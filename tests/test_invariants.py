@@ -219,9 +219,9 @@ def test_c_follows_a_part_turned_several_times_both_ways(c_travel):
     T = _rz(phi) @ T0
     r = m.solve_row(T)
     assert r.unreachable.size == 0
-    np.testing.assert_allclose(r.A, np.radians(-40.0), atol=1e-9)
-    np.testing.assert_allclose(r.B, phi, atol=1e-9)  # IKResult.B: the second rotary axis, C
-    np.testing.assert_allclose(m.tool_axis_np(r.A, r.B), T, atol=1e-12)
+    np.testing.assert_allclose(r.rotary["A"], np.radians(-40.0), atol=1e-9)
+    np.testing.assert_allclose(r.rotary["C"], phi, atol=1e-9)
+    np.testing.assert_allclose(m.tool_axis_np(*r.rotary.pair), T, atol=1e-12)
 
 
 def test_a_row_turned_about_c_gives_c_shifted_by_the_turn():
@@ -233,13 +233,13 @@ def test_a_row_turned_about_c_gives_c_shifted_by_the_turn():
     c = np.radians(40.0 * np.sin(3 * s) + 200.0 * s)
     T = m.tool_axis_np(a, c)
     base = m.solve_row(T, previous=(float(a[0]), float(c[0])))
-    np.testing.assert_allclose(base.A, a, atol=1e-9)
-    np.testing.assert_allclose(base.B, c, atol=1e-9)
+    np.testing.assert_allclose(base.rotary["A"], a, atol=1e-9)
+    np.testing.assert_allclose(base.rotary["C"], c, atol=1e-9)
     for turn in (250.0, -300.0, 95.0):
         ph = np.radians(turn)
         r = m.solve_row(T @ _rz(np.array(ph)).T, previous=(float(a[0]), float(c[0]) + ph))
-        np.testing.assert_allclose(r.A, base.A, atol=1e-9)
-        np.testing.assert_allclose(r.B, base.B + ph, atol=1e-9)
+        np.testing.assert_allclose(r.rotary["A"], base.rotary["A"], atol=1e-9)
+        np.testing.assert_allclose(r.rotary["C"], base.rotary["C"] + ph, atol=1e-9)
 
 
 # ---- the pole ----------------------------------------------------------------------------------------
@@ -265,7 +265,7 @@ def _passages(m, T: np.ndarray):
     n = len(T)
     rows, t = np.zeros(n, int), np.arange(n) * 0.01
     r = m.solve_row(T)
-    angles = np.column_stack([r.A, r.B])
+    angles = r.rotary.values
     return find_passages(m, T, rows, t, angles), pole_start(m, T, rows, t, angles), angles
 
 

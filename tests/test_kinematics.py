@@ -72,16 +72,16 @@ def test_solve_row_picks_branch_in_limits_and_unwraps():
     A_true, B_true = np.radians(30) * np.sin(3 * s), np.radians(20) * np.cos(2 * s)
     T = m.tool_axis_np(A_true, B_true)
     r = m.solve_row(T)
-    np.testing.assert_allclose(r.A, A_true, atol=1e-12)
-    np.testing.assert_allclose(r.B, B_true, atol=1e-12)
+    np.testing.assert_allclose(r.rotary["A"], A_true, atol=1e-12)
+    np.testing.assert_allclose(r.rotary["B"], B_true, atol=1e-12)
     assert r.unreachable.size == 0
     # a wide machine: continuity across the +-180 deg wrap of A
     w = _wide_machine()
     A_wrap = np.radians(np.linspace(170, 190, 50))
     T = w.tool_axis_np(A_wrap, np.full(50, 0.2))
     r = w.solve_row(T, previous=(A_wrap[0], 0.2))
-    assert np.max(np.abs(np.diff(r.A))) < np.radians(1.0)
-    np.testing.assert_allclose(w.tool_axis_np(r.A, r.B), T, atol=1e-12)
+    assert np.max(np.abs(np.diff(r.rotary["A"]))) < np.radians(1.0)
+    np.testing.assert_allclose(w.tool_axis_np(*r.rotary.pair), T, atol=1e-12)
 
 
 def test_unreachable_points_are_named():

@@ -235,9 +235,9 @@ def test_solve_row_reaches_every_axis_within_travel():
     T = m.tool_axis_np(A, B)
     res = m.solve_row(T)
     assert res.unreachable.size == 0 and res.xyz is None
-    np.testing.assert_allclose(m.tool_axis_np(res.A, res.B), T, atol=1e-12)
-    assert m.within("A", res.A).all() and m.within("B", res.B).all()
-    np.testing.assert_allclose(np.degrees([res.A[1], res.B[1]]), [30.0, 95.0], atol=1e-9)
+    np.testing.assert_allclose(m.tool_axis_np(*res.rotary.pair), T, atol=1e-12)
+    assert m.within("A", res.rotary["A"]).all() and m.within("B", res.rotary["B"]).all()
+    np.testing.assert_allclose(np.degrees([res.rotary["A"][1], res.rotary["B"][1]]), [30.0, 95.0], atol=1e-9)
 
 
 def test_solve_row_start_and_out_of_travel_points():
@@ -245,15 +245,15 @@ def test_solve_row_start_and_out_of_travel_points():
     T = wide.tool_axis_np(np.radians([-160.0, 170.0, 0.0]), np.radians([0.0, 0.0, 0.0]))
     # from (0, 0) the first point takes A = -160 (nearer than +200)
     res = wide.solve_row(T[:1])
-    assert np.degrees(res.A[0]) == pytest.approx(-160.0)
+    assert np.degrees(res.rotary["A"][0]) == pytest.approx(-160.0)
     # (A, B) = (120, 50) deg: nearer to (0, 0) than the other branch (-60, 130) deg, which is nearer to
     # (0, 57) deg: the start is (0, 0) in both angles
     tall = _machine(200.0, 180.0)
     res = tall.solve_row(tall.tool_axis_np(np.radians([120.0]), np.radians([50.0])))
-    np.testing.assert_allclose(np.degrees([res.A[0], res.B[0]]), [120.0, 50.0], atol=1e-9)
+    np.testing.assert_allclose(np.degrees([res.rotary["A"][0], res.rotary["B"][0]]), [120.0, 50.0], atol=1e-9)
     # from a previous A of 400 deg the nearest candidate (530 deg) is out of travel: 170 is taken
     res = wide.solve_row(T[1:2], previous=(np.radians(400.0), 0.0))
-    assert np.degrees(res.A[0]) == pytest.approx(170.0) and res.unreachable.size == 0
+    assert np.degrees(res.rotary["A"][0]) == pytest.approx(170.0) and res.unreachable.size == 0
     # X beyond its travel: X = cl_x + pivot T_x with pivot 150 mm, T vertical
     cl = np.array([[0.0, 0.0, 0.0], [120.0, 0.0, 0.0], [-50.0, 0.0, 0.0]])
     up = np.tile([0.0, 0.0, 1.0], (3, 1))

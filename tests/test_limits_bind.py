@@ -176,9 +176,9 @@ def run_nlp(scene, limits, lead=LEAD, tilt=TILT):
 def baseline(scene):
     """P0: the loose machine, the user's windows."""
     nlp, none = run_nlp(scene, LOOSE)
-    use = check_program(scene, nlp.rows, nlp.t, nlp.A, nlp.B, LOOSE)
+    use = check_program(scene, nlp.rows, nlp.t, *nlp.rotary.pair, LOOSE)
     # the scene is not trivial: the unsmoothed program breaks the DEFAULT machine's B velocity
-    assert "B velocity" in violated(usage(none.rows, none.t, none.A, none.B), DEFAULT)
+    assert "B velocity" in violated(usage(none.rows, none.t, *none.rotary.pair), DEFAULT)
     return use
 
 
@@ -215,7 +215,7 @@ def test_machine_limit_binds_and_is_met(scene, baseline, case, key, change):
     # binds: the loose solution (what ignoring this limit gives) breaks it ...
     assert not _within(baseline[key], value, key), (case, baseline[key], value)
     nlp, _ = run_nlp(scene, limits)
-    use = check_program(scene, nlp.rows, nlp.t, nlp.A, nlp.B, limits)
+    use = check_program(scene, nlp.rows, nlp.t, *nlp.rotary.pair, limits)
     # ... and the optimum under it lies on it
     assert _touches(use[key], value, key), (case, use[key], value)
     assert np.all(nlp.lift == 0)  # met by turning the axes, not by the lift fallback
@@ -226,7 +226,7 @@ def test_machine_limit_binds_and_is_met(scene, baseline, case, key, change):
 def test_lead_window_binds_and_is_met(scene, baseline):
     # widened to 2..60 deg the optimum leans beyond 20 deg: the window's ceiling is what holds it
     wide, _ = run_nlp(scene, LOOSE, lead=(2.0, 60.0))
-    lead, _ = own_lead_tilt(own_axis(wide.A, wide.B), scene[2], scene[3])
+    lead, _ = own_lead_tilt(own_axis(*wide.rotary.pair), scene[2], scene[3])
     assert np.degrees(lead.max()) > LEAD[1] + 5.0
     # under the user's window (the baseline solve): met at every sample, both ends touched
     assert baseline["lead max"] >= LEAD[1] - 0.01 and baseline["lead min"] <= LEAD[0] + 0.01, baseline
@@ -234,7 +234,7 @@ def test_lead_window_binds_and_is_met(scene, baseline):
 
 def test_tilt_window_binds_and_is_met(scene, baseline):
     wide, _ = run_nlp(scene, LOOSE, tilt=(-60.0, 60.0))
-    _, tilt = own_lead_tilt(own_axis(wide.A, wide.B), scene[2], scene[3])
+    _, tilt = own_lead_tilt(own_axis(*wide.rotary.pair), scene[2], scene[3])
     assert np.degrees(tilt.max()) > TILT[1] + 5.0 and np.degrees(tilt.min()) < TILT[0] - 5.0
     assert baseline["tilt max"] >= TILT[1] - 0.01 and baseline["tilt min"] <= TILT[0] + 0.01, baseline
 

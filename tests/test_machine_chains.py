@@ -177,7 +177,7 @@ def test_nutating_cone_names_the_axes_it_cannot_reach():
     assert ik.unreachable.tolist() == [3, 4, 5]
     # every reachable point is reached exactly (B within its travel of -5..185 deg)
     ok = m.reachable(T)
-    np.testing.assert_allclose(m.tool_axis_np(ik.A[ok], ik.B[ok]), T[ok], atol=1e-12)
+    np.testing.assert_allclose(m.tool_axis_np(*ik.rotary.take(ok).pair), T[ok], atol=1e-12)
 
 
 @pytest.mark.parametrize("bad,message", [

@@ -142,14 +142,14 @@ def test_continuous_c_follows_more_than_a_turn_and_limited_c_does_not():
     tilt = np.radians(25.0)
     T = np.column_stack([np.sin(tilt) * np.sin(phi), -np.sin(tilt) * np.cos(phi), np.full_like(phi, np.cos(tilt))])
     r = m.solve_row(T)
-    np.testing.assert_allclose(m.tool_axis_np(r.A, r.B), T, atol=1e-12)
+    np.testing.assert_allclose(m.tool_axis_np(*r.rotary.pair), T, atol=1e-12)
     assert r.unreachable.size == 0
-    assert np.all(np.abs(np.diff(r.B)) < np.radians(2.0))  # continuous
-    assert np.degrees(np.ptp(r.B)) == pytest.approx(1080.0, abs=1e-6)
+    assert np.all(np.abs(np.diff(r.rotary["C"])) < np.radians(2.0))  # continuous
+    assert np.degrees(np.ptp(r.rotary["C"])) == pytest.approx(1080.0, abs=1e-6)
     limited = machine("AC-table", c_limits=(-360.0, 360.0), tilt=(-110.0, 30.0))
     rl = limited.solve_row(T)
-    assert np.all(np.abs(rl.B) <= 2 * np.pi + 1e-9)
-    assert np.abs(np.diff(rl.B)).max() > np.radians(150.0)  # it has to turn back or change branch somewhere
+    assert np.all(np.abs(rl.rotary["C"]) <= 2 * np.pi + 1e-9)
+    assert np.abs(np.diff(rl.rotary["C"])).max() > np.radians(150.0)  # it has to turn back or change branch somewhere
 
 
 def test_pole_holds_c_and_the_tilt_changes_sign_through_it():
@@ -159,8 +159,8 @@ def test_pole_holds_c_and_the_tilt_changes_sign_through_it():
     b = np.radians(np.linspace(-20.0, 20.0, 81))  # passes b = 0 exactly at the middle point
     T = m.tool_axis_np(b, np.full_like(b, np.radians(40.0)))
     r = m.solve_row(T, previous=(b[0], np.radians(40.0)))
-    np.testing.assert_allclose(r.A, b, atol=1e-12)
-    np.testing.assert_allclose(r.B, np.radians(40.0), atol=1e-12)
+    np.testing.assert_allclose(r.rotary["B"], b, atol=1e-12)
+    np.testing.assert_allclose(r.rotary["C"], np.radians(40.0), atol=1e-12)
 
 
 def test_machine_file_errors_for_the_new_keys():
@@ -247,15 +247,15 @@ def test_nlp_passes_the_pole_within_every_limit_on_an_untuned_case(tmp_path):
         return np.abs(v), np.abs(a)
 
     limC, limB = m.limits["C"], m.limits["B"]
-    assert rates(none, none.B)[0].max() > 10 * limC.vmax
-    for q, lim in ((nlp.A, limB), (nlp.B, limC)):
+    assert rates(none, none.rotary["C"])[0].max() > 10 * limC.vmax
+    for q, lim in ((nlp.rotary["B"], limB), (nlp.rotary["C"], limC)):
         v, a = rates(nlp, q)
         assert v.max() <= lim.vmax * (1 + 1e-6) and a.max() <= lim.amax * (1 + 1e-6)
         assert np.all((q >= lim.min - 1e-9) & (q <= lim.max + 1e-9))
     tol = 1e-6
     assert np.all((nlp.lead >= nlp.lead_window[:, 0] - tol) & (nlp.lead <= nlp.lead_window[:, 1] + tol))
     assert np.all((nlp.tilt >= nlp.tilt_window[:, 0] - tol) & (nlp.tilt <= nlp.tilt_window[:, 1] + tol))
-    np.testing.assert_allclose(m.tool_axis_np(nlp.A, nlp.B), nlp.axis, atol=1e-12)
+    np.testing.assert_allclose(m.tool_axis_np(*nlp.rotary.pair), nlp.axis, atol=1e-12)
     passages = nlp.metrics.pole
     assert sorted({p.row for p in passages}) == [14, 15]
     assert min(p.closest_deg for p in passages) < 1.0 and all(p.gamma_cost is not None for p in passages)

@@ -22,6 +22,7 @@ import pytest
 import camsmooth.smoothing.nlp as nlp_mod
 from benchmarks import reference_nlp as ref
 from camsmooth.errors import InfeasibleError
+from camsmooth.machine.axes import RotaryValues
 from camsmooth.machine.kinematics import load_machine
 from camsmooth.smoothing.nlp import (
     BACKOFF,
@@ -164,16 +165,19 @@ def test_each_limit_binds_and_the_result_is_a_reference_optimum(case, screening)
     t, fr, T = wave_row(turned=turned)
     lw, tw = np.tile(np.radians(lw_deg), (N, 1)), np.tile(np.radians(tw_deg), (N, 1))
     ik = machine.solve_row(T)
-    A0, B0 = np.clip(ik.A, machine.limits["A"].min, machine.limits["A"].max), \
-        np.clip(ik.B, machine.limits["B"].min, machine.limits["B"].max)
+    start = RotaryValues.of(machine.rotary,
+                            np.clip(ik.rotary["A"], machine.limits["A"].min, machine.limits["A"].max),
+                            np.clip(ik.rotary["B"], machine.limits["B"].min, machine.limits["B"].max))
     row = RowNLP(machine, N, screening=screening)
-    A, B, st = row.solve(t, fr, A0, B0, lw, tw)
+    q, st = row.solve(t, fr, start, lw, tw)
+    assert q.names == ("A", "B")
+    A, B = q["A"], q["B"]
     assert st.success, st.status
     assert st.total_rows == 2 * (N - 1) + 2 * (N - 2) + 3 * N
     assert st.rows <= st.total_rows and (screening or st.rows == st.total_rows)
     assert binds(what, machine, t, fr, lw, tw, A, B), f"{what} does not bind: the case tests nothing"
     certify(machine, t, fr, lw, tw, A, B)
-    assert row.constraint_report(t, A, B) == []
+    assert row.constraint_report(t, q) == []
 
 
 @pytest.mark.parametrize("side", ["floor", "ceiling"])
@@ -190,14 +194,15 @@ def test_clearance_bounds_bind_and_are_met(side):
                         on if side == "floor" else np.zeros(N, bool), on if side == "ceiling" else np.zeros(N, bool))
     ik = M0.solve_row(T)
     row = RowNLP(M0, N, screening=False)
-    A, B, st = row.solve(t, fr, ik.A, ik.B, lw, tw, bounds)
+    q, st = row.solve(t, fr, ik.rotary, lw, tw, bounds)
+    A, B = q["A"], q["B"]
     assert st.success, st.status
     assert st.total_rows == 2 * (N - 1) + 2 * (N - 2) + 3 * N + int(on.sum())
     lead, tilt = lead_tilt(M0.tool_axis_np(A, B), fr)
     need = coef[:, 0] + coef[:, 1] * tilt + coef[:, 2] * tilt ** 2
     assert np.min(np.abs(lead - need)[on]) < 1e-5  # it binds
-    free = RowNLP(M0, N, screening=False).solve(t, fr, ik.A, ik.B, lw, tw)
-    lead_free, _ = lead_tilt(M0.tool_axis_np(free[0], free[1]), fr)
+    free, _ = RowNLP(M0, N, screening=False).solve(t, fr, ik.rotary, lw, tw)
+    lead_free, _ = lead_tilt(M0.tool_axis_np(free["A"], free["B"]), fr)
     assert (np.any(lead_free[on] < need[on] - 1e-3) if side == "floor" else np.any(lead_free[on] > need[on] + 1e-3))
     certify(M0, t, fr, lw, tw, A, B, bounds)
 
@@ -210,11 +215,12 @@ def test_a_failed_solve_keeps_a_feasible_start_and_reports_an_infeasible_one():
     lw, tw = np.tile(np.radians([2.0, 20.0]), (N, 1)), np.tile(np.radians([-15.0, 15.0]), (N, 1))
     ik = M0.solve_row(T)
     row = RowNLP(M0, N, screening=False, ipopt_options={"ipopt.max_iter": 1})
-    A, B, st = row.solve(t, fr, ik.A, ik.B, lw, tw)
+    q, st = row.solve(t, fr, ik.rotary, lw, tw)
+    A, B = q["A"], q["B"]
     assert st.success and st.status.endswith("a feasible point kept")
     assert gamma(M0.tool_axis_np(A, B), t) <= gamma(T, t) * (1 + 1e-12)
     narrow = np.tile(np.radians([2.0, 3.0]), (N, 1))  # the start (lead 11 deg) is outside
-    A, B, st = row.solve(t, fr, ik.A, ik.B, narrow, tw)
+    _, st = row.solve(t, fr, ik.rotary, narrow, tw)
     assert not st.success and "feasible" not in st.status
 
 
@@ -229,9 +235,9 @@ def test_build_and_solve_times_are_durations():
     ik = M0.solve_row(T)
     row = RowNLP(M0, N)
     assert 0.0 <= row.build_s < 60.0
-    _, _, st = row.solve(t, fr, ik.A, ik.B, lw, tw)
+    _, st = row.solve(t, fr, ik.rotary, lw, tw)
     assert 0.0 < st.build_s < 60.0 and 0.0 < st.time_s < 60.0 and st.iterations > 0
-    _, _, again = row.solve(t, fr, ik.A, ik.B, lw, tw)
+    _, again = row.solve(t, fr, ik.rotary, lw, tw)
     assert again.build_s == 0.0  # the solver of these rows is cached
 
 
@@ -311,7 +317,7 @@ def test_constraint_report_names_each_violation_with_its_size():
     A[6] = LA.max + 0.02                      # travel by 0.02 rad at point 6 (and a jump)
     B = np.zeros(8)
     B[2] = B[3] = 1.5 * LB.vmax * 0.011      # segment 1 -> 2 at 1.5 vmax (3 -> 4 is longer)
-    got = {name: (i, v) for name, i, v in RowNLP(m, 8).constraint_report(t, A, B)}
+    got = {name: (i, v) for name, i, v in RowNLP(m, 8).constraint_report(t, RotaryValues.of(m.rotary, A, B))}
     assert got["A travel"] == (6, pytest.approx(0.02))
     seg_a = np.abs(np.diff(A) / np.diff(t))
     assert got["A velocity"] == (int(np.argmax(seg_a)), pytest.approx(seg_a.max() - LA.vmax))
@@ -321,7 +327,7 @@ def test_constraint_report_names_each_violation_with_its_size():
     acc_b = np.abs(_d2(B, t))
     assert got["B acceleration"] == (int(np.argmax(acc_b)) + 1, pytest.approx(acc_b.max() - LB.amax))
     assert "B travel" not in got
-    assert RowNLP(m, 8).constraint_report(t, np.zeros(8), np.full(8, LB.min)) == []
+    assert RowNLP(m, 8).constraint_report(t, RotaryValues.of(m.rotary, np.zeros(8), np.full(8, LB.min))) == []
 
 
 def _mirrored(fr: np.ndarray, k: int) -> np.ndarray:
@@ -355,7 +361,7 @@ def test_elastic_diagnosis_names_the_rate_the_windows_need_and_where(kind, turne
     m = with_limits(M0, **{f"{axis}_{field}": 0.4 * rate.max()})
     lw, tw = np.tile(np.radians([0.0, 0.01]), (N, 1)), np.tile(np.radians([-15.0, 15.0]), (N, 1))
     ik = m.solve_row(fr[:, :, 2])
-    b = elastic_diagnosis(m, t, fr, lw, tw, ik.A, ik.B)
+    b = elastic_diagnosis(m, t, fr, lw, tw, ik.rotary)
     assert b.constraint == f"{axis} {kind}" and b.binds and not b.lower
     assert b.unit == ("deg/s" if kind == "velocity" else "deg/s^2")
     assert b.limit == pytest.approx(0.4 * rate.max())
@@ -378,7 +384,7 @@ def test_elastic_diagnosis_names_the_travel_the_windows_need_on_either_side(turn
     for frames in (fr, _mirrored(fr, 1 if turned else 0)):
         ik = m.solve_row(frames[:, :, 2])
         lim = np.radians(half)
-        b = elastic_diagnosis(m, t, frames, lw, tw, np.clip(ik.A, -lim, lim), np.clip(ik.B, -lim, lim))
+        b = elastic_diagnosis(m, t, frames, lw, tw, RotaryValues(m.rotary, np.clip(ik.rotary.values, -lim, lim)))
         assert b.constraint == f"{axis} travel" and b.unit == "deg" and b.binds
         assert abs(b.need) == pytest.approx(np.abs(beta).max(), abs=0.05)
         assert b.point == 0  # the wave is steepest at its start
@@ -396,9 +402,10 @@ def test_the_fallback_keeps_the_better_feasible_candidate():
     lw, tw = np.tile(np.radians([2.0, 20.0]), (N, 1)), np.tile(np.radians([-15.0, 15.0]), (N, 1))
     ik = M0.solve_row(T)
     row = RowNLP(M0, N, screening=False)
-    A, B, st = row.solve(t, fr, ik.A, ik.B, lw, tw)
+    q, st = row.solve(t, fr, ik.rotary, lw, tw)
+    A, B = q["A"], q["B"]
     x0, x1 = np.empty(2 * N), np.empty(2 * N)
-    x0[0::2], x0[1::2] = ik.A, ik.B
+    x0[0::2], x0[1::2] = ik.rotary.pair
     x1[0::2], x1[1::2] = A, B
     lbx, ubx, lbg, ubg = row.bounds(lw)
     p = row._params(t, fr, tw, 1.0, LeadBounds.none(N))

@@ -148,6 +148,7 @@ def test_batch_sum_sd_of_a_constant_series_is_zero():
 # ---- controller words against the manuals ------------------------------------------------------------
 def _program(tmp_path, dialect: str, mode: str, tol: float) -> list[str]:
     from camsmooth.io.gcode import write_gcode
+    from camsmooth.machine.axes import RotaryValues
     from camsmooth.machine.kinematics import load_machine
     from camsmooth.smoothing.result import MethodResult
 
@@ -160,7 +161,8 @@ def _program(tmp_path, dialect: str, mode: str, tol: float) -> list[str]:
     T = machine.tool_axis_np(a, b)
     z0 = np.zeros(n)
     m = MethodResult(method="nlp", rows=np.zeros(n, int), idx=np.arange(n), t=z0, cc=cl, normals=T, cl=cl, axis=T,
-                     lead=z0, tilt=z0, A=a, B=b, A_vel=z0, B_vel=z0, A_acc=z0, B_acc=z0,
+                     lead=z0, tilt=z0, rotary=RotaryValues.of(("A", "B"), a, b),
+                     rotary_vel=RotaryValues.zeros(("A", "B"), n), rotary_acc=RotaryValues.zeros(("A", "B"), n),
                      xyz=machine.linear_axes(cl, a, b), delta=z0, lift=z0, lead_window=np.zeros((n, 2)),
                      tilt_window=np.zeros((n, 2)), compound_acc=z0)
     cutter = SimpleNamespace(R=3.0, r=1.0, shank_length=40.0, diameter=8.0)

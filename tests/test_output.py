@@ -14,6 +14,7 @@ import trimesh
 from camsmooth.errors import InfeasibleError, InputError
 from camsmooth.io import output
 from camsmooth.io.output import RESULT_CSV_COLUMNS, point_status, read_result_csv, write_gcode, write_result_csv
+from camsmooth.machine.axes import PerAxis, RotaryValues
 from camsmooth.machine.kinematics import load_machine
 from camsmooth.smoothing.result import OUTPUT_COLUMNS, MethodResult, Metrics, SmoothResult
 
@@ -46,11 +47,14 @@ def make_method(name: str, n_rows: int = 2, n_pts: int = 50, amp: float = 0.3, s
     Aa, Ba = _per_row_gradient(Av, t, rows), _per_row_gradient(Bv, t, rows)
     delta = 0.05 + 0.02 * np.sin(idx / 3.0 + seed)
     lift = np.zeros(len(t))
-    metrics = Metrics(gamma=1.5 + seed, peak_A_acc=float(np.abs(Aa).max()), peak_B_acc=float(np.abs(Ba).max()),
+    metrics = Metrics(gamma=1.5 + seed, peak_acc=PerAxis(("A", "B"), (np.abs(Aa).max(), np.abs(Ba).max())),
+                      peak_acc_plan=PerAxis.nan(("A", "B")),
                       min_delta=float(delta.min()), violations={"A_acc": 0}, lifted_points=0, max_lift_mm=0.0,
                       lifted_beyond_tolerance=0, unclean_rows=[], unreachable=[], tolerance_mm=1e-3, runtime_s=0.1)
     return MethodResult(method=name, rows=rows, idx=idx, t=t, cc=cc, normals=normals, cl=cl, axis=T, lead=lead,
-                        tilt=tilt, A=A, B=B, A_vel=Av, B_vel=Bv, A_acc=Aa, B_acc=Ba, xyz=MACHINE.linear_axes(cl, A, B),
+                        tilt=tilt, rotary=RotaryValues.of(("A", "B"), A, B),
+                        rotary_vel=RotaryValues.of(("A", "B"), Av, Bv), rotary_acc=RotaryValues.of(("A", "B"), Aa, Ba),
+                        xyz=MACHINE.linear_axes(cl, A, B),
                         delta=delta, lift=lift, lead_window=np.column_stack([lead - 0.1, lead + 0.1]),
                         tilt_window=np.column_stack([tilt - 0.1, tilt + 0.1]), compound_acc=np.abs(Aa) + np.abs(Ba),
                         metrics=metrics)
@@ -105,7 +109,7 @@ def test_result_csv_round_trip(tmp_path):
         np.testing.assert_array_equal(back[name], table[:, k], err_msg=name)  # repr: exact round trip
     assert back["row"].dtype == np.int64 and back["idx"].dtype == np.int64
     np.testing.assert_array_equal(back["lift"], r.lift)
-    np.testing.assert_array_equal(np.degrees(r.A), back["A"])
+    np.testing.assert_array_equal(np.degrees(r.rotary["A"]), back["A"])
     assert back["status"][5] == "lifted" and back["status"][7] == "interference" and back["status"][8] == "ok"
     assert back["status"][50 + 2] == "unreachable"
     assert (back["status"] == "ok").sum() == len(r) - 3
@@ -201,8 +205,8 @@ def test_gcode_round_trip_and_structure(tmp_path):
     feeds = np.array([w["F"] for c, w in moves if c == "G01"])
     assert cut.shape == (len(r), 5)
     np.testing.assert_allclose(cut[:, :3], r.xyz, atol=0.5e-4 + 1e-12)
-    np.testing.assert_allclose(cut[:, 3], np.degrees(r.A), atol=0.5e-4 + 1e-12)
-    np.testing.assert_allclose(cut[:, 4], np.degrees(r.B), atol=0.5e-4 + 1e-12)
+    np.testing.assert_allclose(cut[:, 3], np.degrees(r.rotary["A"]), atol=0.5e-4 + 1e-12)
+    np.testing.assert_allclose(cut[:, 4], np.degrees(r.rotary["B"]), atol=0.5e-4 + 1e-12)
     # G93 inverse time: F = 1 / block time, block time = tip path length / 1500 mm/min; the tip path of
     # each block is sampled finely here (256 steps) with the machine chain, independently of the writer
     moves_all = np.array([_xyzab(w) for _, w in moves])
@@ -225,7 +229,7 @@ def test_gcode_round_trip_and_structure(tmp_path):
     rapids = np.array([_xyzab(w) for c, w in moves if c == "G00"])
     ends = np.array([[0, 39], [40, 79], [80, 119]]).ravel()
     np.testing.assert_allclose(rapids[:, :3], r.xyz[ends] + h * r.axis[ends], atol=1e-4)
-    np.testing.assert_allclose(rapids[:, 3], np.degrees(r.A[ends]), atol=1e-4)
+    np.testing.assert_allclose(rapids[:, 3], np.degrees(r.rotary["A"][ends]), atol=1e-4)
     tip_r, _ = MACHINE.tool_pose_np(np.radians(rapids[:, 3]), np.radians(rapids[:, 4]), *rapids[:, :3].T)
     np.testing.assert_allclose(tip_r - r.cl[ends], h * r.axis[ends], atol=1e-3)
     # header and program frame
@@ -250,7 +254,7 @@ def test_gcode_sanitises_comment_text(tmp_path):
 
 def test_gcode_limit_and_input_errors(tmp_path):
     res = make_result()
-    res.result.A[17] = np.radians(120.0)  # beyond the +-100 deg travel of the default machine
+    res.result.rotary["A"][17] = np.radians(120.0)  # beyond the +-100 deg travel of the default machine
     with pytest.raises(InfeasibleError, match=r"axis A .*row 0, point 17"):
         write_gcode(tmp_path / "p.nc", res, MACHINE, CUTTER, 1000.0)
     assert not (tmp_path / "p.nc").exists()

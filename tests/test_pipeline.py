@@ -40,7 +40,7 @@ def wavy_result(wavy):
 def _independent_checks(r, machine, t_rows):
     """Limits re-derived here from the raw arrays (plain numpy differences)."""
     out = {}
-    for name, q in (("A", r.A), ("B", r.B)):
+    for name, q in (("A", r.rotary["A"]), ("B", r.rotary["B"])):
         lim = machine.limits[name]
         assert np.all(q >= lim.min - 1e-12) and np.all(q <= lim.max + 1e-12)
         vmax = amax = 0.0
@@ -75,8 +75,8 @@ def test_nlp_meets_every_limit_window_and_clearance(wavy, wavy_result):
     assert r.metrics.min_delta >= -1e-3
     assert sum(r.metrics.violations.values()) == 0
     # A, B really produce the axes, and the linear axes put the tip at CL (pivot formula)
-    np.testing.assert_allclose(machine.tool_axis_np(r.A, r.B), r.axis, atol=1e-12)
-    tip, _ = machine.tool_pose_np(r.A, r.B, *r.xyz.T)
+    np.testing.assert_allclose(machine.tool_axis_np(*r.rotary.pair), r.axis, atol=1e-12)
+    tip, _ = machine.tool_pose_np(*r.rotary.pair, *r.xyz.T)
     np.testing.assert_allclose(tip, r.cl, atol=1e-9)
 
 
@@ -171,7 +171,7 @@ def test_error_model_keeps_real_windows_and_compensation_zeroes_tip_error(wavy):
     assert real.metrics.tip_error_um_max < 1.0
     assert real.metrics.tip_error_um_max_uncompensated > 1.0
     # the axes reported are the model's prediction for the commanded A, B
-    np.testing.assert_allclose(model.apply(load_machine()).tool_axis_np(real.A, real.B), real.axis, atol=1e-12)
+    np.testing.assert_allclose(model.apply(load_machine()).tool_axis_np(*real.rotary.pair), real.axis, atol=1e-12)
 
 
 def _cli(*args, cwd):

@@ -77,10 +77,10 @@ def test_result_carries_lifted_tips_their_clearance_and_the_rates(setup):
     assert r.method == "spline" and r.cc is program.path.points and r.normals is nrm
     np.testing.assert_array_equal(r.feed_dirs, program.frames[:, :, 0])
     ra, rb, rt = (program_rates(q, program.t, program.path.rows) for q in (A, B, T))
-    np.testing.assert_array_equal(r.A_vel, ra.vel)
-    np.testing.assert_array_equal(r.B_vel, rb.vel)
-    np.testing.assert_array_equal(r.A_acc, ra.acc)
-    np.testing.assert_array_equal(r.B_acc, rb.acc)
+    np.testing.assert_array_equal(r.rotary_vel["A"], ra.vel)
+    np.testing.assert_array_equal(r.rotary_vel["B"], rb.vel)
+    np.testing.assert_array_equal(r.rotary_acc["A"], ra.acc)
+    np.testing.assert_array_equal(r.rotary_acc["B"], rb.acc)
     np.testing.assert_allclose(r.compound_acc, np.linalg.norm(rt.acc, axis=1), rtol=1e-15)
     assert r.metrics.gamma == pytest.approx(float(np.sum(rt.sec ** 2)), rel=1e-15)
     assert r.metrics.unreachable == [(int(program.path.rows[4]), int(program.idx[4]))]

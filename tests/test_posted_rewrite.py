@@ -130,7 +130,7 @@ def _cl_rows(machine):
     for sl in prog.row_slices():
         tip, axis = prog.tip[sl], prog.axis[sl]
         ik = machine.solve_row(axis, tip)
-        out.append((tip, axis, np.degrees(np.column_stack([ik.A, ik.B]))))
+        out.append((tip, axis, np.degrees(ik.rotary.values)))
     return out
 
 
@@ -252,16 +252,19 @@ def test_tcp_dialects_round_trip(tmp_path, dialect):
 def _method_result(machine, rows_cl):
     """A MethodResult of the CL rows on ``machine`` (angles from its inverse kinematics, linear
     axes from its chain), the other fields empty: what write_gcode reads."""
+    from camsmooth.machine.axes import RotaryValues
     from camsmooth.smoothing.result import MethodResult
 
     tip = np.vstack([t for t, _, _ in rows_cl])
     axis = np.vstack([a for _, a, _ in rows_cl])
     rows = np.concatenate([np.full(len(t), k) for k, (t, _, _) in enumerate(rows_cl)])
     idx = np.concatenate([np.arange(len(t)) for t, _, _ in rows_cl])
-    q = np.vstack([np.column_stack([(ik := machine.solve_row(a, t)).A, ik.B]) for t, a, _ in rows_cl])
+    q = np.vstack([machine.solve_row(a, t).rotary.values for t, a, _ in rows_cl])
     n, z, z3 = len(tip), np.zeros(len(tip)), np.zeros((len(tip), 3))
     return MethodResult(method="none", rows=rows, idx=idx, t=z, cc=tip, normals=axis, cl=tip, axis=axis, lead=z,
-                        tilt=z, A=q[:, 0], B=q[:, 1], A_vel=z, B_vel=z, A_acc=z, B_acc=z,
+                        tilt=z, rotary=RotaryValues(machine.rotary, q),
+                        rotary_vel=RotaryValues.zeros(machine.rotary, n),
+                        rotary_acc=RotaryValues.zeros(machine.rotary, n),
                         xyz=machine.linear_axes(tip, q[:, 0], q[:, 1]), delta=z, lift=z, lead_window=np.zeros((n, 2)),
                         tilt_window=np.zeros((n, 2)), compound_acc=z, feed_dirs=z3)
 
@@ -347,6 +350,7 @@ def test_arc_blocks_rewritten_as_their_points(tmp_path):
     points (chordal error <= 1 um), which read back on the circle; the other lines are kept."""
     from types import SimpleNamespace
 
+    from camsmooth.machine.axes import RotaryValues
     from camsmooth.post import read_posted
     from camsmooth.post.core import nominal_machine
     from camsmooth.post.rewrite import rewrite_posted
@@ -360,7 +364,8 @@ def test_arc_blocks_rewritten_as_their_points(tmp_path):
     prog = read_posted(src, machine=machine)
     cut = np.flatnonzero(prog.rows >= 0)
     q = prog.angles[cut]
-    result = SimpleNamespace(rows=prog.rows[cut], idx=np.arange(len(cut)), cl=prog.tip[cut], A=q[:, 0], B=q[:, 1],
+    result = SimpleNamespace(rows=prog.rows[cut], idx=np.arange(len(cut)), cl=prog.tip[cut],
+                             rotary=RotaryValues(machine.rotary, q),
                              xyz=machine.linear_axes(prog.tip[cut], q[:, 0], q[:, 1]))
     new = rewrite_posted(text, prog, result, cut, machine, np.full(len(cut), 500.0))
     out = new.text.splitlines()

@@ -34,6 +34,7 @@ import pytest
 from camsmooth.controller.linuxcnc_sim import interpret, linuxcnc_missing
 from camsmooth.errors import InputError
 from camsmooth.io.gcode import DIALECTS, read_gcode, write_gcode
+from camsmooth.machine.axes import RotaryValues
 from camsmooth.machine.kinematics import load_machine, machine_from_dict
 from camsmooth.smoothing.result import MethodResult
 
@@ -106,7 +107,8 @@ def _method(machine) -> MethodResult:
     z0 = np.zeros(n)
     idx = np.concatenate([np.arange(np.sum(rows == k)) for k in range(3)])
     return MethodResult(method="nlp", rows=rows, idx=idx, t=z0, cc=cl, normals=T, cl=cl, axis=T, lead=z0, tilt=z0,
-                        A=ik.A, B=ik.B, A_vel=z0, B_vel=z0, A_acc=z0, B_acc=z0, xyz=ik.xyz, delta=z0, lift=z0,
+                        rotary=ik.rotary, rotary_vel=RotaryValues.zeros(ik.rotary.names, n),
+                        rotary_acc=RotaryValues.zeros(ik.rotary.names, n), xyz=ik.xyz, delta=z0, lift=z0,
                         lead_window=np.zeros((n, 2)), tilt_window=np.zeros((n, 2)), compound_acc=z0)
 
 
@@ -154,9 +156,9 @@ def test_table_post_words_closed_forms_and_round_trip(tmp_path, kind, dialect, m
     sign = np.ones(2)
     if dialect == "linuxcnc":
         sign = np.array([1.0, -1.0]) if kind == "BC-head-table" else np.array([-1.0, -1.0])
-    np.testing.assert_allclose(cut[:, 3:], np.degrees(np.column_stack([m.A, m.B])) * sign, atol=0.6e-4)
+    np.testing.assert_allclose(cut[:, 3:], np.degrees(m.rotary.values) * sign, atol=0.6e-4)
     if mode == "machine":
-        xyz = _closed_form_axes(kind, m.cl, m.A, m.B, machine.pivot)
+        xyz = _closed_form_axes(kind, m.cl, *m.rotary.pair, machine.pivot)
         np.testing.assert_allclose(cut[:, :3], xyz, atol=0.6e-4)
     else:
         np.testing.assert_allclose(cut[:, :3], m.cl, atol=0.6e-4)
@@ -172,7 +174,7 @@ def test_table_post_words_closed_forms_and_round_trip(tmp_path, kind, dialect, m
         c = prog.cutting()
         np.testing.assert_allclose(c.tip, m.cl, atol=2e-4)
         np.testing.assert_allclose(c.axis, m.axis, atol=2e-6)
-        np.testing.assert_allclose(c.angles, np.column_stack([m.A, m.B]), atol=np.radians(0.6e-4))
+        np.testing.assert_allclose(c.angles, m.rotary.values, atol=np.radians(0.6e-4))
 
 
 def test_reading_a_table_program_with_another_machine_names_both(tmp_path):
@@ -199,7 +201,7 @@ def test_dome_sample_machine_writes_and_analyzes(tmp_path):
     out = analyze_program(prog, machine).to_json()
     tp = out["toolpaths"][0]
     for k, name in enumerate(("A", "C")):
-        want = np.degrees([m.A, m.B][k])
+        want = np.degrees([*m.rotary.pair][k])
         assert tp[f"{name}_range_deg"] == pytest.approx([want.min(), want.max()], abs=1e-3)
     assert "B_range_deg" not in tp
 
@@ -321,7 +323,7 @@ def test_linuxcnc_interpreter_reads_table_programs(tmp_path, kind, mode):
     other = ({"A", "B", "C"} - set(machine.rotary)).pop()
     assert np.all(canon.axes(other)[keep] == 0)
     assert len(got) == len(m.rows)
-    words = np.degrees(np.column_stack([m.A, m.B])) * -1.0  # trt sense
+    words = np.degrees(m.rotary.values) * -1.0  # trt sense
     np.testing.assert_allclose(got[:, 3:], words, atol=1e-4 + 1e-9)
     if mode == "machine":
         np.testing.assert_allclose(got[:, :3], m.xyz, atol=1e-4 + 1e-9)

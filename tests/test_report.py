@@ -14,6 +14,7 @@ import pytest
 import trimesh
 from matplotlib.image import imread
 
+from camsmooth.machine.axes import PerAxis, RotaryValues
 from camsmooth.machine.kinematics import load_machine
 from camsmooth.report import smoothing as report
 from camsmooth.report.smoothing import HTML_FILE, PLOT_FILES, SCENE_FILE, cumulative_time, write_report
@@ -47,15 +48,17 @@ def make_method(name: str, n_rows: int = 2, n_pts: int = 50, seed: int = 0) -> M
     delta = 0.05 + 0.02 * np.sin(idx / 3.0)
     if name == "none":
         delta[10] = -0.01
-    metrics = Metrics(gamma=12.3456 / (seed + 1), peak_A_acc=float(np.degrees(np.abs(Aa).max())),
-                      peak_B_acc=float(np.degrees(np.abs(Ba).max())), min_delta=float(delta.min()),
+    metrics = Metrics(gamma=12.3456 / (seed + 1),
+                      peak_acc=PerAxis(("A", "B"), np.degrees([np.abs(Aa).max(), np.abs(Ba).max()])),
+                      peak_acc_plan=PerAxis.nan(("A", "B")), min_delta=float(delta.min()),
                       violations={"B_acc": 4 - seed, "lead": 0}, runtime_s=0.25 * (seed + 1), lifted_points=0,
                       max_lift_mm=0.0, lifted_beyond_tolerance=0, unclean_rows=[1] if name == "none" else [],
                       unreachable=[(1, 7), (0, 3)] if name == "nlp" else [], tolerance_mm=1e-3)
     normals = np.tile([0.0, 0.0, 1.0], (len(t), 1))
     lead_w, tilt_w = np.column_stack([lead - 0.05, lead + 0.05]), np.column_stack([tilt - 0.1, tilt + 0.1])
     return MethodResult(method=name, rows=rows, idx=idx, t=t, cc=cc, normals=normals, cl=cc.copy(), axis=T,
-                        lead=lead, tilt=tilt, A=A, B=B, A_vel=Av, B_vel=Bv, A_acc=Aa, B_acc=Ba,
+                        lead=lead, tilt=tilt, rotary=RotaryValues.of(("A", "B"), A, B),
+                        rotary_vel=RotaryValues.of(("A", "B"), Av, Bv), rotary_acc=RotaryValues.of(("A", "B"), Aa, Ba),
                         xyz=MACHINE.linear_axes(cc, A, B), delta=delta, lift=np.zeros(len(t)), lead_window=lead_w,
                         tilt_window=tilt_w, compound_acc=np.abs(Aa) + np.abs(Ba) + 1e-3, metrics=metrics)
 
@@ -123,7 +126,7 @@ def test_report_lists_metrics_and_notices(full_report):
         assert len(cells) <= 10
         assert cells[1] == f"{len(m)} / 2"
         assert cells[2] == format(mt.gamma, ".4g")
-        assert cells[5] == f"{format(mt.peak_A_acc, '.4g')} / {format(mt.peak_B_acc, '.4g')}"  # no plan: as given
+        assert cells[5] == f"{format(mt.peak_acc['A'], '.4g')} / {format(mt.peak_acc['B'], '.4g')}"  # no plan: as given
         total = mt.violations["B_acc"]
         assert cells[6] == (f"{total} (B_acc {total})" if total else "0")
         assert cells[8] == format(1e3 * mt.min_delta, ".3g")

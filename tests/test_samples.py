@@ -194,7 +194,7 @@ def test_dome_sample_passes_the_pole_of_its_machines_c_axis():
     ang = np.zeros((len(rows), 2))
     for s in path.row_slices():
         r = m.solve_row(T[s])
-        ang[s] = np.column_stack([r.A, r.B])
+        ang[s] = r.rotary.values
     passages = find_passages(m, T, rows, t, ang)
     assert min(q.closest_deg for q in passages) < 1.0
     assert max(q.outer_peak_speed for q in passages) > 5 * np.degrees(m.limits["C"].vmax)

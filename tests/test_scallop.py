@@ -258,7 +258,7 @@ def test_max_scallop_is_met_at_every_point_with_every_limit_and_window(wave, bud
     assert not r.metrics.scallop_missed
     assert r.metrics.scallop_max_um <= 1e3 * budget * (1 + 1e-6)
     machine = load_machine()
-    for name, q in (("A", r.A), ("B", r.B)):
+    for name, q in (("A", r.rotary["A"]), ("B", r.rotary["B"])):
         lim = machine.limits[name]
         assert np.all(q >= lim.min - 1e-12) and np.all(q <= lim.max + 1e-12)
         for row in np.unique(r.rows):

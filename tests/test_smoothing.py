@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import camsmooth.smoothing.nlp as smoothing
+from camsmooth.machine.axes import RotaryValues
 from camsmooth.machine.kinematics import load_machine
 from camsmooth.smoothing.nlp import RowNLP, _psd_part, fd_operators, gamma, spline_row
 from camsmooth.smoothing.orientation import axis_from_lead_tilt, local_frames
@@ -140,22 +141,23 @@ def binding_row():
     n = 1200
     t, fr, T = wavy_row(n)
     ik = m.solve_row(T)
-    A0, B0 = spline_row(ik.A, ik.B, t)
+    start = RotaryValues.of(m.rotary, *spline_row(*ik.rotary.pair, t))
     lw, tw = np.tile(LEAD, (n, 1)), np.tile(TILT, (n, 1))
     full = RowNLP(m, n, screening=False)
-    A, B, st = full.solve(t, fr, A0, B0, lw, tw)
+    q, st = full.solve(t, fr, start, lw, tw)
     assert st.success and st.rows == st.total_rows
-    return m, t, fr, lw, tw, A0, B0, gamma(m.tool_axis_np(A, B), t)
+    return m, t, fr, lw, tw, start, gamma(m.tool_axis_np(q["A"], q["B"]), t)
 
 
 def test_screening_brings_in_binding_rows(binding_row):
-    m, t, fr, lw, tw, A0, B0, g_full = binding_row
+    m, t, fr, lw, tw, start, g_full = binding_row
     nlp = RowNLP(m, len(t))
     assert nlp.screening  # long rows screen by default
-    A, B, st = nlp.solve(t, fr, A0, B0, lw, tw)
+    q, st = nlp.solve(t, fr, start, lw, tw)
+    A, B = q["A"], q["B"]
     assert st.success, st.status
     assert st.rounds >= 2 and st.rows < st.total_rows / 2
-    assert nlp.constraint_report(t, A, B) == []
+    assert nlp.constraint_report(t, q) == []
     assert _all_rows_feasible(nlp, t, fr, lw, tw, A, B)
     D2 = fd_operators(t)[1]
     assert np.abs(D2 @ B).max() > 0.99 * m.limits["B"].amax  # the limit really binds
@@ -163,10 +165,11 @@ def test_screening_brings_in_binding_rows(binding_row):
 
 
 def test_screening_falls_back_to_every_row(binding_row, monkeypatch):
-    m, t, fr, lw, tw, A0, B0, g_full = binding_row
+    m, t, fr, lw, tw, start, g_full = binding_row
     monkeypatch.setattr(smoothing, "SCREEN_ROUNDS", 1)
     nlp = RowNLP(m, len(t))
-    A, B, st = nlp.solve(t, fr, A0, B0, lw, tw)
+    q, st = nlp.solve(t, fr, start, lw, tw)
+    A, B = q["A"], q["B"]
     assert st.success and st.rows == st.total_rows and st.rounds == 2
     assert _all_rows_feasible(nlp, t, fr, lw, tw, A, B)
     assert gamma(m.tool_axis_np(A, B), t) == pytest.approx(g_full, rel=1e-9)

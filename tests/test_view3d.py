@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import trimesh
 
+from camsmooth.machine.axes import PerAxis
 from camsmooth.report.headline import baseline_method, headline
 from camsmooth.report.view3d import MAX_TRIANGLES, PathLayer, Scene, browser_mesh, view3d_html
 
@@ -51,9 +52,10 @@ def test_view_fragment_carries_plotly_the_traces_and_no_network():
     assert '"label":"cam"' in frag and '"label":"all methods"' in frag
 
 
-def _metrics(**kw):
-    base = dict(controller="", cycle_time_s=float("nan"), cycle_time_optimal_s=float("nan"), peak_A_acc=0.0,
-                peak_B_acc=0.0, peak_A_acc_plan=float("nan"), peak_B_acc_plan=float("nan"), violations={},
+def _metrics(rotary=("A", "B"), peak=(0.0, 0.0), peak_plan=(float("nan"), float("nan")), **kw):
+    """Metrics as the headline reads them; peaks (deg/s^2) on the rotary axes ``rotary``, in that order."""
+    base = dict(controller="", cycle_time_s=float("nan"), cycle_time_optimal_s=float("nan"),
+                peak_acc=PerAxis(rotary, peak), peak_acc_plan=PerAxis(rotary, peak_plan), violations={},
                 violations_programmed={}, scallop_max_um=None, min_delta=0.0, tolerance_mm=0.005)
     base.update(kw)
     return SimpleNamespace(**base)
@@ -61,13 +63,14 @@ def _metrics(**kw):
 
 def test_headline_against_the_cam_program_worked_by_hand():
     cam = SimpleNamespace(plan=object(), metrics=_metrics(
-        controller="linuxcnc", cycle_time_s=155.8, cycle_time_optimal_s=92.1, peak_A_acc_plan=69.9,
-        peak_B_acc_plan=506.2, violations={"B acceleration": 120, "interference": 0}, scallop_max_um=24.4,
+        controller="linuxcnc", cycle_time_s=155.8, cycle_time_optimal_s=92.1, rotary=("A", "C"),
+        peak_plan=(69.9, 506.2), violations={"B acceleration": 120, "interference": 0}, scallop_max_um=24.4,
         min_delta=-0.0123))
-    none = SimpleNamespace(plan=object(), metrics=_metrics(cycle_time_s=1.0, cycle_time_optimal_s=1.0))
+    none = SimpleNamespace(plan=object(), metrics=_metrics(cycle_time_s=1.0, cycle_time_optimal_s=1.0,
+                                                           rotary=("A", "C")))
     nlp = SimpleNamespace(plan=object(), metrics=_metrics(
-        controller="linuxcnc", cycle_time_s=130.0, cycle_time_optimal_s=76.0, peak_A_acc_plan=38.25,
-        peak_B_acc_plan=300.1, violations={"B acceleration": 0}, scallop_max_um=42.3, min_delta=-0.0002))
+        controller="linuxcnc", cycle_time_s=130.0, cycle_time_optimal_s=76.0, rotary=("A", "C"),
+        peak_plan=(38.25, 300.1), violations={"B acceleration": 0}, scallop_max_um=42.3, min_delta=-0.0002))
     res = SimpleNamespace(methods={"none": none, "cam": cam, "nlp": nlp}, primary="nlp", result=nlp,
                           machine=SimpleNamespace(rotary=("A", "C")))
     assert baseline_method(res.methods) == "cam"  # the CAM's own axes before the unsmoothed path
@@ -90,11 +93,11 @@ def test_headline_against_the_cam_program_worked_by_hand():
 
 
 def test_headline_at_the_programmed_feed_without_a_controller_model():
-    none = SimpleNamespace(plan=None, metrics=_metrics(cycle_time_optimal_s=10.0, peak_A_acc=10.0, peak_B_acc=400.0,
+    none = SimpleNamespace(plan=None, metrics=_metrics(cycle_time_optimal_s=10.0, peak=(10.0, 400.0),
                                                        violations_programmed={"B acceleration": 3},
                                                        violations={"B acceleration": 9}, min_delta=0.001))
-    spline = SimpleNamespace(plan=None, metrics=_metrics(cycle_time_optimal_s=10.0, peak_A_acc=20.0,
-                                                         peak_B_acc=100.0, min_delta=0.002))
+    spline = SimpleNamespace(plan=None, metrics=_metrics(cycle_time_optimal_s=10.0, peak=(20.0, 100.0),
+                                                         min_delta=0.002))
     h = headline(SimpleNamespace(methods={"none": none, "spline": spline}, primary="spline", result=spline,
                                  machine=SimpleNamespace(rotary=("A", "B"))))
     assert h.before == "none" and h.law == "at the programmed feed"

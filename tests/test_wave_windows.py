@@ -56,7 +56,7 @@ def test_clear_region_out_of_reach_is_lifted_not_a_bug(wave, tmp_path):
     for rid in np.unique(nlp.rows):
         k = nlp.rows == rid
         D1, _ = fd_operators(nlp.t[k])
-        assert np.all(np.abs(D1 @ nlp.B[k]) <= res.machine.limits["B"].vmax * (1 + 1e-9))
+        assert np.all(np.abs(D1 @ nlp.rotary["B"][k]) <= res.machine.limits["B"].vmax * (1 + 1e-9))
 
 
 def test_windows_the_limits_cannot_follow_are_refused_naming_them(wave, tmp_path):

@@ -273,7 +273,7 @@ def _print_summary(result) -> None:
         print(head.text())
     m = result.result.metrics
     ctrl = m.controller or "axes"
-    r1, r2 = result.machine.rotary
+    r1, r2 = m.peak_acc_plan.names  # the machine's rotary axes, as the result names them
     head = ("method", "Gamma", f"peak|{r1}''|", f"peak|{r2}''|", "min delta", "scallop um", "violations", "at feed",
             "optimal s", f"{ctrl} s", "limited by", "time s")
     print("{:8s} {:>12s} {:>10s} {:>10s} {:>10s} {:>10s} {:>10s} {:>8s} {:>9s} {:>11s} {:>16s} {:>8s}".format(*head))
@@ -282,7 +282,7 @@ def _print_summary(result) -> None:
         nviol = sum(mm.violations.values())
         nfeed = sum(mm.violations_programmed.values())
         sc = getattr(mm, "scallop_max_um", None)
-        print(f"{name:8s} {mm.gamma:12.4g} {mm.peak_A_acc_plan:10.4g} {mm.peak_B_acc_plan:10.4g} "
+        print(f"{name:8s} {mm.gamma:12.4g} {mm.peak_acc_plan[r1]:10.4g} {mm.peak_acc_plan[r2]:10.4g} "
               f"{mm.min_delta:10.4g} {'-' if sc is None else format(sc, '.4g'):>10s} {nviol:10d} {nfeed:8d} "
               f"{mm.cycle_time_optimal_s:9.2f} {mm.cycle_time_s:11.2f} {mm.limiting or '-':>16s} {mm.runtime_s:8.2f}")
     print("peaks (deg/s^2) and violations under the planned time law; 'at feed': violations at the programmed "

@@ -548,7 +548,7 @@ def row_runs(machine: Machine, result: Any, program_text: str, run: SimRun) -> l
 
     joints = camsmooth_joints(machine, run.joints)
     tip, _ = machine.tool_pose_np(joints[:, 3], joints[:, 4], joints[:, 0], joints[:, 1], joints[:, 2])
-    q = np.column_stack([result.xyz, result.A, result.B])
+    q = np.column_stack([result.xyz, result.rotary.values])
     ctrl, plan = result.controller, result.plan
     out = []
     for rid, k in row_samples(program_text, run).items():

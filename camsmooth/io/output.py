@@ -81,7 +81,7 @@ def write_result_csv(path: str | os.PathLike, result: SmoothResult) -> Path:
     """
     r = result.result
     table = result.table()
-    names = output_columns(result.machine.rotary)
+    names = output_columns(r.rotary.names)  # the rotary columns as the result names them
     if table.shape[1] != len(names):
         raise ValueError(f"SmoothResult.table() has {table.shape[1]} columns, expected {len(names)}")
     columns: dict[str, np.ndarray] = {}

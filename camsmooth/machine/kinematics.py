@@ -27,6 +27,8 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from camsmooth.machine.axes import RotaryValues
+
 try:  # casadi is a hard dependency, but keep import errors readable
     import casadi as ca
 except ImportError:  # pragma: no cover
@@ -660,7 +662,7 @@ class Machine:
         stays continuous.
 
         T: (N,3) unit tool axes, workpiece frame; cl: (N,3) tool tips, mm (for X, Y, Z).
-        Returns angles in ``rotary`` order as IKResult.A (q1) and IKResult.B (q2)."""
+        Returns the angles named by the machine's rotary axes (IKResult.rotary: ``r.rotary["C"]``)."""
         T = np.atleast_2d(np.asarray(T, dtype=float))
         n = len(T)
         prev = np.array(previous if previous is not None else (0.0, 0.0), dtype=float)
@@ -683,7 +685,7 @@ class Machine:
             xyz = self.linear_axes(cl, out[:, 0], out[:, 1])
             for k, name in enumerate("XYZ"):
                 reach &= self.within(name, xyz[:, k])
-        return IKResult(A=out[:, 0], B=out[:, 1], xyz=xyz, unreachable=np.flatnonzero(~reach))
+        return IKResult(rotary=RotaryValues(self.rotary, out), xyz=xyz, unreachable=np.flatnonzero(~reach))
 
 
 @njit(cache=True)
@@ -730,12 +732,12 @@ def _subproblem1(w: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class IKResult:
-    """Inverse-kinematics result along a row: A, B (rad) the machine's first and second rotary
-    axis (``Machine.rotary``: A and C on an AC table), xyz (N,3) mm or None, and the indices of the
-    points with no solution within the limits."""
+    """Inverse-kinematics result along a row: ``rotary`` the angles (N, 2) rad named by the
+    machine's rotary axes (``Machine.rotary``: ``r.rotary["A"]``, ``r.rotary["C"]`` on an AC table;
+    machine sign convention), xyz (N,3) mm or None (linear axes, machine frame), and the indices of
+    the points with no solution within the limits."""
 
-    A: np.ndarray
-    B: np.ndarray
+    rotary: RotaryValues
     xyz: np.ndarray | None
     unreachable: np.ndarray
 

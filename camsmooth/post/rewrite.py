@@ -148,8 +148,7 @@ def rewrite_posted(text: str, program: CLProgram, result: Any, source_index: np.
                          file=file)
     letters = "XYZ" + "".join(machine.rotary)
     sense = _sense(dialect, machine)
-    A = np.asarray(result.A, float).copy()
-    B = np.asarray(result.B, float).copy()
+    A, B = (np.asarray(v, float).copy() for v in result.rotary.pair)  # the machine's rotary axes (rad)
     warnings: list[str] = []
     spans: list[tuple[int, int, np.ndarray]] = []  # (first line, last line, result point indices)
     starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]]) if n else np.zeros(0, np.int64)

@@ -128,7 +128,7 @@ def headline(result: Any) -> Headline | None:
     mb, ma = b.metrics, a.metrics
     if mb is None or ma is None:
         return None
-    rotary = tuple(getattr(result.machine, "rotary", ("A", "B")))
+    rotary = ma.peak_acc.names  # the machine's rotary axes, as the result names them
     facts: list[Fact] = []
     if ma.controller and mb.controller == ma.controller and math.isfinite(mb.cycle_time_s) \
             and math.isfinite(ma.cycle_time_s):
@@ -139,9 +139,9 @@ def headline(result: Any) -> Headline | None:
                           percent=True))
     planned = b.plan is not None and a.plan is not None
     law = "under the planned time law" if planned else "at the programmed feed"
-    for axis, key in ((rotary[1], "peak_B_acc"), (rotary[0], "peak_A_acc")):
-        k = key + "_plan" if planned else key
-        vb, va = float(getattr(mb, k)), float(getattr(ma, k))
+    pb, pa = (mb.peak_acc_plan, ma.peak_acc_plan) if planned else (mb.peak_acc, ma.peak_acc)
+    for axis in (rotary[1], rotary[0]):
+        vb, va = float(pb[axis]), float(pa[axis])
         if math.isfinite(vb) and math.isfinite(va):
             facts.append(Fact(f"peak {axis}''", "deg/s\u00b2", vb, va, ".4g", percent=True))
     cb = mb.violations if planned else mb.violations_programmed

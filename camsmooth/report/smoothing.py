@@ -35,6 +35,7 @@ import numpy as np
 
 from camsmooth import __version__
 from camsmooth.io.atomic import atomic_dir
+from camsmooth.machine.axes import PerAxis
 from camsmooth.smoothing.finish import effective_radius
 from camsmooth.smoothing.result import MethodResult, Metrics, SmoothResult
 
@@ -245,26 +246,24 @@ def _decimation_note(series: Sequence[_Series]) -> str:
 
 
 def _plot_axes(series: list[_Series], colours: dict[str, str], machine: Any, quantity: str) -> Any:
-    """The two rotary axes per method (columns): angle, velocity or acceleration with its limits.
-    The results hold them as A and B (the machine's first and second rotary axis); they are
-    labelled and limited by the machine's names (A and C on an AC table)."""
-    r1, r2 = getattr(machine, "rotary", ("A", "B"))
+    """The two rotary axes per method (columns): angle, velocity or acceleration with its limits,
+    labelled and limited by the names the results carry (the machine's: A and C on an AC table)."""
+    r1, r2 = series[0].m.rotary.names
     spec = {
-        "angle": (r1, r2, "deg", "travel", lambda m, ax: getattr(m, ax)),
-        "velocity": (f"{r1}'", f"{r2}'", "deg/s", "\u00b1vmax", lambda m, ax: getattr(m, f"{ax}_vel")),
-        "acceleration": (f"{r1}''", f"{r2}''", "deg/s\u00b2", "\u00b1amax", lambda m, ax: getattr(m, f"{ax}_acc")),
+        "angle": (r1, r2, "deg", "travel", lambda m, ax: m.rotary[ax]),
+        "velocity": (f"{r1}'", f"{r2}'", "deg/s", "\u00b1vmax", lambda m, ax: m.rotary_vel[ax]),
+        "acceleration": (f"{r1}''", f"{r2}''", "deg/s\u00b2", "\u00b1amax", lambda m, ax: m.rotary_acc[ax]),
     }[quantity]
     lab_a, lab_b, unit, limit_label, get = spec
-    machine_name = {"A": r1, "B": r2}
     title = f"Rotary axes: {quantity} per method ({unit}){_decimation_note(series)}"
     fig, axes = _figure(2, len(series), title, sharey="row")
     # one scale per axis across the methods: the travel lines are drawn for all or for none
-    union = {ax_: np.degrees(np.concatenate([np.asarray(getattr(s.m, ax_), float) for s in series]))
-             for ax_ in ("A", "B")}
+    union = {ax_: np.degrees(np.concatenate([np.asarray(s.m.rotary[ax_], float) for s in series]))
+             for ax_ in (r1, r2)}
     for c, s in enumerate(series):
-        for r_, (axis_name, lab) in enumerate((("A", lab_a), ("B", lab_b))):
+        for r_, (axis_name, lab) in enumerate(((r1, lab_a), (r2, lab_b))):
             ax = axes[r_, c]
-            q = np.asarray(getattr(s.m, axis_name), dtype=float)
+            q = np.asarray(s.m.rotary[axis_name], dtype=float)
             if quantity == "angle":
                 y = np.degrees(q)
             elif s.planned:  # under the planned time law, the one the program's F words command
@@ -274,7 +273,7 @@ def _plot_axes(series: list[_Series], colours: dict[str, str], machine: Any, qua
                 y = np.degrees(np.asarray(get(s.m, axis_name), dtype=float))
             x, yy = s.line(y)
             ax.plot(x, yy, color=colours[s.m.method], linewidth=0.9, label=s.m.method)
-            lim = _axis_limits(machine, machine_name[axis_name])
+            lim = _axis_limits(machine, axis_name)
             if lim is not None:
                 if quantity == "angle":
                     if np.isfinite(lim.max - lim.min):  # a continuous C has no travel to draw
@@ -538,15 +537,14 @@ def _fmt(v: Any, spec: str = ".4g") -> str:
 
 
 def method_summary(m: MethodResult) -> dict[str, Any]:
-    """Table values for one method, in report units: gamma, peak |A''| and |B''| (deg/s^2),
-    min delta (mm), violations (name -> count), unclean rows (list), unreachable (list of
+    """Table values for one method, in report units: gamma, the peak |q''| of each rotary axis
+    (deg/s^2; "peak_acc_deg" at the programmed feed, "peak_acc_plan" under the planned law, PerAxis
+    named by the machine's axes), min delta (mm), violations (name -> count), unclean rows (list), unreachable (list of
     (row, idx)), runtime (s). Taken from ``m.metrics`` (peak accelerations there are deg/s^2);
     what the metrics lack is computed from the arrays (gamma and runtime become NaN)."""
     mt = m.metrics
 
-    def peak(value: float | None, arr: np.ndarray) -> float:
-        if value is not None:
-            return float(value)
+    def peak(arr: np.ndarray) -> float:
         a = np.abs(np.asarray(arr, dtype=float))
         return float(np.degrees(np.nanmax(a))) if a.size and np.isfinite(a).any() else float("nan")
 
@@ -557,8 +555,8 @@ def method_summary(m: MethodResult) -> dict[str, Any]:
     nan = float("nan")
     return {
         "gamma": float(mt.gamma) if mt is not None else nan,
-        "peak_A_acc_deg": peak(mt.peak_A_acc if mt is not None else None, m.A_acc),
-        "peak_B_acc_deg": peak(mt.peak_B_acc if mt is not None else None, m.B_acc),
+        "peak_acc_deg": (mt.peak_acc if mt is not None
+                         else PerAxis(m.rotary_acc.names, tuple(peak(a) for _, a in m.rotary_acc.items()))),
         "min_delta": float(min_delta),
         "violations": dict(mt.violations) if mt is not None else {},
         "unclean_rows": [int(r) for r in mt.unclean_rows] if mt is not None else [],
@@ -572,8 +570,7 @@ def method_summary(m: MethodResult) -> dict[str, Any]:
         "controller_floor_s": (float(mt.controller_floor_s) if mt is not None
                                and mt.controller_floor_s is not None else nan),
         "violations_programmed": dict(mt.violations_programmed) if mt is not None else {},
-        "peak_A_acc_plan": float(mt.peak_A_acc_plan) if mt is not None else nan,
-        "peak_B_acc_plan": float(mt.peak_B_acc_plan) if mt is not None else nan,
+        "peak_acc_plan": mt.peak_acc_plan if mt is not None else PerAxis.nan(m.rotary.names),
         "planned": m.plan is not None,
         "binding_share": _binding_share(m),
         "worst": _worst_point(m),
@@ -659,9 +656,8 @@ def _verdict_html(order: list[str], summaries: dict[str, dict[str, Any]], primar
         binds = (f"binds most{where}: {html.escape(s['limiting'])}"
                  + (f" ({100 * share:.0f}% of the time)" if np.isfinite(share) else "")) if s["limiting"] else ""
         law = "under the planned law" if s["planned"] else "at the programmed feed"
-        pa = s["peak_A_acc_plan"] if s["planned"] else s["peak_A_acc_deg"]
-        pb = s["peak_B_acc_plan"] if s["planned"] else s["peak_B_acc_deg"]
-        peaks = f"peak {rotary[1]}'' {_fmt(pb, '.4g')} and {rotary[0]}'' {_fmt(pa, '.4g')} deg/s\u00b2 {law}"
+        pk = s["peak_acc_plan"] if s["planned"] else s["peak_acc_deg"]
+        peaks = f"peak {pk.names[1]}'' {_fmt(pk[1], '.4g')} and {pk.names[0]}'' {_fmt(pk[0], '.4g')} deg/s\u00b2 {law}"
         total, named = _total(s["violations"])
         viol = f"{total} violation{'s' * (total != 1)} {law}" + (f" ({html.escape(named)})" if named else "")
         if s["planned"]:
@@ -708,8 +704,7 @@ def _summary_table(order: list[str], summaries: dict[str, dict[str, Any]], prima
         s = summaries[name]
         bad_delta = bool(np.isfinite(s["min_delta"]) and s["min_delta"] < s["gouge_line"])
         planned = s["planned"]
-        pa = s["peak_A_acc_plan"] if planned else s["peak_A_acc_deg"]
-        pb = s["peak_B_acc_plan"] if planned else s["peak_B_acc_deg"]
+        pa, pb = (s["peak_acc_plan"] if planned else s["peak_acc_deg"]).values
         total, named = _total(s["violations"])
         total_p, named_p = _total(s["violations_programmed"] or s["violations"])
         cells = [(html.escape(name) + (" <b>(primary)</b>" if name == primary else ""), False),
@@ -748,7 +743,7 @@ def _rows_html(m: MethodResult, rotary: Sequence[str] = ("A", "B")) -> str:
     mt = m.metrics
     t = np.asarray(m.plan.t_plan if m.plan is not None else m.t, float)
     law = "planned law" if m.plan is not None else "programmed feed"
-    ra, rb = program_rates(m.A, t, m.rows), program_rates(m.B, t, m.rows)
+    ra, rb = (program_rates(q, t, m.rows) for q in m.rotary.pair)
     opt = list(getattr(mt, "row_cycle_time_optimal_s", []) or []) if mt is not None else []
     ctl = list(mt.row_cycle_time_s) if mt is not None and mt.controller else []
     floor = list(getattr(mt, "row_controller_floor_s", []) or []) if ctl else []

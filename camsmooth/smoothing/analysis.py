@@ -172,8 +172,8 @@ def _ik(machine: Machine, axes: np.ndarray, rows: np.ndarray) -> tuple[np.ndarra
     prev = None
     for a, b in zip(starts, np.r_[starts[1:], len(rows)], strict=True):
         r = machine.solve_row(axes[a:b], previous=prev)
-        q1[a:b], q2[a:b] = r.A, r.B  # the row result's first and second rotary angle
-        prev = (r.A[-1], r.B[-1])
+        q1[a:b], q2[a:b] = r.rotary.pair  # the row's first and second rotary angle (machine.rotary)
+        prev = (r.rotary.first[-1], r.rotary.second[-1])
     return q1, q2
 
 

@@ -519,8 +519,9 @@ def plan_program(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndar
 
 
 def method_joints(result: object) -> np.ndarray:
-    """(N, 5) joints X Y Z A B of a MethodResult (its ``xyz`` and ``A``, ``B``)."""
-    return np.column_stack([result.xyz, result.A, result.B])
+    """(N, 5) joints of a MethodResult in ``Machine.joint_names`` order: X Y Z (mm, its ``xyz``)
+    and its two rotary axes (rad, its ``rotary``)."""
+    return np.column_stack([result.xyz, result.rotary.values])
 
 
 def plan_method(machine: Machine, result: object, feed: np.ndarray) -> FeedPlan:

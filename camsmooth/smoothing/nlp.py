@@ -7,11 +7,12 @@ NLP constrains AND the metrics check, so "limits met at every sample" means the 
 both places. (np.gradient's velocities are convex combinations of the segment velocities, so
 they obey the same bound.)
 
-NLP (METHODS section 1, step D, solved with CasADi + IPOPT): variables A_i, B_i (rad);
-minimise Gamma = sum_i |T''(t_i)|^2 over interior points, T(A, B) from the machine's POE chain
-(camsmooth.machine.kinematics, through CasADi symbols), subject to A/B travel, segment velocity and
-second-difference acceleration limits, and the per-point lead/tilt windows, which are linear in T
-in the local frame:
+NLP (METHODS section 1, step D, solved with CasADi + IPOPT): variables q1_i, q2_i (rad), the
+machine's two rotary axes in ``Machine.rotary`` order (CasADi symbols named by axis: "q_A", "q_C"
+on an A/C table); minimise Gamma = sum_i |T''(t_i)|^2 over interior points, T(q1, q2) from the
+machine's POE chain (camsmooth.machine.kinematics, through CasADi symbols), subject to travel,
+segment velocity and second-difference acceleration limits, and the per-point lead/tilt windows,
+which are linear in T in the local frame:
     cos(lead_max) <= n . T <= cos(lead_min),
     y cos(tilt_min) - x sin(tilt_min) >= 0,   x sin(tilt_max) - y cos(tilt_max) >= 0,
 with x = X_L . T, y = Y_L . T (tilt windows narrower than 180 degrees). Where the accessibility
@@ -34,6 +35,7 @@ from scipy.interpolate import CubicSpline
 from scipy.ndimage import binary_dilation
 
 from camsmooth.errors import InfeasibleError
+from camsmooth.machine.axes import RotaryValues
 from camsmooth.machine.kinematics import AxisLimits, Machine
 
 # Limits are tightened by this fraction inside the NLP so that IPOPT's tolerance never shows
@@ -194,8 +196,9 @@ def gamma(T: np.ndarray, t: np.ndarray) -> float:
     return float(np.sum((D2 @ T) ** 2))
 
 
-def spline_row(A: np.ndarray, B: np.ndarray, t: np.ndarray, step: int = 10) -> tuple[np.ndarray, np.ndarray]:
-    """The published method (METHODS section 1, step E(2)): sample A and B every ``step``-th CC
+def spline_row(q1: np.ndarray, q2: np.ndarray, t: np.ndarray, step: int = 10) -> tuple[np.ndarray, np.ndarray]:
+    """The published method (METHODS section 1, step E(2)): sample the two rotary axes q1, q2 (rad,
+    ``Machine.rotary`` order) every ``step``-th CC
     point (and the last), fit each with a not-a-knot cubic spline over time (scipy CubicSpline)
     and evaluate it at every CC point."""
     n = len(t)
@@ -203,9 +206,9 @@ def spline_row(A: np.ndarray, B: np.ndarray, t: np.ndarray, step: int = 10) -> t
     if len(idx) < 4:
         idx = np.unique(np.linspace(0, n - 1, min(n, 4)).round().astype(int))
     if len(idx) < 2:
-        return A.copy(), B.copy()
+        return q1.copy(), q2.copy()
     bc = "not-a-knot" if len(idx) >= 4 else "natural"
-    return (CubicSpline(t[idx], A[idx], bc_type=bc)(t), CubicSpline(t[idx], B[idx], bc_type=bc)(t))
+    return (CubicSpline(t[idx], q1[idx], bc_type=bc)(t), CubicSpline(t[idx], q2[idx], bc_type=bc)(t))
 
 
 def _dm_sparse(M: sp.spmatrix) -> ca.DM:
@@ -229,12 +232,12 @@ class NLPStatus:
     total_rows: int = 0
 
 
-# Constraint groups of one row, in the order of the NLP's g: segment velocities of the first ("A")
-# and second ("B") rotary axis (N-1 each), second differences of A and B (N-2 each), the lead
-# window n.T and the two tilt half-planes (N each).
-GROUPS = ("A velocity", "B velocity", "A acceleration", "B acceleration", "lead window", "tilt min", "tilt max",
+# Constraint groups of one row, in the order of the NLP's g: segment velocities of the first (q1)
+# and second (q2) rotary axis of ``Machine.rotary`` (N-1 each), second differences of q1 and q2
+# (N-2 each), the lead window n.T and the two tilt half-planes (N each).
+GROUPS = ("q1 velocity", "q2 velocity", "q1 acceleration", "q2 acceleration", "lead window", "tilt min", "tilt max",
           "clear floor", "clear ceiling")
-N_LINEAR = 4  # the first groups are linear in (A, B); the rest are per-point functions of the tool axis
+N_LINEAR = 4  # the first groups are linear in (q1, q2); the rest are per-point functions of the tool axis
 
 
 @dataclass(frozen=True)
@@ -273,28 +276,39 @@ SCREEN_ROUNDS = 8
 SCREEN_MIN_POINTS = 1000
 
 
+def _symbols(machine: Machine, n: int) -> tuple[ca.MX, ca.MX]:
+    """The CasADi MX columns (n x 1, rad) of the machine's two rotary axes, ``Machine.rotary``
+    order, named by axis ("q_A", "q_C" on an A/C table)."""
+    r1, r2 = machine.rotary
+    return ca.MX.sym(f"q_{r1}", n), ca.MX.sym(f"q_{r2}", n)
+
+
 def _axis_functions(machine: Machine, n: int) -> tuple[ca.Function, ca.Function, ca.Function]:
-    """The tool axis T(A, B) (n x 3, workpiece frame) of n poses from the machine's POE chain,
+    """The tool axis T(q1, q2) (n x 3, workpiece frame) of n poses from the machine's POE chain,
     evaluated element-wise on CasADi MX columns, with its first and second partial derivatives
-    (forward AD along a seed of ones: T_i depends on A_i, B_i only). Returns three functions of
-    (A, B) (rad, n x 1 each): T; (T, T_A, T_B); (T, T_A, T_B, T_AA, T_AB, T_BB)."""
-    a, b = ca.MX.sym("A", n), ca.MX.sym("B", n)
+    (forward AD along a seed of ones: T_i depends on q1_i, q2_i only). Returns three functions of
+    (q1, q2) (rad, n x 1 each, ``Machine.rotary`` order): T; (T, T_1, T_2); (T, T_1, T_2, T_11,
+    T_12, T_22)."""
+    a, b = _symbols(machine, n)
     comps = machine.tool_axis(a, b)
     T = ca.horzcat(*[c if isinstance(c, ca.MX) else ca.MX(ca.DM.ones(n) * float(c)) for c in comps])
     one = ca.DM.ones(n)
     Ta, Tb = ca.jtimes(T, a, one), ca.jtimes(T, b, one)
     Taa, Tab, Tbb = ca.jtimes(Ta, a, one), ca.jtimes(Ta, b, one), ca.jtimes(Tb, b, one)
-    return (ca.Function("axis", [a, b], [T]), ca.Function("axis_d1", [a, b], [T, Ta, Tb]),
-            ca.Function("axis_d2", [a, b], [T, Ta, Tb, Taa, Tab, Tbb]))
+    names = [a.name(), b.name()]
+    return (ca.Function("axis", [a, b], [T], names, ["T"]),
+            ca.Function("axis_d1", [a, b], [T, Ta, Tb], names, ["T", "T_1", "T_2"]),
+            ca.Function("axis_d2", [a, b], [T, Ta, Tb, Taa, Tab, Tbb], names,
+                        ["T", "T_1", "T_2", "T_11", "T_12", "T_22"]))
 
 
 def _lead_functions(machine: Machine, n: int) -> ca.Function:
-    """lead(T) - c0 - c1 tilt(T) - c2 tilt(T)^2 per point and its first and second partials in A
-    and B (element-wise forward AD, as ``_axis_functions``), for axes T(A, B) of the machine's
+    """lead(T) - c0 - c1 tilt(T) - c2 tilt(T)^2 per point and its first and second partials in q1
+    and q2 (element-wise forward AD, as ``_axis_functions``), for axes T(q1, q2) of the machine's
     chain and local frames X_L, Y_L, n (n x 3 each); lead = atan2(|(x, y)|, z), tilt = atan2(y, x)
-    in the local frame (rad). Inputs (A, B, X, Y, Z, C) with C the (n x 3) coefficients; outputs
-    (g, g_A, g_B, g_AA, g_AB, g_BB)."""
-    a, b = ca.MX.sym("A", n), ca.MX.sym("B", n)
+    in the local frame (rad). Inputs (q1, q2, X, Y, Z, C) with C the (n x 3) coefficients; outputs
+    (g, g_1, g_2, g_11, g_12, g_22)."""
+    a, b = _symbols(machine, n)
     X, Y, Z, C = (ca.MX.sym(k, n, 3) for k in "XYZC")
     comps = machine.tool_axis(a, b)
     T = ca.horzcat(*[c if isinstance(c, ca.MX) else ca.MX(ca.DM.ones(n) * float(c)) for c in comps])
@@ -305,7 +319,8 @@ def _lead_functions(machine: Machine, n: int) -> ca.Function:
     one = ca.DM.ones(n)
     ga, gb = ca.jtimes(g, a, one), ca.jtimes(g, b, one)
     return ca.Function("lead_bound", [a, b, X, Y, Z, C],
-                       [g, ga, gb, ca.jtimes(ga, a, one), ca.jtimes(ga, b, one), ca.jtimes(gb, b, one)])
+                       [g, ga, gb, ca.jtimes(ga, a, one), ca.jtimes(ga, b, one), ca.jtimes(gb, b, one)],
+                       [a.name(), b.name(), "X_L", "Y_L", "n", "coef"], ["g", "g_1", "g_2", "g_11", "g_12", "g_22"])
 
 
 def _psd_part(a: ca.MX, b: ca.MX, c: ca.MX) -> tuple[ca.MX, ca.MX, ca.MX]:
@@ -381,7 +396,7 @@ class RowNLP:
         x = ca.MX.sym("x", 2 * n)
         p = ca.MX.sym("p", m1 + 3 * m2 + 9 * n + 1 + 12 * n)
         self._x, self._p = x, p
-        A, B = x[0::2], x[1::2]
+        q1, q2 = x[0::2], x[1::2]
         invh = p[0:m1]
         c0, c1, c2 = (p[m1 + k * m2:m1 + (k + 1) * m2] for k in range(3))
         off = m1 + 3 * m2
@@ -389,8 +404,8 @@ class RowNLP:
         scale = p[off + 9 * n]
         XL, YL, CF, CC = (ca.reshape(p[off + 9 * n + 1 + 3 * k * n:off + 9 * n + 1 + 3 * (k + 1) * n], n, 3)
                           for k in range(4))
-        floor = bound(A, B, XL, YL, W[0], CF)
-        ceiling = bound(A, B, XL, YL, W[0], CC)
+        floor = bound(q1, q2, XL, YL, W[0], CF)
+        ceiling = bound(q1, q2, XL, YL, W[0], CC)
 
         def stencil(q: ca.MX) -> ca.MX:  # second differences of the rows of q
             cols = q.shape[1]
@@ -398,16 +413,16 @@ class RowNLP:
                     + ca.repmat(c2, 1, cols) * q[2:n, :])
 
         def groups(T: ca.MX) -> list[ca.MX]:
-            return [(A[1:n] - A[0:m1]) * invh, (B[1:n] - B[0:m1]) * invh, stencil(A), stencil(B),
+            return [(q1[1:n] - q1[0:m1]) * invh, (q2[1:n] - q2[0:m1]) * invh, stencil(q1), stencil(q2),
                     ca.sum2(W[0] * T), ca.sum2(W[1] * T), ca.sum2(W[2] * T), floor[0], ceiling[0]]
 
-        T0 = axis0(A, B)
+        T0 = axis0(q1, q2)
         self._f = scale * ca.sumsqr(stencil(T0))
         self._g_groups = groups(T0)
         self.g_all = ca.Function("g_all", [x, p], [ca.vertcat(*self._g_groups)])
 
         # first derivatives
-        T1, Ta1, Tb1 = axis1(A, B)
+        T1, Ta1, Tb1 = axis1(q1, q2)
         r1 = stencil(T1)
         z2 = ca.MX.zeros(2, 3)
 
@@ -426,7 +441,7 @@ class RowNLP:
         self._bound_curv = (floor[3:6], ceiling[3:6])
 
         # second derivatives: kept as pieces; the window multipliers are scattered per solver
-        T2, Ta, Tb, Taa, Tab, Tbb = axis2(A, B)
+        T2, Ta, Tb, Taa, Tab, Tbb = axis2(q1, q2)
         u2 = adjoint(stencil(T2))
         d0 = ca.vertcat(c0 ** 2, 0, 0) + ca.vertcat(0, c1 ** 2, 0) + ca.vertcat(0, 0, c2 ** 2)
         e1 = ca.vertcat(c0 * c1, 0) + ca.vertcat(0, c1 * c2)
@@ -587,20 +602,22 @@ class RowNLP:
         return np.concatenate(out)
 
     # ---- solve ----------------------------------------------------------------------------------
-    def solve(self, t: np.ndarray, frames: np.ndarray, A0: np.ndarray, B0: np.ndarray, lead_window: np.ndarray,
-              tilt_window: np.ndarray, bounds: LeadBounds | None = None) -> tuple[np.ndarray, np.ndarray, NLPStatus]:
+    def solve(self, t: np.ndarray, frames: np.ndarray, start: RotaryValues, lead_window: np.ndarray,
+              tilt_window: np.ndarray, bounds: LeadBounds | None = None) -> tuple[RotaryValues, NLPStatus]:
         """Solve one row: time stamps t (N,) s, local frames (N, 3, 3) (columns X_L, Y_L, n in
-        the workpiece frame), warm start (A0, B0) rad, lead/tilt windows (N, 2) rad, clearance
-        bounds on the lead from the accessibility map (rows only where they apply). Returns A, B
-        (rad) and the status."""
+        the workpiece frame), the warm start ``start`` (the machine's rotary axes, rad, named by
+        them), lead/tilt windows (N, 2) rad, clearance bounds on the lead from the accessibility
+        map (rows only where they apply). Returns the solution on the same axes (rad) and the
+        status."""
+        q1_0, q2_0 = start.pair
         n = self.n
         bounds = LeadBounds.none(n) if bounds is None else bounds
         exists = np.concatenate([np.ones(sum(self.sizes[:7]), bool), np.asarray(bounds.has_floor, bool),
                                  np.asarray(bounds.has_ceiling, bool)])
         t = np.asarray(t, float)
         x = np.empty(2 * n)
-        x[0::2], x[1::2] = A0, B0
-        scale = 1.0 / max(gamma(self.machine.tool_axis_np(A0, B0), t), 1e-6)
+        x[0::2], x[1::2] = q1_0, q2_0
+        scale = 1.0 / max(gamma(self.machine.tool_axis_np(q1_0, q2_0), t), 1e-6)
         lbx, ubx, lbg, ubg = self.bounds(lead_window)
         x = np.clip(x, lbx, ubx)
         t0 = time.perf_counter()
@@ -646,8 +663,9 @@ class RowNLP:
             # the better of the last iterate and the warm start is taken when one of them does
             x, status, success = self._feasible_fallback(x, x_start, p, lbx, ubx, lbg, ubg, exists, t, status)
         dt = time.perf_counter() - t0
-        return x[0::2], x[1::2], NLPStatus(success=success, status=status, iterations=iters, time_s=dt, build_s=build,
-                                           rounds=rounds, rows=int(keep.sum()), total_rows=int(exists.sum()))
+        return RotaryValues.of(start.names, x[0::2], x[1::2]), NLPStatus(
+            success=success, status=status, iterations=iters, time_s=dt, build_s=build, rounds=rounds,
+            rows=int(keep.sum()), total_rows=int(exists.sum()))
 
     def _feasible_fallback(self, x: np.ndarray, x0: np.ndarray, p: np.ndarray, lbx: np.ndarray, ubx: np.ndarray,
                            lbg: np.ndarray, ubg: np.ndarray, exists: np.ndarray, t: np.ndarray,
@@ -666,14 +684,15 @@ class RowNLP:
             return x, status, False
         return best[0], f"{status}; a feasible point kept", True
 
-    def constraint_report(self, t: np.ndarray, A: np.ndarray, B: np.ndarray) -> list[tuple[str, int, float]]:
-        """Constraint groups violated by (A, B) against the TRUE limits (no back-off): a list of
+    def constraint_report(self, t: np.ndarray, qs: RotaryValues) -> list[tuple[str, int, float]]:
+        """Constraint groups violated by the rotary axes ``qs`` (rad) against the TRUE limits (no back-off): a list of
         (constraint name, point index, amount in the constraint's units, rad-based)."""
         out: list[tuple[str, int, float]] = []
         lim = self.machine.limits
         D1, D2 = fd_operators(t)
-        for name, q in zip(self.machine.rotary, (A, B), strict=True):
+        for name in self.machine.rotary:
             L = lim[name]
+            q = qs[name]
             over = np.maximum(q - L.max, L.min - q)
             if np.any(over > 1e-9):
                 i = int(np.argmax(over))
@@ -721,21 +740,23 @@ class Binding:
 
 
 def elastic_diagnosis(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_window: np.ndarray,
-                      tilt_window: np.ndarray, A0: np.ndarray, B0: np.ndarray, backoff: float = BACKOFF) -> Binding:
+                      tilt_window: np.ndarray, start: RotaryValues, backoff: float = BACKOFF) -> Binding:
     """Name the binding constraint of an infeasible row: re-solve with every limit group made
-    elastic (non-negative slacks on the travel of A and B, as a fraction of their span, and on the
+    elastic (non-negative slacks on the travel of both rotary axes, as a fraction of their span, and on the
     velocity and acceleration limits, as a fraction of the limit) and minimise the sum of slacks;
     the largest slack names the constraint, the point and what it would need. The limits and
     windows are the ones RowNLP enforces (backed off by ``backoff`` and WINDOW_BACKOFF), so a row
-    that fits the machine only without that margin is named too. Angles rad, times s."""
+    that fits the machine only without that margin is named too. ``start``: the warm start (the
+    machine's rotary axes, rad). Angles rad, times s."""
+    q1_0, q2_0 = start.pair
     n = len(t)
     D1, D2 = fd_operators(t)
     lim = enforced_limits(machine, backoff)
     lead_window, tilt_window = narrowed(lead_window), narrowed(tilt_window)
-    x = ca.SX.sym("x", 2 * n)
-    A, B = x[0::2], x[1::2]
-    Tx, Ty, Tz = machine.tool_axis(A, B)
-    s = ca.SX.sym("s", 6)  # A vel, B vel, A acc, B acc (fraction of the limit), A, B travel (of the span)
+    x = ca.SX.sym("x", 2 * n)  # q1_0, q2_0, q1_1, ... (Machine.rotary order)
+    q1, q2 = x[0::2], x[1::2]
+    Tx, Ty, Tz = machine.tool_axis(q1, q2)
+    s = ca.SX.sym("s", 6)  # q1, q2 vel, q1, q2 acc (fraction of the limit), q1, q2 travel (of the span)
     d1, d2 = _dm_sparse(D1), _dm_sparse(D2)
     X, Y, Z = frames[:, :, 0], frames[:, :, 1], frames[:, :, 2]
     tmin, tmax = tilt_window[:, 0:1], tilt_window[:, 1:2]
@@ -744,14 +765,14 @@ def elastic_diagnosis(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_
     dotc = lambda C: C[:, 0] * Tx + C[:, 1] * Ty + C[:, 2] * Tz  # noqa: E731
     r1, r2 = machine.rotary
     L1, L2 = lim[r1], lim[r2]
-    va, vb = ca.mtimes(d1, A) / L1.vmax, ca.mtimes(d1, B) / L2.vmax
-    aa, ab = ca.mtimes(d2, A) / L1.amax, ca.mtimes(d2, B) / L2.amax
+    va, vb = ca.mtimes(d1, q1) / L1.vmax, ca.mtimes(d1, q2) / L2.vmax
+    aa, ab = ca.mtimes(d2, q1) / L1.amax, ca.mtimes(d2, q2) / L2.amax
 
     def travel(q: ca.SX, L: AxisLimits) -> ca.SX:  # within +-1/2 inside the travel; 0 when continuous
         w = L.max - L.min
         return (q - 0.5 * (L.max + L.min)) / w if np.isfinite(w) else 0 * q
 
-    ta, tb = travel(A, L1), travel(B, L2)
+    ta, tb = travel(q1, L1), travel(q2, L2)
     g = ca.vertcat(va - s[0], va + s[0], vb - s[1], vb + s[1], aa - s[2], aa + s[2], ab - s[3], ab + s[3],
                    ta - s[4], ta + s[4], tb - s[5], tb + s[5], dotc(Z), dotc(cmin), dotc(cmax))
     m1, m2 = n - 1, n - 2
@@ -767,16 +788,16 @@ def elastic_diagnosis(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_
     ubx = np.full(2 * n + 6, inf)
     solver = ca.nlpsol("elastic", "ipopt", {"x": ca.vertcat(x, s), "f": ca.sum1(s), "g": g},
                        {"ipopt.print_level": 0, "print_time": 0, "ipopt.sb": "yes", "ipopt.max_iter": 1000})
-    x0 = np.concatenate([np.ravel(np.column_stack([A0, B0])), np.full(6, 10.0)])
+    x0 = np.concatenate([np.ravel(np.column_stack([q1_0, q2_0])), np.full(6, 10.0)])
     sol = solver(x0=x0, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
     xs = np.asarray(sol["x"]).ravel()
     slack = xs[2 * n:]
     k = int(np.argmax(slack))
-    Aopt, Bopt = xs[0:2 * n:2], xs[1:2 * n:2]
+    q1_opt, q2_opt = xs[0:2 * n:2], xs[1:2 * n:2]
     names = (f"{r1} velocity", f"{r2} velocity", f"{r1} acceleration", f"{r2} acceleration", f"{r1} travel",
              f"{r2} travel")
     axis = names[k].split()[0]
-    q = Aopt if axis == r1 else Bopt
+    q = q1_opt if axis == r1 else q2_opt
     L, M = lim[axis], machine.limits[axis]
     if k >= 4:  # travel: the point furthest outside, and the angle it needs
         over = np.maximum(q - L.max, L.min - q)
@@ -795,18 +816,18 @@ class ClearanceRelief:
     """What an elastic re-solve with soft clearance constraints found (``clearance_elastic``):
     ``feasible`` whether the limits and the windows alone admit a program (when not, the binding
     limit is ``elastic_diagnosis``'s to name); ``floor_short`` and ``ceiling_short`` (N,) rad, how
-    far below its clear floor (above its ceiling) each point's lead had to stay; A, B (rad) that
-    program (a warm start that meets the limits and windows)."""
+    far below its clear floor (above its ceiling) each point's lead had to stay; ``rotary`` that
+    program (the machine's rotary axes, rad, named by them: a warm start that meets the limits and
+    windows)."""
 
     feasible: bool
     floor_short: np.ndarray
     ceiling_short: np.ndarray
-    A: np.ndarray
-    B: np.ndarray
+    rotary: RotaryValues
 
 
 def clearance_elastic(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_window: np.ndarray,
-                      tilt_window: np.ndarray, bounds: LeadBounds, A0: np.ndarray, B0: np.ndarray,
+                      tilt_window: np.ndarray, bounds: LeadBounds, start: RotaryValues,
                       backoff: float = BACKOFF, weights: tuple[np.ndarray, np.ndarray] | None = None
                       ) -> ClearanceRelief:
     """The row of RowNLP with its limits and windows hard (as enforced) and the accessibility
@@ -814,7 +835,9 @@ def clearance_elastic(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_
     stays outside its clear region. Points with a positive amount are those the machine's limits
     keep out of their clear region. ``weights``: (floor, ceiling) per point (N,) weights of those
     amounts (default 1; a finish budget's ceiling weighs less than clearance, so the limits give
-    up the finish before the clearance, camsmooth.smoothing.rows). Angles rad, times s."""
+    up the finish before the clearance, camsmooth.smoothing.rows). ``start``: the warm start (the
+    machine's rotary axes, rad). Angles rad, times s."""
+    q1_0, q2_0 = start.pair
     n = len(t)
     D1, D2 = fd_operators(t)
     lim = enforced_limits(machine, backoff)
@@ -822,8 +845,8 @@ def clearance_elastic(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_
     fl, ce = np.flatnonzero(bounds.has_floor), np.flatnonzero(bounds.has_ceiling)
     x = ca.SX.sym("x", 2 * n)
     s = ca.SX.sym("s", len(fl) + len(ce))
-    A, B = x[0::2], x[1::2]
-    Tx, Ty, Tz = machine.tool_axis(A, B)
+    q1, q2 = x[0::2], x[1::2]
+    Tx, Ty, Tz = machine.tool_axis(q1, q2)
     X, Y, Z = frames[:, :, 0], frames[:, :, 1], frames[:, :, 2]
     tmin, tmax = tilt_window[:, 0:1], tilt_window[:, 1:2]
     cmin = Y * np.cos(tmin) - X * np.sin(tmin)
@@ -834,7 +857,7 @@ def clearance_elastic(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_
     lead = ca.atan2(ca.sqrt(lx ** 2 + ly ** 2 + 1e-24), lz)
     poly = lambda c, k: c[k, 0] + c[k, 1] * tilt[k.tolist()] + c[k, 2] * tilt[k.tolist()] ** 2  # noqa: E731
     d1, d2 = _dm_sparse(D1), _dm_sparse(D2)
-    g = ca.vertcat(ca.mtimes(d1, A), ca.mtimes(d1, B), ca.mtimes(d2, A), ca.mtimes(d2, B), lz, dotc(cmin),
+    g = ca.vertcat(ca.mtimes(d1, q1), ca.mtimes(d1, q2), ca.mtimes(d2, q1), ca.mtimes(d2, q2), lz, dotc(cmin),
                    dotc(cmax), lead[fl.tolist()] - poly(bounds.floor, fl) + s[:len(fl)],
                    poly(bounds.ceiling, ce) - lead[ce.tolist()] + s[len(fl):])
     m1, m2, inf = n - 1, n - 2, np.inf
@@ -855,7 +878,7 @@ def clearance_elastic(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_
     solver = ca.nlpsol("clearance_elastic", "ipopt", {"x": ca.vertcat(x, s), "f": ca.dot(ca.DM(w), s), "g": g},
                        {"ipopt.print_level": 0, "print_time": 0, "ipopt.sb": "yes", "ipopt.max_iter": 1000,
                         "ipopt.tol": 1e-10, "ipopt.constr_viol_tol": 1e-10})
-    x0 = np.concatenate([np.clip(np.ravel(np.column_stack([A0, B0])), lbx[:2 * n], ubx[:2 * n]),
+    x0 = np.concatenate([np.clip(np.ravel(np.column_stack([q1_0, q2_0])), lbx[:2 * n], ubx[:2 * n]),
                          full(len(s.nz), 0.1)])
     sol = solver(x0=x0, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
     xs = np.asarray(sol["x"]).ravel()
@@ -865,5 +888,5 @@ def clearance_elastic(machine: Machine, t: np.ndarray, frames: np.ndarray, lead_
     floor_short, ceiling_short = np.zeros(n), np.zeros(n)
     floor_short[fl] = np.maximum(xs[2 * n:2 * n + len(fl)], 0.0)
     ceiling_short[ce] = np.maximum(xs[2 * n + len(fl):], 0.0)
-    return ClearanceRelief(feasible=ok, floor_short=floor_short, ceiling_short=ceiling_short, A=xs[0:2 * n:2],
-                           B=xs[1:2 * n:2])
+    return ClearanceRelief(feasible=ok, floor_short=floor_short, ceiling_short=ceiling_short,
+                           rotary=RotaryValues.of(start.names, xs[0:2 * n:2], xs[1:2 * n:2]))

@@ -34,6 +34,7 @@ from camsmooth.geometry.clearance import MeshIndex
 from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl
 from camsmooth.geometry.paths import CCPath, check_contact_with_mesh, check_normals_against_mesh, estimate_feed_dirs
 from camsmooth.geometry.surfaces import Surface, chord_deviation
+from camsmooth.machine.axes import PerAxis, RotaryValues
 from camsmooth.machine.kinematics import Machine, load_machine
 from camsmooth.progress import Steps
 from camsmooth.smoothing.cam import CamProgram
@@ -303,19 +304,19 @@ class ProgramSmoother:
         self.pool.close(abort=exc_type is not None)
 
     # ---- building blocks ------------------------------------------------------------------------
-    def ik(self, axes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def ik(self, axes: np.ndarray) -> tuple[RotaryValues, np.ndarray]:
         """Nominal inverse kinematics row by row (nearest branch, unwrapped), each row starting
-        from the previous row's end (a zig-zag row starts where the last one ended). Returns A,
-        B (rad) and the indices of unreachable points."""
-        A, B = np.empty(len(axes)), np.empty(len(axes))
+        from the previous row's end (a zig-zag row starts where the last one ended). Returns the
+        rotary angles (rad, named by the machine's axes) and the indices of unreachable points."""
+        q = np.empty((len(axes), 2))
         bad = []
         prev = None
         for s in self.program.slices:
             r = self.nominal.solve_row(axes[s], previous=prev)
-            A[s], B[s] = r.A, r.B
-            prev = (r.A[-1], r.B[-1])
+            q[s] = r.rotary.values
+            prev = (r.rotary.first[-1], r.rotary.second[-1])
             bad.extend((r.unreachable + s.start).tolist())
-        return A, B, np.asarray(bad, int)
+        return RotaryValues(self.nominal.rotary, q), np.asarray(bad, int)
 
     def clearance(self, tips: np.ndarray, axes: np.ndarray) -> np.ndarray:
         """Exact clearance (mm) of many poses: in chunks on the workers when there are many."""
@@ -339,18 +340,18 @@ class ProgramSmoother:
     def cam(self, cam: CamProgram) -> MethodResult:
         """The CAM system's own program: its axes through inverse kinematics, its tool tips."""
         t0 = time.perf_counter()
-        A, B, unreachable = self.ik(cam.axes)
-        return self._result("cam", A, B, delta=None, lift=np.zeros(len(A)), unreachable=unreachable,
+        q, unreachable = self.ik(cam.axes)
+        return self._result("cam", q, delta=None, lift=np.zeros(len(q)), unreachable=unreachable,
                             runtime=time.perf_counter() - t0, cl=cam.tips)
 
     def none(self) -> MethodResult:
         """The initial orientation through inverse kinematics, as it is."""
         t0 = time.perf_counter()
-        A, B, unreachable = self.ik(self.program.orientation.axis)
-        T = self.real.tool_axis_np(A, B)
+        q, unreachable = self.ik(self.program.orientation.axis)
+        T = self.real.tool_axis_np(*q.pair)
         delta = self.clearance(self.cl_points(T), T)
         self.unreachable = unreachable
-        return self._result("none", A, B, delta=delta, lift=np.zeros(len(A)), unreachable=unreachable,
+        return self._result("none", q, delta=delta, lift=np.zeros(len(q)), unreachable=unreachable,
                             runtime=time.perf_counter() - t0)
 
     def spline(self, none: MethodResult) -> tuple[MethodResult, np.ndarray]:
@@ -358,14 +359,15 @@ class ProgramSmoother:
         spline's poses gouged before the lift."""
         t0 = time.perf_counter()
         n = len(self.program)
-        A, B = np.empty(n), np.empty(n)
+        q = RotaryValues.zeros(none.rotary.names, n)
         for s in self.program.slices:
-            A[s], B[s] = spline_row(none.A[s], none.B[s], self.program.t[s], self.options.spline_step)
-        T = self.real.tool_axis_np(A, B)
+            q.values[s, 0], q.values[s, 1] = spline_row(none.rotary.first[s], none.rotary.second[s],
+                                                        self.program.t[s], self.options.spline_step)
+        T = self.real.tool_axis_np(*q.pair)
         delta = self.clearance(self.cl_points(T), T)
         gouge = delta < -self.tolerance
         lift, delta = self._lift(T, delta, gouge) if gouge.any() else (np.zeros(n), delta)
-        res = self._result("spline", A, B, delta=delta, lift=lift, unreachable=self.unreachable,
+        res = self._result("spline", q, delta=delta, lift=lift, unreachable=self.unreachable,
                            runtime=time.perf_counter() - t0)
         return res, gouge
 
@@ -378,30 +380,31 @@ class ProgramSmoother:
         t0 = time.perf_counter()
         p, o = self.program, self.program.orientation
         machine = 0 if label == "nlp" else 1
-        A0, B0 = warm.A, warm.B
+        q0 = warm.rotary
         pole = self.nominal.pole_angle(o.axis)
         passages = []
         if exact is not None:
-            exact_q = np.column_stack([exact.A, exact.B])
+            exact_q = exact.rotary.values
             passages = find_passages(self.nominal, o.axis, p.path.rows, p.t, exact_q)
             if passages:
                 start = pole_start(self.nominal, o.axis, p.path.rows, p.t, exact_q)
                 pole_rows = np.isin(p.path.rows, [q.row for q in passages])
-                A0, B0 = np.where(pole_rows, start[:, 0], A0), np.where(pole_rows, start[:, 1], B0)
+                q0 = RotaryValues(q0.names, np.where(pole_rows[:, None], start, q0.values))
         cap = None
         if self.budget is not None:
             cap = lead_ceiling(self.cutter, self.budget, p.curvature, p.stepover, o.lead_window, o.tilt_window)
         tasks = [RowTask(row=int(p.path.rows[s.start]), t=p.t[s], frames=p.frames[s], cc=p.path.points[s],
                          normals=p.path.normals[s], lead_window=o.lead_window[s], tilt_window=o.tilt_window[s],
-                         A0=A0[s], B0=B0[s], risk=risk[s], machine=machine, pole=pole[s],
+                         start=q0.take(s), risk=risk[s], machine=machine, pole=pole[s],
                          lead_cap=None if cap is None else cap.ceiling[s], has_cap=None if cap is None else cap.has[s])
                  for s in p.slices]
         sols: list[RowSolution] = self.pool.map(solve_row, tasks, progress=f"{label} rows" if progress else None)
         cat = lambda name: np.concatenate([getattr(s, name) for s in sols])  # noqa: E731
-        A, B, delta, lift = cat("A"), cat("B"), cat("delta"), cat("lift")
+        q = RotaryValues(q0.names, np.concatenate([s.rotary.values for s in sols]))
+        delta, lift = cat("delta"), cat("lift")
         if self.model is not None:
             delta = None  # measured at the predicted real tip in _result
-        res = self._result(label, A, B, delta=delta, lift=lift, unreachable=np.zeros(0, int),
+        res = self._result(label, q, delta=delta, lift=lift, unreachable=np.zeros(0, int),
                            runtime=time.perf_counter() - t0, lead_window=cat("lead_window"),
                            tilt_window=cat("tilt_window"))
         res.lead_clear = cat("lead_clear")
@@ -452,8 +455,8 @@ class ProgramSmoother:
         from camsmooth.smoothing.feed import combine
 
         p = self.program
-        q = np.column_stack([r.xyz, r.A, r.B])
-        tip = self.real.tool_pose_np(r.A, r.B, *r.xyz.T)[0] if self.model is not None else r.cl
+        q = np.column_stack([r.xyz, r.rotary.values])
+        tip = self.real.tool_pose_np(*r.rotary.pair, *r.xyz.T)[0] if self.model is not None else r.cl
         cuts = [0]  # whole rows, about CHUNK points a task
         for s in p.slices:
             if s.stop - cuts[-1] >= CHUNK:
@@ -480,22 +483,22 @@ class ProgramSmoother:
                 m.row_controller_floor_s = law.controller.row_floor.tolist()
         viol, peaks = axis_violations(self.nominal, q, law.t_plan, p.path.rows)
         m.violations = {**viol, **{k: v for k, v in m.violations_programmed.items() if k not in viol}}
-        r1, r2 = self.nominal.rotary
-        m.peak_A_acc_plan = float(np.degrees(peaks[f"{r1} acceleration"]))
-        m.peak_B_acc_plan = float(np.degrees(peaks[f"{r2} acceleration"]))
+        names = r.rotary.names
+        m.peak_acc_plan = PerAxis(names, tuple(float(np.degrees(peaks[f"{n} acceleration"])) for n in names))
 
     def _point_names(self, i: int) -> str:
         return self.program.name(i)
 
     # ---- results ------------------------------------------------------------------------------------
-    def _result(self, method: str, A: np.ndarray, B: np.ndarray, *, delta: np.ndarray | None, lift: np.ndarray,
+    def _result(self, method: str, q: RotaryValues, *, delta: np.ndarray | None, lift: np.ndarray,
                 unreachable: np.ndarray, runtime: float, lead_window: np.ndarray | None = None,
                 tilt_window: np.ndarray | None = None, cl: np.ndarray | None = None) -> MethodResult:
-        """The program a method commands (A, B rad; lift mm), as the real machine executes it: the
+        """The program a method commands (q: the rotary axes, rad; lift mm), as the real machine executes it: the
         tool axis of the error model's chain when there is a model (so 'nlp-ideal' shows what an
         ideal-machine program does on the real one), clearance at the predicted real tip. ``cl``:
         the tool tips when the program gives them (the CAM's own), else from the CC points."""
         p, o = self.program, self.program.orientation
+        A, B = q.pair  # the machine's first and second rotary axis (rad)
         T = self.real.tool_axis_np(A, B)
         cc, nrm = p.path.points, p.path.normals
         cl = (self.cl_points(T) if cl is None else cl) + lift[:, None] * nrm
@@ -508,10 +511,10 @@ class ProgramSmoother:
         lead, tilt = lead_tilt_from_axis(T, p.frames)
         ra, rb, rt = (program_rates(q, p.t, p.path.rows) for q in (A, B, T))
         g = gamma_of(T, p.t, p.path.rows)
-        A_vel, A_acc, B_vel, B_acc = ra.vel, ra.acc, rb.vel, rb.acc
         comp = np.linalg.norm(rt.acc, axis=1)
         res = MethodResult(method=method, rows=p.path.rows, idx=p.idx, t=p.t, cc=cc, normals=nrm, cl=cl, axis=T,
-                           lead=lead, tilt=tilt, A=A, B=B, A_vel=A_vel, B_vel=B_vel, A_acc=A_acc, B_acc=B_acc,
+                           lead=lead, tilt=tilt, rotary=q, rotary_vel=RotaryValues.of(q.names, ra.vel, rb.vel),
+                           rotary_acc=RotaryValues.of(q.names, ra.acc, rb.acc),
                            xyz=xyz, delta=delta, lift=lift,
                            lead_window=o.lead_window if lead_window is None else lead_window,
                            tilt_window=o.tilt_window if tilt_window is None else tilt_window,
@@ -542,7 +545,7 @@ class ProgramSmoother:
         pivot's X Y Z included, ``camsmooth.smoothing.nlp.limit_violations``, and outside the
         user's windows), interference (points with delta < -tolerance), lifts (mm)."""
         p = self.program
-        viol, _ = axis_violations(self.nominal, np.column_stack([r.xyz, r.A, r.B]), p.t, p.path.rows)
+        viol, _ = axis_violations(self.nominal, np.column_stack([r.xyz, r.rotary.values]), p.t, p.path.rows)
         tol = 1e-6
         viol["lead window"] = int(np.sum((r.lead < r.lead_window[:, 0] - tol) | (r.lead > r.lead_window[:, 1] + tol)))
         viol["tilt window"] = int(np.sum((r.tilt < r.tilt_window[:, 0] - tol) | (r.tilt > r.tilt_window[:, 1] + tol)))
@@ -550,8 +553,9 @@ class ProgramSmoother:
         viol["interference"] = int(np.sum(gouge))
         lifted = r.lift > 0
         unclean = sorted({int(x) for x in r.rows[gouge | lifted]})
-        return Metrics(gamma=g, peak_A_acc=float(np.degrees(np.max(np.abs(r.A_acc)))),
-                       peak_B_acc=float(np.degrees(np.max(np.abs(r.B_acc)))), min_delta=float(np.min(r.delta)),
+        peak = tuple(float(np.degrees(np.max(np.abs(acc)))) for _, acc in r.rotary_acc.items())
+        return Metrics(gamma=g, peak_acc=PerAxis(r.rotary.names, peak), peak_acc_plan=PerAxis.nan(r.rotary.names),
+                       min_delta=float(np.min(r.delta)),
                        violations=viol, violations_programmed=dict(viol), lifted_points=int(np.sum(lifted)),
                        max_lift_mm=float(np.max(r.lift, initial=0.0)),
                        lifted_beyond_tolerance=int(np.sum(r.lift > self.tolerance)), unclean_rows=unclean,

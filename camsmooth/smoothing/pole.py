@@ -158,4 +158,4 @@ def _shorter_exit(machine: Machine, T: np.ndarray, outer0: float, current: np.nd
 def _continue(machine: Machine, T: np.ndarray, first: np.ndarray) -> np.ndarray:
     """The exact inverse along T (M, 3) starting at the angles ``first`` (its first point)."""
     r = machine.solve_row(T, previous=(float(first[0]), float(first[1])))
-    return np.column_stack([r.A, r.B])
+    return r.rotary.values

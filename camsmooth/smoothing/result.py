@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from camsmooth.machine.axes import PerAxis, RotaryValues
+
 
 def interferes(delta: np.ndarray, tolerance: float) -> np.ndarray:
     """Where a pose interferes: its signed clearance ``delta`` (mm, negative = gouge) is below
@@ -67,14 +69,15 @@ class ScallopMiss:
 class Metrics:
     """Summary of one method's program (camsmooth.smoothing.pipeline.ProgramSmoother.metrics).
 
-    At the programmed feed: gamma = sum |T''|^2 (1/s^4); peak_A_acc, peak_B_acc (deg/s^2);
+    At the programmed feed: gamma = sum |T''|^2 (1/s^4); peak_acc (deg/s^2, PerAxis named by the
+    machine's rotary axes: ``peak_acc["C"]``);
     violations_programmed: samples outside each axis's TRUE travel, velocity, acceleration limits
     (all five axes, camsmooth.smoothing.evaluate.axis_violations: on the positions as written,
     beyond what their rounding explains) and the user's windows, and 'interference' (points with
     delta < -tolerance_mm). violations: the same counts with the axes' velocities and
     accelerations under the planned time law (t_plan; the headline; equal to
-    violations_programmed until the program is planned); peak_A_acc_plan, peak_B_acc_plan
-    (deg/s^2) under it. min_delta (mm). Lifts along the normal (mm) and the rows
+    violations_programmed until the program is planned); peak_acc_plan (deg/s^2, PerAxis by
+    rotary axis; NaN until the program is planned) under it. min_delta (mm). Lifts along the normal (mm) and the rows
     that are not clean; unreachable: (row, idx) without inverse kinematics. Planned time law
     (camsmooth.smoothing.feed): cycle_time_optimal_s, limiting; what the machine's controller
     makes of the program (camsmooth.controller, where camsmooth has a model of it, else the
@@ -94,8 +97,8 @@ class Metrics:
     finish budget the method was held to (um; None: none), scallop_missed: the rows that miss it."""
 
     gamma: float
-    peak_A_acc: float
-    peak_B_acc: float
+    peak_acc: PerAxis
+    peak_acc_plan: PerAxis
     min_delta: float
     violations: dict[str, int]
     lifted_points: int
@@ -109,8 +112,6 @@ class Metrics:
     cycle_time_optimal_s: float = float("nan")
     row_cycle_time_optimal_s: list[float] = field(default_factory=list)
     violations_programmed: dict[str, int] = field(default_factory=dict)
-    peak_A_acc_plan: float = float("nan")
-    peak_B_acc_plan: float = float("nan")
     controller: str = ""
     blocks: int | None = None
     controller_deviation_mm: float | None = None
@@ -146,7 +147,10 @@ class MethodResult:
     the row (s, 0 at each row's first point, from the programmed feed). cc, normals: CC points
     (mm) and unit normals (material -> tool), workpiece frame. cl: tool tip (mm); axis: unit tool
     axis (tip -> spindle), workpiece frame. lead, tilt: rad (METHODS section 1 local frame).
-    A, B: rad; A_vel, B_vel (rad/s), A_acc, B_acc (rad/s^2) by finite differences over t.
+    rotary: the machine's two rotary axes (N, 2) rad, named by them (``RotaryValues``:
+    ``r.rotary["C"]``; machine sign convention, camsmooth.machine.kinematics.Machine);
+    rotary_vel (rad/s), rotary_acc (rad/s^2): their rates by finite differences over t
+    (camsmooth.smoothing.nlp.program_rates), on the same axes.
     xyz: linear axes (mm). delta: minimum signed clearance tool-to-mesh (mm; < 0 = gouge).
     lift: distance the tool was lifted along the normal as the fallback (mm, 0 where none).
     lead_window, tilt_window: (N, 2) admissible [min, max] per point (rad) after curvature
@@ -166,12 +170,9 @@ class MethodResult:
     axis: np.ndarray
     lead: np.ndarray
     tilt: np.ndarray
-    A: np.ndarray
-    B: np.ndarray
-    A_vel: np.ndarray
-    B_vel: np.ndarray
-    A_acc: np.ndarray
-    B_acc: np.ndarray
+    rotary: RotaryValues
+    rotary_vel: RotaryValues
+    rotary_acc: RotaryValues
     xyz: np.ndarray
     delta: np.ndarray
     lift: np.ndarray
@@ -208,12 +209,12 @@ class SmoothResult:
         return self.methods[self.primary]
 
     def table(self) -> np.ndarray:
-        """The output CSV table (columns ``output_columns(machine.rotary)``) of the primary method,
+        """The output CSV table (columns ``output_columns(result.rotary.names)``) of the primary method,
         angles in deg."""
         r = self.result
         deg = np.degrees
         return np.column_stack([r.rows, r.idx, r.t, r.cc, r.normals, r.cl, r.axis, deg(r.lead), deg(r.tilt),
-                                deg(r.A), deg(r.B), r.xyz, r.delta])
+                                deg(r.rotary.values), r.xyz, r.delta])
 
 
 def _plain(value: Any) -> str:

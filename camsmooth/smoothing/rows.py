@@ -59,6 +59,7 @@ from camsmooth.geometry.accessibility import accessibility_map, clear_region, po
 from camsmooth.geometry.clearance import MeshIndex, clearance
 from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl
 from camsmooth.geometry.frames import lead_tilt_from_axis
+from camsmooth.machine.axes import RotaryValues
 from camsmooth.machine.kinematics import Machine
 from camsmooth.smoothing.finish import merge_ceilings
 from camsmooth.smoothing.nlp import (
@@ -127,7 +128,8 @@ class RowContext:
 @dataclass(frozen=True)
 class RowTask:
     """One row: its id, time stamps t (N,) s, local frames (N, 3, 3), CC points and unit normals
-    (N, 3), lead/tilt windows (N, 2) rad, warm start (A0, B0) rad and the points where an
+    (N, 3), lead/tilt windows (N, 2) rad, the warm start ``start`` (the machine's rotary axes, rad,
+    named by them: ``task.start["C"]``) and the points where an
     orientation evaluated before gouged (``risk``, (N,) bool); ``machine`` indexes
     RowContext.machines; ``pole`` the programmed tool axis' angle from the pole of the outer
     rotary axis (N,) rad, for naming a passage the windows cannot contain (None: not known);
@@ -141,8 +143,7 @@ class RowTask:
     normals: np.ndarray
     lead_window: np.ndarray
     tilt_window: np.ndarray
-    A0: np.ndarray
-    B0: np.ndarray
+    start: RotaryValues
     risk: np.ndarray
     machine: int = 0
     pole: np.ndarray | None = None
@@ -154,8 +155,9 @@ class RowTask:
 class RowSolution:
     """The row's program and how it was reached.
 
-    A, B: rad; delta: exact clearance of the final poses (mm); lift: along the normal (mm, 0
-    where none); lead_window, tilt_window: the windows with the map's tilt narrowing (rad);
+    rotary: the machine's rotary axes (N, 2) rad, named by them (``sol.rotary["C"]``); delta:
+    exact clearance of the final poses (mm); lift: along the normal (mm, 0 where none);
+    lead_window, tilt_window: the windows with the map's tilt narrowing (rad);
     mapped: points that got a map; blocked: points whose whole window the map found blocked;
     unreachable_clear: mapped points with a clear region that the limits kept the solution out
     of; best_delta: the best clearance the map found (mm, NaN where not mapped); lead_clear: (N, 2)
@@ -164,8 +166,7 @@ class RowSolution:
     solve_s, map_s, check_s: time in the NLP, the map and the verification (s).
     """
 
-    A: np.ndarray
-    B: np.ndarray
+    rotary: RotaryValues
     delta: np.ndarray
     lift: np.ndarray
     lead_window: np.ndarray
@@ -263,7 +264,8 @@ def solve_row(ctx: RowContext, task: RowTask) -> RowSolution:
     knots = np.zeros(n, bool)
     knots[::stride] = knots[-1] = True
     backoff = KNOT_BACKOFF if stride > 1 else BACKOFF
-    A, B = task.A0, task.B0
+    names = task.start.names  # the machine's rotary axes: q1, q2 below are their angles (rad)
+    q1, q2 = task.start.pair
     good: tuple[np.ndarray, np.ndarray] | None = None
     evals = iters = rounds = 0
     t_solve = t_map = t_check = 0.0
@@ -292,7 +294,7 @@ def solve_row(ctx: RowContext, task: RowTask) -> RowSolution:
             blocked[k], best[k] = reg.blocked, reg.best_delta
             mapped |= to_map
         if refine.any():
-            evals += _move_bounds(w.index, cut, task, refine, A, B, mach, lw, floor, ceiling, has_floor, has_ceiling,
+            evals += _move_bounds(w.index, cut, task, refine, q1, q2, mach, lw, floor, ceiling, has_floor, has_ceiling,
                                   thr, opts.map_refine)
         t_map += time.perf_counter() - t0
         t0 = time.perf_counter()
@@ -309,7 +311,8 @@ def solve_row(ctx: RowContext, task: RowTask) -> RowSolution:
             tw_k = _narrowed(_around(tw, kk), eps / np.sin(np.maximum(lw_k[:, 0], np.radians(0.5))))
         else:
             lw_k, tw_k = lw, tw
-        A_k, B_k, st = nlp.solve(task.t[kk], task.frames[kk], A[kk], B[kk], lw_k, tw_k, bounds)
+        sol, st = nlp.solve(task.t[kk], task.frames[kk], RotaryValues.of(names, q1[kk], q2[kk]), lw_k, tw_k, bounds)
+        q1_k, q2_k = sol.pair
         iters += st.iterations
         t_solve += time.perf_counter() - t0
         if not st.success and len(kk) < n:
@@ -323,7 +326,8 @@ def solve_row(ctx: RowContext, task: RowTask) -> RowSolution:
             ceil_m, has_m = ceilings()
             clear_w = np.full(n, CLEARANCE_WEIGHT)  # the map's bounds give way after the finish budget's
             relief = clearance_elastic(mach, task.t, task.frames, lw, tw,
-                                       LeadBounds(floor, ceil_m, has_floor, has_m), A, B, backoff=nlp.backoff,
+                                       LeadBounds(floor, ceil_m, has_floor, has_m), RotaryValues.of(names, q1, q2),
+                                       backoff=nlp.backoff,
                                        weights=(clear_w, np.where(has_ceiling, CLEARANCE_WEIGHT, 1.0)))
             if relief.feasible:
                 # those points keep the clear side as near as the limits allow: their floor
@@ -335,25 +339,25 @@ def solve_row(ctx: RowContext, task: RowTask) -> RowSolution:
                 cap[:, 0] += np.where(has_cap & up, relief.ceiling_short + RELIEF_TOL, 0.0)
                 floor[:, 0] -= np.where(relief.floor_short > RELIEF_TOL, relief.floor_short + RELIEF_TOL, 0.0)
                 ceiling[:, 0] += np.where(relief.ceiling_short > RELIEF_TOL, relief.ceiling_short + RELIEF_TOL, 0.0)
-                A, B = relief.A, relief.B  # meets the limits and windows: a start IPOPT can leave
+                q1, q2 = relief.rotary.pair  # meets the limits and windows: a start IPOPT can leave
                 to_map[:] = refine[:] = False
                 continue
         if not st.success:
             if good is None:
-                _raise_infeasible(ctx, task, nlp, lw, tw, A_k, B_k, st.status, mapped.any())
-            A, B = good  # the last verified solution; what still gouges is named below
+                _raise_infeasible(ctx, task, nlp, lw, tw, q1_k, q2_k, st.status, mapped.any())
+            q1, q2 = good  # the last verified solution; what still gouges is named below
             break
         if len(kk) < n:
-            A, B = (CubicSpline(task.t[kk], q)(task.t) for q in (A_k, B_k))
-            off = _off_limits(mach, task, A, B, lw, tw, ceilings()) & ~knots
+            q1, q2 = (CubicSpline(task.t[kk], q)(task.t) for q in (q1_k, q2_k))
+            off = _off_limits(mach, task, q1, q2, lw, tw, ceilings()) & ~knots
             if off.any():  # the interpolation left a limit or a window: those points become knots
                 knots |= binary_dilation(off, np.ones(5, bool))
                 to_map[:] = refine[:] = False
                 continue
         else:
-            A, B = A_k, B_k
+            q1, q2 = q1_k, q2_k
         t0 = time.perf_counter()
-        T = mach.tool_axis_np(A, B)
+        T = mach.tool_axis_np(q1, q2)
         cl = cc_to_cl(cut, task.cc, task.normals, T)
         moved = (np.linalg.norm(cl - last_cl, axis=1) + reach * np.linalg.norm(T - last_T, axis=1))
         check = ~(moved <= MOVE_TOL)  # NaN (never checked) included
@@ -362,7 +366,7 @@ def solve_row(ctx: RowContext, task: RowTask) -> RowSolution:
             last_cl[check], last_T[check] = cl[check], T[check]
             evals += int(check.sum())
         t_check += time.perf_counter() - t0
-        good = (A, B)
+        good = (q1, q2)
         bad = (delta < -tol) & ~blocked & ~gave_up
         if not bad.any():
             break
@@ -374,17 +378,17 @@ def solve_row(ctx: RowContext, task: RowTask) -> RowSolution:
     unreachable_clear = bad & ~blocked
     lift = np.zeros(n)
     if bad.any():
-        T = mach.tool_axis_np(A, B)
+        T = mach.tool_axis_np(q1, q2)
         cl = cc_to_cl(cut, task.cc, task.normals, T)
         lift, delta = lift_along_normal(w.index, cut, cl, T, task.normals, delta, bad, tol)
-    _, tilt = lead_tilt_from_axis(mach.tool_axis_np(A, B), task.frames)
+    _, tilt = lead_tilt_from_axis(mach.tool_axis_np(q1, q2), task.frames)
     p = np.stack([np.ones_like(tilt), tilt, tilt ** 2], -1)
     lead_clear = np.column_stack([np.where(has_floor, np.sum(floor * p, -1), np.nan),
                                   np.where(has_ceiling, np.sum(ceiling * p, -1), np.nan)])
-    return RowSolution(A=A, B=B, delta=delta, lift=lift, lead_window=lw, tilt_window=tw, mapped=mapped,
-                       blocked=blocked, unreachable_clear=unreachable_clear, best_delta=best, lead_clear=lead_clear,
-                       iterations=iters,
-                       rounds=rounds, clearance_evals=evals, solve_s=t_solve, map_s=t_map, check_s=t_check)
+    return RowSolution(rotary=RotaryValues.of(names, q1, q2), delta=delta, lift=lift, lead_window=lw,
+                       tilt_window=tw, mapped=mapped, blocked=blocked, unreachable_clear=unreachable_clear,
+                       best_delta=best, lead_clear=lead_clear, iterations=iters, rounds=rounds,
+                       clearance_evals=evals, solve_s=t_solve, map_s=t_map, check_s=t_check)
 
 
 def _knot_margin(task: RowTask, knots: np.ndarray, amax: float) -> np.ndarray:
@@ -436,15 +440,15 @@ def knot_stride(t: np.ndarray, knot_dt: float) -> int:
     return max(1, int(knot_dt // max(float(np.median(np.diff(t))), 1e-12)))
 
 
-def _off_limits(machine: Machine, task: RowTask, A: np.ndarray, B: np.ndarray, lw: np.ndarray,
+def _off_limits(machine: Machine, task: RowTask, q1: np.ndarray, q2: np.ndarray, lw: np.ndarray,
                 tw: np.ndarray, ceiling: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Points where an interpolated program leaves the travel, the velocity or acceleration limit
     (the finite differences of camsmooth.smoothing.nlp, against the true limits), the lead/tilt
     windows (rad) or a lead ceiling (coefficients (N, 3), where (N,): the finish budget's and the
     map's)."""
     D1, D2 = fd_operators(task.t)
-    off = np.zeros(len(A), bool)
-    for L, q in zip(machine.rotary_limits(), (A, B), strict=True):
+    off = np.zeros(len(q1), bool)
+    for L, q in zip(machine.rotary_limits(), (q1, q2), strict=True):
         off |= (q < L.min) | (q > L.max)
         v = np.abs(D1 @ q) > L.vmax
         off[:-1] |= v
@@ -453,7 +457,7 @@ def _off_limits(machine: Machine, task: RowTask, A: np.ndarray, B: np.ndarray, l
         off[:-2] |= a
         off[1:-1] |= a
         off[2:] |= a
-    lead, tilt = lead_tilt_from_axis(machine.tool_axis_np(A, B), task.frames)
+    lead, tilt = lead_tilt_from_axis(machine.tool_axis_np(q1, q2), task.frames)
     eps = 1e-9
     off |= (lead < lw[:, 0] - eps) | (lead > lw[:, 1] + eps) | (tilt < tw[:, 0] - eps) | (tilt > tw[:, 1] + eps)
     if ceiling is not None:
@@ -462,8 +466,8 @@ def _off_limits(machine: Machine, task: RowTask, A: np.ndarray, B: np.ndarray, l
     return off
 
 
-def _move_bounds(index: MeshIndex, cut: ToroidalCutter, task: RowTask, pts: np.ndarray, A: np.ndarray,
-                 B: np.ndarray, machine: Machine, lw: np.ndarray, floor: np.ndarray, ceiling: np.ndarray,
+def _move_bounds(index: MeshIndex, cut: ToroidalCutter, task: RowTask, pts: np.ndarray, q1: np.ndarray,
+                 q2: np.ndarray, machine: Machine, lw: np.ndarray, floor: np.ndarray, ceiling: np.ndarray,
                  has_floor: np.ndarray, has_ceiling: np.ndarray, thr: float, steps: int) -> int:
     """Mapped points whose solution still gouges: at the solution's tilt, find by bisection the
     exact clear boundary between the solution's lead and the window's other end and move the
@@ -471,7 +475,7 @@ def _move_bounds(index: MeshIndex, cut: ToroidalCutter, task: RowTask, pts: np.n
     evaluations made."""
     k = np.flatnonzero(pts)
     fr, cc, nrm = task.frames[k], task.cc[k], task.normals[k]
-    lead, tilt = lead_tilt_from_axis(machine.tool_axis_np(A[k], B[k]), fr)
+    lead, tilt = lead_tilt_from_axis(machine.tool_axis_np(q1[k], q2[k]), fr)
     hi_ok = pose_clearance(index, cut, cc, nrm, fr, lw[k, 1], tilt) >= -thr
     lo_ok = ~hi_ok & (pose_clearance(index, cut, cc, nrm, fr, lw[k, 0], tilt) >= -thr)
     # bisect toward the clear end: up for a floor, down for a ceiling
@@ -536,18 +540,18 @@ def lift_along_normal(index: MeshIndex, cut: ToroidalCutter, cl: np.ndarray, T: 
     return lift, delta
 
 
-def _raise_infeasible(ctx: RowContext, task: RowTask, nlp: RowNLP, lw: np.ndarray, tw: np.ndarray, A: np.ndarray,
-                      B: np.ndarray, status: str, with_map: bool) -> None:
+def _raise_infeasible(ctx: RowContext, task: RowTask, nlp: RowNLP, lw: np.ndarray, tw: np.ndarray, q1: np.ndarray,
+                      q2: np.ndarray, status: str, with_map: bool) -> None:
     """Name the binding limit of a row no program can meet (elastic re-solve); when no limit
     binds, say that the solver failed."""
     machine = ctx.machines[task.machine]
     where = f"{ctx.source}: " if ctx.source else ""
     # the user's windows alone first: what to change is then the windows (or the feed)
-    b = elastic_diagnosis(machine, task.t, task.frames, task.lead_window, task.tilt_window, task.A0, task.B0,
+    b = elastic_diagnosis(machine, task.t, task.frames, task.lead_window, task.tilt_window, task.start,
                           backoff=nlp.backoff)
     own = b.binds
     if not own:
-        b = elastic_diagnosis(machine, task.t, task.frames, lw, tw, task.A0, task.B0, backoff=nlp.backoff)
+        b = elastic_diagnosis(machine, task.t, task.frames, lw, tw, task.start, backoff=nlp.backoff)
     i = min(b.point, len(task.t) - 1)
     margin = "" if b.past_machine_limit else (
         " (inside the machine's limit, but past the margin the optimiser keeps from it: "
