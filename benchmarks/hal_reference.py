@@ -24,7 +24,10 @@ camsmooth's simulator):
   X_cmd(n - 12), a pure delay of 12 ms: ``time_offset`` offset_s = 0.012 s;
 - ``quantise``: ``scale`` (gain 1/q, offset 0.5) -> ``conv_float_s32`` -> ``conv_s32_float`` ->
   ``scale`` (gain q), q = 5/2048 mm (conv_float_s32 truncates; the offset makes it round):
-  ``quantisation`` q_X = 2.44 um.
+  ``quantisation`` q_X = 2.44 um;
+- ``backlash``: the INI's ``BACKLASH = 0.05`` (mm) and, as X_cmd, the motor's command (motion's
+  backlash compensation adds b/2 in the direction of motion) against, as X_act, the joint's own
+  ``joint.0.pos-cmd``: the table of a mechanism with that backlash: ``backlash`` backlash_X = 0.05 mm.
 
 Each trace is written in the pinned layout (``t,X_cmd,X_act``, s and mm, values as halsampler
 prints them) and diagnosed with ``camsmooth diagnose --trace FILE --out FINDINGS.json``; the
@@ -32,7 +35,7 @@ script prints what is named, its value against the component's and the held-out 
 
     .venv/bin/python benchmarks/hal_reference.py [--out DIR] [--keep-tests] [CASE ...]
 
-``--keep-tests`` copies the clean, lowpass and quantise traces to tests/data/hal/ (the recorded
+``--keep-tests`` copies the clean, lowpass, quantise and backlash traces to tests/data/hal/ (the recorded
 traces tests/test_hal_reference.py diagnoses). Needs linuxcnc-uspace; runs as root through the
 simulation's own isolation (each run about 10 s of real time).
 """
@@ -61,6 +64,7 @@ TAU_S = 0.025
 VMAX = 35.0
 AMAX = 1000.0
 DELAY_CYCLES = 12
+BACKLASH_MM = 0.05
 #: an encoder of 2048 counts a turn (512 lines, x4) on a 5 mm lead; a step such as 3 um, of which the
 #: planner's positions (multiples of 0.5 um: 0.5 a T^2 = 1.5 um at 3000 mm/s^2) hit half-steps, rounds
 #: ties one way or the other by the last bit of the command: a coin no model predicts
@@ -84,10 +88,13 @@ TRUTH: dict[str, tuple[list[str], list[tuple[str, str, float]]]] = {
     "limit3": ([], []),
     "delay": (["time_offset"], [("time_offset", "offset_s", DELAY_CYCLES * SERVO_PERIOD_S)]),
     "quantise": (["quantisation"], [("quantisation", "q_X", Q_MM)]),
+    "backlash": (["backlash"], [("backlash", "backlash_X", BACKLASH_MM)]),
 }
+#: lines added to every [JOINT_n] section of the INI, per case
+JOINT_INI = {"backlash": f"BACKLASH = {BACKLASH_MM}\n"}
 #: the quantiser is the measurement: noise after it would not be an encoder's, so it runs raw only
 RAW_ONLY = ("quantise",)
-KEEP = ("clean", "lowpass", "quantise")
+KEEP = ("clean", "lowpass", "quantise", "backlash")
 
 _HEAD = """\
 loadrt [KINS]KINEMATICS
@@ -152,6 +159,11 @@ def hal_text(case: str) -> str:
         setp += [f"setp scale.{k}.gain 1.0" for k in range(n)]
         nets += [f"net d{k} scale.{k - 1}.out => scale.{k}.in" for k in range(1, n)]
         first_in, act_out = "scale.0.in", f"scale.{n - 1}.out"
+    elif case == "backlash":
+        # the motion controller's backlash compensation: motor-pos-cmd = pos-cmd + b/2 in the direction
+        # of motion. A mechanism with that backlash puts the table at pos-cmd while the motor is at
+        # motor-pos-cmd: act = cmd - (b/2) sign(direction), the backlash term exactly
+        first_in, act_out = "", "joint.0.pos-cmd"
     elif case == "quantise":
         load += ["loadrt scale names=qin,qout", "loadrt conv_float_s32 count=1", "loadrt conv_s32_float count=1"]
         addf += ["addf qin servo-thread", "addf conv-float-s32.0 servo-thread", "addf conv-s32-float.0 servo-thread",
@@ -182,7 +194,7 @@ def record(case: str, out: Path) -> Path:
     X_act), from the first servo cycle the program runs to the last."""
     prog = out / "program.ngc"
     prog.write_text(program())
-    run = simulate(prog, load_machine(None), timeout=60, hal=hal_text(case))
+    run = simulate(prog, load_machine(None), timeout=60, hal=hal_text(case), joint_ini=JOINT_INI.get(case, ""))
     on = np.flatnonzero(run.line > 0)
     k0, k1 = int(on[0]), int(on[-1]) + 1
     t = run.t[k0:k1] - run.t[k0]

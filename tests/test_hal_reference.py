@@ -19,6 +19,7 @@ T = 0.001  # s, the simulation's servo period
 TAU = 0.025  # s, the lowpass's time constant: gain = 1 - exp(-T / TAU)
 Q = 5.0 / 2048.0  # mm, the quantiser's step (2048 counts on a 5 mm lead)
 NOISE = 0.001  # mm, the measurement noise added to the lowpass recording (an encoder's)
+BACKLASH = 0.05  # mm, the INI's BACKLASH
 
 
 def load(name: str) -> np.ndarray:
@@ -45,6 +46,11 @@ def test_the_recordings_are_what_the_hal_components_compute():
     assert len(np.unique(y)) > 100
     _, u, y = load("clean").T
     assert np.array_equal(u, y)
+    # backlash compensation: motor (X_cmd) = joint (X_act) + b/2 in the direction of motion, held at rest
+    _, u, y = load("backlash").T
+    assert np.max(np.abs(u - y)) == pytest.approx(BACKLASH / 2, abs=2e-6)
+    rest = np.r_[False, np.diff(u) == 0.0]
+    assert np.all(np.isclose(np.abs(u - y)[rest], BACKLASH / 2, atol=2e-6) | (np.abs(u - y)[rest] < 2e-6))
 
 
 def test_a_clean_recording_names_nothing():
@@ -64,6 +70,12 @@ def test_the_hal_lowpass_is_named_as_its_lag(tmp_path):
     assert effect(f, "servo_lag")["parameters"]["Kv_X"] == pytest.approx(1.0 / TAU, rel=0.10)
     assert effect(f, "time_offset")["parameters"]["offset_s"] == pytest.approx(-0.5 * T, rel=0.10)
     assert f["heldout"]["rms_after"]["X_act"] < 1.5 * NOISE
+
+
+def test_the_joint_backlash_is_named_with_its_size():
+    f = diagnose_trace(read_trace(str(DATA / "backlash.csv"))).findings
+    assert f["named"] == ["backlash"], f["named"]
+    assert effect(f, "backlash")["parameters"]["backlash_X"] == pytest.approx(BACKLASH, rel=0.10)
 
 
 def test_the_hal_quantiser_is_named_with_its_step():

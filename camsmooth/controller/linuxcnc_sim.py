@@ -258,7 +258,7 @@ sys.exit(0 if ok and not err else "program did not finish: " + str(err))
 '''
 
 
-def _ini(machine: Machine, folder: Path, extra_traj: dict[str, str] | None) -> Path:
+def _ini(machine: Machine, folder: Path, extra_traj: dict[str, str] | None, joint_extra: str = "") -> Path:
     lims = _axis_limits_deg(machine)
     names = machine.joint_names
     coords = "".join(names)
@@ -292,7 +292,7 @@ def _ini(machine: Machine, folder: Path, extra_traj: dict[str, str] | None) -> P
         parts.append(f"[AXIS_{name}]\n{body}")
         kind = "ANGULAR" if name in machine.rotary else "LINEAR"
         parts.append(f"[JOINT_{j}]\nTYPE = {kind}\nHOME = 0\nHOME_SEARCH_VEL = 0\nHOME_SEQUENCE = 0\n"
-                     f"FERROR = 1e9\nMIN_FERROR = 1e9\n{body}")
+                     f"FERROR = 1e9\nMIN_FERROR = 1e9\n{body}{joint_extra}")
     ini = folder / "sim.ini"
     ini.write_text("\n".join(parts))
     return ini
@@ -441,13 +441,14 @@ def _failure(what: str, proc: subprocess.CompletedProcess, folder: Path, kept: b
 
 def simulate(program: Path | str, machine: Machine, *, timeout: float = 600.0,
              traj: dict[str, str] | None = None, keep: Path | None = None, wait: float | None = None,
-             hal: str | None = None) -> SimRun:
+             hal: str | None = None, joint_ini: str = "") -> SimRun:
     """Run ``program`` on a headless LinuxCNC simulation of ``machine`` (module docstring) and
     return the commanded joints per servo cycle. traj: extra ``[TRAJ]`` settings (e.g.
     ``ARC_BLEND_ENABLE``). keep: a folder to leave the configuration and logs in. wait: the most
     seconds to wait for another simulation (default timeout + 180). hal: the HAL file's text instead
     of the loop-back one (it must feed ``sampler.0``, cfg ``fffffs``, whose pins 0-4 land in
-    ``SimRun.joints``, as benchmarks/hal_reference.py does). RuntimeError naming
+    ``SimRun.joints``, as benchmarks/hal_reference.py does); joint_ini: lines added to every
+    ``[JOINT_n]`` section (each line ending in a newline, e.g. ``BACKLASH = 0.05``). RuntimeError naming
     LinuxCNC's output and logs when the run fails."""
     missing = linuxcnc_missing()
     if missing:
@@ -457,7 +458,7 @@ def simulate(program: Path | str, machine: Machine, *, timeout: float = 600.0,
     folder = folder.resolve()
     folder.mkdir(parents=True, exist_ok=True)
     try:
-        ini = _ini(machine, folder, traj)
+        ini = _ini(machine, folder, traj, joint_ini)
         (folder / "sim.hal").write_text(_HAL if hal is None else hal)
         (folder / "driver.py").write_text(_DRIVER)
         os.chmod(folder / "driver.py", 0o755)
