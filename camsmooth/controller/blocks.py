@@ -3,14 +3,16 @@
 Two steps between the planned time law (camsmooth.smoothing.feed, what the axes allow) and the
 G-code (camsmooth.io.gcode):
 
-1. ``decimate``: fewer, longer blocks where the axes are smooth. A controller that plans each
+1. ``place``: fewer, longer blocks where the axes are smooth. A controller that plans each
    block on its own (LinuxCNC blends five-axis blocks parabolically, camsmooth.controller.linuxcnc)
    reaches only about sqrt(a/2 L) in a block of length L, so a program of 0.5 mm blocks runs at a
-   fraction of its feed. A point is dropped when the block that skips it still passes every
+   fraction of its feed. A point may be dropped when the block that skips it still passes every
    dropped tool tip (and the tip of every dropped block's middle) within ``BLOCK_TOLERANCE_SHARE``
    of the tolerance: the tip is evaluated by the machine's forward kinematics at the joints the
    controller interpolates linearly (X Y Z A B), at the fraction of the block's pivot travel the
-   dropped point sits at (an upper bound on the distance to the block's tip curve).
+   dropped point sits at (an upper bound on the distance to the block's tip curve). Among those
+   blocks, ``decimate`` takes the longest from each end; ``place`` the ends the planner model runs
+   soonest (``Planner.block_ends``; on LinuxCNC a shorter block after a longer one waits for it).
 2. ``predict``: the blocks' times as the controller runs them (a planner model, e.g.
    ``LinuxCNCPlanner``), made slow enough where the controller's blends would take the tool tip
    the model commands at some servo cycle farther than EXECUTED_TOLERANCE_SHARE of the tolerance
@@ -36,10 +38,13 @@ __all__ = ["BLOCK_TOLERANCE_SHARE", "MAX_BLOCK_POINTS", "block_reach", "decimate
 
 #: share of the user's tolerance the longer blocks may use: their tip curves keep every dropped tip
 #: this close; the blends then get what is left up to EXECUTED_TOLERANCE_SHARE, checked on the
-#: planner model's servo cycles (``predict``). Measured on the blade, wave and ridge rows of
-#: benchmarks/bench_controller.py (0.5 to 0.8 tried): 0.7 is fastest on LinuxCNC while the model's
-#: tip still settles under the limit on every row.
-BLOCK_TOLERANCE_SHARE = 0.7
+#: planner model's servo cycles (``predict``): a blend's deviation sits at a block's end, where its
+#: own tip curve meets the path. Measured on the blade, wave, ridge and dome rows of
+#: benchmarks/bench_controller.py with the placement of ``place`` (0.7 to 0.8 tried, _SPLIT_SHARE
+#: 0.9 to 1): 0.78 (split at 0.99) runs 1-3% faster on LinuxCNC than 0.7 (split at 0.9), the tip
+#: within 4.04 um of 5 um on LinuxCNC either way; at 0.8 the model's tip no longer settles under the
+#: limit on every blade row.
+BLOCK_TOLERANCE_SHARE = 0.78
 #: most points one block may replace (bounds the vectorised search)
 MAX_BLOCK_POINTS = 16
 #: intervals of the polyline that stands for a block's tip curve
@@ -353,7 +358,7 @@ EXECUTED_TOLERANCE_SHARE = 0.8
 _ROUNDS = 20
 #: a block whose own tip curve comes farther than this share of the executed limit from the
 #: programmed path is split back into the program's points (its blends get the rest)
-_SPLIT_SHARE = 0.9
+_SPLIT_SHARE = 0.99
 
 
 def _blend_excess(run: RowRun, dev: np.ndarray, limit: float, n_blocks: int) -> np.ndarray:
