@@ -261,6 +261,18 @@ def test_rounding_that_noise_hides_is_not_named(tmp_path):
     assert f["named"] == [], f["named"]
 
 
+@pytest.mark.parametrize("case", ["white", "coloured", "lag"])
+def test_a_logger_that_rounds_noisy_data_is_not_quantisation(tmp_path, case):
+    """The nulls with X_act written to 3 decimals (1 um, the noise's size): the channel lies on a
+    grid, the term is tried, and nothing new is named (the lag stays the lag)."""
+    path = motion_trace(tmp_path, case, seed=6)
+    d = np.loadtxt(path, delimiter=",", skiprows=1)
+    path = write_csv(tmp_path / f"{case}_3dp.csv", d[:, 0], {"X_cmd": d[:, 1], "X_act": np.round(d[:, 2], 3)})
+    f = diagnose_trace(read_trace(path)).findings
+    assert "quantisation" not in {r["name"] for r in f["rejected"] if "not applicable" in r["reason"]}
+    assert f["named"] == (["servo_lag"] if case == "lag" else []), f["named"]
+
+
 def test_growth_that_follows_time_is_not_put_down_to_a_temperature(tmp_path):
     f = diagnose_trace(read_trace(thermal_trace(tmp_path, clock=True))).findings
     assert f["named"] == ["thermal_time"], f["named"]
