@@ -348,11 +348,9 @@ def test_arc_blocks_rewritten_as_their_points(tmp_path):
     """A Fanuc TCP row with a G02 arc (Fanuc 30i operator's manual, "Circular interpolation", G17 I J)
     written back with its own poses: the arc becomes G01 blocks through the reader's interpolated
     points (chordal error <= 1 um), which read back on the circle; the other lines are kept."""
-    from types import SimpleNamespace
-
-    from camsmooth.machine.axes import RotaryValues
     from camsmooth.post import read_posted
     from camsmooth.post.core import nominal_machine
+    from camsmooth.post.model import PostProgram
     from camsmooth.post.rewrite import rewrite_posted
 
     text = ("%\nO2000\nG21 G90 G17\nG54\nT1 M6\nS8000 M3\n(Operation Name: ARCS)\nG94\nG43.4 H1\n"
@@ -364,9 +362,9 @@ def test_arc_blocks_rewritten_as_their_points(tmp_path):
     prog = read_posted(src, machine=machine)
     cut = np.flatnonzero(prog.rows >= 0)
     q = prog.angles[cut]
-    result = SimpleNamespace(rows=prog.rows[cut], idx=np.arange(len(cut)), cl=prog.tip[cut],
-                             rotary=RotaryValues(machine.rotary, q),
-                             xyz=machine.linear_axes(prog.tip[cut], q[:, 0], q[:, 1]))
+    xyz = machine.linear_axes(prog.tip[cut], q[:, 0], q[:, 1])
+    result = PostProgram(rows=prog.rows[cut], idx=np.arange(len(cut)), joints=np.column_stack([xyz, q]),
+                         tips=prog.tip[cut], axis=prog.axis[cut], feed=np.full(len(cut), 500.0))
     new = rewrite_posted(text, prog, result, cut, machine, np.full(len(cut), 500.0))
     out = new.text.splitlines()
     kept = [ln for ln in text.splitlines() if not re.match(r"G[12] ", ln)]

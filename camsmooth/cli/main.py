@@ -248,9 +248,10 @@ def _write_outputs(result: Any, out_csv: Path, gcode: Path | None, report: Path 
         if posted is not None:
             from camsmooth.post import posted_text
             from camsmooth.post.rewrite import rewrite_posted
+            from camsmooth.smoothing.posting import post_points
 
             cl = posted.program
-            new = rewrite_posted(posted_text(cl.source, []), cl, r, posted.source_index, result.machine,
+            new = rewrite_posted(posted_text(cl.source, []), cl, post_points(r), posted.source_index, result.machine,
                                  np.broadcast_to(np.asarray(f, float), (len(r.rows),)))
             for w in new.warnings:
                 print(f"camsmooth: warning: {w}", file=sys.stderr)

@@ -15,6 +15,7 @@ reported). A second controller is one more entry in ``PLANNERS``.
 
 from __future__ import annotations
 
+from camsmooth.constants import PATH_TOLERANCE_SHARE  # the linuxcnc post writes it too (G64 P)
 from camsmooth.controller.blocks import (
     BLOCK_TOLERANCE_SHARE,
     EXECUTED_TOLERANCE_SHARE,
@@ -30,10 +31,6 @@ from camsmooth.machine.kinematics import Machine
 __all__ = ["PLANNERS", "PATH_TOLERANCE_SHARE", "BLOCK_TOLERANCE_SHARE", "EXECUTED_TOLERANCE_SHARE", "planner_for",
            "floor_text", "ControllerPlan", "Planner", "decimate", "place", "predict", "LinuxCNCPlanner"]
 
-#: share of the user's tolerance the controller's own blend tolerance gets (LinuxCNC ``G64 P``): its
-#: bound on how far a blend cuts an XYZ corner, which holds the corner of a row's entry move; the
-#: tool tip at every servo cycle is held within EXECUTED_TOLERANCE_SHARE by the block times
-PATH_TOLERANCE_SHARE = 0.6
 #: dialect of the machine's post -> the model of that controller's planner
 PLANNERS: dict[str, type] = {"linuxcnc": LinuxCNCPlanner}
 

@@ -1,5 +1,6 @@
-"""Program outputs: the per-point result CSV (the five-axis G-code writer is camsmooth.io.gcode;
-``write_gcode`` is re-exported here for existing callers).
+"""Program outputs: the per-point result CSV (the five-axis G-code writer is camsmooth.post.writer,
+a smoothing result's ``write_gcode`` camsmooth.smoothing.posting, re-exported here for existing
+callers).
 
 Files are written atomically (``camsmooth.io.atomic.atomic_path``): a failed write never leaves a
 partial file. Units in files: mm, s, degrees (radians inside the code; CONVENTIONS.md).
@@ -13,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from camsmooth.constants import DEFAULT_TOLERANCE_MM
-from camsmooth.io.gcode import DEFAULT_SAFE_HEIGHT_MM, write_gcode
+from camsmooth.constants import DEFAULT_SAFE_HEIGHT_MM, DEFAULT_TOLERANCE_MM
 from camsmooth.io.table import read_table, write_table
+from camsmooth.smoothing.posting import write_gcode
 from camsmooth.smoothing.result import OUTPUT_COLUMNS, MethodResult, SmoothResult, interferes, output_columns
 
 __all__ = ["RESULT_CSV_COLUMNS", "STATUSES", "DEFAULT_SAFE_HEIGHT_MM", "point_status",

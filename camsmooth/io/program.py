@@ -11,7 +11,7 @@ format     reader                                 gives
 =========  =====================================  ==========================================
 apt        camsmooth.io.apt.read_apt              CLProgram (APT CLDATA: NX CLSF, ISO 4343 of Fusion/HSM)
 cl-csv     camsmooth.io.clcsv.read_cl_csv         CLProgram (x,y,z,i,j,k[,row][,feed])
-gcode      camsmooth.io.gcode.read_gcode          CLProgram (camsmooth's own G-code, any dialect)
+gcode      camsmooth.post.own.read_gcode          CLProgram (camsmooth's own G-code, any dialect)
 gcode      camsmooth.post.read_posted             CLProgram (posted programs: ISO/Fanuc/Haas/LinuxCNC,
                                                   Heidenhain Klartext, Siemens 840D; no camsmooth header)
 cc-csv     camsmooth.io.ccpath.read_cc_csv        CCPath (contact points and normals)
@@ -328,14 +328,14 @@ def _read_cl(path: str | os.PathLike, **_: Any) -> CLProgram:
 
 
 def _read_gcode(path: str | os.PathLike, **kw: Any) -> CLProgram:
-    """camsmooth's own G-code (its ``camsmooth post:`` header) by camsmooth.io.gcode, any other
+    """camsmooth's own G-code (its ``camsmooth post:`` header) by camsmooth.post.own, any other
     (a posted program) by camsmooth.post, the dialect detected from the content."""
-    from camsmooth.io.gcode import _POST_TAG, read_gcode
     from camsmooth.post import posted_text, read_posted
+    from camsmooth.post.own import POST_TAG, read_gcode
 
     notes: list[str] = []
     text = posted_text(path, notes)
-    if _POST_TAG in "\n".join(text.split("\n", 60)[:60]):
+    if POST_TAG in "\n".join(text.split("\n", 60)[:60]):
         return read_gcode(path, **{k: v for k, v in kw.items() if k in ("machine",)})
     opts = {k: v for k, v in kw.items() if k in ("machine", "dialect", "chord_tol")}
     if kw.get("machine_given") is False:

@@ -1,20 +1,29 @@
 """Posted programs: the G-code a CAM post-processor writes for one machine and one controller,
-read into the one program model (camsmooth.io.program.CLProgram), one module per dialect
-(trimesh ``exchange/`` layout: each module registers its reader in ``READERS``; the shared
-core is camsmooth.post.core).
+read into the one program model (camsmooth.io.program.CLProgram) and written from the one
+writer's model (camsmooth.post.model.PostProgram), one module per dialect (trimesh ``exchange/``
+layout: each dialect module ends with its ``DIALECTS`` entries -- name, reader, the writer's
+words -- and this package merges them into ``DIALECTS``; a sixth dialect is one module and one
+name in ``_MODULES``). Shared: camsmooth.post.core (the readers' program builder),
+camsmooth.post.writer (the writer), camsmooth.post.model (its model, the "as written" rounding),
+camsmooth.post.own (the reader of camsmooth's own programs), camsmooth.post.rewrite (smoothed
+blocks written back into a posted program).
 
 =============  ==============================  =============================================
 dialect        module                          controllers
 =============  ==============================  =============================================
 iso            camsmooth.post.iso              ISO G-code, Fanuc, Haas, Mori Seiki, Okuma-style
+generic        camsmooth.post.iso              (written: ISO words only, no TCP command)
 fanuc / haas   camsmooth.post.iso              (the same reader, Haas words G234/G254 named)
-linuxcnc       camsmooth.post.iso              LinuxCNC (M428/M429 trt TCP, ``#<name>`` params)
+linuxcnc       camsmooth.post.linuxcnc         LinuxCNC (M428/M429 trt TCP, ``#<name>`` params)
 heidenhain     camsmooth.post.heidenhain       Heidenhain Klartext (iTNC 530, TNC 640)
 siemens        camsmooth.post.siemens          Siemens Sinumerik 840D
 millplus       camsmooth.post.millplus         Heidenhain / Philips MillPlus (``%PM``)
 =============  ==============================  =============================================
 
-``detect_dialect`` tells them from the content; ``read_posted`` reads a file.
+``detect_dialect`` tells them from the content; ``read_posted`` reads a file; ``write_program``
+(camsmooth.post.writer) writes a PostProgram in a dialect whose entry has ``own`` set (generic,
+fanuc, linuxcnc, siemens, heidenhain: ``[post] dialect`` of a machine file). This package imports
+neither camsmooth.smoothing nor camsmooth.controller (tests/test_post_registry.py checks it).
 """
 
 from __future__ import annotations
@@ -27,39 +36,19 @@ from typing import Any
 
 from camsmooth.errors import InputError
 from camsmooth.io.program import CLProgram
+from camsmooth.post import heidenhain, iso, linuxcnc, millplus, siemens
+from camsmooth.post.model import PostDialect, PostProgram
+from camsmooth.post.writer import write_program
 
-__all__ = ["read_posted", "detect_dialect", "posted_text", "READERS", "DIALECTS"]
+__all__ = ["read_posted", "detect_dialect", "posted_text", "READERS", "DIALECTS", "PostDialect", "PostProgram",
+           "write_program"]
 
-
-def _iso(path: str, text: str, machine: Any, dialect: str, chord_tol: float | None) -> CLProgram:
-    from camsmooth.post.iso import read_iso
-
-    return read_iso(path, text, machine, dialect, chord_tol)
-
-
-def _heidenhain(path: str, text: str, machine: Any, dialect: str, chord_tol: float | None) -> CLProgram:
-    from camsmooth.post.heidenhain import read_heidenhain
-
-    return read_heidenhain(path, text, machine, chord_tol)
-
-
-def _millplus(path: str, text: str, machine: Any, dialect: str, chord_tol: float | None) -> CLProgram:
-    from camsmooth.post.millplus import read_millplus
-
-    return read_millplus(path, text, machine, chord_tol)
-
-
-def _siemens(path: str, text: str, machine: Any, dialect: str, chord_tol: float | None) -> CLProgram:
-    from camsmooth.post.siemens import read_siemens
-
-    return read_siemens(path, text, machine, chord_tol)
-
-
+#: the dialect modules, each ending with its DIALECTS entries
+_MODULES = (iso, linuxcnc, siemens, heidenhain, millplus)
+#: dialect name -> its entry (reader, writer words, whether camsmooth writes whole programs in it)
+DIALECTS: dict[str, PostDialect] = {e.name: e for m in _MODULES for e in m.DIALECTS}
 #: dialect -> reader(path, text, machine, dialect, chord_tol)
-READERS: dict[str, Callable[..., CLProgram]] = {
-    "iso": _iso, "fanuc": _iso, "haas": _iso, "linuxcnc": _iso, "heidenhain": _heidenhain, "siemens": _siemens,
-    "millplus": _millplus}
-DIALECTS = tuple(READERS)
+READERS: dict[str, Callable[..., CLProgram]] = {name: e.reader for name, e in DIALECTS.items()}
 
 _HEIDENHAIN = re.compile(r"^\s*\d*\s*BEGIN\s+PGM\b", re.I | re.M)
 #: Siemens words (searched outside '( )' comments) and calls (searched in the text itself: their

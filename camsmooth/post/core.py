@@ -493,7 +493,7 @@ class Builder:
                         block: np.ndarray, rapid: np.ndarray, fm: np.ndarray) -> dict[int, float]:
         """Tool-tip path length (mm) of the inverse-time straight blocks in machine mode that turn a
         rotary axis: the controller interpolates the joints linearly, so the tip follows a curve, whose
-        length camsmooth.io.gcode.tip_path_lengths gives (the forward kinematics sampled and
+        length camsmooth.post.model.tip_path_lengths gives (the forward kinematics sampled and
         Richardson-extrapolated). Block id -> length; other blocks keep their chords."""
         n = len(xyz)
         if n < 2:
@@ -508,7 +508,7 @@ class Builder:
         sel = sel[single]
         if not len(sel):
             return {}
-        from camsmooth.io.gcode import tip_path_lengths
+        from camsmooth.post.model import tip_path_lengths
 
         j1 = np.column_stack([xyz[sel], qr[sel]])
         j0 = np.column_stack([xyz[sel - 1], qr[sel - 1]])

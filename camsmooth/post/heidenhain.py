@@ -34,9 +34,11 @@ import numpy as np
 from camsmooth.errors import InputError
 from camsmooth.io.program import CLProgram, Tool
 from camsmooth.post.core import INCH_MM, Builder, Frame3, Skip, rot_x, rot_y, rot_z
+from camsmooth.post.model import PostDialect
 from camsmooth.post.words import evaluate, operation_name, tool_comment
+from camsmooth.post.writer import Words, semicolon
 
-__all__ = ["read_heidenhain"]
+__all__ = ["read_heidenhain", "HEIDENHAIN", "DIALECTS"]
 
 _VAL = r"[+-]?\s*(?:Q\d+|\d+\.?\d*|\.\d+)"
 
@@ -431,3 +433,24 @@ class _Klartext:
 def read_heidenhain(path: str, text: str, machine: Any = None, chord_tol: float | None = None) -> CLProgram:
     """Read a Heidenhain Klartext program as a CLProgram (module docstring)."""
     return _Klartext(str(path), text, chord_tol).run(machine)
+
+
+# ----------------------------------------------------------------------------------------------
+# the writer's words (camsmooth.post.writer) and this module's entry of camsmooth.post.DIALECTS
+
+#: Klartext (iTNC 530, TNC 640 user's manuals): ``L`` blocks numbered from 0 between BEGIN PGM and
+#: END PGM, ``TOOL CALL <tool> Z``, no inverse-time feed (machine mode refused: M116 is for rotary
+#: tables only), TCP ``FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS`` ... ``FUNCTION RESET TCPM`` (the
+#: successor of M128), cycle 32 TOLERANCE, home ``M140 MB MAX``
+HEIDENHAIN = Words("heidenhain", semicolon, (), end=("M30",), home=("M140 MB MAX",),
+                   tcp_on="FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS", tcp_off="FUNCTION RESET TCPM",
+                   inverse_time=None, per_minute="", klartext=True,
+                   path_tolerance=("CYCL DEF 32.0 TOLERANCE", "CYCL DEF 32.1 T{tol}", "CYCL DEF 32.2 HSC-MODE:0"))
+
+
+def _read(path: str, text: str, machine: Any = None, dialect: str = "heidenhain",
+          chord_tol: float | None = None) -> CLProgram:
+    return read_heidenhain(path, text, machine, chord_tol)
+
+
+DIALECTS = (PostDialect("heidenhain", _read, HEIDENHAIN),)

@@ -44,11 +44,12 @@ import numpy as np
 from camsmooth.errors import InputError
 from camsmooth.io.program import CLProgram, Tool
 from camsmooth.post.core import INCH_MM, Builder, Frame3, Skip, rot_x, rot_z
+from camsmooth.post.model import PostDialect
 from camsmooth.post.words import evaluate, operation_name, split_comments, tool_comment
+from camsmooth.post.writer import Words, paren
 
-__all__ = ["read_iso", "IsoInterpreter", "DIALECTS"]
+__all__ = ["read_iso", "IsoInterpreter", "DIALECTS", "GENERIC", "FANUC"]
 
-DIALECTS = ("fanuc", "haas", "linuxcnc", "iso")
 _LINEAR = ("X", "Y", "Z")
 _ROTARY = ("A", "B", "C")
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)"  # no exponent: E is a word (Haas G187 E0.01)
@@ -674,3 +675,28 @@ def read_iso(path: str, text: str, machine: Any = None, dialect: str = "iso",
     """Read an ISO / Fanuc / Haas / LinuxCNC posted program as a CLProgram (module docstring;
     camsmooth.post.core for what a point means)."""
     return IsoInterpreter(str(path), text, dialect, chord_tol).run(machine)
+
+
+# ----------------------------------------------------------------------------------------------
+# the writer's words (camsmooth.post.writer) and this module's entries of camsmooth.post.DIALECTS
+
+#: ISO G-code as RS274NGC / ISO 6983 spell it: mm, absolute, XY plane; inverse time G93; no
+#: tool-centre-point command (tcp mode is refused)
+GENERIC = Words("generic", paren, ("G21", "G90", "G17"))
+#: Fanuc 30i/31i-B: tape start '%' and program number, offsets cancelled (G40 G49 G80), TCP
+#: ``G43.4 H<tool>`` (type 1, rotary positions) ... ``G49``, AI contour control ``G05.1 Q1`` (its
+#: tolerance is a machine parameter, not a program word), home ``G91 G28 Z0.``
+FANUC = Words("fanuc", paren, ("G21", "G90", "G17", "G40", "G49", "G80"), home=("G91 G28 Z0.", "G90"),
+              tcp_on="G43.4 H{tool}", tcp_off="G49", percent=True, path_tolerance=("G05.1 Q1",))
+
+
+def _read_generic(path: str, text: str, machine: Any = None, dialect: str = "iso",
+                  chord_tol: float | None = None) -> CLProgram:
+    """A generic ISO program, read as ISO."""
+    return read_iso(path, text, machine, "iso", chord_tol)
+
+
+#: generic and Fanuc programs camsmooth writes whole; ISO and Haas programs are read by the same
+#: reader and a rewrite writes Fanuc's blocks into them (camsmooth.post.rewrite)
+DIALECTS = (PostDialect("generic", _read_generic, GENERIC), PostDialect("fanuc", read_iso, FANUC),
+            PostDialect("iso", read_iso, FANUC, own=False), PostDialect("haas", read_iso, FANUC, own=False))

@@ -31,9 +31,10 @@ import numpy as np
 
 from camsmooth.io.program import CLProgram
 from camsmooth.post.core import Frame3, Skip, rot_x, rot_y, rot_z
-from camsmooth.post.iso import IsoInterpreter
+from camsmooth.post.iso import GENERIC, IsoInterpreter
+from camsmooth.post.model import PostDialect
 
-__all__ = ["read_millplus"]
+__all__ = ["read_millplus", "DIALECTS"]
 
 _NUMW = r"([-+]?(?:\d+\.?\d*|\.\d+))"
 
@@ -115,3 +116,14 @@ class _MillPlus(IsoInterpreter):
 def read_millplus(path: str, text: str, machine: Any = None, chord_tol: float | None = None) -> CLProgram:
     """Read a MillPlus program as a CLProgram (module docstring)."""
     return _MillPlus(str(path), text, chord_tol).run(machine)
+
+
+def _read(path: str, text: str, machine: Any = None, dialect: str = "millplus",
+          chord_tol: float | None = None) -> CLProgram:
+    return read_millplus(path, text, machine, chord_tol)
+
+
+#: MillPlus programs are read here; a rewrite writes the generic ISO blocks (G01 X Y Z with the
+#: rotary words, G93 F where the input's block was) into them, camsmooth writes no whole MillPlus
+#: program
+DIALECTS = (PostDialect("millplus", _read, GENERIC, own=False),)

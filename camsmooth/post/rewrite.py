@@ -13,13 +13,13 @@ block) when it is not the last one written, so the kept blocks run at their own 
 Klartext, whose kept blocks without an F run at the last one written). Heidenhain Klartext: the
 blocks are numbered again in order (the input's blocks keep their text, their number moves).
 
-New blocks: the dialect's block format of camsmooth's writer (camsmooth.io.gcode.format_blocks:
+New blocks: the dialect's block format of camsmooth's writer (camsmooth.post.writer.format_blocks:
 4 decimals, mm and deg), in the input's mode at those points: machine mode X Y Z the machine's
 linear axes (``Machine.linear_axes``) and the rotary words; TCP mode X Y Z the tool tip; rotary
 words in the dialect's sense (LinuxCNC: ``linuxcnc_sense``), shifted by whole turns to the
 input's value at the row's first point (an unwound C stays unwound). Feed: inverse time (G93:
 F = 1 / block time, 1/min) where the input's block was G93 -- machine mode on the tip path the
-joints' linear interpolation gives (camsmooth.io.gcode's rule), TCP mode on the tip's chord --
+joints' linear interpolation gives (camsmooth.post.writer's rule), TCP mode on the tip's chord --
 else the planned feed (mm/min). Not rewritten (InputError naming the operation): inch programs,
 feed per revolution, a tilted or shifted frame, Haas's dynamic work offset, Heidenhain blocks
 without M128 / FUNCTION TCPM.
@@ -36,12 +36,15 @@ import numpy as np
 
 from camsmooth.errors import InputError
 from camsmooth.io.program import CLProgram
+from camsmooth.post import DIALECTS
+from camsmooth.post.model import WRITTEN_DECIMALS, PostProgram, check_travel, written_joints
+from camsmooth.post.writer import _block_feeds, _Moves, format_blocks
 
 __all__ = ["WRITER_DIALECT", "select_operations", "rewrite_posted", "Rewritten"]
 
-#: the posted reader's dialect -> the writer's (camsmooth.io.gcode.DIALECTS) whose blocks it takes
-WRITER_DIALECT = {"iso": "fanuc", "fanuc": "fanuc", "haas": "fanuc", "millplus": "generic", "linuxcnc": "linuxcnc",
-                  "siemens": "siemens", "heidenhain": "heidenhain"}
+#: the posted reader's dialect -> the writer's words whose blocks it takes (camsmooth.post.DIALECTS:
+#: ISO and Haas take Fanuc's, MillPlus the generic ones)
+WRITER_DIALECT = {name: e.words.name for name, e in DIALECTS.items()}
 #: rotary words that differ by more than this from the input's at a row's start (deg, after whole
 #: turns) are named: the smoothing chose the other inverse-kinematics branch there
 BRANCH_WARN_DEG = 20.0
@@ -100,28 +103,18 @@ def select_operations(program: CLProgram, names: str | None) -> CLProgram:
     return out
 
 
-def _sense(dialect: str, machine: Any) -> np.ndarray:
-    if dialect != "linuxcnc":
-        return np.ones(2)
-    from camsmooth.controller.linuxcnc import linuxcnc_sense
-
-    return linuxcnc_sense(machine)
-
-
-def rewrite_posted(text: str, program: CLProgram, result: Any, source_index: np.ndarray, machine: Any,
+def rewrite_posted(text: str, program: CLProgram, result: PostProgram, source_index: np.ndarray, machine: Any,
                    feed: np.ndarray) -> Rewritten:
     """The posted program ``text`` (as read: LF line ends) with the smoothed rows of ``result``
     written in place of the blocks they came from (module docstring).
 
-    program: the CLProgram the posted reader made of ``text`` (its ``modes``); result: the
-    MethodResult (rows, cl tip mm, axis, A B rad in ``machine.rotary`` order, xyz linear axes mm,
-    workpiece frame); source_index: (N,) each result point's index in ``program``; feed: (N,) the
-    planned feed per point (mm/min, camsmooth.smoothing.feed.block_feeds). InputError naming the
-    operation for what cannot be rewritten; InfeasibleError for a value outside the machine's
-    travel (camsmooth.io.gcode's check)."""
-    from camsmooth.io.gcode import _block_feeds, _check_travel, _Moves, format_blocks
-    from camsmooth.smoothing.evaluate import WRITTEN_DECIMALS, written_joints
-
+    program: the CLProgram the posted reader made of ``text`` (its ``modes``); result: the smoothed
+    points (camsmooth.post.model.PostProgram: rows, idx, joints X Y Z linear axes mm and the rotary
+    axes rad in ``machine.rotary`` order, tips mm, workpiece frame; from a smoothing result
+    camsmooth.smoothing.posting.post_points); source_index: (N,) each result point's index in
+    ``program``; feed: (N,) the planned feed per point (mm/min, camsmooth.smoothing.feed.block_feeds).
+    InputError naming the operation for what cannot be rewritten; InfeasibleError for a value
+    outside the machine's travel (camsmooth.post.model.check_travel)."""
     file = program.source
     modes = program.modes
     dialect = program.dialect
@@ -147,8 +140,10 @@ def rewrite_posted(text: str, program: CLProgram, result: Any, source_index: np.
         raise InputError(f"the smoothed program has {n} points for {len(src)} input points: cannot map it back",
                          file=file)
     letters = "XYZ" + "".join(machine.rotary)
-    sense = _sense(dialect, machine)
-    A, B = (np.asarray(v, float).copy() for v in result.rotary.pair)  # the machine's rotary axes (rad)
+    sense = DIALECTS[dialect].signs(machine)
+    joints = np.asarray(result.joints, float).reshape(-1, 5)
+    A = joints[:, 3].copy()  # the machine's rotary axes (rad)
+    B = joints[:, 4].copy()
     warnings: list[str] = []
     spans: list[tuple[int, int, np.ndarray]] = []  # (first line, last line, result point indices)
     starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]]) if n else np.zeros(0, np.int64)
@@ -192,9 +187,9 @@ def rewrite_posted(text: str, program: CLProgram, result: Any, source_index: np.
         if lo1 <= hi0:
             raise InputError("two smoothed rows come from one block (an arc split by the part's contact): not "
                              "rewritten", file=file, line=lo1)
-    xyz = np.asarray(result.xyz, float).reshape(-1, 3)
-    tip = np.asarray(result.cl, float).reshape(-1, 3)
-    _check_travel(machine, rows, np.asarray(result.idx), A, B, xyz, "point")
+    xyz = joints[:, :3]
+    tip = np.asarray(result.tips, float).reshape(-1, 3)
+    check_travel(machine, rows, np.asarray(result.idx), A, B, xyz, "point")
     feed = np.asarray(feed, float)
     point_lines = set(program.line.tolist())
     out: list[str] = []

@@ -31,9 +31,11 @@ import numpy as np
 from camsmooth.io.program import CLProgram
 from camsmooth.post.core import Frame3, Skip, rot_x, rot_y, rot_z
 from camsmooth.post.iso import IsoInterpreter
+from camsmooth.post.model import PostDialect
 from camsmooth.post.words import evaluate
+from camsmooth.post.writer import Words, semicolon
 
-__all__ = ["read_siemens"]
+__all__ = ["read_siemens", "SIEMENS", "DIALECTS"]
 
 _NOTE = {"G64", "G641", "G642", "G643", "G644", "G645", "G60", "G601", "G602", "G603", "FFWON", "FFWOF", "SOFT",
          "BRISK", "COMPCAD", "COMPCURV", "COMPOF", "COMPON", "ORIWKS", "ORIMKS", "ORIAXES", "ORIVECT", "ORICONO",
@@ -272,3 +274,20 @@ class _Siemens(IsoInterpreter):
 def read_siemens(path: str, text: str, machine: Any = None, chord_tol: float | None = None) -> CLProgram:
     """Read a Sinumerik 840D program as a CLProgram (module docstring)."""
     return _Siemens(str(path), text, chord_tol).run(machine)
+
+
+# ----------------------------------------------------------------------------------------------
+# the writer's words (camsmooth.post.writer) and this module's entry of camsmooth.post.DIALECTS
+
+#: Sinumerik 840D: metric G71, ';' comments, TCP ``TRAORI`` ... ``TRAFOOF``, the high-speed settings
+#: ``CYCLE832(<tolerance mm>, _FINISH, 1)`` (840D sl programming manual, "High Speed Settings")
+SIEMENS = Words("siemens", semicolon, ("G71", "G90", "G17", "G40"), tcp_on="TRAORI", tcp_off="TRAFOOF",
+                path_tolerance=("CYCLE832({tol}, _FINISH, 1)",))
+
+
+def _read(path: str, text: str, machine: Any = None, dialect: str = "siemens",
+          chord_tol: float | None = None) -> CLProgram:
+    return read_siemens(path, text, machine, chord_tol)
+
+
+DIALECTS = (PostDialect("siemens", _read, SIEMENS),)

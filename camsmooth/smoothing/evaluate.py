@@ -29,23 +29,12 @@ from typing import Any
 import numpy as np
 
 from camsmooth.machine.kinematics import Machine
+from camsmooth.post.model import WRITTEN_DECIMALS, written_joints  # the "as written" rounding of the writer
 from camsmooth.smoothing.feed import FeedPlan, machine_label, plan_program, row_slices
 from camsmooth.smoothing.nlp import limit_violations, program_rates
 
 __all__ = ["WRITTEN_DECIMALS", "TimeLaw", "Evaluation", "axis_violations", "evaluate_program", "gamma_of",
            "joints", "time_law", "written_joints", "written_resolution"]
-
-#: decimals camsmooth writes positions with in G-code (mm for X Y Z, degrees for A B)
-WRITTEN_DECIMALS = 4
-
-
-def written_joints(q: np.ndarray) -> np.ndarray:
-    """(N, 5) joints X Y Z (mm) and two rotary axes (rad) rounded as the G-code writer writes them (X Y Z to
-    WRITTEN_DECIMALS decimals of a mm, A B of a degree), back in mm and rad."""
-    q = np.array(q, dtype=float).reshape(-1, 5)
-    q[:, :3] = np.round(q[:, :3], WRITTEN_DECIMALS)
-    q[:, 3:] = np.radians(np.round(np.degrees(q[:, 3:]), WRITTEN_DECIMALS))
-    return q
 
 
 def written_resolution(machine: Machine) -> dict[str, float]:
@@ -111,8 +100,8 @@ def time_law(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
     points that end a controller block (None: camsmooth.controller.place, as the writer
     does); real: the machine the tips are decimated on (an error model's, default ``machine``);
     tolerance: mm, the user's."""
+    from camsmooth.constants import DEFAULT_SAFE_HEIGHT_MM
     from camsmooth.controller import place, planner_for, predict
-    from camsmooth.io.gcode import DEFAULT_SAFE_HEIGHT_MM
 
     rows = np.asarray(rows)
     if plan is None and feed is not None:
