@@ -163,7 +163,7 @@ TARGETS: dict[str, Target] = {
     # the selection's slow tests (test_diagnosis_issue20.py fits models for a minute) only reach batch_sum_sd
     # through the selector: the direct tests of the two functions are run
     "significance": Target(("camsmooth/diagnosis/significance.py",), (
-        "tests/test_oracles_hand.py",
+        "tests/test_mutants_significance.py", "tests/test_oracles_hand.py",
         "tests/test_diagnosis_issue20.py::test_batch_means_standard_error")),
     "apt": Target(("camsmooth/io/apt.py",), (
         "tests/test_apt_records.py", "tests/test_apt_helix.py", "tests/test_apt_corpus.py", "tests/test_formats.py",
@@ -176,11 +176,11 @@ TARGETS: dict[str, Target] = {
         "tests/test_jerk.py", "tests/test_invariants.py", "-k",
         "jerk or limit or binding or default_machine or piece or nodes or rates"), sample=25),
     "pole": Target(("camsmooth/smoothing/pole.py",), (
-        "tests/test_invariants.py",
+        "tests/test_mutants_pole.py", "tests/test_invariants.py",
         "tests/test_samples.py::test_dome_sample_passes_the_pole_of_its_machines_c_axis", "-k",
         "pole or passage or cone"), sample=100),
     "post-words": Target(("camsmooth/post/words.py",), (
-        "tests/test_posted_readers.py", "tests/test_posts_tables.py",
+        "tests/test_mutants_post_words.py", "tests/test_posted_readers.py", "tests/test_posts_tables.py",
         "-k", "not dome")),
     # the posted-program reader core (builder, frames, arcs, feeds) against the reader and rewrite tests (the
     # rewrite tests run LinuxCNC's rs274 on the output): a sample of its mutants
