@@ -189,3 +189,16 @@ def test_after_the_passage_the_branch_nearest_the_entry_within_the_travel():
                     best = c
         np.testing.assert_allclose(start[b + 1], best, atol=1e-9)
         assert np.all(np.abs(np.diff(start[b + 1:, o])) < np.radians(10.0))  # continues on that branch
+
+
+def test_the_warm_start_leaves_the_angles_given_untouched():
+    """pole_start returns a new array: the exact inverse the caller passes (and keeps using for the
+    programmed orientation) is not overwritten by the start across the passage."""
+    m = load_machine(None)
+    T = _row(2.0)
+    t = np.arange(len(T)) * 0.01
+    exact = _exact(m, T)
+    kept = exact.copy()
+    start = pole_start(m, T, np.zeros(len(T), int), t, exact)
+    np.testing.assert_array_equal(exact, kept)
+    assert not np.allclose(start, kept)
