@@ -16,7 +16,7 @@ from camsmooth.diagnosis.points import diagnose_points, read_points
 from camsmooth.diagnosis.trace import diagnose_trace, read_trace
 
 NEW = {"servo_second_order", "velocity_limit", "acceleration_limit", "thermal_temperature", "backlash_load",
-       "thermal_time", "quantisation"}
+       "thermal_time", "quantisation", "transport_delay"}
 Q = 0.003  # mm, the scale step of the quantisation cases
 DT = 0.002
 NOISE = 1e-3  # mm
@@ -180,6 +180,45 @@ def test_a_pure_delay_is_told_apart_from_a_lag(tmp_path):
     f = diagnose_trace(read_trace(motion_trace(tmp_path, "delay"))).findings
     assert f["named"] == ["time_offset"], f["named"]
     assert effect(f, "time_offset")["parameters"]["offset_s"] == pytest.approx(0.012, rel=0.10)
+
+
+def two_axis_trace(tmp_path, x_case: str, y_delay: float, seed: int = 8) -> str:
+    """X: the moves above, its actual the command (``white``) or its first-order lag (``lag``, Kv 40);
+    Y: the same moves at 0.7 scale 0.3 s later, its actual the command delayed by y_delay s; 1 um noise."""
+    rng = np.random.default_rng(seed)
+    T, P = moves()
+    t = np.arange(0.0, T[-1] + DT / 2, DT)
+    u = np.interp(t, T, P)
+    x = {"white": u, "lag": superpose(t, T, P, ramp_first_order(1 / 40.0)),
+         "same_delay": np.interp(t - y_delay, T, P)}[x_case]
+    v = np.interp(t, T + 0.3, 0.7 * P)
+    y = np.interp(t - y_delay, T + 0.3, 0.7 * P)
+    n = len(t)
+    cols = {"X_cmd": u, "X_act": x + rng.normal(0, NOISE, n), "Y_cmd": v, "Y_act": y + rng.normal(0, NOISE, n)}
+    return write_csv(tmp_path / f"two_{x_case}_{y_delay}.csv", t, cols)
+
+
+@pytest.mark.parametrize("x_case, want", [("white", ["transport_delay"]),
+                                          ("lag", ["servo_lag", "transport_delay"]),
+                                          ("same_delay", ["time_offset"])])
+def test_one_axis_delay_is_a_transport_delay(tmp_path, x_case, want):
+    """A 12 ms delay on Y alone is Y's transport delay (beside X's lag, told apart by the shape); the
+    same delay on both axes is the clock offset."""
+    f = diagnose_trace(read_trace(two_axis_trace(tmp_path, x_case, 0.012))).findings
+    assert sorted(f["named"]) == want, f["named"]
+    if x_case == "same_delay":
+        assert effect(f, "time_offset")["parameters"]["offset_s"] == pytest.approx(0.012, rel=0.10)
+        return
+    p = effect(f, "transport_delay")["parameters"]
+    assert set(p) == {"delay_Y"} and p["delay_Y"] == pytest.approx(0.012, rel=0.10)
+    if x_case == "lag":
+        assert set(effect(f, "servo_lag")["parameters"]) == {"Kv_X"}
+        assert effect(f, "servo_lag")["parameters"]["Kv_X"] == pytest.approx(40.0, rel=0.10)
+
+
+def test_two_axes_without_a_delay_name_none(tmp_path):
+    f = diagnose_trace(read_trace(two_axis_trace(tmp_path, "white", 0.0))).findings
+    assert f["named"] == [], f["named"]
 
 
 def test_a_ringing_servo_behind_a_delay_is_named_as_both(tmp_path):

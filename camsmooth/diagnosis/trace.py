@@ -19,14 +19,14 @@ clipped to vmax and changing by at most amax a second: ``_saturating_loop``), or
 acceleration limit (the commanded velocity changes by at most amax a second) and a velocity limit
 (the position moves by at most vmax a second); then a second-order servo (y'' + 2 zeta wn y' + wn^2 y
 = wn^2 u). The linear filters are discretised exactly for a piecewise-linear input (first-order
-hold); each starts at rest on the first command. The result is read at t - offset_s (time_offset: a pure
-delay of every axis) and the recording adds a backlash of -(b/2) sign(last commanded direction),
-a load backlash of -(b/2) sign(load), and on the thermal axis sum_ch gain_ch * L_ch(T_ch - T_ch(0))
-with L_ch a first-order lag of time constant tau_ch, and gain (1 - exp(-(t - t0) / tau)) of growth
-against time. Last, the quantisation of the measured channel adds g (E[Q(y + n)] - y): Q the
-rounding to the act channel's own value grid (``TraceSimulator.quant_grid``), n a jitter of
-``QUANT_JITTER`` of the step (a smooth staircase). A parameter at its base value (0) switches
-its block off.
+hold); each starts at rest on the first command. The result is read at t - offset_s - delay_<AX>
+(time_offset: a pure delay of every axis; transport_delay: one axis's own) and the recording adds
+a backlash of -(b/2) sign(last commanded direction), a load backlash of -(b/2) sign(load), and on
+the thermal axis sum_ch gain_ch * L_ch(T_ch - T_ch(0)) with L_ch a first-order lag of time constant
+tau_ch, and gain (1 - exp(-(t - t0) / tau)) of growth against time. Last, the quantisation of the
+measured channel adds g (E[Q(y + n)] - y): Q the rounding to the act channel's own value grid
+(``TraceSimulator.quant_grid``), n a jitter of ``QUANT_JITTER`` of the step (a smooth staircase).
+A parameter at its base value (0) switches its block off.
 
 Selection (``diagnose_trace``): the same term library, selector and significance rules as the
 program-and-recording diagnosis (camsmooth.diagnosis.selector), on a ``TraceProblem`` that offers
@@ -56,7 +56,8 @@ GAP_FACTOR = 20.0
 GRID_MAX = 400_000
 #: terms tried on a trace (the library's order decides between equals)
 TRACE_CANDIDATES = ("servo_lag", "time_offset", "backlash", "servo_second_order", "velocity_limit",
-                    "acceleration_limit", "backlash_load", "thermal_temperature", "thermal_time", "quantisation")
+                    "acceleration_limit", "backlash_load", "thermal_temperature", "thermal_time", "quantisation",
+                    "transport_delay")
 #: the jitter (fraction of the step) under which the quantisation term's staircase is averaged: its
 #: steps are ramps about 0.1 q wide, so a position term's derivative stays finite across them
 QUANT_JITTER = 0.02
@@ -251,7 +252,8 @@ class TraceModel:
     (1 when unset); iv, ia: 1/vmax, 1/amax (0: no limit); backlash, backlash_load: reversal size b;
     offset_s: pure delay of every axis; thermal: channel -> (gain per deg C, tau s) on
     ``thermal_axis``; drift: (gain, tau s) of growth against time on that axis; quant: the share
-    of the act channel's rounding per axis (0: none, 1: all)."""
+    of the act channel's rounding per axis (0: none, 1: all); delay: one axis's own transport delay
+    (s), on top of offset_s."""
 
     tau: dict[str, float] = field(default_factory=dict)
     t2: dict[str, float] = field(default_factory=dict)
@@ -265,11 +267,12 @@ class TraceModel:
     thermal_axis: str | None = None
     drift: tuple[float, float] = (0.0, 1.0)
     quant: dict[str, float] = field(default_factory=dict)
+    delay: dict[str, float] = field(default_factory=dict)
 
     def copy(self) -> TraceModel:
         return TraceModel(dict(self.tau), dict(self.t2), dict(self.zeta), dict(self.iv), dict(self.ia),
                           dict(self.backlash), dict(self.backlash_load), self.offset_s, dict(self.thermal),
-                          self.thermal_axis, self.drift, dict(self.quant))
+                          self.thermal_axis, self.drift, dict(self.quant), dict(self.delay))
 
 
 def _lag1_coeffs(h: float, tau: float) -> tuple[np.ndarray, np.ndarray]:
@@ -579,7 +582,7 @@ class TraceSimulator:
     def axis(self, model: TraceModel, a: str) -> np.ndarray:
         kn = self.knots
         u = self.servo(model, a)
-        k, f = self.loc(model.offset_s)
+        k, f = self.loc(model.offset_s + model.delay.get(a, 0.0))
         y = u[k] * (1.0 - f) + u[k + 1] * f
         b = model.backlash.get(a, 0.0)
         if b:

@@ -20,6 +20,7 @@ from camsmooth.diagnosis.terms.thermal_temperature import ThermalTemperature
 from camsmooth.diagnosis.terms.thermal_time import ThermalTime
 from camsmooth.diagnosis.terms.time_offset import TimeOffset
 from camsmooth.diagnosis.terms.tool_length import ToolLength
+from camsmooth.diagnosis.terms.transport_delay import TransportDelay
 from camsmooth.diagnosis.terms.velocity_limit import AccelerationLimit, VelocityLimit
 
 LIBRARY: tuple[Term, ...] = (ServoLag(), TimeOffset(), Backlash(), RotaryLocation(), RotarySquareness(),
@@ -27,11 +28,11 @@ LIBRARY: tuple[Term, ...] = (ServoLag(), TimeOffset(), Backlash(), RotaryLocatio
                              LinearPositioning(), LinearStraightness(), LinearSquareness(),
                              # controller traces only (camsmooth.diagnosis.trace)
                              ServoSecondOrder(), VelocityLimit(), AccelerationLimit(), BacklashLoad(),
-                             ThermalTemperature(), ThermalTime(), Quantisation())
+                             ThermalTemperature(), ThermalTime(), Quantisation(), TransportDelay())
 CANDIDATES: tuple[str, ...] = tuple(t.name for t in LIBRARY)
 #: the terms only a controller trace can show (not applicable to a program and its recording)
 TRACE_ONLY: tuple[str, ...] = ("servo_second_order", "velocity_limit", "acceleration_limit", "backlash_load",
-                               "thermal_temperature", "thermal_time", "quantisation")
+                               "thermal_temperature", "thermal_time", "quantisation", "transport_delay")
 
 
 def term(name: str) -> Term:
@@ -57,6 +58,12 @@ SEPARATING = {
     frozenset({"servo_lag", "acceleration_limit"}):
         "a long move at constant speed separates them: a lag stays behind by v/Kv all along, an acceleration "
         "limit catches up once the speed is reached",
+    frozenset({"servo_lag", "transport_delay"}):
+        "a move whose speed changes (an acceleration, a start or a reversal), recorded with a sampling "
+        "period well below 1/Kv, separates them: a lag rounds the velocity corners with time constant 1/Kv, "
+        "a delay only shifts them",
+    frozenset({"time_offset", "transport_delay"}):
+        "axes whose delays differ separate them: one clock offset gives every axis the same delay",
     frozenset({"thermal_temperature", "thermal_time"}):
         "a recording through a cool-down (or a change of ambient) with the temperatures logged separates them: "
         "growth that follows the temperatures turns with them, growth that follows time does not",
