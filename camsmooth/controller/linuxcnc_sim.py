@@ -545,7 +545,7 @@ def row_runs(machine: Machine, result: Any, program_text: str, run: SimRun) -> l
     The tips come from the recorded joints by the machine's forward kinematics (joints mapped to
     camsmooth's axes and signs, ``camsmooth_joints``); the programmed path is ``programmed_tip_path``
     from the row's entry point, ``DEFAULT_SAFE_HEIGHT_MM`` up the first point's tool axis."""
-    from camsmooth.io.gcode import DEFAULT_SAFE_HEIGHT_MM
+    from camsmooth.constants import DEFAULT_SAFE_HEIGHT_MM
 
     joints = camsmooth_joints(machine, run.joints)
     tip, _ = machine.tool_pose_np(joints[:, 3], joints[:, 4], joints[:, 0], joints[:, 1], joints[:, 2])

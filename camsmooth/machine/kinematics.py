@@ -211,7 +211,8 @@ class AxisLimits:
     jmax: float = float("inf")
 
 
-#: controller dialects of the G-code writer (camsmooth.io.gcode)
+#: controller dialects camsmooth writes whole programs in (camsmooth.post.DIALECTS entries with ``own``;
+#: tests/test_post_registry.py checks the two agree)
 POST_DIALECTS = ("generic", "linuxcnc", "fanuc", "heidenhain", "siemens")
 #: "machine": joint positions (X Y Z = pivot, A B) with inverse-time feed; "tcp": tool-tip
 #: coordinates and A B under the controller's tool-centre-point command
@@ -222,7 +223,7 @@ POST_MODES = ("machine", "tcp")
 class PostConfig:
     """How G-code is written for this machine (``[post]`` table of the machine file).
 
-    dialect: one of POST_DIALECTS; mode: one of POST_MODES (camsmooth.io.gcode documents both);
+    dialect: one of POST_DIALECTS; mode: one of POST_MODES (camsmooth.post.writer documents both);
     tool: the tool number the program calls / whose length offset TCP uses (default 1);
     tcp_on, tcp_off: override the dialect's tool-centre-point commands (e.g. a LinuxCNC
     configuration's own M-codes), None for the dialect's default.
@@ -874,7 +875,7 @@ vmax = 500.0
 amax = 3000.0
 # jmax = 50000.0
 
-# G-code post (camsmooth.io.gcode): dialect = "generic" | "linuxcnc" | "fanuc" | "heidenhain" |
+# G-code post (camsmooth.post): dialect = "generic" | "linuxcnc" | "fanuc" | "heidenhain" |
 # "siemens"; mode = "machine" (joint positions, inverse-time feed G93) | "tcp" (tool tip and A B
 # under the controller's tool-centre-point command, F = tip feed).
 [post]

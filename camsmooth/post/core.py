@@ -7,7 +7,7 @@ What a point means (X Y Z as written, converted to mm; rotary words as written, 
 
 Rotary words are the tool's rotation relative to the workpiece (ISO 841) except in the linuxcnc
 dialect, whose trt kinematics take a table axis' value as the table's own turn: there they are
-multiplied by ``machine.linuxcnc_sense`` (camsmooth.io.gcode, "LinuxCNC's sign mapping").
+multiplied by ``machine.linuxcnc_sense`` (camsmooth.post.linuxcnc; camsmooth.post.writer, "LinuxCNC's sign mapping").
 CLProgram.angles are the values in camsmooth's sense, never wrapped (an unwound C is kept).
 
 - **TCP mode** (Fanuc G43.4, Haas G234, Siemens TRAORI, Heidenhain M128 / FUNCTION TCPM,

@@ -1,7 +1,7 @@
 """What a program needs around its motion to run as is: the tool call, the spindle, the coolant
 and the work offset, as the CAM input names them (APT/CLSF ``LOAD/TOOL,n`` / ``LOADTL/n``,
 ``SPINDL/[RPM,]n[,CLW|CCLW]``, ``COOLNT/ON|FLOOD|MIST|THRU``) or the command line gives them
-(``--work-offset G54``), and the blocks each dialect spells them with (camsmooth.io.gcode writes
+(``--work-offset G54``), and the blocks each dialect spells them with (camsmooth.post.writer writes
 them after its program start and before the tool-centre-point command; M9 M5 before the end).
 
 Blocks: ISO dialects (generic, fanuc, linuxcnc) ``G54``, ``T1 M6``, ``S12000 M3``, ``M8``;

@@ -10,7 +10,7 @@ Poses that do not touch the mesh within the tolerance (air moves, lead-ins and -
 that gouges) cannot be CC points: they are left out of the smoothed rows (which split there) and
 named with their clearance and file lines (``OffContact``). Runs of fewer than three touching
 points cannot be smoothed either and are named the same way. The G-code links the smoothed rows
-by the dialect's retract and re-entry (camsmooth.io.gcode), not by the CAM's lead moves.
+by the dialect's retract and re-entry (camsmooth.post.writer), not by the CAM's lead moves.
 """
 
 from __future__ import annotations
