@@ -27,7 +27,9 @@ camsmooth's simulator):
   ``quantisation`` q_X = 2.44 um;
 - ``backlash``: the INI's ``BACKLASH = 0.05`` (mm) and, as X_cmd, the motor's command (motion's
   backlash compensation adds b/2 in the direction of motion) against, as X_act, the joint's own
-  ``joint.0.pos-cmd``: the table of a mechanism with that backlash: ``backlash`` backlash_X = 0.05 mm.
+  ``joint.0.pos-cmd``: the table of a mechanism with that backlash: ``backlash`` backlash_X = 0.05 mm;
+- ``delay_y``: X and Y move together (Y to 0.7 of X's targets); X_act is X's command, Y_act Y's
+  through the delay chain: one axis's own delay, ``transport_delay`` delay_Y = 0.012 s.
 
 Each trace is written in the pinned layout (``t,X_cmd,X_act``, s and mm, values as halsampler
 prints them) and diagnosed with ``camsmooth diagnose --trace FILE --out FINDINGS.json``; the
@@ -89,6 +91,7 @@ TRUTH: dict[str, tuple[list[str], list[tuple[str, str, float]]]] = {
     "delay": (["time_offset"], [("time_offset", "offset_s", DELAY_CYCLES * SERVO_PERIOD_S)]),
     "quantise": (["quantisation"], [("quantisation", "q_X", Q_MM)]),
     "backlash": (["backlash"], [("backlash", "backlash_X", BACKLASH_MM)]),
+    "delay_y": (["transport_delay"], [("transport_delay", "delay_Y", DELAY_CYCLES * SERVO_PERIOD_S)]),
 }
 #: lines added to every [JOINT_n] section of the INI, per case
 JOINT_INI = {"backlash": f"BACKLASH = {BACKLASH_MM}\n"}
@@ -179,44 +182,72 @@ def hal_text(case: str) -> str:
                         act_out=act_out, nets="\n".join(nets))
 
 
-def program() -> str:
-    """X-only moves at 20, 50 and 80 mm/s between 0 and 10 mm (and 10.5 mm) with 0.4 s dwells."""
+def program(two_axes: bool = False) -> str:
+    """X-only moves at 20, 50 and 80 mm/s between 0 and 10 mm (and 10.5 mm) with 0.4 s dwells;
+    ``two_axes``: Y moves with X to 0.7 of its targets."""
     lines = ["G21 G90 G94 G17", "G64", "G4 P0.4"]
     for i in range(6):
         v = (20.0, 50.0, 80.0)[i % 3]
         tgt = (10.0 if i % 2 == 0 else 0.0) + (0.5 * i if i % 4 == 0 else 0.0)
-        lines += [f"G1 X{tgt:.3f} F{v * 60:.0f}", "G4 P0.4"]
+        y = f" Y{0.7 * tgt:.3f}" if two_axes else ""
+        lines += [f"G1 X{tgt:.3f}{y} F{v * 60:.0f}", "G4 P0.4"]
     return "\n".join(lines + ["M2"]) + "\n"
+
+
+def two_axis_hal(delay_cycles: int) -> str:
+    """X and Y sampled (pins 0-3: X_cmd, X_act, Y_cmd, Y_act), X_act the command itself, Y_act the
+    command through the delay chain of the ``delay`` case (``hal_text``)."""
+    n = delay_cycles + 1
+    return "\n".join([
+        "loadrt [KINS]KINEMATICS",
+        "loadrt [EMCMOT]EMCMOT servo_period_nsec=[EMCMOT]SERVO_PERIOD num_joints=[KINS]JOINTS",
+        "loadrt sampler depth=200000 cfg=fffffs", f"loadrt scale count={n}",
+        "addf motion-command-handler servo-thread", "addf motion-controller servo-thread",
+        *[f"addf scale.{k} servo-thread" for k in reversed(range(n))], "addf sampler.0 servo-thread",
+        *[f"setp scale.{k}.gain 1.0" for k in range(n)],
+        *[f"net d{k} scale.{k - 1}.out => scale.{k}.in" for k in range(1, n)],
+        "net j0 joint.0.motor-pos-cmd => joint.0.motor-pos-fb sampler.0.pin.0 sampler.0.pin.1",
+        "net j1 joint.1.motor-pos-cmd => joint.1.motor-pos-fb sampler.0.pin.2 scale.0.in",
+        f"net yact scale.{n - 1}.out => sampler.0.pin.3",
+        "net j2 joint.2.motor-pos-cmd => joint.2.motor-pos-fb sampler.0.pin.4",
+        "net j3 joint.3.motor-pos-cmd => joint.3.motor-pos-fb",
+        "net j4 joint.4.motor-pos-cmd => joint.4.motor-pos-fb",
+        "net line motion.program-line => sampler.0.pin.5",
+        "net estop-loop iocontrol.0.user-enable-out iocontrol.0.emc-enable-in",
+        "net tool-prep-loop iocontrol.0.tool-prepare iocontrol.0.tool-prepared",
+        "net tool-change-loop iocontrol.0.tool-change iocontrol.0.tool-changed", ""])
 
 
 def record(case: str, out: Path) -> Path:
     """Run the program on the simulation with ``case``'s HAL and write its trace CSV (t, X_cmd,
-    X_act), from the first servo cycle the program runs to the last."""
+    X_act[, Y_cmd, Y_act]), from the first servo cycle the program runs to the last."""
+    two = case == "delay_y"
     prog = out / "program.ngc"
-    prog.write_text(program())
-    run = simulate(prog, load_machine(None), timeout=60, hal=hal_text(case), joint_ini=JOINT_INI.get(case, ""))
+    prog.write_text(program(two))
+    hal = two_axis_hal(DELAY_CYCLES) if two else hal_text(case)
+    run = simulate(prog, load_machine(None), timeout=60, hal=hal, joint_ini=JOINT_INI.get(case, ""))
     on = np.flatnonzero(run.line > 0)
     k0, k1 = int(on[0]), int(on[-1]) + 1
     t = run.t[k0:k1] - run.t[k0]
-    cmd, act = run.joints[k0:k1, 0], run.joints[k0:k1, 1]
-    path = out / f"{case}.csv"
+    return write(out / f"{case}.csv", t, run.joints[k0:k1, :4 if two else 2])
+
+
+def write(path: Path, t: np.ndarray, cols: np.ndarray) -> Path:
+    """t (s) and the columns X_cmd, X_act[, Y_cmd, Y_act] (mm, 6 decimals as halsampler prints them)."""
+    head = ["t", "X_cmd", "X_act", "Y_cmd", "Y_act"][:1 + cols.shape[1]]
     with open(path, "w", encoding="utf-8") as f:
-        f.write("t,X_cmd,X_act\n")
+        f.write(",".join(head) + "\n")
         for i in range(len(t)):
-            f.write(f"{t[i]:.3f},{cmd[i]:.6f},{act[i]:.6f}\n")  # halsampler prints 6 decimals
+            f.write(f"{t[i]:.3f}," + ",".join(f"{v:.6f}" for v in cols[i]) + "\n")
     return path
 
 
 def noisy(path: Path, sd: float, seed: int = 0) -> Path:
-    """The trace with white noise of ``sd`` mm added to X_act (written to 6 decimals, as recorded)."""
+    """The trace with white noise of ``sd`` mm added to each actual (written to 6 decimals, as recorded)."""
     d = np.loadtxt(path, delimiter=",", skiprows=1)
-    act = d[:, 2] + np.random.default_rng(seed).normal(0.0, sd, len(d))
-    out = path.with_name(path.stem + "_noise.csv")
-    with open(out, "w", encoding="utf-8") as f:
-        f.write("t,X_cmd,X_act\n")
-        for i in range(len(d)):
-            f.write(f"{d[i, 0]:.3f},{d[i, 1]:.6f},{act[i]:.6f}\n")
-    return out
+    cols = d[:, 1:].copy()
+    cols[:, 1::2] += np.random.default_rng(seed).normal(0.0, sd, (len(d), cols.shape[1] // 2))
+    return write(path.with_name(path.stem + "_noise.csv"), d[:, 0], cols)
 
 
 def judge(case: str, f: dict) -> tuple[bool, str]:
@@ -232,7 +263,8 @@ def judge(case: str, f: dict) -> tuple[bool, str]:
         v = e["parameters"][key]
         err = abs(v / truth - 1.0)
         ok &= err <= 0.10
-        hb, ha = e["heldout_rms_before"]["X_act"], e["heldout_rms_after"]["X_act"]
+        ch = f"{key.rsplit('_', 1)[-1]}_act" if key.endswith(("_X", "_Y")) else "X_act"
+        hb, ha = e["heldout_rms_before"][ch], e["heldout_rms_after"][ch]
         text += f"; {key} = {v:.5g} (truth {truth:.5g}, {100 * err:.1f}%; held-out {hb:.3g} -> {ha:.3g} mm)"
     if not named and f["unexplained"]["count"]:
         text += f"; {f['unexplained']['count']} interval(s) left unexplained"
