@@ -159,7 +159,8 @@ TARGETS: dict[str, Target] = {
     # issue #31 item 3: the modules changed since the targets above (machine/kinematics, controller/* and io/gcode
     # were being rewritten by other work when these were added and are not here yet)
     "iso230": Target(("camsmooth/diagnosis/iso230.py",),
-                     ("tests/test_iso230.py", "tests/test_oracles_hand.py"), sample=100),
+                     ("tests/test_mutants_iso230.py", "tests/test_iso230.py", "tests/test_oracles_hand.py"),
+                     sample=100),
     # the selection's slow tests (test_diagnosis_issue20.py fits models for a minute) only reach batch_sum_sd
     # through the selector: the direct tests of the two functions are run
     "significance": Target(("camsmooth/diagnosis/significance.py",), (
@@ -1145,6 +1146,31 @@ _equivalent(_SIG, "batch_sum_sd", [
 _equivalent(_SIG, "per_sample", ["v = np.asarray(values, float) -> v = np.asarray(values, None)",
                                  "v = np.asarray(values, float) -> v = np.asarray(values, )"],
             "np.bincount casts its weights to float64 itself")
+
+_POLE = "camsmooth/smoothing/pole.py"
+_equivalent(_POLE, "pole_start", [
+    "T, t = np.asarray(T, float), np.asarray(t, float) -> T, t = np.asarray(T, None), np.asarray(t, float)",
+    "T, t = np.asarray(T, float), np.asarray(t, float) -> T, t = np.asarray(T, ), np.asarray(t, float)",
+    "T, t = np.asarray(T, float), np.asarray(t, float) -> T, t = np.asarray(T, float), np.asarray(t, None)",
+    "T, t = np.asarray(T, float), np.asarray(t, float) -> T, t = np.asarray(T, float), np.asarray(t, )",
+    "out = np.array(angles, dtype=float, copy=True) -> out = np.array(angles, dtype=None, copy=True)",
+    "out = np.array(angles, dtype=float, copy=True) -> out = np.array(angles, copy=True)"],
+    "the tool axes and times only enter float arithmetic (pole_angle, the time weights), and the angles passed are "
+    "the float exact inverse (every caller): the same values as with the cast")
+_equivalent(_POLE, "find_passages", [
+    "T, t, angles = np.asarray(T, float), np.asarray(t, float), np.asarray(angles, float) -> "
+    "T, t, angles = np.asarray(T, None), np.asarray(t, float), np.asarray(angles, float)",
+    "T, t, angles = np.asarray(T, float), np.asarray(t, float), np.asarray(angles, float) -> "
+    "T, t, angles = np.asarray(T, ), np.asarray(t, float), np.asarray(angles, float)",
+    "T, t, angles = np.asarray(T, float), np.asarray(t, float), np.asarray(angles, float) -> "
+    "T, t, angles = np.asarray(T, float), np.asarray(t, None), np.asarray(angles, float)",
+    "T, t, angles = np.asarray(T, float), np.asarray(t, float), np.asarray(angles, float) -> "
+    "T, t, angles = np.asarray(T, float), np.asarray(t, ), np.asarray(angles, float)",
+    "T, t, angles = np.asarray(T, float), np.asarray(t, float), np.asarray(angles, float) -> "
+    "T, t, angles = np.asarray(T, float), np.asarray(t, float), np.asarray(angles, None)",
+    "T, t, angles = np.asarray(T, float), np.asarray(t, float), np.asarray(angles, float) -> "
+    "T, t, angles = np.asarray(T, float), np.asarray(t, float), np.asarray(angles, )"],
+    "read only through float arithmetic (pole_angle, differences, np.degrees): the same figures without the cast")
 
 # mutmut's exit codes; -9 is the SIGKILL its runner sends one second after the CPU limit's SIGXCPU (a
 # timeout that ignored SIGXCPU), -11 a crash of the test process: the tests did not pass either way
