@@ -16,7 +16,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from camsmooth.diagnosis.trace import diagnose_trace, read_trace  # noqa: E402
-from tests.test_trace_diagnosis import NEW, Q, effect, motion_trace, thermal_trace  # noqa: E402
+from tests.test_trace_diagnosis import NEW, Q, effect, motion_trace, thermal_trace, two_axis_trace  # noqa: E402
 
 CASES = {  # case: (expected names, term, parameter, truth)
     "second_order": (["servo_second_order"], "servo_second_order", "wn_X", 120.0),
@@ -32,6 +32,10 @@ CASES = {  # case: (expected names, term, parameter, truth)
     "staircase": (["quantisation"], "quantisation", "q_X", Q),
     "staircase_lag": (["servo_lag", "quantisation"], "quantisation", "q_X", Q),
     "rounded_noise": ([], None, None, None),
+    "two_delay_y": (["transport_delay"], "transport_delay", "delay_Y", 0.012),
+    "two_lag_delay_y": (["servo_lag", "transport_delay"], "transport_delay", "delay_Y", 0.012),
+    "two_same_delay": (["time_offset"], "time_offset", "offset_s", 0.012),
+    "two_null": ([], None, None, None),
     "pitch": ([], None, None, None),
     "white": ([], None, None, None),
     "coloured": ([], None, None, None),
@@ -47,7 +51,11 @@ def main(seeds: int, only: list[str] | None = None) -> None:
                 continue
             right, worst, new, t0 = 0, 0.0, 0, time.perf_counter()
             for seed in range(seeds):
-                if case.startswith("thermal"):
+                if case.startswith("two_"):  # X white, lagged or delayed like Y; Y delayed 12 ms (or not)
+                    x = {"two_delay_y": "white", "two_lag_delay_y": "lag", "two_same_delay": "same_delay",
+                         "two_null": "white"}[case]
+                    path = two_axis_trace(d, x, 0.0 if case == "two_null" else 0.012, seed=100 + seed)
+                elif case.startswith("thermal"):
                     path = thermal_trace(d, null=case == "thermal_null", seed=100 + seed, clock=case == "thermal_clock")
                 else:
                     path = motion_trace(d, case, seed=100 + seed)
