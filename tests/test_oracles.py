@@ -21,6 +21,7 @@ import trimesh
 
 from camsmooth.diagnosis.recordings import Program
 from camsmooth.diagnosis.simulator import physics_from_settings, simulate_recording
+from camsmooth.machine.axes import RotaryValues
 from camsmooth.machine.kinematics import DEFAULT_MACHINE_TOML
 from camsmooth.machine.model import ErrorModel
 
@@ -228,7 +229,8 @@ def test_violation_counter_counts_each_limit_once():
     delta = np.full(n, 0.5)
     delta[3] = -2e-3  # one gouge beyond the 1e-3 mm tolerance
     with sm:
-        r = sm._result("none", A, B, delta=delta, lift=np.zeros(n), unreachable=np.zeros(0, int), runtime=0.0)
+        q = RotaryValues.of(sm.nominal.rotary, A, B)
+        r = sm._result("none", q, delta=delta, lift=np.zeros(n), unreachable=np.zeros(0, int), runtime=0.0)
     # the program is what was built: the lead and tilt the code derived agree with the closed form
     lead = np.arccos(np.cos(A) * np.cos(B))
     tilt = np.arctan2(-np.sin(A) * np.cos(B), np.sin(B))
@@ -252,7 +254,8 @@ def test_violation_counter_counts_the_pivot_axes():
     sm, program, A, B = _counter_setup(lin)
     n = len(A)
     with sm:
-        r = sm._result("none", A, B, delta=np.full(n, 0.5), lift=np.zeros(n), unreachable=np.zeros(0, int),
+        q = RotaryValues.of(sm.nominal.rotary, A, B)
+        r = sm._result("none", q, delta=np.full(n, 0.5), lift=np.zeros(n), unreachable=np.zeros(0, int),
                        runtime=0.0)
     T = np.column_stack([np.sin(B), -np.sin(A) * np.cos(B), np.cos(A) * np.cos(B)])
     pivot = tomllib.loads(DEFAULT_MACHINE_TOML)["machine"]["pivot"]
@@ -289,7 +292,8 @@ def test_violation_counter_is_zero_just_inside_every_limit():
     B = np.radians(np.concatenate([r[1] for r in rows]))
     n = len(A)
     with sm:
-        r = sm._result("none", A, B, delta=np.full(n, -0.9e-3), lift=np.zeros(n), unreachable=np.zeros(0, int),
+        q = RotaryValues.of(sm.nominal.rotary, A, B)
+        r = sm._result("none", q, delta=np.full(n, -0.9e-3), lift=np.zeros(n), unreachable=np.zeros(0, int),
                        runtime=0.0)
     assert sum(r.metrics.violations.values()) == 0, r.metrics.violations
 

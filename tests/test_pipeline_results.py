@@ -13,6 +13,7 @@ from camsmooth.errors import InputError
 from camsmooth.geometry.clearance import clearance
 from camsmooth.geometry.cutter import cc_to_cl
 from camsmooth.geometry.paths import CCPath
+from camsmooth.machine.axes import RotaryValues
 from camsmooth.machine.kinematics import load_machine
 from camsmooth.machine.model import ErrorModel
 from camsmooth.smoothing.nlp import program_rates
@@ -67,7 +68,8 @@ def test_result_carries_lifted_tips_their_clearance_and_the_rates(setup):
     lift = np.zeros(n)
     lift[[2, 9]] = [0.25, 0.5]
     with sm:
-        r = sm._result("spline", A, B, delta=None, lift=lift, unreachable=np.array([4]), runtime=0.5)
+        q = RotaryValues.of(sm.nominal.rotary, A, B)
+        r = sm._result("spline", q, delta=None, lift=lift, unreachable=np.array([4]), runtime=0.5)
     T = sm.real.tool_axis_np(A, B)
     nrm = program.path.normals
     cl = cc_to_cl(sm.cutter, program.path.points, nrm, T) + lift[:, None] * nrm
@@ -88,7 +90,8 @@ def test_result_carries_lifted_tips_their_clearance_and_the_rates(setup):
     # given tool tips (a CAM program's own) are used as they are, lifted along the normal
     tips = cl - lift[:, None] * nrm + np.array([0.0, 0.0, 3.0])
     with sm:
-        r2 = sm._result("cam", A, B, delta=None, lift=lift, unreachable=np.zeros(0, int), runtime=0.0, cl=tips)
+        q = RotaryValues.of(sm.nominal.rotary, A, B)
+        r2 = sm._result("cam", q, delta=None, lift=lift, unreachable=np.zeros(0, int), runtime=0.0, cl=tips)
     np.testing.assert_allclose(r2.cl, tips + lift[:, None] * nrm, atol=1e-12)
 
 
