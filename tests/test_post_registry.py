@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 import camsmooth.post as post
+from camsmooth.errors import InputError
 from camsmooth.machine.kinematics import machine_from_dict
 from camsmooth.post.model import PostProgram
 from camsmooth.post.writer import format_blocks, write_program
@@ -174,8 +175,9 @@ def test_whole_program_round_trip(tmp_path, dialect, mode):
     shares its words, e.g. iso and haas for fanuc)."""
     machine = _machine(dialect, mode)
     model = _model(machine)
-    path = write_program(tmp_path / f"p_{dialect}_{mode}.nc", model, machine)
+    path = post.DIALECTS[dialect].write(tmp_path / f"p_{dialect}_{mode}.nc", model, machine, mode=mode)
     text = path.read_text()
+    assert text == write_program(tmp_path / "same.nc", model, machine).read_text()  # the machine's [post] the same
     readers = [n for n, e in post.DIALECTS.items() if e.words is post.DIALECTS[dialect].words]
     assert dialect in readers
     for name in readers:
@@ -212,6 +214,14 @@ def test_millplus_blocks_round_trip(tmp_path, mode):
     assert post.detect_dialect(text) == "millplus"
     prog = post.read_posted(path, text=text, machine=machine)
     _compare(prog, model, f"millplus/{mode}")
+
+
+def test_blocks_only_dialects_refuse_whole_programs(tmp_path):
+    machine = _machine("generic", "machine")
+    for name in ("iso", "haas", "millplus"):
+        with pytest.raises(InputError, match=f"unknown G-code dialect '{name}'"):
+            post.DIALECTS[name].write(tmp_path / "x.nc", _model(machine), machine)
+    assert not (tmp_path / "x.nc").exists()
 
 
 def test_round_trip_can_fail(tmp_path):

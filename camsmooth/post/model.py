@@ -72,8 +72,9 @@ class PostProgram:
 
 @dataclass(frozen=True)
 class PostDialect:
-    """One dialect of the registry (camsmooth.post.DIALECTS): its name, its reader, its writer's
-    words and whether camsmooth writes whole programs in it.
+    """One dialect of the registry (camsmooth.post.DIALECTS): its name, its reader, its writer
+    (``write``: the one writer with this dialect's words) and whether camsmooth writes whole
+    programs in it.
 
     reader(path, text, machine, dialect, chord_tol) -> CLProgram reads a posted program;
     words: the writer's table (camsmooth.post.writer.Words: program start and end, the
@@ -87,6 +88,14 @@ class PostDialect:
     words: Any
     own: bool = True
     sense: Callable[[Any], np.ndarray] | None = None
+
+    def write(self, path: Any, program: PostProgram, machine: Any, **options: Any) -> Any:
+        """Write ``program`` as a whole program of this dialect (camsmooth.post.writer.write_program:
+        ``mode``, ``safe_height``, ``check_limits``, ``program_name``, ``setup``); InputError for a
+        dialect camsmooth writes only blocks of (``own`` False)."""
+        from camsmooth.post.writer import write_program
+
+        return write_program(path, program, machine, dialect=self.name, **options)
 
     def signs(self, machine: Any) -> np.ndarray:
         """(2,) the sign each rotary axis of ``machine`` is written with in this dialect."""
