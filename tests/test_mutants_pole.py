@@ -202,3 +202,30 @@ def test_the_warm_start_leaves_the_angles_given_untouched():
     start = pole_start(m, T, np.zeros(len(T), int), t, exact)
     np.testing.assert_array_equal(exact, kept)
     assert not np.allclose(start, kept)
+
+
+def test_points_at_the_same_instant_give_an_infinite_peak_speed_without_a_warning():
+    """Two points of the passage at the same time (a repeated point of the program): where the
+    outer angle jumps between them the speed is infinite, where it does not 0 / 0 is no speed; both
+    are computed silently (no bare numpy warning reaches the user)."""
+    import warnings
+
+    m = load_machine(None)
+    o = m.outer_index
+    T = _row(3.0)
+    [(a, b)] = _runs(_cone(T))
+    t = np.arange(len(T)) * 0.01
+    t[a + 2:] -= 0.01          # points a + 1 and a + 2 at the same instant
+    t[a + 5:] -= 0.01          # and a + 4, a + 5
+    angles = np.zeros((len(T), 2))
+    angles[:, o] = np.arange(len(T)) * 0.1
+    angles[a + 5:, o] -= 0.1   # the angle stands still between a + 4 and a + 5
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        [p] = find_passages(m, T, np.zeros(len(T), int), t, angles)
+    assert p.outer_peak_speed == np.inf
+    angles[a + 2:, o] -= 0.1   # no jump at the first repeated instant either: the largest finite speed
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        [p] = find_passages(m, T, np.zeros(len(T), int), t, angles)
+    assert p.outer_peak_speed == pytest.approx(np.degrees(0.1 / 0.01), rel=1e-12)
