@@ -539,15 +539,15 @@ _equivalent(_NLP, '_sparse_mx', [
     'np.concatenate([[0], np.cumsum(np.bincount(cols, ))])',
 ], _WHY_LASTCOL)
 _equivalent(_NLP, 'elastic_diagnosis', [
-    's = ca.SX.sym("s", 6) # A vel, B vel, A acc, B acc (fraction of the limit), A, B travel (of the span) -> '
-    's = ca.SX.sym("S", 6) # A vel, B vel, A acc, B acc (fraction of the limit), A, B travel (of the span)',
+    's = ca.SX.sym("s", 6) # q1, q2 vel, q1, q2 acc (fraction of the limit), q1, q2 travel (of the span) -> '
+    's = ca.SX.sym("S", 6) # q1, q2 vel, q1, q2 acc (fraction of the limit), q1, q2 travel (of the span)',
 ], _WHY_NAME)
 _equivalent(_NLP, 'elastic_diagnosis', [
     '{"ipopt.print_level": 0, "print_time": 0, "ipopt.sb": "yes", "ipopt.max_iter": 1000}) -> )',
 ], _WHY_ELASTICOPTS)
 _equivalent(_NLP, 'elastic_diagnosis', [
-    'x0 = np.concatenate([np.ravel(np.column_stack([A0, B0])), np.full(6, 10.0)]) -> x0 = '
-    'np.concatenate([np.ravel(np.column_stack([A0, B0])), np.full(6, 11.0)])',
+    'x0 = np.concatenate([np.ravel(np.column_stack([q1_0, q2_0])), np.full(6, 10.0)]) -> x0 = '
+    'np.concatenate([np.ravel(np.column_stack([q1_0, q2_0])), np.full(6, 11.0)])',
 ], _WHY_SLACKSTART)
 _equivalent(_NLP, 'fd_operators', [
     'shape=(n - 1, n)) -> shape=None)',
@@ -1171,6 +1171,18 @@ _equivalent(_POLE, "find_passages", [
     "T, t, angles = np.asarray(T, float), np.asarray(t, float), np.asarray(angles, float) -> "
     "T, t, angles = np.asarray(T, float), np.asarray(t, float), np.asarray(angles, )"],
     "read only through float arithmetic (pole_angle, differences, np.degrees): the same figures without the cast")
+
+for _f in ("find_passages", "pole_start"):
+    _equivalent(_POLE, _f, [
+        "for s0, s1 in zip(starts.tolist(), ends.tolist(), strict=True): -> "
+        "for s0, s1 in zip(starts.tolist(), ends.tolist(), strict=None):",
+        "for s0, s1 in zip(starts.tolist(), ends.tolist(), strict=True): -> "
+        "for s0, s1 in zip(starts.tolist(), ends.tolist(), ):"],
+        "ends is built from starts (the next start, then the length): the two lists always have the same length")
+_equivalent(_POLE, "pole_start", [
+    "ta = t[s0 + a - 1] if before is not None else t[s0 + a] -> "
+    "ta = t[s0 + a - 1] if before is not None else t[s0 - a]"],
+    "before is None exactly when a = 0, and then s0 - a = s0 + a")
 
 # mutmut's exit codes; -9 is the SIGKILL its runner sends one second after the CPU limit's SIGXCPU (a
 # timeout that ignored SIGXCPU), -11 a crash of the test process: the tests did not pass either way
