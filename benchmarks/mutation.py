@@ -1184,6 +1184,11 @@ _equivalent(_POLE, "pole_start", [
     "ta = t[s0 + a - 1] if before is not None else t[s0 - a]"],
     "before is None exactly when a = 0, and then s0 - a = s0 + a")
 
+_ISO = "camsmooth/diagnosis/iso230.py"
+_equivalent(_ISO, "write_comp_file", [
+    'tmp.write_text(comp_text(table), encoding="utf-8") -> tmp.write_text(comp_text(table), encoding="UTF-8")'],
+    "codec names are case-insensitive")
+
 # mutmut's exit codes; -9 is the SIGKILL its runner sends one second after the CPU limit's SIGXCPU (a
 # timeout that ignored SIGXCPU), -11 a crash of the test process: the tests did not pass either way
 STATUS = {1: "killed", 3: "killed", 0: "survived", 5: "no tests", 33: "no tests", 34: "skipped",

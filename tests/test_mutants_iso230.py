@@ -167,6 +167,8 @@ def test_result_json_carries_what_it_is_given():
     assert full["compensation"]["built_from"] == "fitted terms"
     assert full["compensation"]["forward"] == pytest.approx([5 * UM, 3 * UM, 0.0], abs=1e-12)
     assert full["fitted_terms"]["reversal"] == pytest.approx(-18 * UM)
+    # the model as the module docstring writes it: P the position, the reversal halved per direction
+    assert full["fitted_terms"]["model"] == "deviation = offset + scale * P + direction * reversal / 2"
     assert full["crossvalidated_rms"]["folds"] == 3
 
 
