@@ -258,7 +258,8 @@ sys.exit(0 if ok and not err else "program did not finish: " + str(err))
 '''
 
 
-def _ini(machine: Machine, folder: Path, extra_traj: dict[str, str] | None, joint_extra: str = "") -> Path:
+def _ini(machine: Machine, folder: Path, extra_traj: dict[str, str] | None, joint_extra: str = "",
+         kins: str | None = None, rs274ngc: str = "") -> Path:
     lims = _axis_limits_deg(machine)
     names = machine.joint_names
     coords = "".join(names)
@@ -277,8 +278,8 @@ def _ini(machine: Machine, folder: Path, extra_traj: dict[str, str] | None, join
     parts = [
         "[EMC]\nVERSION = 1.1\nMACHINE = camsmooth-sim\n",
         f"[DISPLAY]\nDISPLAY = {folder / 'driver.py'}\nCYCLE_TIME = 0.1\n",
-        f"[KINS]\nKINEMATICS = trivkins coordinates={coords}\nJOINTS = 5\n",
-        "[RS274NGC]\nPARAMETER_FILE = sim.var\n",
+        f"[KINS]\nKINEMATICS = {kins or f'trivkins coordinates={coords}'}\nJOINTS = 5\n",
+        f"[RS274NGC]\nPARAMETER_FILE = sim.var\n{rs274ngc}",
         f"[EMCMOT]\nEMCMOT = motmod\nCOMM_TIMEOUT = 1.0\nSERVO_PERIOD = {int(SERVO_PERIOD_S * 1e9)}\n",
         "[TASK]\nTASK = milltask\nCYCLE_TIME = 0.001\n",
         "[HAL]\nHALFILE = sim.hal\n",
@@ -441,14 +442,17 @@ def _failure(what: str, proc: subprocess.CompletedProcess, folder: Path, kept: b
 
 def simulate(program: Path | str, machine: Machine, *, timeout: float = 600.0,
              traj: dict[str, str] | None = None, keep: Path | None = None, wait: float | None = None,
-             hal: str | None = None, joint_ini: str = "") -> SimRun:
+             hal: str | None = None, joint_ini: str = "", kins: str | None = None, rs274ngc: str = "") -> SimRun:
     """Run ``program`` on a headless LinuxCNC simulation of ``machine`` (module docstring) and
     return the commanded joints per servo cycle. traj: extra ``[TRAJ]`` settings (e.g.
     ``ARC_BLEND_ENABLE``). keep: a folder to leave the configuration and logs in. wait: the most
     seconds to wait for another simulation (default timeout + 180). hal: the HAL file's text instead
     of the loop-back one (it must feed ``sampler.0``, cfg ``fffffs``, whose pins 0-4 land in
     ``SimRun.joints``, as benchmarks/hal_reference.py does); joint_ini: lines added to every
-    ``[JOINT_n]`` section (each line ending in a newline, e.g. ``BACKLASH = 0.05``). RuntimeError naming
+    ``[JOINT_n]`` section (each line ending in a newline, e.g. ``BACKLASH = 0.05``); kins: the
+    ``[KINS] KINEMATICS`` line instead of trivkins (e.g. ``xyzac-trt-kins sparm=identityfirst`` with
+    the HAL that nets its switchkins pins); rs274ngc: lines added to ``[RS274NGC]`` (remaps, each
+    ending in a newline). RuntimeError naming
     LinuxCNC's output and logs when the run fails."""
     missing = linuxcnc_missing()
     if missing:
@@ -458,7 +462,7 @@ def simulate(program: Path | str, machine: Machine, *, timeout: float = 600.0,
     folder = folder.resolve()
     folder.mkdir(parents=True, exist_ok=True)
     try:
-        ini = _ini(machine, folder, traj, joint_ini)
+        ini = _ini(machine, folder, traj, joint_ini, kins, rs274ngc)
         (folder / "sim.hal").write_text(_HAL if hal is None else hal)
         (folder / "driver.py").write_text(_DRIVER)
         os.chmod(folder / "driver.py", 0o755)
