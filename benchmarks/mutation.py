@@ -186,7 +186,7 @@ TARGETS: dict[str, Target] = {
     # the posted-program reader core (builder, frames, arcs, feeds) against the reader and rewrite tests (the
     # rewrite tests run LinuxCNC's rs274 on the output): a sample of its mutants
     "post-core": Target(("camsmooth/post/core.py",), (
-        "tests/test_posted_readers.py", "tests/test_posted_rewrite.py",
+        "tests/test_mutants_post_core.py", "tests/test_posted_readers.py", "tests/test_posted_rewrite.py",
         "tests/test_invariants.py::test_posted_g20_and_g21_programs_read_the_same"), sample=80),
 }
 
