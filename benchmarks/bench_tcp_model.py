@@ -7,9 +7,12 @@ whose velocity and acceleration nobody limits (LinuxCNC #1738). The tool tip the
 chord between two programmed tips, so a block may skip the points whose tips lie within the
 tolerance of that chord (no pivot lever bends the block).
 
-This script does NOT run LinuxCNC (bench_controller.py does, in machine mode): it runs the same
-planner model (camsmooth.controller.linuxcnc, checked against LinuxCNC in machine mode within
-1%) on the world coordinates, to see what TCP mode could give before building it. For each
+This script does NOT run LinuxCNC (bench_controller.py does in machine mode, bench_tcp_sim.py in
+TCP mode on LinuxCNC's xyzac-trt kinematics): it runs the same planner model
+(camsmooth.controller.linuxcnc, checked against LinuxCNC in machine mode within 1%) on the world
+coordinates, to see what TCP mode could give before building it. On the dome's rows 14-16 it gave
+2.103 / 2.103 / 2.183 s in TCP mode; LinuxCNC ran TCP blocks of the same rule (with the
+time-optimal law's block times) in 2.091 / 2.091 / 2.165 s. For each
 table machine and a few smoothed rows (bench_controller.smoothed) it prints per row:
 
 - machine: the machine-mode program camsmooth writes, the model's time (its prediction);
