@@ -174,7 +174,7 @@ TARGETS: dict[str, Target] = {
     # the jerk-limited law: every mutant that reaches it reruns jerk-limited plans (seconds each, minutes with
     # the direct-NLP reference of test_jerk.py): a sample
     "jerk": Target(("camsmooth/smoothing/jerk.py",), (
-        "tests/test_jerk.py", "tests/test_invariants.py", "-k",
+        "tests/test_mutants_jerk.py", "tests/test_jerk.py", "tests/test_invariants.py", "-k",
         "jerk or limit or binding or default_machine or piece or nodes or rates"), sample=25),
     "pole": Target(("camsmooth/smoothing/pole.py",), (
         "tests/test_mutants_pole.py", "tests/test_invariants.py",
