@@ -181,3 +181,39 @@ def test_run_csv_round_trip_and_too_few_approaches(tmp_path):
                      (5.0, 1, 1, 0.0), (5.0, 1, 2, 0.0), (5.0, -1, 1, 0.0), (5.0, -1, 2, 0.0)])
     with pytest.raises(InputError, match=r"target 0 has 1 approach\(es\) in direction -1"):
         I.evaluate(one_down)
+
+
+def test_refusals_name_the_column_and_the_approach(tmp_path):
+    """A run at one target names the 'target' column; a cross-validation of one run the 'run'
+    column; an approach given twice names its target, direction and run and the row it was first
+    given on (rows counted from 1 below the header)."""
+    with pytest.raises(InputError, match="column 'target'") as exc:
+        I.evaluate(_run([(0.0, 1, 1, 0.0), (0.0, 1, 2, 0.0), (0.0, -1, 1, 0.0), (0.0, -1, 2, 0.0)]))
+    assert "at least 2 target positions" in str(exc.value)
+    with pytest.raises(InputError, match="column 'run'"):
+        I.crossvalidate(_linear_run(0.0, 0.0, 1 * UM, runs=1))
+    path = tmp_path / "dup.csv"
+    path.write_text("target,direction,run,deviation\n5,1,1,0\n7,-1,2,0\n5,1,1,0.001\n")
+    with pytest.raises(InputError, match=r"approach given twice \(target 5, direction \+1, run 1; first on row 1\)"):
+        I.read_run(path)
+
+
+def test_the_run_file_has_the_documented_columns(tmp_path):
+    """write_run_csv writes the columns of the module docstring, in that order."""
+    run = I.simulate_run(np.array([0.0, 10.0]), 2, noise_um=0.0)
+    path = I.write_run_csv(tmp_path / "r.csv", run)
+    assert path.read_text().splitlines()[0] == "target,direction,run,deviation"
+
+
+def test_the_default_simulated_axis_is_the_one_the_benchmarks_describe():
+    """docs/benchmarks.md (ISO 230-2): pitch 20 um/m, a 5 um screw term of 10 mm period, 18 um
+    reversal (the carriage stopping short), 1 um noise: the defaults of simulate_run / systematic."""
+    p = np.array([0.0, 2.5, 7.5, 400.0])
+    d = np.array([1, -1, 1, -1])
+    want = 1e-3 * (20e-3 * p + 5.0 * np.sin(2 * np.pi * p / 10.0) - d * 9.0)
+    np.testing.assert_allclose(I.systematic(p, d), want, atol=1e-15)
+    run = I.simulate_run(p, 200, seed=7)
+    resid = run.deviation - I.systematic(run.target, run.direction)
+    assert np.std(resid) == pytest.approx(0.001, rel=0.1)
+    exact = I.simulate_run(p, 1, noise_um=0.0)
+    np.testing.assert_allclose(exact.deviation, I.systematic(exact.target, exact.direction), atol=0)
