@@ -1188,6 +1188,30 @@ _ISO = "camsmooth/diagnosis/iso230.py"
 _equivalent(_ISO, "write_comp_file", [
     'tmp.write_text(comp_text(table), encoding="utf-8") -> tmp.write_text(comp_text(table), encoding="UTF-8")'],
     "codec names are case-insensitive")
+_equivalent(_ISO, "read_run", [
+    'for i, key in enumerate(zip(t["target"].tolist(), d.tolist(), t["run"].tolist(), strict=True)): -> '
+    'for i, key in enumerate(zip(t["target"].tolist(), d.tolist(), t["run"].tolist(), strict=False)):',
+    'for i, key in enumerate(zip(t["target"].tolist(), d.tolist(), t["run"].tolist(), strict=True)): -> '
+    'for i, key in enumerate(zip(t["target"].tolist(), d.tolist(), t["run"].tolist(), strict=None)):',
+    'for i, key in enumerate(zip(t["target"].tolist(), d.tolist(), t["run"].tolist(), strict=True)): -> '
+    'for i, key in enumerate(zip(t["target"].tolist(), d.tolist(), t["run"].tolist(), )):'],
+    "three columns of one table: always the same length")
+_equivalent(_ISO, "read_run", [
+    'run = Run(t["target"].astype(float), d.astype(int), t["run"].astype(int), t["deviation"].astype(float), t.file) '
+    '-> run = Run(t["target"].astype(float), d.astype(int), t["run"].astype(int), t["deviation"].astype(None), '
+    't.file)',
+    'run = Run(t["target"].astype(float), d.astype(int), t["run"].astype(int), t["deviation"].astype(float), t.file) '
+    '-> run = Run(t["target"].astype(None), d.astype(int), t["run"].astype(int), t["deviation"].astype(float), '
+    't.file)'],
+    "astype(None) is numpy's default float64, the same as astype(float)")
+_equivalent(_ISO, "FittedTerms.deviation", [
+    "p = np.asarray(position, float) -> p = np.asarray(position, )",
+    "p = np.asarray(position, float) -> p = np.asarray(position, None)",
+    "return self.offset + self.scale * p + np.asarray(direction, float) * self.reversal / 2 -> "
+    "return self.offset + self.scale * p + np.asarray(direction, ) * self.reversal / 2",
+    "return self.offset + self.scale * p + np.asarray(direction, float) * self.reversal / 2 -> "
+    "return self.offset + self.scale * p + np.asarray(direction, None) * self.reversal / 2"],
+    "multiplied by the float terms at once: integer positions or directions give the same floats")
 
 # mutmut's exit codes; -9 is the SIGKILL its runner sends one second after the CPU limit's SIGXCPU (a
 # timeout that ignored SIGXCPU), -11 a crash of the test process: the tests did not pass either way
