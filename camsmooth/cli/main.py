@@ -15,6 +15,7 @@ internal error (a bug: one line on stderr, the traceback with --debug); 130 inte
 from __future__ import annotations
 
 import argparse
+import math
 import re
 import sys
 import traceback
@@ -266,6 +267,13 @@ def _write_outputs(result: Any, out_csv: Path, gcode: Path | None, report: Path 
             write_report(result, report)
 
 
+def _scallop_cell(um: float | None) -> str:
+    """The summary table's scallop cell (um): '-' unknown, 'no overlap' where passes do not meet."""
+    if um is None:
+        return "-"
+    return format(um, ".4g") if math.isfinite(um) else "no overlap"
+
+
 def _print_summary(result) -> None:
     from camsmooth.report.headline import headline
 
@@ -284,10 +292,14 @@ def _print_summary(result) -> None:
         nfeed = sum(mm.violations_programmed.values())
         sc = getattr(mm, "scallop_max_um", None)
         print(f"{name:8s} {mm.gamma:12.4g} {mm.peak_acc_plan[r1]:10.4g} {mm.peak_acc_plan[r2]:10.4g} "
-              f"{mm.min_delta:10.4g} {'-' if sc is None else format(sc, '.4g'):>10s} {nviol:10d} {nfeed:8d} "
+              f"{mm.min_delta:10.4g} {_scallop_cell(sc):>10s} {nviol:10d} {nfeed:8d} "
               f"{mm.cycle_time_optimal_s:9.2f} {mm.cycle_time_s:11.2f} {mm.limiting or '-':>16s} {mm.runtime_s:8.2f}")
     print("peaks (deg/s^2) and violations under the planned time law; 'at feed': violations at the programmed "
           "feed, before planning; scallop: the largest between adjacent passes")
+    if any(r.metrics.scallop_max_um is not None and not math.isfinite(r.metrics.scallop_max_um)
+           for r in result.methods.values()):
+        print("scallop 'no overlap': somewhere adjacent passes do not overlap (the effective cutting radius is below "
+              "half the stepover), so material is left standing between them: no finite scallop")
     for name, r in result.methods.items():
         for miss in getattr(r.metrics, "scallop_missed", []):
             print(f"camsmooth: warning: {name}: row {miss.row}: finish budget missed at {miss.points} point"
