@@ -1213,6 +1213,13 @@ _equivalent(_ISO, "FittedTerms.deviation", [
     "return self.offset + self.scale * p + np.asarray(direction, None) * self.reversal / 2"],
     "multiplied by the float terms at once: integer positions or directions give the same floats")
 
+_WORDS = "camsmooth/post/words.py"
+_equivalent(_WORDS, "split_comments", ["depth, cut = 0, -1 -> depth, cut = 0, -2"],
+            "cut is only a 'not found' mark, tested with cut >= 0: any negative value is the same")
+_equivalent(_WORDS, "evaluate", [
+    r'text = re.sub(r"\bMOD\b", "%", text, flags=re.I) -> text = re.sub(r"\bmod\b", "%", text, flags=re.I)'],
+    "the pattern is matched ignoring case (re.I): MOD and mod are the same pattern")
+
 # mutmut's exit codes; -9 is the SIGKILL its runner sends one second after the CPU limit's SIGXCPU (a
 # timeout that ignored SIGXCPU), -11 a crash of the test process: the tests did not pass either way
 STATUS = {1: "killed", 3: "killed", 0: "survived", 5: "no tests", 33: "no tests", 34: "skipped",
