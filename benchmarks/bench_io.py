@@ -19,9 +19,9 @@ from camsmooth.geometry.paths import CCPath
 from camsmooth.io.apt import read_apt
 from camsmooth.io.ccpath import read_cc_csv, write_cc_csv
 from camsmooth.io.clcsv import read_cl_csv
-from camsmooth.io.gcode import write_gcode
 from camsmooth.machine.axes import RotaryValues
 from camsmooth.machine.kinematics import load_machine
+from camsmooth.smoothing.posting import write_gcode
 from camsmooth.smoothing.result import MethodResult
 
 

@@ -78,9 +78,9 @@ def _cl_seeds() -> list[tuple[str, bytes]]:
 
 
 def _gcode_seeds(folder: Path) -> list[tuple[str, bytes]]:
-    from camsmooth.io.gcode import write_gcode
     from camsmooth.machine.axes import RotaryValues
     from camsmooth.machine.kinematics import load_machine
+    from camsmooth.smoothing.posting import write_gcode
     from camsmooth.smoothing.result import MethodResult
 
     machine = load_machine(None)
@@ -122,8 +122,8 @@ def seed_files(folder: Path) -> dict[str, list[tuple[str, bytes]]]:
 def _readers() -> dict[str, Callable[[Path], Any]]:
     from camsmooth.io.apt import read_apt
     from camsmooth.io.clcsv import read_cl_csv
-    from camsmooth.io.gcode import read_gcode
     from camsmooth.machine.kinematics import load_machine
+    from camsmooth.post.own import read_gcode
 
     return {"apt": read_apt, "cl-csv": read_cl_csv, "gcode": read_gcode, "machine": lambda p: load_machine(str(p))}
 

@@ -23,8 +23,8 @@ from camsmooth.controller.blocks import BLOCK_TOLERANCE_SHARE
 from camsmooth.controller.linuxcnc_sim import interpret, linuxcnc_missing, simulate
 from camsmooth.geometry.cutter import ToroidalCutter
 from camsmooth.geometry.paths import CCPath
-from camsmooth.io.gcode import write_gcode
 from camsmooth.machine.kinematics import DEFAULT_MACHINE_TOML, machine_from_dict
+from camsmooth.smoothing.posting import write_gcode
 
 MISSING = linuxcnc_missing()
 needs_linuxcnc = pytest.mark.skipif(MISSING is not None, reason=f"LinuxCNC not installed: {MISSING}")
@@ -342,9 +342,9 @@ def test_the_blocks_keep_the_models_tool_tip_within_the_tolerance_at_every_servo
     """The nlp rows' program: the model's tool tip over every servo cycle stays within
     EXECUTED_TOLERANCE_SHARE of the tolerance, checked here by running the planner model on the
     written blocks; at the time-optimal law's block times it does not (the check does work)."""
+    from camsmooth.constants import DEFAULT_SAFE_HEIGHT_MM
     from camsmooth.controller import EXECUTED_TOLERANCE_SHARE
     from camsmooth.controller.blocks import programmed_tip_path, tip_deviation, tool_tips
-    from camsmooth.io.gcode import DEFAULT_SAFE_HEIGHT_MM
 
     r, m = blade_rows.methods["nlp"], blade_rows.machine
     p = planner_for(m, 0.005)

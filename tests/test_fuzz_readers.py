@@ -27,7 +27,7 @@ from benchmarks.fuzz_readers import (  # noqa: E402
 )
 from camsmooth.errors import InputError  # noqa: E402
 from camsmooth.io.apt import read_apt  # noqa: E402
-from camsmooth.io.gcode import read_gcode  # noqa: E402
+from camsmooth.post.own import read_gcode  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -30,16 +30,18 @@ from pygcode.gcodes import (
 )
 
 from camsmooth.errors import InputError
-from camsmooth.io.gcode import DIALECTS, read_gcode, write_gcode
 from camsmooth.io.program import load_program
 from camsmooth.machine.axes import RotaryValues
 from camsmooth.machine.kinematics import load_machine, machine_from_dict
+from camsmooth.post import DIALECTS as REGISTRY
+from camsmooth.post.own import read_gcode
+from camsmooth.smoothing.posting import write_gcode
 from camsmooth.smoothing.result import MethodResult
 
 MACHINE = load_machine(None)
 CUTTER = SimpleNamespace(R=3.0, r=1.0, shank_length=40.0, diameter=8.0)
 H = 7.5
-COMBOS = [(d, m) for d in DIALECTS for m in ("machine", "tcp")
+COMBOS = [(d, m) for d in REGISTRY if REGISTRY[d].own for m in ("machine", "tcp")
           if not (d == "heidenhain" and m == "machine") and not (d == "generic" and m == "tcp")]
 
 

@@ -9,7 +9,7 @@ never against the code's own output.
   largest.
 - The significance rule's batch statistics (camsmooth.diagnosis.significance.batch_sum_sd)
   against a plain loop over the batches.
-- Each dialect's path-tolerance and TCP words (camsmooth.io.gcode) against the controller
+- Each dialect's path-tolerance and TCP words (camsmooth.post, one module per dialect) against the controller
   manual's text, quoted beside the check.
 """
 
@@ -147,9 +147,9 @@ def test_batch_sum_sd_of_a_constant_series_is_zero():
 
 # ---- controller words against the manuals ------------------------------------------------------------
 def _program(tmp_path, dialect: str, mode: str, tol: float) -> list[str]:
-    from camsmooth.io.gcode import write_gcode
     from camsmooth.machine.axes import RotaryValues
     from camsmooth.machine.kinematics import load_machine
+    from camsmooth.smoothing.posting import write_gcode
     from camsmooth.smoothing.result import MethodResult
 
     machine = load_machine(None)

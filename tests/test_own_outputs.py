@@ -155,8 +155,8 @@ def test_gcode_header_has_no_python_reprs(generic, tmp_path):
 @pytest.mark.parametrize(("dialect", "mode"), [("siemens", "tcp"), ("heidenhain", "tcp"), ("fanuc", "machine"),
                                                ("linuxcnc", "tcp")])
 def test_every_dialect_carries_the_programmed_time_and_the_planned_law(generic, dialect, mode, tmp_path):
-    from camsmooth.io.gcode import write_gcode
     from camsmooth.smoothing.feed import block_feeds
+    from camsmooth.smoothing.posting import write_gcode
 
     r = generic.result
     feed = block_feeds(r.plan, r.cl, r.rows, np.asarray(generic.inputs["feed"], float))
@@ -175,7 +175,7 @@ def test_every_dialect_carries_the_programmed_time_and_the_planned_law(generic, 
 def test_times_that_do_not_increase_are_not_a_time_base(generic, tmp_path):
     """A program written from times that do not increase along a row (no programmed-feed time)
     is read without one: analyze then times it from the tips at the feed."""
-    from camsmooth.io.gcode import write_gcode
+    from camsmooth.smoothing.posting import write_gcode
 
     r = dataclasses.replace(generic.result, t=np.zeros(len(generic.result)), plan=None)
     nc = write_gcode(tmp_path / "z.nc", r, generic.machine, generic.cutter, 2000.0)

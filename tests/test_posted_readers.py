@@ -416,10 +416,10 @@ def test_cli_cl_for_cc_cl_and_own_gcode(tmp_path):
     t2 = read_table(out2, required=("x", "y", "z", "i", "j", "k", "feed"), text=("operation",))
     assert np.allclose(np.column_stack([t2["x"], t2["y"], t2["z"], t2["j"], t2["feed"]]),
                        [[0, 0, 0, 0, 500], [1, 0, 0, 0.6, 500], [2, 0, 0.5, 0, 700]])
-    # camsmooth's own G-code (its writer, camsmooth.io.gcode): the tips it was written from
+    # camsmooth's own G-code (its writer, camsmooth.post.writer): the tips it was written from
     from test_gcode import CUTTER, MACHINE, _method
 
-    from camsmooth.io.gcode import write_gcode
+    from camsmooth.smoothing.posting import write_gcode
 
     m, feed = _method()
     nc = write_gcode(tmp_path / "own.nc", m, MACHINE, CUTTER, feed, safe_height=7.5, dialect="linuxcnc", mode="tcp")
@@ -621,12 +621,13 @@ def test_heidenhain_plane_relativ(tmp_path):
                                           ("siemens", "machine"), ("heidenhain", "tcp"), ("linuxcnc", "tcp"),
                                           ("linuxcnc", "machine"), ("generic", "machine")])
 def test_camsmooth_posts_read_as_posted_programs(tmp_path, dialect, mode):
-    """camsmooth's own writer (camsmooth.io.gcode) in every dialect and mode, its header tag removed so
+    """camsmooth's own writer (camsmooth.post.writer) in every dialect and mode, its header tag removed so
     that the posted reader reads it like any program: the tips and axes it was written from (within
     the 4 decimals written) and the feeds its own reader (read_gcode) gives."""
     from test_gcode import CUTTER, MACHINE, _method
 
-    from camsmooth.io.gcode import read_gcode, write_gcode
+    from camsmooth.post.own import read_gcode
+    from camsmooth.smoothing.posting import write_gcode
 
     m, feed = _method()
     nc = write_gcode(tmp_path / "own.nc", m, MACHINE, CUTTER, feed, safe_height=7.5, dialect=dialect, mode=mode)

@@ -274,8 +274,8 @@ def test_cross_post_consistency(tmp_path):
     joints) on the nutating B-head / C-table machine, both from camsmooth's writer, read back by the
     posted readers: the same tips within the posts' rounding and the same axes within 0.01 deg."""
     from camsmooth.geometry.cutter import ToroidalCutter
-    from camsmooth.io.gcode import write_gcode
     from camsmooth.post import read_posted
+    from camsmooth.smoothing.posting import write_gcode
 
     ac = load_machine(DOME_MACHINE)
     nut = load_machine(ROOT / "surfaces" / "nutating_machine.toml")

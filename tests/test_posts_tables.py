@@ -33,9 +33,11 @@ import pytest
 
 from camsmooth.controller.linuxcnc_sim import interpret, linuxcnc_missing
 from camsmooth.errors import InputError
-from camsmooth.io.gcode import DIALECTS, read_gcode, write_gcode
 from camsmooth.machine.axes import RotaryValues
 from camsmooth.machine.kinematics import load_machine, machine_from_dict
+from camsmooth.post import DIALECTS as REGISTRY
+from camsmooth.post.own import read_gcode
+from camsmooth.smoothing.posting import write_gcode
 from camsmooth.smoothing.result import MethodResult
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -43,7 +45,7 @@ MISSING = linuxcnc_missing()
 needs_linuxcnc = pytest.mark.skipif(MISSING is not None, reason=f"LinuxCNC not installed: {MISSING}")
 TRT = Path("/usr/share/doc/linuxcnc/examples/sample-configs/sim/axis/vismach/5axis/table-rotary-tilting")
 CUTTER = SimpleNamespace(R=3.0, r=1.0, shank_length=40.0, diameter=8.0)
-COMBOS = [(d, m) for d in DIALECTS for m in ("machine", "tcp")
+COMBOS = [(d, m) for d in REGISTRY if REGISTRY[d].own for m in ("machine", "tcp")
           if not (d == "heidenhain" and m == "machine") and not (d == "generic" and m == "tcp")]
 KINDS = ("AC-table", "BC-table", "BC-head-table")
 CENTRE = (3.0, -2.0, -20.0)
