@@ -167,28 +167,59 @@ def test_a_passage_at_a_row_end_holds_the_outer_axis():
     assert np.all(dev <= pole + 1e-9)
 
 
-def test_after_the_passage_the_branch_nearest_the_entry_within_the_travel():
+def _ac_table():
+    from camsmooth.machine.kinematics import machine_from_dict
+
+    return machine_from_dict({"machine": {"kind": "AC-table"},
+                              "axis": {"A": {"min": -110.0, "max": 30.0, "vmax": 60.0, "amax": 300.0},
+                                       "C": {"vmax": 90.0, "amax": 300.0, "min": -720.0, "max": 720.0}}})
+
+
+def _nearest_branch(m, T_exit: np.ndarray, entry: float) -> np.ndarray:
+    """Of both inverse branches at T_exit, each unwound by whole turns toward ``entry``, the one within
+    the travel whose outer angle is nearest ``entry`` (brute force over Machine.inverse_axis)."""
+    o = m.outer_index
+    best = None
+    for cand in m.inverse_axis(T_exit[None])[0]:
+        c = cand.copy()
+        c[o] += 2 * np.pi * np.round((entry - c[o]) / (2 * np.pi))
+        if all(bool(m.within(n, c[k])) for k, n in enumerate(m.rotary)):
+            if best is None or abs(c[o] - entry) < abs(best[o] - entry):
+                best = c
+    return best
+
+
+@pytest.mark.parametrize("kind, turn_deg", [("AB-head", 0.0), ("AC-table", 0.0), ("AC-table", 90.0),
+                                            ("AC-table", -90.0), ("AC-table", 180.0)])
+def test_after_the_passage_the_branch_nearest_the_entry_within_the_travel(kind, turn_deg):
     """At the passage's exit the start takes, of the two inverse branches (each unwound by whole
     turns toward the outer angle before the passage) within the travel, the one whose outer angle is
-    nearest the entry's: checked against both branches from Machine.inverse_axis."""
-    m = load_machine(None)
+    nearest the entry's (brute force here), and the rest of the row continues on it as an exact
+    inverse. On the AC table the exact inverse turns C by 110-177 deg across these passages and the
+    other branch (-A, C + 180 deg) is the nearer one: the start changes branch; the part and the row
+    turned about C give the same choice with C shifted."""
+    m = load_machine(None) if kind == "AB-head" else _ac_table()
     o = m.outer_index
+    pole = EX if kind == "AB-head" else EZ
+    side = EZ if kind == "AB-head" else -EX
+    ph = np.radians(turn_deg)
+    rz = np.array([[np.cos(ph), -np.sin(ph), 0.0], [np.sin(ph), np.cos(ph), 0.0], [0.0, 0.0, 1.0]])
     for miss in (0.5, 2.0, 6.0):
-        T = _row(miss)
+        d = np.radians(miss)
+        u = np.radians(np.linspace(-25.0, 25.0, 41))
+        T = (np.cos(u)[:, None] * (np.cos(d) * pole + np.sin(d) * side) + np.sin(u)[:, None] * EY) @ rz.T
         t = np.arange(len(T)) * 0.01
         exact = _exact(m, T)
         start = pole_start(m, T, np.zeros(len(T), int), t, exact)
-        [(a, b)] = _runs(_cone(T))
-        entry = start[a - 1, o]
-        best = None
-        for cand in m.inverse_axis(T[b + 1][None])[0]:
-            c = cand.copy()
-            c[o] += 2 * np.pi * np.round((entry - c[o]) / (2 * np.pi))
-            if all(bool(m.within(n, c[k])) for k, n in enumerate(m.rotary)):
-                if best is None or abs(c[o] - entry) < abs(best[o] - entry):
-                    best = c
+        cone = np.degrees(np.arccos(np.clip(np.abs(T @ pole), 0.0, 1.0))) < POLE_CONE_DEG
+        [(a, b)] = _runs(cone)
+        best = _nearest_branch(m, T[b + 1], start[a - 1, o])
         np.testing.assert_allclose(start[b + 1], best, atol=1e-9)
-        assert np.all(np.abs(np.diff(start[b + 1:, o])) < np.radians(10.0))  # continues on that branch
+        if kind == "AC-table":
+            assert abs(start[b + 1, o] - exact[b + 1, o]) > np.radians(90.0)  # the branch did change
+        got = m.tool_axis_np(start[b + 1:, 0], start[b + 1:, 1])
+        np.testing.assert_allclose(got, T[b + 1:], atol=1e-9)
+        assert np.all(np.abs(np.diff(start[b + 1:], axis=0)) < np.radians(10.0))  # continues on that branch
 
 
 def test_the_warm_start_leaves_the_angles_given_untouched():
@@ -229,3 +260,40 @@ def test_points_at_the_same_instant_give_an_infinite_peak_speed_without_a_warnin
         warnings.simplefilter("error")
         [p] = find_passages(m, T, np.zeros(len(T), int), t, angles)
     assert p.outer_peak_speed == pytest.approx(np.degrees(0.1 / 0.01), rel=1e-12)
+
+
+def test_the_peak_speed_is_taken_over_the_passage_only():
+    """A fast outer axis before the passage (1 rad per 10 ms step) does not count: the peak is that
+    of the passage and its two neighbours (0.05 rad per step, 5 rad/s)."""
+    m = load_machine(None)
+    o = m.outer_index
+    T = _row(3.0)
+    [(a, b)] = _runs(_cone(T))
+    t = np.arange(len(T)) * 0.01
+    step = np.where(np.arange(len(T)) < a - 2, 1.0, 0.05)
+    angles = np.zeros((len(T), 2))
+    angles[:, o] = np.r_[0.0, np.cumsum(step[:-1])]
+    [p] = find_passages(m, T, np.zeros(len(T), int), t, angles)
+    assert p.outer_peak_speed == pytest.approx(np.degrees(5.0), rel=1e-12)
+
+
+def test_a_one_point_row_in_the_cone_has_no_speed():
+    m = load_machine(None)
+    T = _row(1.0, n=1, span_deg=0.0)
+    [p] = find_passages(m, T, np.zeros(1, int), np.zeros(1), np.zeros((1, 2)))
+    assert (p.first, p.last, p.outer_turn_deg, p.outer_peak_speed) == (0, 0, 0.0, 0.0)
+
+
+def test_a_passage_ending_one_point_before_the_row_end_turns_toward_the_last_point():
+    """The row's last point is the first outside the cone: the outer axis turns, linearly in time,
+    from the point before the passage to that last point (it is not held)."""
+    m = load_machine(None)
+    o = m.outer_index
+    full = _row(2.0)
+    [(a, b)] = _runs(_cone(full))
+    T = full[:b + 2]
+    t = _uneven_times(len(T))
+    start = pole_start(m, T, np.zeros(len(T), int), t, _exact(m, T))
+    want = np.interp(t[a:b + 1], [t[a - 1], t[b + 1]], [start[a - 1, o], start[b + 1, o]])
+    np.testing.assert_allclose(start[a:b + 1, o], want, atol=1e-12)
+    assert abs(start[b + 1, o] - start[a - 1, o]) > np.radians(5.0)
