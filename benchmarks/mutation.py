@@ -1183,6 +1183,10 @@ _equivalent(_POLE, "pole_start", [
     "ta = t[s0 + a - 1] if before is not None else t[s0 + a] -> "
     "ta = t[s0 + a - 1] if before is not None else t[s0 - a]"],
     "before is None exactly when a = 0, and then s0 - a = s0 + a")
+_equivalent(_POLE, "_shorter_exit", [
+    "if inside and abs(c[o] - outer0) < dist - 1e-9: -> if inside and abs(c[o] - outer0) <= dist - 1e-9:"],
+    "< and <= differ only for a candidate exactly 1e-9 rad nearer than the current one, a float tie the 1e-9 "
+    "margin exists to avoid (either choice is then as near)")
 
 _ISO = "camsmooth/diagnosis/iso230.py"
 _equivalent(_ISO, "write_comp_file", [
