@@ -29,6 +29,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
+from numba import njit
 
 from camsmooth.geometry.paths import _row_runs
 from camsmooth.machine.kinematics import Machine
@@ -84,6 +85,42 @@ def _polyline_distance(pts: np.ndarray, curve: np.ndarray) -> np.ndarray:
     t = np.clip(np.einsum("bpsk,bsk->bps", rel, d) / dd[:, None, :], 0.0, 1.0)
     close = rel - t[..., None] * d[:, None, :, :]
     return np.sqrt(np.einsum("bpsk,bpsk->bps", close, close).min(axis=2))
+
+
+@njit(cache=True)
+def _all_within(pts: np.ndarray, curve: np.ndarray, frac: np.ndarray,
+                tolerance: float) -> np.ndarray:  # pragma: no cover - compiled
+    """(B,) bool: every point pts[b] (B, P, 3) within ``tolerance`` of the polyline curve[b] (B, S, 3),
+    as ``_polyline_distance(pts, curve).max(axis=1) <= tolerance``, but each point stops at the
+    first segment within reach, searched outward from the segment at its fraction frac (P,) of the
+    polyline, and a block stops at its first point out of reach."""
+    nb, npts, ns = pts.shape[0], pts.shape[1], curve.shape[1] - 1
+    tol2 = tolerance * tolerance
+    out = np.ones(nb, np.bool_)
+    for b in range(nb):
+        for p in range(npts):
+            s0 = min(max(int(frac[p] * ns), 0), ns - 1)
+            found = False
+            for step in range(2 * ns):
+                s = s0 + (step + 1) // 2 if step % 2 else s0 - step // 2
+                if s < 0 or s >= ns:
+                    continue
+                d0 = curve[b, s + 1, 0] - curve[b, s, 0]
+                d1 = curve[b, s + 1, 1] - curve[b, s, 1]
+                d2 = curve[b, s + 1, 2] - curve[b, s, 2]
+                r0 = pts[b, p, 0] - curve[b, s, 0]
+                r1 = pts[b, p, 1] - curve[b, s, 1]
+                r2 = pts[b, p, 2] - curve[b, s, 2]
+                dd = max(d0 * d0 + d1 * d1 + d2 * d2, 1e-300)
+                t = min(max((r0 * d0 + r1 * d1 + r2 * d2) / dd, 0.0), 1.0)
+                e0, e1, e2 = r0 - t * d0, r1 - t * d1, r2 - t * d2
+                if e0 * e0 + e1 * e1 + e2 * e2 <= tol2:
+                    found = True
+                    break
+            if not found:
+                out[b] = False
+                break
+    return out
 
 
 def _row_bounds(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -194,7 +231,8 @@ def block_reach(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarr
         curve = tool_tips(machine, q[a][:, None, :] + s[None, :, None] * (q[bb] - q[a])[:, None, :])
         pts = np.concatenate([tip[a[:, None] + np.arange(1, k)[None, :]],
                               mid[a[:, None] + np.arange(0, k)[None, :]]], axis=1)
-        good = _polyline_distance(pts, curve).max(axis=1) <= tolerance
+        frac = np.r_[np.arange(1, k) / k, (np.arange(k) + 0.5) / k]
+        good = _all_within(pts, curve, frac, tolerance)
         ok[a, k - 1] = good
         alive[a[~good]] = False  # a longer block from a is not tried once one fails
     return ok
