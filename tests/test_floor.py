@@ -212,3 +212,25 @@ def test_smooth_prints_the_floor_beside_the_prediction(blade_rows, capsys):
     assert "least time on linuxcnc" in html
     for v in blade_rows.methods["nlp"].metrics.row_controller_floor_s:
         assert f"<td>{v:.4g}</td>" in html
+
+
+def test_the_block_check_answers_as_the_distance_to_every_segment():
+    """block_reach's compiled check (each point stops at the first segment within reach) against the
+    distance of every point to every segment by brute force: random polylines and points around
+    them, tolerances around the largest distance."""
+    from camsmooth.controller.blocks import _all_within
+
+    rng = np.random.default_rng(7)
+    curve = np.cumsum(rng.normal(0, 1.0, (400, 17, 3)), axis=1)
+    s = rng.integers(0, 16, (400, 9))
+    f = rng.uniform(0, 1, (400, 9, 1))
+    a = np.take_along_axis(curve, s[..., None], axis=1)
+    b = np.take_along_axis(curve, s[..., None] + 1, axis=1)
+    pts = a + f * (b - a) + rng.normal(0, 0.05, (400, 9, 3))
+    rel = pts[:, :, None, :] - curve[:, None, :-1, :]
+    d = np.diff(curve, axis=1)[:, None]
+    t = np.clip((rel * d).sum(-1) / (d * d).sum(-1), 0, 1)
+    worst = np.linalg.norm(rel - t[..., None] * d, axis=-1).min(axis=2).max(axis=1)
+    frac = rng.uniform(0, 1, 9)  # where the search starts does not change the answer
+    for tol in np.quantile(worst, [0.1, 0.5, 0.9]):
+        assert np.array_equal(_all_within(pts, curve, frac, tol), worst <= tol)
