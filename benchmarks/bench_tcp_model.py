@@ -43,10 +43,10 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from bench_controller import TOLERANCE, smoothed  # noqa: E402
 
+from camsmooth.constants import DEFAULT_SAFE_HEIGHT_MM  # noqa: E402
 from camsmooth.controller import PATH_TOLERANCE_SHARE, LinuxCNCPlanner  # noqa: E402
 from camsmooth.controller.blocks import BLOCK_TOLERANCE_SHARE, MAX_BLOCK_POINTS, tip_deviation  # noqa: E402
 from camsmooth.controller.linuxcnc import SERVO_PERIOD_S, canon_segments  # noqa: E402
-from camsmooth.io.gcode import DEFAULT_SAFE_HEIGHT_MM  # noqa: E402
 from camsmooth.smoothing.feed import axis_limits  # noqa: E402
 
 FEED = 2000.0
