@@ -169,3 +169,40 @@ def test_tool_vectors_are_normalised_and_a_zero_one_is_refused_with_its_line(tmp
     p.write_text("%\nO1\nG21 G90\nG43.5 H1\nG0 X0 Y0 Z10\nG1 X1 Y0 Z0 I0 J0 K0 F100\nM30\n%\n")
     with pytest.raises(InputError, match=r"v\.nc, line 6: tool vector \(0, 0, 0\) is not a direction"):
         read_posted(p)
+
+
+# ---- operations, tools, cycles and what is named ------------------------------------------------------------
+_OPS = ("%\nO1\nG21 G90 G17\nT1 M6\n(OPERATION: ROUGH)\nG0 X0 Y0 Z5\nG1 Z0 F100\nG1 X10\nG64\n(OPERATION: FINISH)\n"
+        "G1 X20\nG64\nG1 X30\nG81 X0 Y0 Z-5 R2 F50\nX10\nX20\nG80\nG1 X40\nM30\n%\n")
+
+
+def test_operations_keep_the_tool_and_modal_cycles_collect_their_holes(tmp_path):
+    """Line numbers of _OPS: T1 on 4, operations on 5 and 10, G64 on 9 and 12, a modal G81 on 14
+    with holes repeated on 15 and 16. Both operations cut with T1; the three holes are one cycle
+    of operation FINISH (lines 14, 15, 16); the G64s are named once with their lines."""
+    p = tmp_path / "o.nc"
+    p.write_text(_OPS)
+    prog = read_posted(p)
+    assert [tp.name for tp in prog.toolpaths] == ["ROUGH", "FINISH"]
+    assert [tp.tool.name for tp in prog.toolpaths] == ["T1", "T1"]
+    assert [(tp.start, tp.stop) for tp in prog.toolpaths] == [(0, 3), (3, 6)]
+    [c] = prog.cycles
+    assert (c.code, c.lines, c.op_name) == ("G81", [14, 15, 16], "FINISH")
+    np.testing.assert_array_equal(c.holes, [[0, 0, -5.0], [10.0, 0, -5.0], [20.0, 0, -5.0]])
+    assert f"{p}: read without moving the tool path: G64 (lines 9, 12)" in prog.warnings
+    assert f"{p}, line 14: canned cycle G81 (3 holes) in operation 'FINISH': listed, not smoothed" in prog.warnings
+
+
+def test_a_construct_named_on_many_lines_lists_eight_and_the_count(tmp_path):
+    body = "".join(f"G64\nG1 X{k + 1}\n" for k in range(10))
+    p = tmp_path / "n.nc"
+    p.write_text("%\nO1\nG21 G90\nG0 X0 Y0 Z0\nG1 X0.5 F100\n" + body + "M30\n%\n")
+    [w] = [w for w in read_posted(p).warnings if "G64" in w]
+    assert w.endswith("G64 (lines 6, 8, 10, 12, 14, 16, 18, 20, ... (10 in all))")
+
+
+def test_skip_carries_its_reason():
+    from camsmooth.post.core import Skip
+
+    exc = Skip("loops are not executed")
+    assert exc.reason == "loops are not executed" and str(exc) == "loops are not executed"
