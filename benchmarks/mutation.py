@@ -1224,6 +1224,23 @@ _equivalent(_WORDS, "evaluate", [
     r'text = re.sub(r"\bMOD\b", "%", text, flags=re.I) -> text = re.sub(r"\bmod\b", "%", text, flags=re.I)'],
     "the pattern is matched ignoring case (re.I): MOD and mod are the same pattern")
 
+_CORE = "camsmooth/post/core.py"
+_equivalent(_CORE, "Builder._fid_now", ["self._current(0).frames.add(fid) -> self._current(None).frames.add(fid)"],
+            "called from _append after _current(line) made sure an operation exists: the line argument, used only "
+            "to start a first operation, is never read here")
+_equivalent(_CORE, "Builder.move", ["self._nblock += 1 -> self._nblock += 2"],
+            "block numbers are labels: only compared for equality and used as bincount bins / dict keys, so "
+            "numbering them 2, 4, 6 gives the same block lengths and feeds")
+_equivalent(_CORE, "Builder._append", [
+    "self._op.append(len(self.ops) - 1 if op is self.ops[-1] else self.ops.index(op)) -> "
+    "self._op.append(len(self.ops) - 1 if op is not self.ops[-1] else self.ops.index(op))"],
+    "_current always returns the last operation, so op is self.ops[-1] and both branches give len(ops) - 1")
+_equivalent(_CORE, "Builder.finish", [
+    'q = q * np.asarray(getattr(machine, "linuxcnc_sense", (1.0, 1.0)), float) -> '
+    'q = q * np.asarray(getattr(machine, "linuxcnc_sense", (2.0, 1.0)), float)'],
+    "every Machine has linuxcnc_sense (a property of camsmooth.machine.kinematics.Machine): the default is never "
+    "taken")
+
 # mutmut's exit codes; -9 is the SIGKILL its runner sends one second after the CPU limit's SIGXCPU (a
 # timeout that ignored SIGXCPU), -11 a crash of the test process: the tests did not pass either way
 STATUS = {1: "killed", 3: "killed", 0: "survived", 5: "no tests", 33: "no tests", 34: "skipped",
