@@ -49,7 +49,6 @@ from camsmooth.geometry.frames import axis_from_lead_tilt, local_frames  # noqa:
 from camsmooth.geometry.paths import CCPath, zigzag_path  # noqa: E402
 from camsmooth.geometry.surfaces import load_surface  # noqa: E402
 from camsmooth.io.ccpath import read_cc_csv  # noqa: E402
-from camsmooth.io.gcode import write_gcode  # noqa: E402
 from camsmooth.io.program import load_program  # noqa: E402
 from camsmooth.machine.kinematics import (  # noqa: E402
     DEFAULT_MACHINE_TOML,
@@ -59,6 +58,7 @@ from camsmooth.machine.kinematics import (  # noqa: E402
 )
 from camsmooth.smoothing.cam import cam_program  # noqa: E402
 from camsmooth.smoothing.pipeline import smooth  # noqa: E402
+from camsmooth.smoothing.posting import write_gcode  # noqa: E402
 
 TOLERANCE = 0.005
 

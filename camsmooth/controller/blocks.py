@@ -1,7 +1,7 @@
 """The blocks a program is written in, and what a controller makes of them.
 
 Two steps between the planned time law (camsmooth.smoothing.feed, what the axes allow) and the
-G-code (camsmooth.io.gcode):
+G-code (camsmooth.post.writer):
 
 1. ``place``: fewer, longer blocks where the axes are smooth. A controller that plans each
    block on its own (LinuxCNC blends five-axis blocks parabolically, camsmooth.controller.linuxcnc)

@@ -478,7 +478,7 @@ class LinuxCNCPlanner:
 
     servo_period: s; v_limit: [TRAJ] MAX_LINEAR_VELOCITY in mm/s (None: the fastest linear
     axis, as camsmooth's simulation configuration sets it); tolerance: the program's ``G64 P``
-    (mm; camsmooth writes half the user's tolerance, camsmooth.io.gcode).
+    (mm; camsmooth writes half the user's tolerance, camsmooth.post.writer).
     """
 
     servo_period: float = SERVO_PERIOD_S

@@ -4,6 +4,6 @@ format behind one entry point).
 - table: the one validated CSV table reader (rows, columns, delimiters, BOM, speed)
 - ccpath: CC path CSV (CCPath); clcsv: CL CSV; apt: APT CLDATA / NX CLSF; program: CLProgram,
   Tool, ToolPath and ``load_program`` (format detected from the content); G-code in every dialect,
-  read and written, is camsmooth.post (gcode: the names that lived here, kept importable)
+  read and written, is camsmooth.post
 - output: result CSV; atomic: atomic writes
 """
