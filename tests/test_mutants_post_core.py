@@ -206,3 +206,17 @@ def test_skip_carries_its_reason():
 
     exc = Skip("loops are not executed")
     assert exc.reason == "loops are not executed" and str(exc) == "loops are not executed"
+
+
+def test_an_operation_of_cycles_only_is_an_empty_tool_path_and_rows_start_at_zero(tmp_path):
+    """A program that starts cutting without a rapid: its first feed point opens row 0; an operation
+    holding only a drilling cycle is a tool path of kind 'cycle' without points (start = stop), and
+    the operation after it opens the next row."""
+    p = tmp_path / "d.nc"
+    p.write_text("%\nO1\nG21 G90 G17\nT1 M6\n(OPERATION: ROUGH)\nG1 X0 Y0 Z5 F100\nG1 X10\n(OPERATION: DRILL)\n"
+                 "G81 X0 Y0 Z-5 R2 F50\nG80\n(OPERATION: FINISH)\nG1 X20\nG1 X30\nM30\n%\n")
+    prog = read_posted(p)
+    assert [(tp.name, tp.start, tp.stop, tp.kind) for tp in prog.toolpaths] == [
+        ("ROUGH", 0, 2, "3-axis"), ("DRILL", 2, 2, "cycle"), ("FINISH", 2, 4, "3-axis")]
+    assert prog.rows.tolist() == [0, 0, 1, 1]
+    assert prog.line.tolist() == [6, 7, 12, 13]
