@@ -1240,6 +1240,10 @@ _equivalent(_CORE, "Builder.finish", [
     'q = q * np.asarray(getattr(machine, "linuxcnc_sense", (2.0, 1.0)), float)'],
     "every Machine has linuxcnc_sense (a property of camsmooth.machine.kinematics.Machine): the default is never "
     "taken")
+_equivalent(_CORE, "Builder.finish", [
+    "tp_id = np.full(len(idx), -1, np.int64) -> tp_id = np.full(len(idx), -1, )",
+    "tp_id = np.full(len(idx), -1, np.int64) -> tp_id = np.full(len(idx), -1, None)"],
+    "an integer fill value gives numpy's default integer (int64 here): the same array")
 
 # mutmut's exit codes; -9 is the SIGKILL its runner sends one second after the CPU limit's SIGXCPU (a
 # timeout that ignored SIGXCPU), -11 a crash of the test process: the tests did not pass either way
