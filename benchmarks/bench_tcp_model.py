@@ -47,7 +47,7 @@ from camsmooth.constants import DEFAULT_SAFE_HEIGHT_MM  # noqa: E402
 from camsmooth.controller import PATH_TOLERANCE_SHARE, LinuxCNCPlanner  # noqa: E402
 from camsmooth.controller.blocks import BLOCK_TOLERANCE_SHARE, MAX_BLOCK_POINTS, tip_deviation  # noqa: E402
 from camsmooth.controller.linuxcnc import SERVO_PERIOD_S, canon_segments  # noqa: E402
-from camsmooth.smoothing.feed import axis_limits  # noqa: E402
+from camsmooth.machine.kinematics import axis_limits  # noqa: E402
 
 FEED = 2000.0
 MACHINES = {"blade": ROOT / "surfaces" / "trunnion_ab_machine.toml", "dome": None}

@@ -54,8 +54,7 @@ from camsmooth.controller.linuxcnc_sim import (  # noqa: E402
     row_samples,
     simulate,
 )
-from camsmooth.machine.kinematics import PostConfig  # noqa: E402
-from camsmooth.smoothing.feed import axis_limits  # noqa: E402
+from camsmooth.machine.kinematics import PostConfig, axis_limits  # noqa: E402
 from camsmooth.smoothing.posting import write_gcode  # noqa: E402
 
 TRT = Path("/usr/share/doc/linuxcnc/examples/sample-configs/sim/axis/vismach/5axis/table-rotary-tilting")

@@ -372,7 +372,7 @@ def _least_time_brute_force(m, q, tip, feed_mm_s, ok):
     """Every choice of block ends of a short row, the same block cost as least_row_times."""
     import itertools
 
-    from camsmooth.smoothing.feed import axis_limits
+    from camsmooth.machine.kinematics import axis_limits
 
     vmax, amax, _ = axis_limits(m)
     n = len(q)

@@ -26,8 +26,7 @@ from camsmooth.controller.blocks import (
     tip_deviation,
 )
 from camsmooth.controller.blocks import tool_tips as fk_tips
-from camsmooth.machine.kinematics import DEFAULT_MACHINE_TOML, machine_from_dict
-from camsmooth.smoothing.feed import axis_limits
+from camsmooth.machine.kinematics import DEFAULT_MACHINE_TOML, axis_limits, machine_from_dict
 
 TOL = 0.005
 FEED = 2000.0

@@ -16,8 +16,8 @@ import pytest
 
 from benchmarks.bench_jerk import helix, helix_function, machine
 from benchmarks.bench_jerk import reference_time as direct_nlp_time
-from camsmooth.machine.kinematics import Machine
-from camsmooth.smoothing.feed import axis_limits, finite_difference_rates, plan_row, row_path
+from camsmooth.machine.kinematics import Machine, axis_limits
+from camsmooth.smoothing.feed import finite_difference_rates, plan_row, row_path
 from camsmooth.smoothing.jerk import jerk_law, law_rates
 
 THETA = np.pi  # rad of helix

@@ -45,8 +45,7 @@ import numpy as np
 from numba import njit
 
 from camsmooth.controller.blocks import _row_bounds, block_reach
-from camsmooth.machine.kinematics import Machine
-from camsmooth.smoothing.feed import axis_limits
+from camsmooth.machine.kinematics import Machine, axis_limits
 
 __all__ = ["LinuxCNCPlanner", "Segments", "canon_segments", "least_row_times", "SERVO_PERIOD_S", "linuxcnc_sense"]
 

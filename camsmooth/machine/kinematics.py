@@ -789,6 +789,15 @@ def machine_from_header(kind: str | None, pivot: float | None, centre: Sequence[
     return preset_machine(kind, pivot, centre, f"{kind} from the program header", post=base.post)
 
 
+def axis_limits(machine: Machine) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(vmax, amax, jmax) per joint in ``machine.joint_names`` order (X Y Z: mm/s, mm/s^2, mm/s^3;
+    the rotary axes: rad/s, rad/s^2, rad/s^3); inf where the machine gives no limit."""
+    lims = [machine.limits.get(a) for a in machine.joint_names]
+    out = [np.array([getattr(lim, k, np.inf) if lim is not None else np.inf for lim in lims], float)
+           for k in ("vmax", "amax", "jmax")]
+    return out[0], out[1], out[2]
+
+
 def nominal_machine(letters: Sequence[str]) -> Machine:
     """The nominal machine a program that names only its rotary letters is read on: A B the default
     AB head; A C and B C the preset trunnion of those axes, centred at the origin, with travel and

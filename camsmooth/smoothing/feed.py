@@ -61,7 +61,7 @@ from scipy.interpolate import CubicSpline
 
 from camsmooth.errors import InputError
 from camsmooth.geometry.paths import _row_runs
-from camsmooth.machine.kinematics import Machine
+from camsmooth.machine.kinematics import Machine, axis_limits
 
 #: joint order of ``q`` (X Y Z mm: the linear axes; "A" "B": the machine's first and second rotary
 #: axis, rad, ``Machine.rotary``; names in CONSTRAINTS are mapped by ``machine_label``)
@@ -149,15 +149,6 @@ def limiting_name(limit_time: np.ndarray) -> str:
     """The name in CONSTRAINTS with the largest time, 'none' when all are 0."""
     limit_time = np.asarray(limit_time, float)
     return CONSTRAINTS[int(np.argmax(limit_time))] if limit_time.size and limit_time.max() > 0 else "none"
-
-
-def axis_limits(machine: Machine) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(vmax, amax, jmax) per joint in ``machine.joint_names`` order (X Y Z: mm/s, mm/s^2, mm/s^3;
-    the rotary axes: rad/s, rad/s^2, rad/s^3); inf where the machine gives no limit."""
-    lims = [machine.limits.get(a) for a in machine.joint_names]
-    out = [np.array([getattr(lim, k, np.inf) if lim is not None else np.inf for lim in lims], float)
-           for k in ("vmax", "amax", "jmax")]
-    return out[0], out[1], out[2]
 
 
 def _check_row(q: np.ndarray, tip: np.ndarray, feed: np.ndarray) -> None:
