@@ -167,7 +167,8 @@ TARGETS: dict[str, Target] = {
         "tests/test_mutants_significance.py", "tests/test_oracles_hand.py",
         "tests/test_diagnosis_issue20.py::test_batch_means_standard_error")),
     "apt": Target(("camsmooth/io/apt.py",), (
-        "tests/test_apt_records.py", "tests/test_apt_helix.py", "tests/test_apt_corpus.py", "tests/test_formats.py",
+        "tests/test_mutants_apt.py", "tests/test_apt_records.py", "tests/test_apt_helix.py", "tests/test_apt_corpus.py",
+        "tests/test_formats.py",
         "tests/test_fuzz_readers.py", "tests/test_invariants.py", "-k",
         "not pole and not passage and not c_follows and not turned_about_c and not clear_region and not scaling "
         "and not feed_drop"), sample=100),
