@@ -239,7 +239,8 @@ def _goto_numbers(rec: _Record, file: str, what: str, args: list[str]) -> list[f
         v = [float(a) for a in args]
     except ValueError:
         v = []
-    if len(v) in (3, 6) and max(map(abs, v)) <= MAX_ABS:  # NaN fails the comparison too
+    # every number compared (NaN fails the comparison); max() would skip a NaN after the first number
+    if len(v) in (3, 6) and all(abs(x) <= MAX_ABS for x in v):
         return v
     return _numbers(rec, file, what, (3, 6), args)
 
