@@ -7,6 +7,7 @@ block's tip path, a tip that does not move taking its neighbour's feed)."""
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -220,3 +221,24 @@ def test_an_operation_of_cycles_only_is_an_empty_tool_path_and_rows_start_at_zer
         ("ROUGH", 0, 2, "3-axis"), ("DRILL", 2, 2, "cycle"), ("FINISH", 2, 4, "3-axis")]
     assert prog.rows.tolist() == [0, 0, 1, 1]
     assert prog.line.tolist() == [6, 7, 12, 13]
+
+
+def test_inverse_time_blocks_that_only_turn_a_rotary_axis_have_no_neighbour_to_borrow_from(tmp_path):
+    """TCP, G93, the tip never moves: no block has a tip feed to lend, so each keeps its own, the
+    tip path (0 mm) times F: 0 mm/min (and the reader does not fail looking past the last point)."""
+    prog = _read(tmp_path, "G43.4 H1\nG0 X0 Y0 Z0 A0\nG93\nG1 A10 F2\nG1 A20 F2\n")
+    assert prog.line.tolist() == [5, 7, 8]
+    assert np.isnan(prog.feed[0]) and prog.feed[1:].tolist() == [0.0, 0.0]
+
+
+def test_a_program_of_cycles_only_lists_the_first_ten(tmp_path):
+    """Eleven drilling cycles (each ended by G80) and no cutting move: an InputError listing the
+    first ten (lines 5, 7, ..., 23), not the eleventh (line 25)."""
+    body = "".join(f"G81 X{k} Y0 Z-5 R2 F50\nG80\n" for k in range(11))
+    p = tmp_path / "c.nc"
+    p.write_text("%\nO1\nG21 G90 G17\nG0 X0 Y0 Z5\n" + body + "M30\n%\n")
+    with pytest.raises(InputError) as exc:
+        read_posted(p)
+    msg = str(exc.value)
+    assert "no cutting move: only canned cycles (" in msg
+    assert [int(x) for x in re.findall(r"G81 line (\d+) \(1 holes\)", msg)] == list(range(5, 25, 2))
