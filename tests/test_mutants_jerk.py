@@ -121,3 +121,57 @@ def test_limit_ratios():
     empty = Rates(t=np.zeros(0), s=np.zeros(0), sd=np.zeros(0), velocity=np.zeros((0, 5)),
                   acceleration=np.zeros((0, 5)), jerk=np.zeros((0, 5)), tip_speed=np.zeros(0), feed=np.zeros(0))
     assert empty.ratio(vmax, amax, jmax) == (0.0, 0.0, 0.0, 0.0)
+
+
+def test_interval_constraints_are_the_derivatives_of_the_composed_motion():
+    """The NLP's per-interval rows against q(s(t)) composed as polynomials (numpy.polynomial, exact):
+    s(t) = s_k + y t + z t^2 / 2 + w t^3 / 6 on [0, h], each axis q(s) a cubic about s_k with
+    q' = a1, q'' = a2, q''' = c3 there. Rows: the interval's length and the continuity of s', s''
+    (all 0 for a consistent end), then q'' at t = 0, q''' at t = 0 and t = h, q'' and q''' at t = h / 2,
+    each times its reciprocal limit, and s'(h / 2) over the speed bound; variables scaled by Y Z W H."""
+    from numpy.polynomial import polynomial as P
+
+    from camsmooth.smoothing.jerk import _interval_function
+
+    rng = np.random.default_rng(5)
+    y, z, w, h = 1.3, -0.7, 2.1, 0.4
+    a1, a2, c3 = rng.normal(size=5), rng.normal(size=5), rng.normal(size=5)
+    inv_a, inv_j = rng.uniform(0.5, 2.0, 5), rng.uniform(0.5, 2.0, 5)
+    inv_ym, (Y, Z, W, H) = 0.8, (2.0, 0.5, 4.0, 0.1)
+    st = np.array([0.0, y, z / 2, w / 6])                        # s(t) - s_k
+    ds = P.polyval(h, st)
+    yk1, zk1 = P.polyval(h, P.polyder(st)), P.polyval(h, P.polyder(st, 2))
+    b1, b2 = a1 + a2 * ds + c3 * ds ** 2 / 2, a2 + c3 * ds
+    par = np.r_[ds, a1, a2, b1, b2, c3, inv_a, inv_j, inv_ym, Y, Z, W, H]
+    out = np.asarray(_interval_function()(y / Y, z / Z, yk1 / Y, zk1 / Z, w / W, h / H, par)).ravel()
+    assert out.shape == (29,)
+    np.testing.assert_allclose(out[:3], 0.0, atol=1e-12)
+    acc0, jerk0, jerk1, accm, jerkm = (np.empty(5) for _ in range(5))
+    for j in range(5):
+        qs = np.array([0.0, a1[j], a2[j] / 2, c3[j] / 6])       # q(s) - q(s_k) as a polynomial in s - s_k
+        qt = np.zeros(1)
+        for k in (1, 2, 3):
+            qt = P.polyadd(qt, qs[k] * P.polypow(st, k))
+        d2, d3 = P.polyder(qt, 2), P.polyder(qt, 3)
+        acc0[j], jerk0[j], jerk1[j] = P.polyval(0.0, d2), P.polyval(0.0, d3), P.polyval(h, d3)
+        accm[j], jerkm[j] = P.polyval(h / 2, d2), P.polyval(h / 2, d3)
+    np.testing.assert_allclose(out[3:8], acc0 * inv_a, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(out[8:13], jerk0 * inv_j, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(out[13:18], jerk1 * inv_j, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(out[18:23], accm * inv_a, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(out[23:28], jerkm * inv_j, rtol=1e-10, atol=1e-12)
+    assert out[28] == pytest.approx(P.polyval(h / 2, P.polyder(st)) * inv_ym, rel=1e-12)
+    # an end that does not continue the interval shows in the rows of s' and s''
+    off = np.asarray(_interval_function()(y / Y, z / Z, (yk1 + 0.2) / Y, (zk1 - 0.1) / Z, w / W, h / H, par)).ravel()
+    assert off[1] == pytest.approx(-0.2 / Y) and off[2] == pytest.approx(0.1 / Z)
+
+
+def test_the_dense_check_has_nothing_left_to_slow_on_the_reference_helix():
+    """IPOPT plans against every limit times (1 - MARGIN) with the nodes' bounds right, so the dense
+    check of the plan finds every limit met and leaves the law as solved (slowdown 1): the helix of
+    tests/test_jerk.py (benchmarks/bench_jerk.py) at jmax 2000 deg/s^3, 20000 mm/s^3."""
+    from tests.test_jerk import solved
+
+    *_, rp, law = solved()
+    assert law.converged and law.slowdown == 1.0
+    assert max(law_rates(rp, law).ratio(rp.vmax, rp.amax, rp.jmax)) <= 1.0
