@@ -1246,6 +1246,12 @@ _equivalent(_CORE, "Builder.finish", [
     "tp_id = np.full(len(idx), -1, np.int64) -> tp_id = np.full(len(idx), -1, None)"],
     "an integer fill value gives numpy's default integer (int64 here): the same array")
 
+_JERK = "camsmooth/smoothing/jerk.py"
+_equivalent(_JERK, "_interval_function", [
+    'args = [ca.SX.sym(k) for k in ("yk", "zk", "yk1", "zk1", "w", "h")] -> '
+    'args = [ca.SX.sym(k) for k in ("yk", "zk", "yk1", "zk1", "w", "XXhXX")]'],
+    "a CasADi symbol's name is a label: the function's inputs are matched by position")
+
 # mutmut's exit codes; -9 is the SIGKILL its runner sends one second after the CPU limit's SIGXCPU (a
 # timeout that ignored SIGXCPU), -11 a crash of the test process: the tests did not pass either way
 STATUS = {1: "killed", 3: "killed", 0: "survived", 5: "no tests", 33: "no tests", 34: "skipped",
