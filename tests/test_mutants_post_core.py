@@ -242,3 +242,12 @@ def test_a_program_of_cycles_only_lists_the_first_ten(tmp_path):
     msg = str(exc.value)
     assert "no cutting move: only canned cycles (" in msg
     assert [int(x) for x in re.findall(r"G81 line (\d+) \(1 holes\)", msg)] == list(range(5, 25, 2))
+
+
+def test_still_blocks_at_a_row_start_take_the_first_feed_after_them(tmp_path):
+    """TCP, G93: two A-only blocks (tip still) and then moves of 10 mm at F3, F4, F5 (30, 40, 50
+    mm/min): both still blocks take 30 mm/min, the feed of the first move after them."""
+    prog = _read(tmp_path, "G43.4 H1\nG0 X0 Y0 Z0 A0\nG93\nG1 A10 F2\nG1 A20 F2\nG1 X6 Y8 F3\nG1 X6 Y18 F4\n"
+                           "G1 X6 Y28 F5\n")
+    assert prog.line.tolist() == [5, 7, 8, 9, 10, 11]
+    np.testing.assert_allclose(prog.feed[1:], [30.0, 30.0, 30.0, 40.0, 50.0], rtol=1e-12)
