@@ -119,3 +119,13 @@ def test_a_dropped_unnamed_tool_path_is_named_by_the_line_that_opened_it(tmp_pat
     assert len(prog.toolpaths) == 1 and len(prog.tip) == 1
     [w] = [w for w in prog.warnings if "dropped" in w]
     assert w.startswith("tool path (unnamed, from line 5) dropped: ") and "line 7" in w
+
+
+def test_an_arc_after_a_dropped_tool_path_starts_from_the_last_point_kept(tmp_path):
+    """The second tool path (line 5 on) is dropped at line 6; the CIRCLE of the third starts from the
+    last point kept, (5, 0, 0), not from the dropped (7, 0, 0): every point on radius 5."""
+    prog = _read(tmp_path, "UNITS/MM\nFEDRAT/100,MMPM\nGOTO/5,0,0\nEND-OF-PATH\nGOTO/7,0,0\nGOTO/3,0,1e12\n"
+                           "END-OF-PATH\nCIRCLE/0,0,0,0,0,1,5,0.01,0.5,6,1\nGOTO/0,5,0\n")
+    assert [(tp.start, tp.stop) for tp in prog.toolpaths] == [(0, 1), (1, len(prog.tip))]
+    np.testing.assert_allclose(np.hypot(prog.tip[:, 0], prog.tip[:, 1]), 5.0, atol=1e-9)
+    assert any("from line 5) dropped" in w for w in prog.warnings)
