@@ -1252,6 +1252,30 @@ _equivalent(_JERK, "_interval_function", [
     'args = [ca.SX.sym(k) for k in ("yk", "zk", "yk1", "zk1", "w", "XXhXX")]'],
     "a CasADi symbol's name is a label: the function's inputs are matched by position")
 
+_APT = "camsmooth/io/apt.py"
+_equivalent(_APT, "_unit_tuple", [
+    "if n < 1e-12 or abs(n - 1.0) > UNIT_TOL: -> if n < 1e-12 or abs(n + 1.0) > UNIT_TOL:"],
+    "the fast check only decides whether _unit_axis checks the vector again (with the right test): always checking "
+    "gives the same verdict and message, more slowly")
+_equivalent(_APT, "_unit_axis", [
+    'with np.errstate(over="ignore", invalid="ignore"): -> with np.errstate(over="ignore", ):'],
+    "the norm of a 3-vector squares and sums: no 0 * inf or inf - inf, so no 'invalid' warning to silence "
+    "(NaN propagates silently)")
+_equivalent(_APT, "read_apt", [
+    "line = tp.line if tp.line is not None else first_line.get(id(tp), exc.line) -> "
+    "line = tp.line if tp.line is not None else first_line.get(id(tp), None)"],
+    "start_toolpath records every tool path's first line: the default is never taken")
+_equivalent(_APT, "_goto_numbers", [
+    "if len(v) in (3, 6) and all(abs(x) <= MAX_ABS for x in v): -> "
+    "if len(v) in (3, 6) and all(abs(x) < MAX_ABS for x in v):"],
+    "a value of exactly MAX_ABS then takes the checked parser, which accepts it too: the same numbers")
+for _k in ("float", "bool"):
+    _equivalent(_APT, "_State.flush", [
+        f"self.blocks.append((np.asarray(p, float), np.asarray(a, float), np.asarray(r, bool), -> "
+        f"self.blocks.append((np.asarray(p, float), np.asarray(a, {'' if _k == 'float' else 'float'}), "
+        f"np.asarray(r, {'bool' if _k == 'float' else 'None'}),"],
+        "the tuples hold Python floats (axes) and bools (rapid): numpy infers float64 and bool, the same arrays")
+
 # mutmut's exit codes; -9 is the SIGKILL its runner sends one second after the CPU limit's SIGXCPU (a
 # timeout that ignored SIGXCPU), -11 a crash of the test process: the tests did not pass either way
 STATUS = {1: "killed", 3: "killed", 0: "survived", 5: "no tests", 33: "no tests", 34: "skipped",
