@@ -57,9 +57,10 @@ def test_a_goto_beyond_the_largest_number_names_file_and_line(tmp_path):
 def test_a_record_continued_at_the_end_of_the_file_is_read(tmp_path):
     """The last record ends with '$' and nothing follows: it is still a record (here a malformed
     MSYS of 3 numbers, named on its line)."""
-    p = _write(tmp_path, "UNITS/MM\nFEDRAT/100,MMPM\nGOTO/0,0,0\nMSYS/0,0,0$\n")
-    with pytest.raises(InputError, match=r"line 4: malformed MSYS: expected 9 numbers, got 3"):
-        read_apt(p)
+    for last in ("MSYS/0,0,0$", "msys/0,0,0 $"):  # the major word upper-cased there too
+        p = _write(tmp_path, f"UNITS/MM\nFEDRAT/100,MMPM\nGOTO/0,0,0\n{last}\n")
+        with pytest.raises(InputError, match=r"line 4: malformed MSYS: expected 9 numbers, got 3"):
+            read_apt(p)
 
 
 def test_units_given_by_the_caller_override_the_file(tmp_path):
@@ -129,3 +130,42 @@ def test_an_arc_after_a_dropped_tool_path_starts_from_the_last_point_kept(tmp_pa
     assert [(tp.start, tp.stop) for tp in prog.toolpaths] == [(0, 1), (1, len(prog.tip))]
     np.testing.assert_allclose(np.hypot(prog.tip[:, 0], prog.tip[:, 1]), 5.0, atol=1e-9)
     assert any("from line 5) dropped" in w for w in prog.warnings)
+
+
+def test_a_circle_given_by_centre_and_axis_alone_takes_the_start_radius(tmp_path):
+    """CIRCLE/0,0,0,0,0,1 (SOLIDWORKS CAM: no radius): the radius is the start's distance from the
+    axis, 5 mm from (3, 4, 0); the motion is counter-clockwise about +Z from 53.13 deg to (-4, 3) at
+    143.13 deg: 90 deg of arc, every point at 5 mm."""
+    prog = _read(tmp_path, "UNITS/MM\nFEDRAT/100,MMPM\nGOTO/3,4,0\nCIRCLE/0,0,0,0,0,1\nGOTO/-4,3,0\n")
+    np.testing.assert_allclose(np.hypot(prog.tip[:, 0], prog.tip[:, 1]), 5.0, atol=1e-9)
+    ang = np.degrees(np.arctan2(prog.tip[:, 1], prog.tip[:, 0]))
+    assert np.all(np.diff(ang) > 0)
+    assert ang[0] == pytest.approx(math.degrees(math.atan2(4, 3))) and ang[-1] == pytest.approx(ang[0] + 90.0)
+
+
+@pytest.mark.parametrize("body, needle", [
+    ("GOTO/5,0,0\nCIRCLE/0,0,0,0,0,1,0,0.01,0.5,6,1\nGOTO/0,5,0\n", "line 4: CIRCLE radius must be > 0, got 0"),
+    ("GOTO/30,0,0\nMOVARC/0,0,0,0,0,2,30,ANGLE,90\nGOTO/0,30,0\n",
+     "line 4: MOVARC normal (0, 0, 2) is not a unit vector (length 2, allowed 1 +- 0.001)"),
+])
+def test_circle_and_movarc_refusals_name_what_and_where(tmp_path, body, needle):
+    p = _write(tmp_path, "UNITS/MM\nFEDRAT/100,MMPM\n" + body)
+    with pytest.raises(InputError) as exc:
+        read_apt(p)
+    assert f"{p}, {needle}" in str(exc.value)
+
+
+def test_a_units_record_without_a_word_is_named(tmp_path):
+    p = _write(tmp_path, "UNITS\nFEDRAT/100,MMPM\nGOTO/30,0,0\n")
+    with pytest.raises(InputError, match=r"line 1: unknown units 'UNITS' \(expected UNITS/MM or UNITS/INCHES\)"):
+        read_apt(p)
+
+
+def test_a_latin1_file_with_a_byte_order_mark_is_read(tmp_path):
+    """A UTF-8 byte order mark, then Latin-1 text ('Fraeser' with a Latin-1 umlaut): the records are
+    read (the BOM is not part of the first record) with a warning that the text was read as Latin-1."""
+    p = tmp_path / "b.apt"
+    p.write_bytes(b"\xef\xbb\xbfUNITS/INCHES\nPPRINT Fr\xe4ser\nFEDRAT/10,IPM\nGOTO/1,2,3\n")
+    prog = read_apt(p)
+    np.testing.assert_allclose(prog.tip, [[25.4, 50.8, 76.2]], atol=1e-12)
+    assert any("read as Latin-1" in w for w in prog.warnings)
