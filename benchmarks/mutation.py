@@ -1273,6 +1273,24 @@ _equivalent(_APT, "_goto_numbers", [
     "if len(v) in (3, 6) and all(abs(x) <= MAX_ABS for x in v): -> "
     "if len(v) in (3, 6) and all(abs(x) < MAX_ABS for x in v):"],
     "a value of exactly MAX_ABS then takes the checked parser, which accepts it too: the same numbers")
+_equivalent(_APT, "_State.flush", ["p, a, r, f, ln, x = zip(*self.pending, strict=True) -> "
+                                   "p, a, r, f, ln, x = zip(*self.pending, )"],
+            "every pending entry is a 6-tuple (add): the zip is never uneven")
+_equivalent(_APT, "read_apt", ['if rec.major == "END-OF-PATH": -> if rec.major == "XXEND-OF-PATHXX":'],
+            "an END-OF-PATH that ends a skip is then handled as a record: with no tool path open and no arc "
+            "pending (drop cleared both) it does nothing, as the skipped continue does")
+_equivalent(_APT, "read_apt", ["got = _bulk_goto(texts, st.scale, axis) if len(texts) >= 16 else None -> "
+                               "got = _bulk_goto(texts, st.scale, axis) if len(texts) >= 17 else None"],
+            "a run of exactly 16 GOTOs then takes the record-by-record path, which gives the same points "
+            "(tests/test_invariants.py checks the two paths agree): only the speed differs")
+_equivalent(_APT, "read_apt", [
+    "np.full(n, math.nan if rapid else feed), np.full(n, rec.line, np.int64), cur_xform) -> "
+    "np.full(n, math.nan if rapid else feed), np.full(n, rec.line, None), cur_xform)"],
+    "a Python int fill value gives numpy's default integer, int64 here: the same array")
+_equivalent(_APT, "_apt_text", [
+    'return raw.decode("latin-1").replace("\\r\\n", "\\n").replace("\\r", "\\n") -> '
+    'return raw.decode("LATIN-1").replace("\\r\\n", "\\n").replace("\\r", "\\n")'],
+    "codec names are case-insensitive")
 for _k in ("float", "bool"):
     _equivalent(_APT, "_State.flush", [
         f"self.blocks.append((np.asarray(p, float), np.asarray(a, float), np.asarray(r, bool), -> "
