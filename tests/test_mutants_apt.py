@@ -169,3 +169,37 @@ def test_a_latin1_file_with_a_byte_order_mark_is_read(tmp_path):
     prog = read_apt(p)
     np.testing.assert_allclose(prog.tip, [[25.4, 50.8, 76.2]], atol=1e-12)
     assert any("read as Latin-1" in w for w in prog.warnings)
+
+
+@pytest.mark.parametrize("record, needle", [
+    ("CUTTER/abc", "line 3: malformed CUTTER: 'abc' is not a number ('CUTTER/abc')"),
+    ("CUTTER/-5", "line 3: CUTTER: need diameter > 0 and 0 <= corner radius <= diameter / 2, got D = -5, R = 0"),
+])
+def test_a_bad_cutter_record_is_named(tmp_path, record, needle):
+    p = _write(tmp_path, f"UNITS/MM\nFEDRAT/100,MMPM\n{record}\nGOTO/0,0,0\n")
+    with pytest.raises(InputError) as exc:
+        read_apt(p)
+    assert f"{p}, {needle}" in str(exc.value)
+
+
+def test_a_tldata_record_without_words_keeps_an_unknown_tool(tmp_path):
+    prog = _read(tmp_path, "UNITS/MM\nFEDRAT/100,MMPM\nTLDATA\nGOTO/0,0,0\n")
+    assert prog.warnings == ["line 3: TLDATA/ kept without dimensions (only MILL is read)"]
+    assert prog.toolpaths[0].tool.kind == "unknown" and prog.toolpaths[0].tool.line == 3
+
+
+@pytest.mark.parametrize("n, listed", [(10, "lines 3, 4, 5, 6, 7, 8, 9, 10, 11, 12)"),
+                                       (11, "lines 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, ... (11 in all))")])
+def test_ignored_records_list_ten_lines_then_the_count(tmp_path, n, listed):
+    prog = _read(tmp_path, "UNITS/MM\nFEDRAT/100,MMPM\n" + "FOO/1\n" * n + "GOTO/0,0,0\n")
+    assert prog.warnings == [f"records ignored (not applied): FOO ({listed}"]
+
+
+def test_multax_off_while_tilted_is_named_once_with_the_count(tmp_path):
+    """Three MULTAX/OFF records (lines 4, 6, 8) while the axis is tilted: one warning naming the first
+    'and 2 more'."""
+    prog = _read(tmp_path, "UNITS/MM\nFEDRAT/100,MMPM\nTLAXIS/0,0.6,0.8\nMULTAX/OFF\nGOTO/0,0,0\nMULTAX/OFF\n"
+                           "GOTO/1,0,0\nMULTAX/OFF\nGOTO/2,0,0\n")
+    [w] = prog.warnings
+    assert w.startswith("MULTAX/OFF on line 4 (and 2 more) while the tool axis is tilted")
+    np.testing.assert_allclose(prog.axis, np.tile([0, 0.6, 0.8], (3, 1)), atol=1e-12)
