@@ -43,6 +43,17 @@ def test_a_long_row_keeps_one_interval_per_piece():
     assert piece[0] == 0 and piece[-1] == 198 and np.all(np.diff(piece) >= 0)
 
 
+def test_a_row_whose_pieces_do_not_divide_the_intervals_evenly():
+    """50 points (49 pieces): r = ceil(120 / 49) = 3 equal parts each, thirds of a piece: 147 + 1 + 24
+    nodes, every point a node."""
+    rp = SimpleNamespace(s=np.arange(50.0))
+    s, points, _ = _nodes(rp)
+    assert len(s) == 147 + 1 + 24
+    np.testing.assert_array_equal(s[points], rp.s)
+    k = points[4]
+    np.testing.assert_allclose(s[k:k + 4], [4.0, 4 + 1 / 3, 4 + 2 / 3, 5.0], atol=1e-12)
+
+
 def test_piece_feed_is_the_block_feed_recovered_from_the_point_bounds():
     """Blocks at 100, 50 and 80 mm/s: the point bounds are min(F_i, F_i+1) = 100, 50, 50, 80 at the
     points 0..4 of pieces (100, 50, 50, 80): each piece takes the larger of its two ends."""
