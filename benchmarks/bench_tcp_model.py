@@ -54,10 +54,7 @@ MACHINES = {"blade": ROOT / "surfaces" / "trunnion_ab_machine.toml", "dome": Non
 
 
 def _rotary(r) -> np.ndarray:
-    rot = getattr(r, "rotary", None)
-    if rot is not None and hasattr(rot, "values"):
-        return np.asarray(rot.values, float)
-    return np.column_stack([getattr(r, name) for name in ("A", "B")])  # before the axes were named
+    return np.asarray(r.rotary.values, float)
 
 
 def chord_reach(tip: np.ndarray, tolerance: float, max_points: int = MAX_BLOCK_POINTS) -> np.ndarray:

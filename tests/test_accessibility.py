@@ -195,7 +195,9 @@ def test_serial_processes_and_dask_give_identical_rows(channel_program):
     procs = _run(surf, path, workers=2)
     dask = _run(surf, path, workers=2, dask="local")
     for other in (procs, dask):
-        for name in ("A", "B", "delta", "lift", "lead_window", "tilt_window"):
+        assert serial.rotary.names == other.rotary.names
+        assert np.array_equal(serial.rotary.values, other.rotary.values)
+        for name in ("delta", "lift", "lead_window", "tilt_window"):
             assert np.array_equal(getattr(serial, name), getattr(other, name)), name
 
 

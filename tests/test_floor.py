@@ -43,10 +43,7 @@ def _machine():
 
 def _joints(r) -> np.ndarray:
     """(N, 5) X Y Z mm and the rotary axes rad of a method's program."""
-    rot = getattr(r, "rotary", None)
-    if rot is not None and hasattr(rot, "values"):
-        return np.column_stack([r.xyz, rot.values])
-    return np.column_stack([r.xyz] + [getattr(r, name) for name in ("A", "B")])  # before the axes were named
+    return np.column_stack([r.xyz, r.rotary.values])
 
 
 def _short_rows(m, n: int = 12):
