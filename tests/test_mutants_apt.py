@@ -57,8 +57,8 @@ def test_a_goto_beyond_the_largest_number_names_file_and_line(tmp_path):
 def test_a_record_continued_at_the_end_of_the_file_is_read(tmp_path):
     """The last record ends with '$' and nothing follows: it is still a record (here a malformed
     MSYS of 3 numbers, named on its line)."""
-    for last in ("MSYS/0,0,0$", "msys/0,0,0 $"):  # the major word upper-cased there too
-        p = _write(tmp_path, f"UNITS/MM\nFEDRAT/100,MMPM\nGOTO/0,0,0\n{last}\n")
+    for last in ("MSYS/0,0,0$", "msys/0,0,0 $"):  # the major word upper-cased there too; no final newline
+        p = _write(tmp_path, f"UNITS/MM\nFEDRAT/100,MMPM\nGOTO/0,0,0\n{last}")
         with pytest.raises(InputError, match=r"line 4: malformed MSYS: expected 9 numbers, got 3"):
             read_apt(p)
 
@@ -155,10 +155,13 @@ def test_circle_and_movarc_refusals_name_what_and_where(tmp_path, body, needle):
     assert f"{p}, {needle}" in str(exc.value)
 
 
-def test_a_units_record_without_a_word_is_named(tmp_path):
+@pytest.mark.parametrize("units", [None, "mm"])
+def test_a_units_record_without_a_word_is_named(tmp_path, units):
+    """Found when the file's unit is looked for, and when the caller gives the unit (the record is
+    then checked where it stands)."""
     p = _write(tmp_path, "UNITS\nFEDRAT/100,MMPM\nGOTO/30,0,0\n")
     with pytest.raises(InputError, match=r"line 1: unknown units 'UNITS' \(expected UNITS/MM or UNITS/INCHES\)"):
-        read_apt(p)
+        read_apt(p, units=units)
 
 
 def test_a_latin1_file_with_a_byte_order_mark_is_read(tmp_path):
