@@ -189,6 +189,10 @@ TARGETS: dict[str, Target] = {
     "post-core": Target(("camsmooth/post/core.py",), (
         "tests/test_mutants_post_core.py", "tests/test_posted_readers.py", "tests/test_posted_rewrite.py",
         "tests/test_invariants.py::test_posted_g20_and_g21_programs_read_the_same"), sample=80),
+    # --- targets: controller (controller/blocks.py, controller/linuxcnc.py) ---
+    # --- end controller targets ---
+    # --- targets: post writer and dialect readers (post/writer.py, post/iso.py, heidenhain, siemens, millplus, own) ---
+    # --- end post targets ---
 }
 
 # Reviewed equivalent mutants: "path::function: before -> after" (Mutant.key) -> why no test can tell the
@@ -1297,6 +1301,15 @@ for _k in ("float", "bool"):
         f"self.blocks.append((np.asarray(p, float), np.asarray(a, {'' if _k == 'float' else 'float'}), "
         f"np.asarray(r, {'bool' if _k == 'float' else 'None'}),"],
         "the tuples hold Python floats (axes) and bools (rapid): numpy infers float64 and bool, the same arrays")
+
+# --- equivalents: machine/kinematics.py and smoothing/jerk.py (issue #31 item 3, second round) ---
+# --- end kinematics/jerk equivalents ---
+
+# --- equivalents: controller (controller/blocks.py, controller/linuxcnc.py) ---
+# --- end controller equivalents ---
+
+# --- equivalents: post writer and dialect readers ---
+# --- end post equivalents ---
 
 # mutmut's exit codes; -9 is the SIGKILL its runner sends one second after the CPU limit's SIGXCPU (a
 # timeout that ignored SIGXCPU), -11 a crash of the test process: the tests did not pass either way
