@@ -119,8 +119,10 @@ def read_text_file(path: str | os.PathLike, what: str = "file") -> str:
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
-        line = raw[:exc.start].count(b"\n") + 1
-        raise InputError(f"the {what} is not UTF-8 text (byte 0x{raw[exc.start]:02x} on line {line})",
+        # exc.start counts in exc.object, which is the file's bytes after a byte-order mark
+        bad = bytes(exc.object)
+        line = bad[:exc.start].count(b"\n") + 1
+        raise InputError(f"the {what} is not UTF-8 text (byte 0x{bad[exc.start]:02x} on line {line})",
                          file=file) from None
     if "\r" in text:
         text = text.replace("\r\n", "\n").replace("\r", "\n")
