@@ -188,7 +188,7 @@ def test_latin1_text_records_do_not_cost_the_file(tmp_path):
     assert prog.warnings == ["the APT file is not UTF-8 text (byte 0xe4 on line 2): read as Latin-1 (only text "
                              "records such as PPRINT should hold such bytes)"], prog.warnings
     # with a byte-order mark in front the byte named is still the file's 'ä' on line 2 (the decoder
-    # counts after the mark: 0x0a, the line's end, was named)
+    # counts after the mark: 0x27, the quote three bytes before, was named)
     (tmp_path / "bom.apt").write_bytes(b"\xef\xbb\xbf" + text.encode("cp1252"))
     assert read_apt(tmp_path / "bom.apt").warnings == prog.warnings
     with pytest.raises(InputError, match="UTF-16"):
