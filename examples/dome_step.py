@@ -43,8 +43,11 @@ def dome_face(a: float = -0.005, b: float = 0.005, half: float = 30.0, z0: float
 
 def write_step_inch(shape, path: Path) -> None:
     from OCP.Interface import Interface_Static
+    from OCP.Message import Message, Message_Gravity
     from OCP.STEPControl import STEPControl_AsIs, STEPControl_Writer
 
+    for printer in Message.DefaultMessenger_s().Printers():  # OpenCASCADE's transfer statistics: failures only
+        printer.SetTraceLevel(Message_Gravity.Message_Fail)
     w = STEPControl_Writer()  # first: it sets the STEP parameters to their defaults
     Interface_Static.SetIVal_s("write.step.unit", 1)  # 1 = inch
     w.Transfer(shape, STEPControl_AsIs)
