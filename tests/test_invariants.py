@@ -190,6 +190,26 @@ def test_apt_lines_in_messages_are_the_file_lines(tmp_path, newline, bom):
     assert prog.line.tolist() == [7, 9]
 
 
+
+@pytest.mark.parametrize("newline, bom", [("\n", False), ("\r\n", True), ("\r", False)])
+def test_posted_lines_in_messages_and_points_are_the_file_lines(tmp_path, newline, bom):
+    """A posted program with comments and blank lines, in LF, CRLF with a BOM and old-Mac CR: the
+    points' lines, the TCP words' lines and the canned cycle's line are the lines an editor shows."""
+    from camsmooth.post import read_posted
+
+    text = ("%\nO1000 (NUMBERING)\n\n(a comment)\nG21 G90 G17\nT1 M6\nG43.4 H1\nG0 X0 Y0 Z50 A0 B0\n"
+            "G1 X10 Z5 F1000\n\n(another)\nG81 X20 Y0 Z-5 R2 F100\nX30\nG80\nG1 X40 Y5 Z5\nG49\nM30\n%\n")
+    lines = text.splitlines()
+    p = tmp_path / "num.nc"
+    p.write_bytes((b"\xef\xbb\xbf" if bom else b"") + text.replace("\n", newline).encode())
+    prog = read_posted(p)
+    at = {k: lines.index(k) + 1 for k in ("G0 X0 Y0 Z50 A0 B0", "G1 X10 Z5 F1000", "G1 X40 Y5 Z5", "G43.4 H1",
+                                          "G49", "G81 X20 Y0 Z-5 R2 F100")}
+    assert prog.line.tolist() == [at["G0 X0 Y0 Z50 A0 B0"], at["G1 X10 Z5 F1000"], at["G1 X40 Y5 Z5"]]
+    said = " ".join(prog.warnings)
+    assert f"G43.4 (TCP on) (line {at['G43.4 H1']})" in said and f"G49 (line {at['G49']})" in said, said
+    assert f"line {at['G81 X20 Y0 Z-5 R2 F100']}: canned cycle G81" in said, said
+
 # ---- frames: the part turned about the table's C axis -------------------------------------------------
 def _ac_table(c_travel: tuple[float, float] | None):
     from camsmooth.machine.kinematics import machine_from_dict
