@@ -192,6 +192,20 @@ TARGETS: dict[str, Target] = {
     # --- targets: controller (controller/blocks.py, controller/linuxcnc.py) ---
     # --- end controller targets ---
     # --- targets: post writer and dialect readers (post/writer.py, post/iso.py, heidenhain, siemens, millplus, own) ---
+    # the one writer and the dialect readers (issue #31 item 3) against the writer / reader / rewrite tests (not the
+    # dome rows of test_posts_tables.py: 45 s each; not the CLI round trip of test_posted_readers.py: 13 s, it
+    # reaches the same functions through test_gcode.py's direct calls): a sample where the module has more mutants
+    **{name: Target((path,), (
+        "tests/test_posting.py", "tests/test_post_registry.py", "tests/test_gcode.py", "tests/test_posted_readers.py",
+        "tests/test_posts_tables.py", "tests/test_posted_rewrite.py", "tests/test_oracles_hand.py",
+        "--deselect", "tests/test_posted_readers.py::test_cli_cl_for_cc_cl_and_own_gcode", "-k", "not dome"),
+        sample=sample)
+       for name, path, sample in (("post-writer", "camsmooth/post/writer.py", 80),
+                                  ("post-iso", "camsmooth/post/iso.py", 80),
+                                  ("post-heidenhain", "camsmooth/post/heidenhain.py", 80),
+                                  ("post-siemens", "camsmooth/post/siemens.py", 80),
+                                  ("post-millplus", "camsmooth/post/millplus.py", 60),
+                                  ("post-own", "camsmooth/post/own.py", 80))},
     # --- end post targets ---
 }
 
