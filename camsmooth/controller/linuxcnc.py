@@ -47,7 +47,8 @@ from numba import njit
 from camsmooth.controller.blocks import _row_bounds, block_reach
 from camsmooth.machine.kinematics import Machine, axis_limits
 
-__all__ = ["LinuxCNCPlanner", "Segments", "canon_segments", "least_row_times", "SERVO_PERIOD_S", "linuxcnc_sense"]
+__all__ = ["LinuxCNCPlanner", "Segments", "canon_segments", "least_row_times", "least_block_times", "SERVO_PERIOD_S",
+           "linuxcnc_sense"]
 
 def linuxcnc_sense(machine: Machine) -> np.ndarray:
     """(2,) the sign of each rotary axis value LinuxCNC is given against camsmooth's
@@ -209,7 +210,7 @@ def _update(k: int, length: np.ndarray, reqvel: np.ndarray, maxvel: np.ndarray, 
 @njit(cache=True)
 def _run(length: np.ndarray, reqvel: np.ndarray, maxvel: np.ndarray, acc: np.ndarray, parabolic: np.ndarray,
          direction: np.ndarray, tolerance: float, dt: float,
-         max_cycles: int) -> tuple[np.ndarray, ...]:  # pragma: no cover - compiled
+         max_cycles: int, full_stop: bool = False) -> tuple[np.ndarray, ...]:  # pragma: no cover - compiled
     """tpRunCycle until the queue is empty: per segment the cycle it became the head of the queue
     (active) and the cycle at whose end it was removed (done); per cycle, at its end, the head
     segment and the progress (length units) of it and of the segment after it (which moves at the
@@ -239,6 +240,8 @@ def _run(length: np.ndarray, reqvel: np.ndarray, maxvel: np.ndarray, acc: np.nda
         nx = i + 1 if i + 1 < n else -1
         if start[tc] < 0:
             start[tc] = cyc
+            if full_stop and not parabolic[tc]:  # no blend left: the stop at the whole acceleration
+                acc_h[tc] = acc[tc]
             blending_next[tc] = False
             on_final_decel[tc] = False
         if splitting[tc]:
@@ -420,9 +423,22 @@ def least_row_times(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.n
     programmed tip feed."""
     q = np.asarray(q, float)
     tip = np.asarray(tip, float)
-    feed = np.asarray(feed, float) / 60.0
     vmax, amax, _ = axis_limits(machine)
     ok = block_reach(machine, rows, q, tip, float(tolerance), max_points)
+    return least_block_times(vmax, amax, rows, q, tip, feed, ok, max_points)
+
+
+def least_block_times(vmax: np.ndarray, amax: np.ndarray, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
+                      feed: np.ndarray, ok: np.ndarray, max_points: int = LEAST_TIME_BLOCK_POINTS) -> np.ndarray:
+    """The dynamic programme of ``least_row_times`` over given coordinates and allowed blocks: per
+    row (s), the least sum over a choice of block ends of max(tip chord / feed, max_i |d_i| /
+    vmax_i, sqrt(2 max_i |d_i| / amax_i) where a rotary coordinate moves). q (N, 5) the planned
+    coordinates (X Y Z mm, the rotary axes rad: the joints in machine mode, the tool tip and the
+    rotary axes in TCP mode); vmax, amax (5,) their limits (mm/s, mm/s^2, rad/s, rad/s^2); tip
+    (N, 3) mm; feed (N,) mm/min; ok (N, K) bool, ``block_reach``'s layout (K >= max_points)."""
+    q = np.asarray(q, float)
+    tip = np.asarray(tip, float)
+    feed = np.asarray(feed, float) / 60.0
     starts, ends = _row_bounds(rows)
     out = np.zeros(len(starts))
     for r, (a, b) in enumerate(zip(starts, ends, strict=True)):
@@ -485,6 +501,11 @@ class LinuxCNCPlanner:
     tolerance: float = 0.0
     name: str = "linuxcnc"
     title: str = "LinuxCNC"
+    #: a segment that ends at rest decelerates at its whole acceleration once the segment before it
+    #: is done (what the headless LinuxCNC does at the end of a TCP-mode row, where the last block's
+    #: rotary axis reaches its whole amax: camsmooth.controller.tcp); False: at half (step 4), as
+    #: the machine-mode model was checked
+    full_stop: bool = False
 
     def block_ends(self, machine: Machine, q: np.ndarray, t_opt: np.ndarray, ok: np.ndarray, entry_q: np.ndarray,
                    entry_time: float) -> np.ndarray | None:
@@ -588,7 +609,8 @@ class LinuxCNCPlanner:
         length = seg.length.astype(float)
         start, done, head, p_head, p_next = _run(length, seg.reqvel.astype(float), seg.maxvel.astype(float),
                                                  seg.acc.astype(float), parabolic, seg.direction.astype(float),
-                                                 float(seg.tolerance), self.servo_period, max_cycles)
+                                                 float(seg.tolerance), self.servo_period, max_cycles,
+                                                 self.full_stop)
         if (done < 0).any():
             raise RuntimeError("LinuxCNC planner model did not finish the program (a segment that cannot move)")
         L = np.r_[length, 1.0, 1.0]

@@ -53,10 +53,12 @@ import numpy as np
 
 from camsmooth.controller.blocks import programmed_tip_path, tip_deviation
 from camsmooth.controller.linuxcnc import linuxcnc_sense
+from camsmooth.controller.tcp import trt_kinematics
 from camsmooth.machine.kinematics import Machine
 
 __all__ = ["linuxcnc_missing", "isolation_missing", "interpret", "Canon", "simulate", "SimRun", "LINUXCNC_USER",
-           "ISOLATED_USER", "row_samples", "camsmooth_joints", "RUN_LOCK", "LINUXCNC_LOCK"]
+           "ISOLATED_USER", "row_samples", "camsmooth_joints", "RUN_LOCK", "LINUXCNC_LOCK", "TRT_CONFIGS",
+           "trt_missing", "trt_config"]
 
 #: the unprivileged user the simulation runs as when we are root
 LINUXCNC_USER = "camsmooth-lcnc"
@@ -71,6 +73,9 @@ LINUXCNC_LOCK = Path("/tmp/linuxcnc.lock")
 RUN_LOCK = Path("/tmp/camsmooth-linuxcnc-sim.lock")
 #: characters of the end of LinuxCNC's output and of each of its logs a failure message carries
 MESSAGE_CHARS = 600
+#: LinuxCNC's sample configurations of table-rotary-tilting machines (``xyzac-trt.ini``,
+#: ``xyzbc-trt.ini``, their ``M428`` / ``M429`` remap subroutines), as the Debian package installs them
+TRT_CONFIGS = Path("/usr/share/doc/linuxcnc/examples/sample-configs/sim/axis/vismach/5axis/table-rotary-tilting")
 
 
 def linuxcnc_missing() -> str | None:
@@ -80,6 +85,40 @@ def linuxcnc_missing() -> str | None:
     if missing:
         return f"{', '.join(missing)} not found: apt-get install linuxcnc-uspace"
     return None
+
+
+def trt_missing(machine: Machine) -> str | None:
+    """None when ``simulate(..., trt=True)`` can run ``machine``: LinuxCNC is installed, its sample
+    trt configuration for the machine is (TRT_CONFIGS) and LinuxCNC's trt kinematics describes the
+    machine (camsmooth.controller.tcp.trt_kinematics); else what is missing."""
+    kins = trt_kinematics(machine)
+    if kins is None:
+        return f"LinuxCNC's trt kinematics does not describe {machine.describe()}"
+    ini = TRT_CONFIGS / f"{kins.removesuffix('-kins')}.ini"
+    return linuxcnc_missing() or (None if ini.is_file() else f"{ini} missing (LinuxCNC's sample configurations)")
+
+
+def trt_config(machine: Machine) -> dict[str, str]:
+    """``simulate`` keywords (kins, rs274ngc, hal) for LinuxCNC's trt switchkins kinematics of an
+    A/C or B/C table (``xyzac-trt-kins`` / ``xyzbc-trt-kins``), configured as its sample
+    configuration does: ``sparm=identityfirst`` (type 0 identity, machine mode, at start), the
+    shipped ``M428`` / ``M429`` remaps (``HAL_PIN_VARS = 1``, the subroutines of TRT_CONFIGS),
+    ``motion.analog-out-03`` netted to ``motion.switchkins-type``; the rotation point at the
+    machine file's table centre, no offsets between the axes nor a tool offset."""
+    missing = trt_missing(machine)
+    if missing:
+        raise RuntimeError(missing)
+    kins = str(trt_kinematics(machine))
+    cx, cy, cz = machine.table_centre
+    hal = _HAL + "net kinstype motion.analog-out-03 => motion.switchkins-type\n" + "".join(
+        f"setp {kins}.{pin} {value}\n" for pin, value in (("x-rot-point", cx), ("y-rot-point", cy), ("z-rot-point", cz),
+                                                          ("x-offset", 0), ("y-offset", 0), ("z-offset", 0),
+                                                          ("tool-offset", 0)))
+    ini = TRT_CONFIGS / f"{kins.removesuffix('-kins')}.ini"
+    remaps = [ln.strip() for ln in ini.read_text().splitlines()
+              if ln.strip().startswith("REMAP") and ("M428" in ln or "M429" in ln)]
+    rs274 = f"SUBROUTINE_PATH = {TRT_CONFIGS / 'remap_subs'}\nHAL_PIN_VARS = 1\n" + "".join(f"{r}\n" for r in remaps)
+    return dict(kins=f"{kins} sparm=identityfirst", rs274ngc=rs274, hal=hal)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -442,7 +481,8 @@ def _failure(what: str, proc: subprocess.CompletedProcess, folder: Path, kept: b
 
 def simulate(program: Path | str, machine: Machine, *, timeout: float = 600.0,
              traj: dict[str, str] | None = None, keep: Path | None = None, wait: float | None = None,
-             hal: str | None = None, joint_ini: str = "", kins: str | None = None, rs274ngc: str = "") -> SimRun:
+             hal: str | None = None, joint_ini: str = "", kins: str | None = None, rs274ngc: str = "",
+             trt: bool = False) -> SimRun:
     """Run ``program`` on a headless LinuxCNC simulation of ``machine`` (module docstring) and
     return the commanded joints per servo cycle. traj: extra ``[TRAJ]`` settings (e.g.
     ``ARC_BLEND_ENABLE``). keep: a folder to leave the configuration and logs in. wait: the most
@@ -452,11 +492,15 @@ def simulate(program: Path | str, machine: Machine, *, timeout: float = 600.0,
     ``[JOINT_n]`` section (each line ending in a newline, e.g. ``BACKLASH = 0.05``); kins: the
     ``[KINS] KINEMATICS`` line instead of trivkins (e.g. ``xyzac-trt-kins sparm=identityfirst`` with
     the HAL that nets its switchkins pins); rs274ngc: lines added to ``[RS274NGC]`` (remaps, each
-    ending in a newline). RuntimeError naming
-    LinuxCNC's output and logs when the run fails."""
+    ending in a newline). trt: run on LinuxCNC's trt switchkins kinematics of the machine's table
+    (``trt_config``: a TCP-mode program's ``M428`` switches it on; hal, kins and rs274ngc are then
+    that configuration's). RuntimeError naming LinuxCNC's output and logs when the run fails."""
     missing = linuxcnc_missing()
     if missing:
         raise RuntimeError(missing)
+    if trt:
+        cfg = trt_config(machine)
+        hal, kins, rs274ngc = cfg["hal"], cfg["kins"], cfg["rs274ngc"]
     wait = timeout + 180.0 if wait is None else float(wait)
     folder = Path(keep) if keep is not None else Path(tempfile.mkdtemp(prefix="camsmooth-lcnc-", dir="/tmp"))
     folder = folder.resolve()
