@@ -1,0 +1,230 @@
+"""What the mutation runs of the post writer and the dialect readers (benchmarks/mutation.py, targets
+"post-writer", "post-iso", "post-heidenhain", "post-siemens", "post-millplus", "post-own") showed the
+writer / reader tests leave open, against values worked by hand here: the writer's number formats,
+comments, row breaks, block feeds and the program's frame words; the readers' words, frames and
+modes. Units: mm, mm/min, s; degrees in the files.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from camsmooth.errors import InputError
+from camsmooth.machine.kinematics import machine_from_dict
+from camsmooth.post.model import PostProgram
+from camsmooth.post.writer import (
+    _fixed,
+    _fixed_sig,
+    _row_slices,
+    format_blocks,
+    paren,
+    semicolon,
+    settings,
+    write_program,
+)
+
+PIVOT = 150.0
+
+
+def _machine(dialect: str = "generic", mode: str = "machine", tool: int = 1, vmax: float = 60.0, pivot: float = PIVOT,
+             **post):
+    axes = {a: {"min": -110.0, "max": 110.0, "vmax": vmax, "amax": 300.0} for a in ("A", "B")}
+    return machine_from_dict({"machine": {"name": "mutants AB head", "kind": "AB-head", "pivot": pivot},
+                              "axis": axes, "post": {"dialect": dialect, "mode": mode, "tool": tool, **post}},
+                             "<mutants>")
+
+
+def _line_program(n: int = 4, step: float = 2.0, feed: float = 600.0, rows=None, tolerance=None) -> PostProgram:
+    """The tip steps ``step`` mm along X at Z = 0, tool axis vertical (A = B = 0): the AB head's pivot
+    is the tip + (0, 0, 150)."""
+    tips = np.column_stack([step * np.arange(n), np.zeros(n), np.zeros(n)])
+    T = np.tile([0.0, 0.0, 1.0], (n, 1))
+    joints = np.column_stack([tips + PIVOT * T, np.zeros(n), np.zeros(n)])
+    return PostProgram(rows=np.zeros(n, int) if rows is None else np.asarray(rows), idx=np.arange(n), joints=joints,
+                       tips=tips, axis=T, feed=np.full(n, feed), tolerance=tolerance)
+
+
+def _code(line: str) -> str:
+    return re.sub(r"\([^()]*\)", "", line.split(";", 1)[0]).strip()
+
+
+def _words(line: str) -> dict[str, float]:
+    return {w: float(v) for w, v in re.findall(r"([A-Z])\s*([-+]?\d+\.?\d*)", _code(line))}
+
+
+def _lines(path: Path) -> list[str]:
+    return path.read_text().splitlines()
+
+
+# ---- writer: text helpers and number formats --------------------------------------------------------
+def test_comments_keep_their_delimiters_out():
+    """An ISO comment cannot hold '(' or ')' (the first ')' would end it) nor ';' (a comment start for
+    many parsers) nor a line break; a ';' comment cannot hold a line break."""
+    assert paren("a(b)c;d\ne") == "(a[b]c,d e)"
+    assert semicolon("x\ny; z") == "; x y; z"
+
+
+def test_fixed_point_text_rounds_and_never_writes_minus_zero():
+    """4 decimals: -0.00004 rounds to 0 and is written '0.0000' (no '-0'); 1.23456 -> 1.2346;
+    -2.5 -> -2.5000; 12 -> 12.0000; with sign: '+' on the non-negative values; 1 decimal: 599.96 -> 600.0."""
+    assert list(_fixed(np.array([-0.00004, 1.23456, -2.5, 12.0]))) == ["0.0000", "1.2346", "-2.5000", "12.0000"]
+    assert list(_fixed(np.array([0.0, 3.0, -3.0]), sign=True)) == ["+0.0000", "+3.0000", "-3.0000"]
+    assert list(_fixed(np.array([599.96, 0.04]), 1)) == ["600.0", "0.0"]
+    assert list(_fixed(np.array([0.000123456789]), 9)) == ["0.000123457"]
+
+
+def test_fixed_significant_digits():
+    """7 significant digits, 1 to 5 decimals: 300 -> 300.0000 (exponent 2: 4 decimals), 60 ->
+    60.00000, 0.5 -> 0.50000 (7 would be needed, 5 at most), 12345.678 -> 12345.68, 1234567.8 ->
+    1234567.8 (at least 1 decimal), 1 -> 1.000000 (exponent 0: 6 decimals, clipped to 5)."""
+    got = _fixed_sig(np.array([300.0, 60.0, 0.5, 12345.678, 1234567.8, 1.0]))
+    assert list(got) == ["300.0000", "60.00000", "0.50000", "12345.68", "1234567.8", "1.00000"]
+
+
+def test_row_slices_break_where_the_row_id_changes():
+    assert _row_slices(np.array([0, 0, 1, 1, 1, 0])) == [slice(0, 2), slice(2, 5), slice(5, 6)]
+    assert _row_slices(np.array([7])) == [slice(0, 1)]
+    assert _row_slices(np.array([], int)) == []
+
+
+# ---- writer: settings ---------------------------------------------------------------------------------
+def test_settings_take_the_machine_post_and_refuse_what_cannot_be_written():
+    m = _machine("fanuc", "tcp", tool=5, tcp_on="G43.4 H{tool} (MINE)", tcp_off="G49 (MINE)")
+    st = settings(m, safe_height=0.0)
+    assert (st.entry.name, st.mode, st.tool, st.tcp_on, st.tcp_off, st.safe_height) == \
+        ("fanuc", "tcp", 5, "G43.4 H{tool} (MINE)", "G49 (MINE)", 0.0)
+    st = settings(m, dialect="siemens", mode="machine")
+    assert (st.entry.name, st.mode, st.tcp_on) == ("siemens", "machine", "G43.4 H{tool} (MINE)")
+    plain = settings(_machine("siemens", "tcp"))
+    assert (plain.tcp_on, plain.tcp_off, plain.tool, plain.safe_height) == ("TRAORI", "TRAFOOF", 1, 10.0)
+    none = settings(object())  # no [post]: generic, machine mode, tool 1, no TCP words
+    assert (none.entry.name, none.mode, none.tool, none.tcp_on, none.tcp_off) == ("generic", "machine", 1, None, None)
+    with pytest.raises(InputError, match="unknown G-code dialect 'haas'"):
+        settings(m, dialect="haas")
+    with pytest.raises(InputError, match="unknown G-code mode 'tool'"):
+        settings(m, mode="tool")
+    with pytest.raises(InputError, match="Heidenhain controls have no inverse-time feed"):
+        settings(m, dialect="heidenhain", mode="machine")
+    with pytest.raises(InputError, match="the generic dialect has no tool-centre-point command"):
+        settings(_machine("generic", "tcp"))
+    for bad in (-0.1, math.nan, math.inf):
+        with pytest.raises(InputError, match="safe height must be a finite number >= 0 mm"):
+            settings(m, safe_height=bad)
+
+
+# ---- writer: whole programs ---------------------------------------------------------------------------
+def test_bad_feed_and_non_finite_points_are_named(tmp_path):
+    p = _line_program()
+    p.feed[2] = 0.0
+    with pytest.raises(InputError, match=r"feed must be a finite number > 0 mm/min at row 0, point 2, got 0.0"):
+        write_program(tmp_path / "a.nc", p, _machine())
+    p = _line_program()
+    p.feed[1] = math.nan
+    with pytest.raises(InputError, match="at row 0, point 1, got nan"):
+        write_program(tmp_path / "a.nc", p, _machine())
+    for field in ("joints", "axis", "tips"):
+        p = _line_program()
+        getattr(p, field)[3, 1] = math.inf
+        with pytest.raises(InputError, match="non-finite axis value at row 0, point 3"):
+            write_program(tmp_path / "b.nc", p, _machine())
+    assert not (tmp_path / "a.nc").exists() and not (tmp_path / "b.nc").exists()
+
+
+def test_two_rows_are_entered_and_left_along_the_tool_axis(tmp_path):
+    """Rows 0 (points 0, 1) and 1 (points 2, 3), tips 2 mm apart along X, safe height 5 mm, generic
+    machine mode: per row a rapid to 5 mm above its first point (pivot Z 155), a feed onto it (5 mm
+    at 600 mm/min: F = 120), the row (2 mm: F = 300), a rapid 5 mm up; each row opened by its
+    comment '(row <id>: <points> points)'."""
+    p = _line_program(rows=[0, 0, 1, 1])
+    lines = _lines(write_program(tmp_path / "r.nc", p, _machine(), safe_height=5.0))
+    body = lines[next(k for k, ln in enumerate(lines) if ln.startswith("(row 0")):]
+    expect = ["(row 0: 2 points)",
+              "G00 X0.0000 Y0.0000 Z155.0000 A0.0000 B0.0000",
+              "G01 X0.0000 Y0.0000 Z150.0000 A0.0000 B0.0000 F120.0000",
+              "G01 X2.0000 Y0.0000 Z150.0000 A0.0000 B0.0000 F300.0000",
+              "G00 X2.0000 Y0.0000 Z155.0000 A0.0000 B0.0000",
+              "(row 1: 2 points)",
+              "G00 X4.0000 Y0.0000 Z155.0000 A0.0000 B0.0000",
+              "G01 X4.0000 Y0.0000 Z150.0000 A0.0000 B0.0000 F120.0000",
+              "G01 X6.0000 Y0.0000 Z150.0000 A0.0000 B0.0000 F300.0000",
+              "G00 X6.0000 Y0.0000 Z155.0000 A0.0000 B0.0000",
+              "G94", "M30"]
+    assert body == expect
+
+
+def test_a_block_that_only_turns_is_timed_by_the_rotary_speed_limit(tmp_path):
+    """On a head of pivot 0 (the tip is the pivot) the tip stays at the origin while B turns 0 -> 6
+    -> 12 deg (A = 0): the tip path of each block is 0, so its time is the rotary move over the
+    axis speed limit, 6 deg at 60 deg/s = 0.1 s = 1/600 min: F = 600 (1/min); the entry block moves
+    nothing at all (safe height 0): the 1e-6 min floor, F = 1e6. The header counts the three
+    blocks. A machine without speed limits times them at the floor."""
+    n = 3
+    B = np.radians([0.0, 6.0, 12.0])
+    T = np.column_stack([np.sin(B), np.zeros(n), np.cos(B)])
+    tips = np.zeros((n, 3))
+    joints = np.column_stack([tips, np.zeros(n), B])
+    p = PostProgram(rows=np.zeros(n, int), idx=np.arange(n), joints=joints, tips=tips, axis=T, feed=np.full(n, 600.0))
+    lines = _lines(write_program(tmp_path / "s.nc", p, _machine(vmax=60.0, pivot=0.0), safe_height=0.0))
+    assert any("3 block[s] turn A/B without moving the tip: timed by the rotary speed limits" in ln for ln in lines)
+    feeds = [_words(ln)["F"] for ln in lines if _code(ln).startswith("G01")]
+    assert feeds == pytest.approx([1e6, 600.0, 600.0], rel=1e-6)
+    slow = _lines(write_program(tmp_path / "t.nc", p, _machine(vmax=30.0, pivot=0.0), safe_height=0.0))
+    assert [_words(ln)["F"] for ln in slow if _code(ln).startswith("G01")] == pytest.approx([1e6, 300.0, 300.0])
+
+
+def test_format_blocks_inverse_time_and_per_minute():
+    """format_blocks: G93 F on every feed block (7 significant digits), none on a rapid; per minute F
+    written where it changes or after a rapid (1 decimal)."""
+    coords = np.array([[0, 0, 1, 0, 0], [1, 0, 1, 0, 0], [2, 0, 1, 0, 0], [3, 0, 1, 0, 0]], float)
+    rapid = np.array([True, False, False, False])
+    inv = format_blocks("generic", coords, np.array([math.nan, 250.0, 250.0, 125.0]), rapid, "XYZAB", True)
+    assert inv == ["G00 X0.0000 Y0.0000 Z1.0000 A0.0000 B0.0000",
+                   "G01 X1.0000 Y0.0000 Z1.0000 A0.0000 B0.0000 F250.0000",
+                   "G01 X2.0000 Y0.0000 Z1.0000 A0.0000 B0.0000 F250.0000",
+                   "G01 X3.0000 Y0.0000 Z1.0000 A0.0000 B0.0000 F125.0000"]
+    per = format_blocks("heidenhain", coords, np.array([math.nan, 600.0, 600.0, 450.0]), rapid, "XYZBC", False)
+    assert per == ["L X+0.0000 Y+0.0000 Z+1.0000 B+0.0000 C+0.0000 R0 FMAX",
+                   "L X+1.0000 Y+0.0000 Z+1.0000 B+0.0000 C+0.0000 F600.0",
+                   "L X+2.0000 Y+0.0000 Z+1.0000 B+0.0000 C+0.0000",
+                   "L X+3.0000 Y+0.0000 Z+1.0000 B+0.0000 C+0.0000 F450.0"]
+
+
+def test_heidenhain_program_is_numbered_and_framed(tmp_path):
+    """Klartext: every line numbered from 0, BEGIN PGM <name> MM first and END PGM <name> MM last,
+    TOOL CALL <tool> Z, cycle 32 with T = the tolerance, FUNCTION TCPM after it, the blocks' F the tip
+    feed (600.0) once, FUNCTION RESET TCPM, M140 MB MAX, M30; the annotations t= / f= after ';'."""
+    p = _line_program(tolerance=0.015)
+    p.t_prog = np.array([0.0, 0.2, 0.4, 0.6])
+    p.f_prog = np.array([600.0, 600.0, 500.0, 500.0])
+    lines = _lines(write_program(tmp_path / "h.h", p, _machine("heidenhain", "tcp", tool=3), program_name="PART7"))
+    assert [int(ln.split()[0]) for ln in lines] == list(range(len(lines)))
+    text = [ln.split(" ", 1)[1] for ln in lines]
+    assert text[0] == "BEGIN PGM PART7 MM" and text[-1] == "END PGM PART7 MM"
+    k = text.index("TOOL CALL 3 Z")
+    assert text[k + 1:k + 5] == ["CYCL DEF 32.0 TOLERANCE", "CYCL DEF 32.1 T0.0150", "CYCL DEF 32.2 HSC-MODE:0",
+                                 "FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS"]
+    assert text[-5:-1] == ["L X+6.0000 Y+0.0000 Z+10.0000 A+0.0000 B+0.0000 R0 FMAX", "FUNCTION RESET TCPM",
+                           "M140 MB MAX", "M30"]
+    rows = [t for t in text if t.startswith("L ") and "FMAX" not in t]
+    assert rows == ["L X+0.0000 Y+0.0000 Z+0.0000 A+0.0000 B+0.0000 F600.0 ; t=0.000000000 f=600.000",
+                    "L X+2.0000 Y+0.0000 Z+0.0000 A+0.0000 B+0.0000 ; t=0.200000000",
+                    "L X+4.0000 Y+0.0000 Z+0.0000 A+0.0000 B+0.0000 ; t=0.400000000 f=500.000",
+                    "L X+6.0000 Y+0.0000 Z+0.0000 A+0.0000 B+0.0000 ; t=0.600000000"]
+
+
+def test_iso_annotations_and_the_time_optimal_law(tmp_path):
+    """Parenthesised annotations: '(t=<s> f=<mm/min> o=<s>)' where the time-optimal law is given, f=
+    at the row's entry and where the programmed feed changes."""
+    p = _line_program()
+    p.t_prog = np.array([0.0, 0.2, 0.4, 0.6])
+    p.f_prog = np.array([600.0, 600.0, 600.0, 300.0])
+    p.t_opt = np.array([0.0, 0.1, 0.2, 0.3])
+    lines = _lines(write_program(tmp_path / "o.nc", p, _machine("fanuc", "tcp")))
+    notes = [ln[ln.index("(t="):] for ln in lines if ln.startswith("G01")]
+    assert notes == ["(t=0.000000000 f=600.000 o=0.000000000)", "(t=0.200000000 o=0.100000000)",
+                     "(t=0.400000000 o=0.200000000)", "(t=0.600000000 f=300.000 o=0.300000000)"]
