@@ -100,13 +100,13 @@ def _check_outputs_options(args: argparse.Namespace) -> None:
 
 
 def load_input(args: argparse.Namespace, surface: Any, machine: Any) -> tuple[Any, Any]:
-    """The program to smooth (any format of camsmooth.io.program.load_program, detected from the
+    """The program to smooth (any format of camsmooth.post.load_program, detected from the
     content or --format) and the cutter: a CC path as it is, a CL program made a CamProgram on the
     surface (camsmooth.smoothing.cam), with the program's cutter unless the command line names one."""
     from camsmooth.cli.part import place_and_check, reach_of
     from camsmooth.geometry.clearance import MeshIndex
     from camsmooth.geometry.paths import CCPath
-    from camsmooth.io.program import load_program
+    from camsmooth.post import load_program
     from camsmooth.smoothing.cam import cam_program, cutter_of
 
     program = load_program(args.path, args.format, machine=machine)
@@ -191,7 +191,7 @@ def _strict_failure(result: Any) -> str | None:
     """What --strict refuses in the primary method, row by row: points lifted along the normal
     beyond the tolerance (count, largest lift mm, where), gouges beyond it (count, deepest
     clearance mm, where) and unreachable points; None when there is none."""
-    from camsmooth.io.output import point_status
+    from camsmooth.smoothing.output import point_status
     from camsmooth.smoothing.result import interferes
 
     r = result.result
@@ -238,8 +238,8 @@ def _write_outputs(result: Any, out_csv: Path, gcode: Path | None, report: Path 
     CamProgram of a posted input: the G-code is that program with the smoothed blocks written in
     (camsmooth.post.rewrite); setup: the input's tool call, spindle, coolant and work offset for
     camsmooth's own program (camsmooth.post.setup.ShopSetup)."""
-    from camsmooth.io.output import write_gcode, write_result_csv
     from camsmooth.smoothing.feed import block_feeds
+    from camsmooth.smoothing.output import write_gcode, write_result_csv
 
     write_result_csv(out_csv, result)
     if gcode:
@@ -341,13 +341,17 @@ def _print_summary(result) -> None:
 def _print_floor(result) -> None:
     """Per method whose controller has a floor (camsmooth.controller, e.g. LinuxCNC): the least time
     any program of straight blocks through its points can take there, beside its predicted time."""
-    from camsmooth.controller import floor_text
+    from camsmooth.controller import floor_text, mode_text
 
     for name, r in result.methods.items():
         mm = r.metrics
         if mm.controller and mm.controller_floor_s is not None:
             print(f"{name}: {floor_text(mm.controller, mm.controller_floor_s, mm.cycle_time_s)} "
                   f"({mm.cycle_time_s / max(mm.controller_floor_s, 1e-12):.3f}x the floor)")
+        if mm.tcp_cycle_time_s is not None and mm.machine_cycle_time_s is not None:  # both LinuxCNC modes
+            modes = mode_text(mm.tcp_cycle_time_s, mm.tcp_floor_s, mm.machine_cycle_time_s, mm.machine_floor_s,
+                              bool(mm.tcp_within_limits))
+            print(f"{name}: {modes}")
 
 
 def _print_pole(result) -> None:
@@ -418,8 +422,8 @@ def run_analyze(args: argparse.Namespace) -> int:
     from camsmooth.cli.part import load_part, place_and_check, reach_of
     from camsmooth.geometry.clearance import MeshIndex
     from camsmooth.geometry.paths import CCPath
-    from camsmooth.io.program import load_program
     from camsmooth.machine.kinematics import load_machine
+    from camsmooth.post import load_program
     from camsmooth.smoothing.analysis import analyze_program
 
     _check_outputs_options(args)
@@ -537,7 +541,7 @@ def run_demo(args: argparse.Namespace) -> int:
         cls = samples / f"{name}.cls"
         if cls.is_file():  # a sample that ships its CAM program: smoothed from it, its axes shown as 'cam'
             from camsmooth.geometry.clearance import MeshIndex
-            from camsmooth.io.program import load_program
+            from camsmooth.post import load_program
             from camsmooth.smoothing.cam import cam_program
 
             program = cam_program(load_program(cls), MeshIndex(surface.mesh), cutter, DEFAULT_TOLERANCE_MM,

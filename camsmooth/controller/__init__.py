@@ -5,6 +5,9 @@
   check that the planner model's tool tip stays within the tolerance at every servo cycle;
 - ``linuxcnc``: a model of LinuxCNC's trajectory planner (derived from its source), and the least
   time any program of straight blocks can take on it (``least_row_times``);
+- ``tcp``: LinuxCNC's TCP mode (M428, its trt kinematics) on an A/C or B/C table: the planner on
+  the world coordinates, TCP blocks, F words held so that the joints stay within their limits,
+  the TCP floor (``tcp_planner_for``, ``mode_text``: which mode runs a program faster);
 - ``linuxcnc_sim``: LinuxCNC itself, its interpreter and a headless simulation (tests and
   benchmarks, needs the ``linuxcnc-uspace`` package).
 
@@ -26,10 +29,12 @@ from camsmooth.controller.blocks import (
     predict,
 )
 from camsmooth.controller.linuxcnc import LinuxCNCPlanner
+from camsmooth.controller.tcp import TCPPlanner, mode_text, tcp_planner_for
 from camsmooth.machine.kinematics import Machine
 
 __all__ = ["PLANNERS", "PATH_TOLERANCE_SHARE", "BLOCK_TOLERANCE_SHARE", "EXECUTED_TOLERANCE_SHARE", "planner_for",
-           "floor_text", "ControllerPlan", "Planner", "decimate", "place", "predict", "LinuxCNCPlanner"]
+           "floor_text", "ControllerPlan", "Planner", "decimate", "place", "predict", "LinuxCNCPlanner", "TCPPlanner",
+           "tcp_planner_for", "mode_text"]
 
 #: dialect of the machine's post -> the model of that controller's planner
 PLANNERS: dict[str, type] = {"linuxcnc": LinuxCNCPlanner}
@@ -46,6 +51,7 @@ def planner_for(machine: Machine, tolerance: float) -> Planner | None:
 def floor_text(controller: str, floor_s: float, program_s: float) -> str:
     """The floor beside the prediction, as ``smooth`` and the report say it: the controller (by its
     planner's name, e.g. 'linuxcnc'), its floor and the program's predicted time (s)."""
-    title = getattr(PLANNERS.get(controller), "title", controller)
+    title = getattr(PLANNERS.get(controller), "title", None) or {TCPPlanner.name: TCPPlanner.title}.get(controller,
+                                                                                                        controller)
     return (f"{title} cannot run straight blocks through these points in less than {floor_s:.4g} s; "
             f"this program: {program_s:.4g} s")

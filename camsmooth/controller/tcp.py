@@ -207,6 +207,8 @@ class TCPPlanner:
             return np.round(np.column_stack([w[:, :3], np.degrees(w[:, 3:])]), 4)
 
         start, pts = written(entry_world)[0], written(world_blocks)
+        if len(pts) != len(np.atleast_1d(block_time)) + 1:
+            raise ValueError(f"{len(pts)} world positions need {len(pts) - 1} block times, got {len(block_time)}")
         chord = np.linalg.norm(np.diff(np.vstack([start[None, :3], pts[:, :3]]), axis=0), axis=1)
         times = np.maximum(np.r_[entry_time, np.asarray(block_time, float)], 1e-6)
         fword = np.maximum(np.round(60.0 * chord / times, 1), _LEAST_F)
@@ -372,7 +374,8 @@ def mode_text(tcp_s: float, tcp_floor_s: float | None, machine_s: float, machine
               within_limits: bool = True) -> str:
     """Both LinuxCNC modes in one line, as ``smooth`` and the report say it: 'TCP mode (M428): X s,
     floor Y s; machine mode: Z s, floor W s: TCP is N% faster' (times s); ``within_limits``: the TCP
-    program keeps the joints within their limits (else it is not offered as the faster one)."""
+    program keeps the joints within their limits (else it is not offered as the faster one). "N%
+    faster": the slower mode's time over the faster one's, less 1."""
     def part(name: str, t: float, fl: float | None) -> str:
         return f"{name}: {t:.4g} s" + (f", floor {fl:.4g} s" if fl is not None else "")
 

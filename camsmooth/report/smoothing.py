@@ -569,6 +569,7 @@ def method_summary(m: MethodResult) -> dict[str, Any]:
                                     and mt.controller_deviation_mm is not None else nan),
         "controller_floor_s": (float(mt.controller_floor_s) if mt is not None
                                and mt.controller_floor_s is not None else nan),
+        "modes_line": _modes_line(mt),
         "violations_programmed": dict(mt.violations_programmed) if mt is not None else {},
         "peak_acc_plan": mt.peak_acc_plan if mt is not None else PerAxis.nan(m.rotary.names),
         "planned": m.plan is not None,
@@ -635,6 +636,17 @@ def _named(text: str, rotary: Sequence[str]) -> str:
     return text
 
 
+def _modes_line(mt: Any) -> str:
+    """Both LinuxCNC modes and which runs the program faster (camsmooth.controller.mode_text), ''
+    where only one mode is modelled."""
+    from camsmooth.controller import mode_text
+
+    if mt is None or getattr(mt, "tcp_cycle_time_s", None) is None or mt.machine_cycle_time_s is None:
+        return ""
+    return mode_text(mt.tcp_cycle_time_s, mt.tcp_floor_s, mt.machine_cycle_time_s, mt.machine_floor_s,
+                     bool(mt.tcp_within_limits))
+
+
 def _verdict_html(order: list[str], summaries: dict[str, dict[str, Any]], primary: str,
                   rotary: Sequence[str] = ("A", "B")) -> str:
     """One line per method, primary first: the answers a CAM programmer looks for first."""
@@ -651,6 +663,8 @@ def _verdict_html(order: list[str], summaries: dict[str, dict[str, Any]], primar
                 cyc += f" (tool tip within {_fmt(1e3 * s['controller_deviation_mm'], '.3g')} \u00b5m of the path)"
             if np.isfinite(s["controller_floor_s"]):
                 cyc += f"; {html.escape(floor_text(s['controller'], s['controller_floor_s'], s['cycle_time_s']))}"
+            if s.get("modes_line"):
+                cyc += f"; {html.escape(s['modes_line'])}"
         share = s["binding_share"]
         where = " in the time-optimal law" if s["controller"] else ""
         binds = (f"binds most{where}: {html.escape(s['limiting'])}"

@@ -84,6 +84,11 @@ class TimeLaw:
     controller: Any
     cycle_time: float
     row_cycle_time: np.ndarray
+    #: on a table LinuxCNC's trt kinematics describes (camsmooth.controller.tcp): the TCP-mode
+    #: program's plan (TCPPlan) and machine mode's (ControllerPlan), ``controller`` the one of the
+    #: mode the program is written in (``[post] mode``); None elsewhere
+    tcp: Any = None
+    machine_mode: Any = None
 
 
 def _row_ends(t: np.ndarray, rows: np.ndarray) -> np.ndarray:
@@ -102,6 +107,7 @@ def time_law(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
     tolerance: mm, the user's."""
     from camsmooth.constants import DEFAULT_SAFE_HEIGHT_MM
     from camsmooth.controller import place, planner_for, predict
+    from camsmooth.controller.tcp import tcp_planner_for
 
     rows = np.asarray(rows)
     if plan is None and feed is not None:
@@ -125,12 +131,21 @@ def time_law(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
             chord = np.linalg.norm(tip[nxt] - tip[starts], axis=1)
             dt = np.maximum(t_plan[nxt] - t_plan[starts], 1e-9)
             entry = np.where(np.isfinite(entry) & (entry > 0), entry, 60.0 * chord / dt)
+        keep_given = keep
         if keep is None:  # the blocks the controller runs soonest (camsmooth.controller.place)
             keep = place(planner, machine, rows, q, tip, t_plan, tolerance, entry_height=DEFAULT_SAFE_HEIGHT_MM,
                          entry_feed=entry, real=real)
         ctrl = predict(planner, machine, rows, q, tip, t_plan, np.asarray(keep, bool),
                        entry_height=DEFAULT_SAFE_HEIGHT_MM, entry_feed=entry, tolerance=tolerance, feed=feed)
         law.update(controller=ctrl, cycle_time=float(ctrl.cycle_time), row_cycle_time=np.asarray(ctrl.row_cycle_time))
+        tcp_planner = tcp_planner_for(machine, tolerance) if keep_given is None else None
+        if tcp_planner is not None:  # TCP mode beside machine mode; the written mode's plan is the controller's
+            tcp = tcp_planner.plan(machine, rows, q, tip, t_plan, tolerance, entry_height=DEFAULT_SAFE_HEIGHT_MM,
+                                   entry_feed=entry, feed=feed)
+            law.update(tcp=tcp, machine_mode=ctrl)
+            if getattr(getattr(machine, "post", None), "mode", "machine") == "tcp":
+                law.update(controller=tcp, cycle_time=float(tcp.cycle_time),
+                           row_cycle_time=np.asarray(tcp.row_cycle_time))
     return TimeLaw(**law)
 
 

@@ -481,6 +481,14 @@ class ProgramSmoother:
             if law.controller.row_floor is not None:
                 m.controller_floor_s = law.controller.floor
                 m.row_controller_floor_s = law.controller.row_floor.tolist()
+        if law.tcp is not None:  # both LinuxCNC modes (camsmooth.controller.tcp)
+            m.tcp_cycle_time_s = float(law.tcp.cycle_time)
+            m.row_tcp_cycle_time_s = np.asarray(law.tcp.row_cycle_time, float).tolist()
+            m.tcp_floor_s = law.tcp.floor
+            m.row_tcp_floor_s = [] if law.tcp.row_floor is None else np.asarray(law.tcp.row_floor, float).tolist()
+            m.tcp_within_limits = law.tcp.within_limits
+            m.machine_cycle_time_s = float(law.machine_mode.cycle_time)
+            m.machine_floor_s = law.machine_mode.floor
         viol, peaks = axis_violations(self.nominal, q, law.t_plan, p.path.rows)
         m.violations = {**viol, **{k: v for k, v in m.violations_programmed.items() if k not in viol}}
         names = r.rotary.names

@@ -7,7 +7,6 @@ the CSV and the report convert angles to degrees.
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -23,20 +22,6 @@ def interferes(delta: np.ndarray, tolerance: float) -> np.ndarray:
     'interference' count, the result CSV's status and ``--strict``."""
     with np.errstate(invalid="ignore"):
         return np.asarray(delta, dtype=float) < -float(tolerance)
-
-
-#: columns of the output CSV on an AB head; on another machine the rotary columns carry its axes'
-#: names (``output_columns``)
-OUTPUT_COLUMNS = ("row", "idx", "t", "x", "y", "z", "nx", "ny", "nz", "clx", "cly", "clz", "i", "j", "k",
-                  "lead", "tilt", "A", "B", "X", "Y", "Z", "delta")
-#: where the two rotary columns sit in OUTPUT_COLUMNS
-_ROTARY_AT = OUTPUT_COLUMNS.index("A")
-
-
-def output_columns(rotary: Sequence[str] = ("A", "B")) -> tuple[str, ...]:
-    """The output CSV's columns for a machine with rotary axes ``rotary`` (``Machine.rotary``:
-    ("A", "C") on an AC table): OUTPUT_COLUMNS with its rotary columns named by the machine."""
-    return OUTPUT_COLUMNS[:_ROTARY_AT] + tuple(rotary) + OUTPUT_COLUMNS[_ROTARY_AT + 2:]
 
 
 @dataclass(kw_only=True)
@@ -86,7 +71,13 @@ class Metrics:
     controller's planner model commands at any servo cycle from the programmed path),
     controller_floor_s and row_controller_floor_s (the least time any program of straight blocks
     through the program's points can take on that controller within the tolerance, s, in total
-    and per row; None / [] where the controller has no floor). Row NLP work (nlp
+    and per row; None / [] where the controller has no floor); these are the written mode's
+    (``[post] mode``). On a table LinuxCNC's trt kinematics describes (camsmooth.controller.tcp),
+    both LinuxCNC modes: tcp_cycle_time_s, tcp_floor_s, row_tcp_cycle_time_s, row_tcp_floor_s (TCP
+    mode, M428: the prediction with the F words held so that the joints stay within their limits,
+    and its floor, s), tcp_within_limits (the held F words keep every linear joint within its
+    limits), machine_cycle_time_s and machine_floor_s (machine mode's, s); None / [] elsewhere.
+    Row NLP work (nlp
     methods): IPOPT iterations, rounds, points mapped, clearance evaluations, times (s), the
     points lifted because their whole window is blocked or the limits kept them out of their
     clear region. With an error model: the largest tip error (um) with and without compensation
@@ -117,6 +108,13 @@ class Metrics:
     controller_deviation_mm: float | None = None
     controller_floor_s: float | None = None
     row_controller_floor_s: list[float] = field(default_factory=list)
+    tcp_cycle_time_s: float | None = None
+    tcp_floor_s: float | None = None
+    row_tcp_cycle_time_s: list[float] = field(default_factory=list)
+    row_tcp_floor_s: list[float] = field(default_factory=list)
+    tcp_within_limits: bool | None = None
+    machine_cycle_time_s: float | None = None
+    machine_floor_s: float | None = None
     limiting: str = ""
     row_cycle_time_s: list[float] = field(default_factory=list)
     ipopt_iterations: int = 0
