@@ -49,13 +49,13 @@ from camsmooth.geometry.frames import axis_from_lead_tilt, local_frames  # noqa:
 from camsmooth.geometry.paths import CCPath, zigzag_path  # noqa: E402
 from camsmooth.geometry.surfaces import load_surface  # noqa: E402
 from camsmooth.io.ccpath import read_cc_csv  # noqa: E402
-from camsmooth.io.program import load_program  # noqa: E402
 from camsmooth.machine.kinematics import (  # noqa: E402
     DEFAULT_MACHINE_TOML,
     PostConfig,
     load_machine,
     machine_from_dict,
 )
+from camsmooth.post import load_program  # noqa: E402
 from camsmooth.smoothing.cam import cam_program  # noqa: E402
 from camsmooth.smoothing.pipeline import smooth  # noqa: E402
 from camsmooth.smoothing.posting import write_gcode  # noqa: E402

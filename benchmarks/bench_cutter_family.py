@@ -40,7 +40,7 @@ from camsmooth.geometry.clearance import MeshIndex, axial_drop  # noqa: E402
 from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl  # noqa: E402
 from camsmooth.geometry.frames import axis_from_lead_tilt, local_frames  # noqa: E402
 from camsmooth.io.ccpath import read_cc_csv  # noqa: E402
-from camsmooth.io.output import read_result_csv  # noqa: E402
+from camsmooth.io.result_csv import read_result_csv  # noqa: E402
 
 
 def drop_against_opencamlib(mesh: trimesh.Trimesh, n_points: int) -> None:

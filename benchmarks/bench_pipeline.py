@@ -253,7 +253,7 @@ def bench_row10k(repeats: int = 3) -> bool:
 def read_result(path: Path) -> dict:
     from reference_nlp import second_differences
 
-    from camsmooth.io.output import read_result_csv
+    from camsmooth.io.result_csv import read_result_csv
 
     cols = read_result_csv(path)
     m = load_machine(None)

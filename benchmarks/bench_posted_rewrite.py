@@ -32,8 +32,8 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 from camsmooth.cli.main import main  # noqa: E402
-from camsmooth.io.program import load_program  # noqa: E402
 from camsmooth.machine.kinematics import load_machine  # noqa: E402
+from camsmooth.post import load_program  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 PROGRAM = ROOT / "tests" / "data" / "posted" / "impeller-7bl-xyzac.ngc"

@@ -96,9 +96,13 @@ TARGETS: dict[str, Target] = {
     "cutter": Target(("camsmooth/geometry/cutter.py",),
                      ("tests/test_cutter.py", "tests/test_contact.py", "tests/test_cylinder_distance_gradient.py",
                       "tests/test_cutter_inputs.py")),
+    # rewritten since its full run (RotaryValues results, inverse_candidates, nearest_with_outer, pole_angle, the
+    # chains of every kind): ~1200 lines, a sample of its mutants
     "kinematics": Target(("camsmooth/machine/kinematics.py",),
                          ("tests/test_kinematics.py", "tests/test_ik_continuity.py", "tests/test_machine_model.py",
-                          "tests/test_gcode.py", "tests/test_machine_file.py", "tests/test_kinematics_frames.py")),
+                          "tests/test_gcode.py", "tests/test_machine_file.py", "tests/test_kinematics_frames.py",
+                          "tests/test_machine_kinds.py", "tests/test_machine_chains.py", "tests/test_axes_values.py"),
+                         sample=120),
     "orientation": Target(("camsmooth/smoothing/orientation.py",),
                           ("tests/test_orientation.py", "tests/test_orientation_windows.py")),
     # tests that run the command line in a subprocess cannot run under mutmut (the child process imports
@@ -153,7 +157,8 @@ TARGETS: dict[str, Target] = {
         functions=("calibrate_probe", "calibrate_spindle", "calibrate_ballbar", "_ballbar_lsq", "_spindle_pso", "pso",
                    "_lsq", "_central_jacobian", "probe_offsets", "_probe_residual", "_spindle_model",
                    "_spindle_params", "_polar_report", "fit_thermal_response"), sample=250),
-    "output": Target(("camsmooth/io/output.py",), ("tests/test_output.py", "tests/test_result_csv_columns.py")),
+    "output": Target(("camsmooth/smoothing/output.py", "camsmooth/io/result_csv.py"),
+                     ("tests/test_output.py", "tests/test_result_csv_columns.py")),
     "atomic": Target(("camsmooth/io/atomic.py",),
                      ("tests/test_atomic.py", "tests/test_output.py", "tests/test_atomic_folders.py")),
     # issue #31 item 3: the modules changed since the targets above (machine/kinematics, controller/* and io/gcode
@@ -190,22 +195,42 @@ TARGETS: dict[str, Target] = {
         "tests/test_mutants_post_core.py", "tests/test_posted_readers.py", "tests/test_posted_rewrite.py",
         "tests/test_invariants.py::test_posted_g20_and_g21_programs_read_the_same"), sample=80),
     # --- targets: controller (controller/blocks.py, controller/linuxcnc.py) ---
+    # controller/linuxcnc_sim.py (LinuxCNC's own interpreter and headless simulation in a subprocess: plumbing)
+    # is left out, and so are the tests that run LinuxCNC (a subprocess, which cannot run under mutmut). The
+    # blade fixtures are made per test (fresh_fixtures): they run the whole pipeline, predict and place included.
+    # blocks.py's one compiled kernel (_all_within, block_reach's check) stays compiled and is not mutated: it is
+    # compared with the distance to every segment by brute force in tests/test_floor.py.
+    "controller-blocks": Target(("camsmooth/controller/blocks.py",), (
+        "tests/test_mutants_controller.py", "tests/test_controller.py", "tests/test_floor.py",
+        "-k", "not linuxcnc and not tcp_codes"), fresh_fixtures=True, sample=100),
+    # the planner model's kernels (_run, _update, _trapezoid_vel, _solo, _lag, _place_row) are its substance: the
+    # copy drops their @njit (as the "kernels" target does; the rest of the package stays compiled) and they run
+    # as plain Python, so only the tests that stay within seconds interpreted are selected (not the blade rows,
+    # which run the whole pipeline through them: tens of seconds compiled)
+    "controller-linuxcnc": Target(("camsmooth/controller/linuxcnc.py",), (
+        "tests/test_mutants_controller.py", "tests/test_controller.py", "tests/test_floor.py",
+        "-k", "not linuxcnc and not tcp_codes and not blade_rows and not placement and not every_method "
+        "and not smooth_prints and not tool_tip_within"), strip_njit=True, sample=100),
     # --- end controller targets ---
     # --- targets: post writer and dialect readers (post/writer.py, post/iso.py, heidenhain, siemens, millplus, own) ---
     # the one writer and the dialect readers (issue #31 item 3) against the writer / reader / rewrite tests (not the
     # dome rows of test_posts_tables.py: 45 s each; not the CLI round trip of test_posted_readers.py: 13 s, it
-    # reaches the same functions through test_gcode.py's direct calls): a sample where the module has more mutants
+    # reaches the same functions through test_gcode.py's direct calls; not the import-graph check of
+    # test_post_registry.py, which reads the package's sources, a minute under mutmut's tracing, and checks no
+    # value): a sample where the module has more mutants
     **{name: Target((path,), (
-        "tests/test_posting.py", "tests/test_post_registry.py", "tests/test_gcode.py", "tests/test_posted_readers.py",
+        "tests/test_mutants_post_dialects.py", "tests/test_dialect_words.py", "tests/test_posting.py",
+        "tests/test_post_registry.py", "tests/test_gcode.py", "tests/test_posted_readers.py",
         "tests/test_posts_tables.py", "tests/test_posted_rewrite.py", "tests/test_oracles_hand.py",
-        "--deselect", "tests/test_posted_readers.py::test_cli_cl_for_cc_cl_and_own_gcode", "-k", "not dome"),
-        sample=sample)
+        "--deselect", "tests/test_posted_readers.py::test_cli_cl_for_cc_cl_and_own_gcode",
+        "--deselect", "tests/test_post_registry.py::test_post_imports_neither_smoothing_nor_controller", "-k",
+        "not dome"), sample=sample)
        for name, path, sample in (("post-writer", "camsmooth/post/writer.py", 80),
-                                  ("post-iso", "camsmooth/post/iso.py", 80),
-                                  ("post-heidenhain", "camsmooth/post/heidenhain.py", 80),
-                                  ("post-siemens", "camsmooth/post/siemens.py", 80),
-                                  ("post-millplus", "camsmooth/post/millplus.py", 60),
-                                  ("post-own", "camsmooth/post/own.py", 80))},
+                                  ("post-iso", "camsmooth/post/iso.py", 70),
+                                  ("post-heidenhain", "camsmooth/post/heidenhain.py", 60),
+                                  ("post-siemens", "camsmooth/post/siemens.py", 60),
+                                  ("post-millplus", "camsmooth/post/millplus.py", 50),
+                                  ("post-own", "camsmooth/post/own.py", 60))},
     # --- end post targets ---
 }
 
@@ -479,7 +504,7 @@ _equivalent("camsmooth/diagnosis/terms/base.py", "identifiable", [
 _equivalent(_ATO, "_refuse_replace", ['why = None -> why = ""'],
             "only the truth of why is tested (if why:), and None and '' are both false")
 
-_OUT = "camsmooth/io/output.py"
+_OUT = "camsmooth/smoothing/output.py"
 _equivalent(_OUT, "point_status", [
     "lift = np.asarray(result.lift, dtype=float) -> lift = np.asarray(result.lift, dtype=None)",
     "lift = np.asarray(result.lift, dtype=float) -> lift = np.asarray(result.lift, )",

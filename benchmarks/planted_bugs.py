@@ -90,7 +90,7 @@ BUGS: tuple[Bug, ...] = (
           "D = cir.L0 * (math.sin(cir.angles[hi]) - math.sin(cir.angles[lo]))"),),
         ("tests/test_oracles.py", "tests/test_calibration.py")),
     Bug("csv-in-place", "`output.write_result_csv`", "writes in place instead of atomically",
-        (("camsmooth/io/output.py", "    return write_table(path, columns)\n",
+        (("camsmooth/smoothing/output.py", "    return write_table(path, columns)\n",
           "    import polars as pl\n\n"
           "    Path(path).parent.mkdir(parents=True, exist_ok=True)\n"
           "    pl.DataFrame({k: np.asarray(v) for k, v in columns.items()}).write_csv(path, line_terminator='\\n')\n"

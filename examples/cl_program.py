@@ -29,7 +29,7 @@ from camsmooth.cli.main import main  # noqa: E402
 from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl  # noqa: E402
 from camsmooth.geometry.frames import axis_from_lead_tilt, local_frames  # noqa: E402
 from camsmooth.io.ccpath import read_cc_csv  # noqa: E402
-from camsmooth.io.output import read_result_csv  # noqa: E402
+from camsmooth.io.result_csv import read_result_csv  # noqa: E402
 
 
 def write_clsf(path: Path, lead_deg: float = 11.0, tilt_deg: float = 0.0) -> int:

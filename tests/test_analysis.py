@@ -8,8 +8,8 @@ import json
 import numpy as np
 
 from camsmooth.cli.main import main
-from camsmooth.io.program import load_program
 from camsmooth.machine.kinematics import load_machine
+from camsmooth.post import load_program
 from camsmooth.smoothing.analysis import analyze_program
 
 

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from camsmooth.io.apt import DEFAULT_CHORD_TOL, read_apt
-from camsmooth.io.program import detect_format, load_program
+from camsmooth.io.program import detect_format
+from camsmooth.post import load_program
 
 DATA = Path(__file__).parent / "data" / "apt"
 S10, C10 = math.sin(math.radians(10)), math.cos(math.radians(10))

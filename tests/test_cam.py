@@ -14,8 +14,8 @@ from camsmooth.geometry.clearance import MeshIndex
 from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl
 from camsmooth.geometry.frames import axis_from_lead_tilt, local_frames
 from camsmooth.geometry.surfaces import Surface
-from camsmooth.io.output import read_result_csv
-from camsmooth.io.program import load_program
+from camsmooth.io.result_csv import read_result_csv
+from camsmooth.post import load_program
 from camsmooth.smoothing.cam import cam_program
 from camsmooth.smoothing.pipeline import smooth
 

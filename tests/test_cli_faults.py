@@ -309,7 +309,7 @@ def _disk_full(path, *args, **kwargs):
 
 
 def test_smooth_disk_full_on_the_gcode_leaves_no_csv(capsys, ws, monkeypatch):
-    import camsmooth.io.output as out
+    import camsmooth.smoothing.output as out
 
     monkeypatch.setattr(out, "write_gcode", _disk_full)
     msg = fails(capsys, ws, SMOOTH + ["-o", "out.csv", "--gcode", "out.nc"], "No space left on device")
@@ -331,7 +331,7 @@ def test_smooth_disk_full_on_the_report_leaves_no_csv_or_gcode(capsys, ws, monke
 def test_smooth_failure_keeps_the_previous_outputs(capsys, ws, monkeypatch):
     """An earlier run's outputs survive a failed run unchanged (not replaced, not removed)."""
     assert run(capsys, SMOOTH + ["-o", "out.csv", "--gcode", "out.nc"])[0] == 0
-    import camsmooth.io.output as out
+    import camsmooth.smoothing.output as out
 
     monkeypatch.setattr(out, "write_gcode", _disk_full)
     fails(capsys, ws, SMOOTH + ["-o", "out.csv", "--gcode", "out.nc"], "No space")
@@ -401,14 +401,14 @@ def test_predict_disk_full_leaves_nothing(capsys, ws, monkeypatch):
 
 
 def test_demo_disk_full_leaves_nothing(capsys, ws, monkeypatch):
-    import camsmooth.io.output as out
+    import camsmooth.smoothing.output as out
 
     monkeypatch.setattr(out, "write_gcode", _disk_full)
     fails(capsys, ws, ["demo", "--samples", "samples", "--sample", "tiny", "--out", "demo", "--quiet"], "No space")
 
 
 def test_ctrl_c_in_process_leaves_nothing(capsys, ws, monkeypatch):
-    import camsmooth.io.output as out
+    import camsmooth.smoothing.output as out
 
     def interrupt(path, *a, **k):
         Path(path).write_text("partial")
@@ -421,7 +421,7 @@ def test_ctrl_c_in_process_leaves_nothing(capsys, ws, monkeypatch):
 SIGNAL_SCRIPT = """
 import sys, time
 from pathlib import Path
-import camsmooth.io.output as out
+import camsmooth.smoothing.output as out
 
 def slow(path, *args, **kwargs):
     Path(path).write_text("partial")

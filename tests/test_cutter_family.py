@@ -22,8 +22,8 @@ from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl, cl_to_cc
 from camsmooth.geometry.frames import axis_from_lead_tilt, local_frames
 from camsmooth.geometry.surfaces import Cylinder, tessellate_to_tolerance
 from camsmooth.io.ccpath import read_cc_csv
-from camsmooth.io.output import read_result_csv
-from camsmooth.io.program import load_program
+from camsmooth.io.result_csv import read_result_csv
+from camsmooth.post import load_program
 from camsmooth.smoothing.cam import cutter_of
 from camsmooth.smoothing.orientation import min_gouge_free_lead
 

@@ -170,7 +170,7 @@ def test_commit_fails_on_the_second_output(capsys, ws, monkeypatch, quick_report
 # ----------------------------------------------------------------------------------------------
 # 2. a folder appears at the second output's name once the first output is written
 def test_folder_made_at_the_gcode_name_during_the_run(capsys, ws, monkeypatch):
-    import camsmooth.io.output as output
+    import camsmooth.smoothing.output as output
 
     real = output.write_result_csv
 
@@ -193,7 +193,7 @@ def test_folder_made_at_the_gcode_name_during_the_run(capsys, ws, monkeypatch):
 
 
 def test_file_made_at_the_report_folder_name_during_the_run(capsys, ws, monkeypatch, quick_report):
-    import camsmooth.io.output as output
+    import camsmooth.smoothing.output as output
 
     real = output.write_gcode
 
@@ -367,8 +367,8 @@ def test_unreachable_z_in_a_real_process_leaves_the_earlier_csv(ws):
 # 6. the API's writers replace a file, they never write into it (issue 12's planted bug: a result
 #    CSV written in place passed, because the failure tests raised before any file was opened)
 def _writers():
-    from camsmooth.io.output import write_gcode, write_result_csv
     from camsmooth.machine.model import ErrorModel
+    from camsmooth.smoothing.output import write_gcode, write_result_csv
     from tests.test_output import CUTTER, MACHINE, make_result
 
     res = make_result(n_rows=2, n_pts=20)

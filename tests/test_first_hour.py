@@ -124,8 +124,8 @@ def test_analyze_report_names_the_machines_rotary_axes(kind, tmp_path, capsys):
     for name in NAMES:
         assert sum(ln.startswith(name + " ") for ln in printed.splitlines()) == 1, printed
 
-    from camsmooth.io.program import load_program
     from camsmooth.machine.kinematics import load_machine
+    from camsmooth.post import load_program
     from camsmooth.report.analysis import axes_figure
     from camsmooth.smoothing.analysis import analyze_program
 

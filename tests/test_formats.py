@@ -15,8 +15,9 @@ from camsmooth.geometry.paths import CCPath
 from camsmooth.io.apt import read_apt
 from camsmooth.io.ccpath import read_cc_csv, write_cc_csv
 from camsmooth.io.clcsv import read_cl_csv, write_cl_csv
-from camsmooth.io.program import CLProgram, detect_format, load_program
+from camsmooth.io.program import CLProgram, detect_format
 from camsmooth.io.table import read_table
+from camsmooth.post import load_program
 
 IN = 25.4
 

@@ -30,10 +30,10 @@ from pygcode.gcodes import (
 )
 
 from camsmooth.errors import InputError
-from camsmooth.io.program import load_program
 from camsmooth.machine.axes import RotaryValues
 from camsmooth.machine.kinematics import load_machine, machine_from_dict
 from camsmooth.post import DIALECTS as REGISTRY
+from camsmooth.post import load_program
 from camsmooth.post.own import read_gcode
 from camsmooth.smoothing.posting import write_gcode
 from camsmooth.smoothing.result import MethodResult

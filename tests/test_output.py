@@ -12,11 +12,12 @@ import pytest
 import trimesh
 
 from camsmooth.errors import InfeasibleError, InputError
-from camsmooth.io import output
-from camsmooth.io.output import RESULT_CSV_COLUMNS, point_status, read_result_csv, write_gcode, write_result_csv
+from camsmooth.io.result_csv import OUTPUT_COLUMNS, RESULT_CSV_COLUMNS, read_result_csv
 from camsmooth.machine.axes import PerAxis, RotaryValues
 from camsmooth.machine.kinematics import load_machine
-from camsmooth.smoothing.result import OUTPUT_COLUMNS, MethodResult, Metrics, SmoothResult
+from camsmooth.smoothing import output
+from camsmooth.smoothing.output import point_status, write_gcode, write_result_csv
+from camsmooth.smoothing.result import MethodResult, Metrics, SmoothResult
 
 MACHINE = load_machine(None)
 CUTTER = SimpleNamespace(R=3.0, r=1.0, shank_length=40.0, diameter=8.0)

@@ -16,8 +16,9 @@ import pytest
 from camsmooth.cli.main import _write_outputs, main
 from camsmooth.geometry.cutter import ToroidalCutter
 from camsmooth.geometry.paths import CCPath
-from camsmooth.io.program import detect_format, load_program
+from camsmooth.io.program import detect_format
 from camsmooth.machine.kinematics import DEFAULT_MACHINE_TOML, machine_from_dict
+from camsmooth.post import load_program
 
 ROOT = Path(__file__).resolve().parent.parent / "surfaces"
 AXES = [f"{a} {k}" for a in "XYZAB" for k in ("travel", "velocity", "acceleration")]

@@ -17,9 +17,9 @@ from scipy.spatial.transform import Rotation
 from camsmooth.cli.main import main
 from camsmooth.controller.linuxcnc_sim import parse_canon
 from camsmooth.errors import InputError
-from camsmooth.io.program import CL_COLUMNS, load_program
+from camsmooth.io.program import CL_COLUMNS
 from camsmooth.io.table import read_table
-from camsmooth.post import detect_dialect, read_posted
+from camsmooth.post import detect_dialect, load_program, read_posted
 from camsmooth.post.core import nominal_machine
 
 DATA = Path(__file__).parent / "data" / "posted"
@@ -578,7 +578,7 @@ def test_heidenhain_tcpm_axis_spat(tmp_path):
 
 
 def test_cli_cl_for_a_result_csv(tmp_path):
-    """A camsmooth result CSV (camsmooth.io.output): the CL is its clx,cly,clz and i,j,k, its row ids."""
+    """A camsmooth result CSV (camsmooth.io.result_csv): the CL is its clx,cly,clz and i,j,k, its row ids."""
     cols = ("row", "idx", "t", "x", "y", "z", "nx", "ny", "nz", "clx", "cly", "clz", "i", "j", "k", "lead", "tilt",
             "A", "B", "X", "Y", "Z", "delta", "lift", "status")
     rows = [(7, 0, 0.0, 0, 0, 0, 0, 0, 1, 0.0, 0.0, 1.0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 150, 0.1, 0, "ok"),

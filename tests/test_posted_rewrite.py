@@ -15,8 +15,9 @@ import pytest
 
 from camsmooth.cli.main import main
 from camsmooth.controller.linuxcnc_sim import parse_canon
-from camsmooth.io.program import CLProgram, load_program
+from camsmooth.io.program import CLProgram
 from camsmooth.machine.kinematics import load_machine
+from camsmooth.post import load_program
 from camsmooth.smoothing.analysis import analyze_program
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -192,7 +192,7 @@ def test_reading_a_table_program_with_another_machine_names_both(tmp_path):
 def test_dome_sample_machine_writes_and_analyzes(tmp_path):
     """The dome sample's A/C trunnion (linuxcnc, machine mode): ``analyze`` of the written program
     gives the ranges of its own axes, equal to the program's."""
-    from camsmooth.io.program import load_program
+    from camsmooth.post import load_program
     from camsmooth.smoothing.analysis import analyze_program
 
     machine = load_machine(str(ROOT / "surfaces" / "dome_machine.toml"))

@@ -1,6 +1,7 @@
-"""Result CSV (camsmooth.io.output): the optional columns (feed directions, planned time law), the
-status boundaries, header spellings and empty files -- cases the round trip in test_output.py
-does not reach. Expected values are built by hand here, not read from the writer."""
+"""Result CSV (camsmooth.io.result_csv, written by camsmooth.smoothing.output): the optional
+columns (feed directions, planned time law), the status boundaries, header spellings and empty
+files -- cases the round trip in test_output.py does not reach. Expected values are built by hand
+here, not read from the writer."""
 
 from __future__ import annotations
 
@@ -9,9 +10,10 @@ import pytest
 
 from camsmooth.constants import DEFAULT_TOLERANCE_MM
 from camsmooth.errors import InputError
-from camsmooth.io.output import RESULT_CSV_COLUMNS, point_status, read_result_csv, write_result_csv
+from camsmooth.io.result_csv import OUTPUT_COLUMNS, RESULT_CSV_COLUMNS, read_result_csv
 from camsmooth.smoothing.feed import FeedPlan
-from camsmooth.smoothing.result import OUTPUT_COLUMNS, SmoothResult
+from camsmooth.smoothing.output import point_status, write_result_csv
+from camsmooth.smoothing.result import SmoothResult
 from tests.test_output import make_method, make_result
 
 

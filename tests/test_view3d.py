@@ -114,7 +114,7 @@ def test_analyzed_program_in_3d_one_layer_per_tool_path_without_rapids():
     rapid approach left out, every point's tool axis from the file's GOTO i, j, k."""
     from pathlib import Path
 
-    from camsmooth.io.program import load_program
+    from camsmooth.post import load_program
     from camsmooth.report.view3d import scene_of_program
 
     cls = Path(__file__).resolve().parents[1] / "surfaces" / "dome.cls"

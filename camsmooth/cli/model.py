@@ -273,7 +273,7 @@ def simulate_cli(args: argparse.Namespace) -> int:
 def predict_cli(args: argparse.Namespace) -> int:
     """`camsmooth predict`: real tool pose per commanded pose, written as CSV, summary printed."""
     from camsmooth.io.atomic import output_transaction
-    from camsmooth.io.output import read_result_csv
+    from camsmooth.io.result_csv import read_result_csv
 
     model = load_error_model(args.model)
     machine = _machine(args)

@@ -1,9 +1,10 @@
-"""Every file format camsmooth reads or writes (the model: trimesh's ``exchange``, one module per
-format behind one entry point).
+"""The file formats below the post layer (the model: trimesh's ``exchange``, one module per
+format); the one entry point that picks a program's reader is camsmooth.post.load_program, which
+also reaches the G-code readers of camsmooth.post.
 
 - table: the one validated CSV table reader (rows, columns, delimiters, BOM, speed)
 - ccpath: CC path CSV (CCPath); clcsv: CL CSV; apt: APT CLDATA / NX CLSF; program: CLProgram,
-  Tool, ToolPath and ``load_program`` (format detected from the content); G-code in every dialect,
-  read and written, is camsmooth.post
-- output: result CSV; atomic: atomic writes
+  Tool, ToolPath, ``detect_format`` (format from the content), a result CSV read as a program
+- result_csv: camsmooth's result CSV, its columns and reader (written by
+  camsmooth.smoothing.output); atomic: atomic writes
 """

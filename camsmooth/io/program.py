@@ -1,28 +1,18 @@
-"""Programs as they come in: the typed result of every program reader, and ``load_program``, the
-one entry point that picks the reader from the file's content (trimesh.exchange.load style: one
-loader per format, registered in ``LOADERS``).
+"""Programs as they come in: the typed result of every program reader (CLProgram, Tool, ToolPath,
+Cycle, Written), the detection of a program file's format from its content (``detect_format``),
+camsmooth's result CSV read as the program it describes, and the CL table ``analyze --cl``
+writes. The one entry point that picks the reader is camsmooth.post.load_program (it reaches the
+G-code readers of the post layer, above this one).
 
 A cutter-location (CL) program is a sequence of tool poses: the tool tip (the centre of the
 cutter's bottom face, CONVENTIONS.md) and the unit tool axis from the tip toward the spindle, in
-the workpiece frame, mm. Formats and their readers:
-
-=========  =====================================  ==========================================
-format     reader                                 gives
-=========  =====================================  ==========================================
-apt        camsmooth.io.apt.read_apt              CLProgram (APT CLDATA: NX CLSF, ISO 4343 of Fusion/HSM)
-cl-csv     camsmooth.io.clcsv.read_cl_csv         CLProgram (x,y,z,i,j,k[,row][,feed])
-gcode      camsmooth.post.own.read_gcode          CLProgram (camsmooth's own G-code, any dialect)
-gcode      camsmooth.post.read_posted             CLProgram (posted programs: ISO/Fanuc/Haas/LinuxCNC,
-                                                  Heidenhain Klartext, Siemens 840D; no camsmooth header)
-cc-csv     camsmooth.io.ccpath.read_cc_csv        CCPath (contact points and normals)
-=========  =====================================  ==========================================
+the workpiece frame, mm.
 """
 
 from __future__ import annotations
 
 import os
 import re
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -32,7 +22,7 @@ import numpy as np
 from camsmooth.errors import InputError
 from camsmooth.geometry.paths import CCPath
 
-__all__ = ["Tool", "ToolPath", "CLProgram", "Cycle", "load_program", "detect_format", "FORMATS", "LOADERS",
+__all__ = ["Tool", "ToolPath", "CLProgram", "Cycle", "detect_format", "FORMATS", "read_result_program",
            "CL_COLUMNS", "cl_columns", "cl_of_cc", "write_cl_table"]
 
 
@@ -255,12 +245,10 @@ class CLProgram:
 
 
 # ----------------------------------------------------------------------------------------------
-# format detection and the entry point
+# format detection
+#: the program formats (camsmooth.post.load_program reads each)
 FORMATS = ("apt", "cl-csv", "cc-csv", "gcode", "result-csv")
-_ALIASES = {"cls": "apt", "clsf": "apt", "cldata": "apt", "apt": "apt", "cl": "cl-csv", "cl-csv": "cl-csv",
-            "cc": "cc-csv", "cc-csv": "cc-csv", "gcode": "gcode", "nc": "gcode", "g-code": "gcode",
-            "result": "result-csv", "result-csv": "result-csv"}
-#: header columns that make a CSV camsmooth's own result CSV (camsmooth.io.output.write_result_csv)
+#: header columns that make a CSV camsmooth's own result CSV (camsmooth.smoothing.output.write_result_csv)
 RESULT_MARK = ("row", "idx", "t", "clx", "cly", "clz", "i", "j", "k", "x", "y", "z", "delta", "status")
 _APT_RECORD = re.compile(r"^\s*(TOOL PATH/|GOTO/|TLDATA/|CUTTER/|MSYS/|FEDRAT/|RAPID\s*$|LOADTL/|LOAD/|PARTNO|"
                          r"UNITS/|MULTAX/|CIRCLE/|MOVARC/|END-OF-PATH|FROM/|\$\$)", re.IGNORECASE | re.MULTILINE)
@@ -309,59 +297,14 @@ def detect_format(path: str | os.PathLike, head: str | None = None) -> str:
                      "name it with format=", file=file)
 
 
-def _read_cc(path: str | os.PathLike, **_: Any) -> CCPath:
-    from camsmooth.io.ccpath import read_cc_csv
-
-    return read_cc_csv(path)
-
-
-def _read_apt(path: str | os.PathLike, **kw: Any) -> CLProgram:
-    from camsmooth.io.apt import read_apt
-
-    return read_apt(path, **{k: v for k, v in kw.items() if k in ("chord_tol", "units")})
-
-
-def _read_cl(path: str | os.PathLike, **_: Any) -> CLProgram:
-    from camsmooth.io.clcsv import read_cl_csv
-
-    return read_cl_csv(path)
-
-
-def _read_gcode(path: str | os.PathLike, **kw: Any) -> CLProgram:
-    """camsmooth's own G-code (its ``camsmooth post:`` header) by camsmooth.post.own, any other
-    (a posted program) by camsmooth.post, the dialect detected from the content."""
-    from camsmooth.post import posted_text, read_posted
-    from camsmooth.post.own import POST_TAG, read_gcode
-
-    notes: list[str] = []
-    text = posted_text(path, notes)
-    if POST_TAG in "\n".join(text.split("\n", 60)[:60]):
-        return read_gcode(path, **{k: v for k, v in kw.items() if k in ("machine",)})
-    opts = {k: v for k, v in kw.items() if k in ("machine", "dialect", "chord_tol")}
-    if kw.get("machine_given") is False:
-        opts["machine"] = None  # the default machine was not chosen for this program: the letters it uses decide
-    program = read_posted(path, text=text, **opts)
-    program.warnings[:0] = notes
-    return program
-
-
-def _read_result(path: str | os.PathLike, **_: Any) -> CLProgram:
-    return read_result_program(path)
-
-
-#: format name -> loader(path, **options); options a loader does not take are ignored
-LOADERS: dict[str, Callable[..., CLProgram | CCPath]] = {
-    "apt": _read_apt, "cl-csv": _read_cl, "cc-csv": _read_cc, "gcode": _read_gcode, "result-csv": _read_result}
-
-
 def read_result_program(path: str | os.PathLike) -> CLProgram:
-    """camsmooth's result CSV (camsmooth.io.output.write_result_csv) as the program it describes:
+    """camsmooth's result CSV (camsmooth.smoothing.output.write_result_csv) as the program it describes:
     tool tips ``clx,cly,clz``, axes ``i,j,k``, the commanded rotary angles (A,B or A,C or B,C:
     ``CLProgram.rotary``) and the linear axes X Y Z, one row per
     ``row`` id, and beside them (``Written``) the programmed-feed time ``t``, the programmed feed
     (``feed``, or from t and the CC points in files without it), the time-optimal law ``t_opt``,
     the CC points, normals, clearance and status."""
-    from camsmooth.io.output import read_result_csv, result_rotary
+    from camsmooth.io.result_csv import read_result_csv, result_rotary
 
     rotary = result_rotary(path)
     c = read_result_csv(path)
@@ -391,32 +334,6 @@ def read_result_program(path: str | os.PathLike) -> CLProgram:
                      axis=np.column_stack([c["i"], c["j"], c["k"]]), rows=rows, feed=feed,
                      rapid=np.zeros(n, bool), line=np.arange(1, n + 1), toolpaths=[tp],
                      source=str(path), format="result-csv", angles=ang, written=written, rotary=rotary)
-
-
-def load_program(source: str | os.PathLike, format: str | None = None, **options: Any) -> CLProgram | CCPath:
-    """Read a program file: APT/CLSF, CL CSV or camsmooth's own G-code give a CLProgram, a CC CSV
-    a CCPath.
-
-    format: None (detected from the content, ``detect_format``) or one of FORMATS (aliases: cls,
-    clsf, cldata, cl, cc, nc). options: ``chord_tol`` (mm, APT and posted arc interpolation),
-    ``units`` ('mm' or 'inch', APT files without UNITS/ or feed units), ``machine`` (camsmooth
-    Machine, G-code in machine mode), ``machine_given`` (False: ``machine`` is only the default
-    one, and a posted program is read with the nominal machine of its rotary letters), ``dialect``
-    (a posted program's, camsmooth.post.DIALECTS); a reader ignores options it does not take.
-    """
-    if format is None:
-        fmt = detect_format(source)
-    else:
-        fmt = _ALIASES.get(str(format).lower())
-        if fmt is None:
-            raise InputError(f"unknown program format {format!r} (known: {', '.join(FORMATS)})", file=str(source))
-        if fmt == "cl-csv" and detect_format(source) == "result-csv":
-            # its x,y,z are the CC points, not tool tips: read it as the program it describes
-            program = LOADERS["result-csv"](source, **options)
-            program.warnings.append("a camsmooth result CSV: read as the program it describes (tool tips clx,cly,clz, "
-                                    "axes i,j,k), not as a CL CSV whose x,y,z would be the CC points")
-            return program
-    return LOADERS[fmt](source, **options)
 
 
 # ----------------------------------------------------------------------------------------------

@@ -20,7 +20,9 @@ siemens        camsmooth.post.siemens          Siemens Sinumerik 840D
 millplus       camsmooth.post.millplus         Heidenhain / Philips MillPlus (``%PM``)
 =============  ==============================  =============================================
 
-``detect_dialect`` tells them from the content; ``read_posted`` reads a file; ``write_program``
+``load_program`` (camsmooth.post.load) reads any program file, the format from its content (APT,
+CL/CC CSV, result CSV, G-code); ``detect_dialect`` tells the dialects apart; ``read_posted`` reads a
+posted program; ``write_program``
 (camsmooth.post.writer) writes a PostProgram in a dialect whose entry has ``own`` set (generic,
 fanuc, linuxcnc, siemens, heidenhain: ``[post] dialect`` of a machine file). This package imports
 neither camsmooth.smoothing nor camsmooth.controller (tests/test_post_registry.py checks it).
@@ -41,7 +43,7 @@ from camsmooth.post.model import PostDialect, PostProgram
 from camsmooth.post.writer import write_program
 
 __all__ = ["read_posted", "detect_dialect", "posted_text", "READERS", "DIALECTS", "PostDialect", "PostProgram",
-           "write_program"]
+           "write_program", "load_program"]
 
 #: the dialect modules, each ending with its DIALECTS entries
 _MODULES = (iso, linuxcnc, siemens, heidenhain, millplus)
@@ -123,3 +125,7 @@ def posted_text(path: str | os.PathLike, notes: list[str]) -> str:
         notes.append(f"{exc.message}: read as Latin-1 (only comments should hold such bytes)")
     raw = Path(path).read_bytes()
     return raw.decode("latin-1").replace("\r\n", "\n").replace("\r", "\n")
+
+
+# last: the loader reads G-code through the functions above
+from camsmooth.post.load import load_program  # noqa: E402

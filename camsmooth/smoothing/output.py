@@ -1,6 +1,6 @@
-"""Program outputs: the per-point result CSV (the five-axis G-code writer is camsmooth.post.writer,
-a smoothing result's ``write_gcode`` camsmooth.smoothing.posting, re-exported here for existing
-callers).
+"""A smoothing result's outputs: the per-point result CSV (its format and reader:
+camsmooth.io.result_csv) and the G-code (``write_gcode``, camsmooth.smoothing.posting; the
+five-axis writer is camsmooth.post.writer).
 
 Files are written atomically (``camsmooth.io.atomic.atomic_path``): a failed write never leaves a
 partial file. Units in files: mm, s, degrees (radians inside the code; CONVENTIONS.md).
@@ -9,26 +9,17 @@ partial file. Units in files: mm, s, degrees (radians inside the code; CONVENTIO
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
-from camsmooth.constants import DEFAULT_SAFE_HEIGHT_MM, DEFAULT_TOLERANCE_MM
-from camsmooth.io.table import read_table, write_table
+from camsmooth.constants import DEFAULT_TOLERANCE_MM
+from camsmooth.io.result_csv import INT_COLUMNS, STATUSES, output_columns
+from camsmooth.io.table import write_table
 from camsmooth.smoothing.posting import write_gcode
-from camsmooth.smoothing.result import OUTPUT_COLUMNS, MethodResult, SmoothResult, interferes, output_columns
+from camsmooth.smoothing.result import MethodResult, SmoothResult, interferes
 
-__all__ = ["RESULT_CSV_COLUMNS", "STATUSES", "DEFAULT_SAFE_HEIGHT_MM", "point_status",
-           "write_result_csv", "read_result_csv", "write_gcode"]
-
-#: Columns of the result CSV: OUTPUT_COLUMNS, then ``lift`` (mm) and ``status``.
-RESULT_CSV_COLUMNS: tuple[str, ...] = OUTPUT_COLUMNS + ("lift", "status")
-#: Per-point status values, least to most severe; a point gets the most severe that applies.
-STATUSES: tuple[str, ...] = ("ok", "lifted", "interference", "unreachable")
-
-_INT_COLUMNS = ("row", "idx")
-_STR_COLUMNS = ("status",)
+__all__ = ["STATUSES", "point_status", "write_result_csv", "write_gcode"]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -71,7 +62,7 @@ def point_status(result: MethodResult, tolerance: float | None = None) -> np.nda
 def write_result_csv(path: str | os.PathLike, result: SmoothResult) -> Path:
     """Write the primary method's per-point table to ``path`` atomically; return the path.
 
-    Columns: RESULT_CSV_COLUMNS = OUTPUT_COLUMNS (mm, s, degrees; see camsmooth.smoothing.result) then
+    Columns: RESULT_CSV_COLUMNS = OUTPUT_COLUMNS (mm, s, degrees; see camsmooth.io.result_csv) then
     ``lift`` (mm, fallback lift along the normal, 0 where none) and ``status`` (see
     ``point_status``), then ``fx,fy,fz`` (unit feed direction, the local frame's X_L) when the
     result carries them, then ``t_plan`` (s from the row's start) and ``feed_plan`` (mm/min,
@@ -87,7 +78,7 @@ def write_result_csv(path: str | os.PathLike, result: SmoothResult) -> Path:
         raise ValueError(f"SmoothResult.table() has {table.shape[1]} columns, expected {len(names)}")
     columns: dict[str, np.ndarray] = {}
     for k, name in enumerate(names):
-        columns[name] = table[:, k].astype(np.int64) if name in _INT_COLUMNS else table[:, k]
+        columns[name] = table[:, k].astype(np.int64) if name in INT_COLUMNS else table[:, k]
     columns["lift"] = np.asarray(r.lift, float)
     columns["status"] = point_status(r)
     if r.feed_dirs is not None:  # the local frame's X_L, so predict can re-evaluate lead/tilt exactly
@@ -101,39 +92,3 @@ def write_result_csv(path: str | os.PathLike, result: SmoothResult) -> Path:
         columns["t_opt"] = r.plan.t_plan
         columns["feed_opt"] = r.plan.feed_plan
     return write_table(path, columns)
-
-
-def read_result_csv(path: str | os.PathLike, required: Sequence[str] | None = None
-                    ) -> dict[str, np.ndarray]:
-    """Read a result CSV (as written by ``write_result_csv``) into column arrays.
-
-    Returns name -> array for every column in the file: ``row`` and ``idx`` int64, ``status``
-    str, all others float (NaN allowed: an unknown clearance is written as nan; units as in the
-    file: mm, s, degrees). Read by ``camsmooth.io.table.read_table``: InputError naming the file,
-    row and column when the file is missing or empty, a ``required`` column is absent, a row has
-    the wrong number of fields or a value is not a number / not an integer. required: None for
-    the output columns of any machine kind (``output_columns`` with the rotary pair the header
-    names: A,B or A,C or B,C).
-    """
-    if required is None:
-        required = output_columns(result_rotary(path))
-    declared = tuple(dict.fromkeys(list(required) + list(_INT_COLUMNS) + list(_STR_COLUMNS)))
-    table = read_table(path, required, [c for c in declared if c not in required], integer=_INT_COLUMNS,
-                       text=_STR_COLUMNS, nonfinite=[c for c in declared if c not in _INT_COLUMNS],
-                       others="float", min_rows=0, what="result file")
-    return dict(table.columns)
-
-
-def result_rotary(path: str | os.PathLike) -> tuple[str, str]:
-    """The rotary columns a result CSV's header names (("A", "B") on an AB head, ("A", "C") on an
-    AC table, ...): the two of A, B, C that are columns, in alphabetical order (the order of
-    ``Machine.rotary``); ("A", "B") when not exactly two are (the reader then names the missing
-    columns)."""
-    from camsmooth.io.table import read_text_file
-    from camsmooth.machine.kinematics import ROTARY_NAMES
-
-    text = read_text_file(path, "result file")
-    first = next((ln for ln in text.splitlines() if ln.strip()), "")
-    names = {h.strip().strip('"') for h in first.split(",")}
-    present = [n for n in ROTARY_NAMES if n in names]
-    return (present[0], present[1]) if len(present) == 2 else ("A", "B")
