@@ -16,6 +16,7 @@ import pytest
 
 from camsmooth.errors import InputError
 from camsmooth.machine.kinematics import machine_from_dict
+from camsmooth.post import read_posted
 from camsmooth.post.model import PostProgram
 from camsmooth.post.writer import (
     _fixed,
@@ -228,3 +229,110 @@ def test_iso_annotations_and_the_time_optimal_law(tmp_path):
     notes = [ln[ln.index("(t="):] for ln in lines if ln.startswith("G01")]
     assert notes == ["(t=0.000000000 f=600.000 o=0.000000000)", "(t=0.200000000 o=0.100000000)",
                      "(t=0.400000000 o=0.200000000)", "(t=0.600000000 f=300.000 o=0.300000000)"]
+
+
+# ---- ISO reader (camsmooth.post.iso): three-axis programs, X Y Z the tool tip --------------------------
+def _iso(tmp_path: Path, body: str, dialect: str = "iso", head: str = "G90 G21 G17\n"):
+    """A program of two operations: GOOD (a rapid to (0, 0, 5) and a feed to (1, 0, 5)) and BAD
+    (``body``, from line 6 on); no rotary word, so every point's X Y Z is the tip."""
+    path = tmp_path / "t.nc"
+    path.write_text(head + "(Operation: GOOD)\nG00 X0 Y0 Z5\nG01 X1 Y0 Z5 F100\n(Operation: BAD)\n" + body + "\nM30\n")
+    p = read_posted(path, dialect=dialect)
+    notes = [w for w in p.warnings if "nominal" not in w and "no machine file" not in w]
+    return p, " | ".join(notes)
+
+
+@pytest.mark.parametrize("body, points", [
+    # G68 in the G17 plane: (2, 0) turned 90 deg about (1, 0) is (1, 1); G69 ends it
+    ("G68 X1 Y0 R90\nG01 X2 Y0 Z5\nG69\nG01 X3 Y0 Z5", [[1, 1, 5], [3, 0, 5]]),
+    # G68 about the vector I J K = +X through the origin by 90 deg: (0, 1, 5) -> (0, -5, 1)
+    ("G68 X0 Y0 Z0 I1 J0 K0 R90\nG01 X0 Y1 Z5", [[0, -5, 1]]),
+    # G68 in the G18 (ZX) plane turns about +Y: (2, 0, 5) about the origin by 90 deg -> (5, 0, -2)
+    ("G18\nG68 X0 Z0 R90\nG01 X2 Y0 Z5", [[5, 0, -2]]),
+    # G52 shifts the local frame by its X Y Z; G52 X0 Y0 takes the shift away
+    ("G52 X10 Y20\nG01 X1 Y1 Z5\nG52 X0 Y0\nG01 X2 Y2 Z5", [[11, 21, 5], [2, 2, 5]]),
+    # G91 incremental from (1, 0, 5); G20 inch: X.1 = 2.54 mm
+    ("G91\nG01 X1 Y2 Z0\nG90", [[2, 2, 5]]),
+    ("G20\nG01 X.1 Y0 Z.5", [[2.54, 0, 12.7]]),
+    # '#' parameters and an expression
+    ("#100=2.5\nG01 X[#100*2] Y#100 Z5", [[5, 2.5, 5]]),
+    # G53 / G28 move in machine coordinates: no point
+    ("G53 X0 Y0 Z0\nG01 X2 Y0 Z5", [[2, 0, 5]]),
+    ("G28 X0\nG01 X2 Y0 Z5", [[2, 0, 5]]),
+    # G99: after a hole the tool stands at the R level, the next move starts there
+    ("G99 G81 X2 Y0 Z-2 R1\nG80\nG01 X4 Y0", [[4, 0, 1]]),
+    # G98 (the default): back to the initial level; the hole is no point
+    ("G81 X2 Y0 Z-2 R1\nG80\nG01 X4 Y0", [[4, 0, 5]]),
+    # a block-delete '/' block is read as executed
+    ("/G01 X3 Y0 Z5", [[3, 0, 5]]),
+])
+def test_iso_frames_units_and_parameters(tmp_path, body, points):
+    p, _ = _iso(tmp_path, body)
+    np.testing.assert_allclose(p.tip[2:], points, atol=1e-9)
+
+
+@pytest.mark.parametrize("body, reason", [
+    ("G68 X0 Y0 Z0 I0 J0 K0 R90\nG01 X0 Y1 Z5", "G68 with a zero rotation vector"),
+    ("M98 P1234", "M98 P1234: subprogram O1234 is not in this file"),
+    ("M98", "M98 without P"),
+    ("M97 P77", "M97 P77: no block N77 in this file"),
+    ("M97", "M97 P: no block N in this file"),
+    ("G68.2 P1 X0 Y0 Z0 I0 J0 K0", "G68.2 P1 (a tilted plane given by roll-pitch-yaw"),
+    ("G01 X1 Y0 Z5 U3", "word U not read by this reader"),
+    ("G01 X1 Y0 Z5 U3 V2", "words U, V not read by this reader"),
+    ("G80\nX3 Y0 Z5", "a position without a motion mode (G0/G1/G2/G3)"),
+    ("G02 X2 Y0 Z5 R0.2", "arc radius R0.2 is smaller than half the chord (0.5 mm)"),
+    ("G02 X1 Y0 Z5 R1", "a full circle given by R (the centre is not defined)"),
+    ("G02 X3 Y0 Z5 I1 J0.5", ""),
+    ("G02 X3 Y0 Z5 I2.1 J0", "arc end point radius 0.1 mm differs from the start radius 2.1 mm"),
+    ("G18\nG81 X1 Y0 Z-2 R1", "canned cycle G81 in plane G18 (only G17 cycles are read)"),
+    ("G91\nG81 X1 Y0 Z-2 R1", "canned cycle G81 in incremental mode (G91)"),
+    ("G81 X1 Y0 R1", "canned cycle G81 without a depth Z"),
+    ("#1 2\nG01 X1", "a '#' word that is not an assignment"),
+    ("G01 X Y1", "word X has no value ('XY1')"),
+    ("G01 X1 X2", "word X twice in one block"),
+    ("G01 X1 *2", "'*2' is not a word (a letter and its value)"),
+    ("G93\nG01 X2 Y0 Z5 F0", "F0 in inverse time (G93) is not a block time"),
+    ("G41 D1\nG01 X1 Y0 Z5", "cutter radius compensation (G41): the programmed path is not the tool's"),
+    ("G300\nG01 X2 Y0 Z5", "G300 is not read by the iso reader"),
+    ("o100 sub\nG01 X2 Y0 Z5", "LinuxCNC o-word sub (control flow and subroutines of o-words are not executed"),
+    ("G01 X[1/0] Y0 Z5", "has no value (division by zero or out of range)"),
+])
+def test_iso_refusals_name_their_reason_and_cost_only_their_operation(tmp_path, body, reason):
+    p, notes = _iso(tmp_path, body)
+    if reason:
+        assert "operation 'BAD' (line 5) dropped" in notes and reason in notes, notes
+        np.testing.assert_allclose(p.tip, [[0, 0, 5], [1, 0, 5]])
+    else:  # the arc is read: its end point is (3, 0, 5), every point on the circle of radius hypot(1, .5)
+        np.testing.assert_allclose(p.tip[-1], [3, 0, 5], atol=1e-12)
+        np.testing.assert_allclose(np.hypot(p.tip[2:, 0] - 2, p.tip[2:, 1] - 0.5), math.hypot(1, 0.5), atol=1e-9)
+
+
+def test_iso_words_that_move_nothing_are_named(tmp_path):
+    """G10 (offset data), G05.1, G61, G13.1, G234 / G49 on a three-axis program, the extra work
+    offsets: named, and no point is added or moved."""
+    p, notes = _iso(tmp_path, "G10 L2 P1 X0\nG05.1 Q1\nG61\nG13.1\nG54.1 P3\nG154 P7\nG112\nG01 X2 Y0 Z5")
+    np.testing.assert_allclose(p.tip[2:], [[2, 0, 5]])
+    for word in ("G10 (offset data) (line 6)", "G05.1 (look-ahead) (line 7)", "G61 (line 8)", "G13.1 (line 9)",
+                 "G54.1 P3, G154 P7, G112"):
+        assert word in notes, (word, notes)
+    assert "G01 X1 F2" not in notes
+
+
+def test_iso_the_program_is_between_the_percent_lines(tmp_path):
+    """A listing banner before the first '%' and whatever follows the second '%' are not program."""
+    path = tmp_path / "b.nc"
+    path.write_text("BANNER G01 X99 Y99 Z99\n%\nG90 G21\nG00 X0 Y0 Z5\nG01 X1 Y0 Z5 F100\n%\nG01 X50 Y50 Z50\n")
+    p = read_posted(path, dialect="iso")
+    np.testing.assert_allclose(p.tip, [[0, 0, 5], [1, 0, 5]])
+
+
+def test_iso_subprograms_repeat(tmp_path):
+    """M98 P2000 L3 runs O2000 (one incremental step of 1 mm in X) three times; the Fanuc form
+    M98 P20002000 (repeats and number in one word) twice; M99 returns."""
+    sub = "O2000\nG91 G01 X1\nG90\nM99\n"
+    for call, n in (("M98 P2000 L3", 3), ("M98 P22000", 2)):
+        path = tmp_path / "s.nc"
+        path.write_text(f"%\nO1000\nG90 G21\nG00 X0 Y0 Z5\nG01 X0 Y0 Z4 F100\n{call}\nM30\n{sub}%\n")
+        p = read_posted(path, dialect="iso")
+        np.testing.assert_allclose(p.tip[2:, 0], np.arange(1, n + 1), err_msg=call)
