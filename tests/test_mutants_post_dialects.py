@@ -336,3 +336,103 @@ def test_iso_subprograms_repeat(tmp_path):
         path.write_text(f"%\nO1000\nG90 G21\nG00 X0 Y0 Z5\nG01 X0 Y0 Z4 F100\n{call}\nM30\n{sub}%\n")
         p = read_posted(path, dialect="iso")
         np.testing.assert_allclose(p.tip[2:, 0], np.arange(1, n + 1), err_msg=call)
+
+
+# ---- Heidenhain Klartext reader (camsmooth.post.heidenhain) ----------------------------------------------
+def _klartext(tmp_path: Path, body: str, head: str = "BEGIN PGM T MM"):
+    """Operations GOOD (TOOL CALL with F500, a rapid to (0, 0, 5), a feed to (1, 0, 5) at F100) and
+    BAD (``body``, from line 7 on); no rotary word: X Y Z is the tip, the axis +Z."""
+    path = tmp_path / "t.h"
+    path.write_text(head + "\n* - GOOD\nTOOL CALL 1 Z S1000 F500\nL X+0 Y+0 Z+5 R0 FMAX\nL X+1 Y+0 Z+5 F100\n"
+                    "* - BAD\n" + body + "\nEND PGM T MM\n")
+    p = read_posted(path, dialect="heidenhain")
+    notes = [w for w in p.warnings if "nominal" not in w and "no machine file" not in w]
+    return p, " | ".join(notes)
+
+
+@pytest.mark.parametrize("body, tip, axis, feed", [
+    # PLANE EULER: R = Rz(PR) Rx(NU) Rz(ROT); PR = 90: (1, 0, 5) -> (0, 1, 5)
+    ("PLANE EULER EULPR+90 EULNU+0 EULROT+0 TURN\nL X+1 Y+0 Z+5", [0, 1, 5], [0, 0, 1], 100),
+    # PLANE EULER NU = 90 tilts Z to -Y: (0, 0, 5) -> (0, -5, 0), the axis R e_z = (0, -1, 0)
+    ("PLANE EULER EULPR+0 EULNU+90 EULROT+0 TURN\nL X+0 Y+0 Z+5", [0, -5, 0], [0, -1, 0], 100),
+    # PLANE VECTOR: Z along N = -Y, X along B = +X, Y = Z x X = +Z: (1, 2, 3) -> (1, -3, 2)
+    ("PLANE VECTOR BX+1 BY+0 BZ+0 NX+0 NY-1 NZ+0 STAY\nL X+1 Y+2 Z+3", [1, -3, 2], [0, -1, 0], 100),
+    # incremental words, Q parameters (Qn = and FN 0:), F AUTO = the TOOL CALL's F
+    ("L IX+1 IY+2", [2, 2, 5], [0, 0, 1], 100),
+    ("Q1 = 2\nL X+Q1", [2, 0, 5], [0, 0, 1], 100),
+    ("FN 0: Q2 = +3\nL Y+Q2", [1, 3, 5], [0, 0, 1], 100),
+    ("L X+2 F AUTO", [2, 0, 5], [0, 0, 1], 500),
+    ("L X+2 F250", [2, 0, 5], [0, 0, 1], 250),
+    # STOP, BLK FORM, CYCL DEF 247 and M140 move nothing
+    ("STOP\nL X+2", [2, 0, 5], [0, 0, 1], 100),
+    ("BLK FORM 0.1 Z X+0 Y+0 Z-10\nL X+2", [2, 0, 5], [0, 0, 1], 100),
+    ("CYCL DEF 247 DATUM SETTING ~\nQ339=+3 ;DATUM NUMBER\nL X+2", [2, 0, 5], [0, 0, 1], 100),
+    ("L Z+50 R0 FMAX M140 MB MAX\nL X+2 Y+0 Z+5", [2, 0, 5], [0, 0, 1], 100),
+    # LN with the tool vector TX TY TZ: the axis is the vector
+    ("LN X+2 Y+0 Z+5 TX+0 TY+0.6 TZ+0.8", [2, 0, 5], [0, 0.6, 0.8], 100),
+])
+def test_klartext_planes_words_and_feeds(tmp_path, body, tip, axis, feed):
+    p, _ = _klartext(tmp_path, body)
+    np.testing.assert_allclose(p.tip[2], tip, atol=1e-9)
+    np.testing.assert_allclose(p.axis[2], axis, atol=1e-9)
+    assert p.feed[2] == pytest.approx(feed)
+    assert len(p.tip) == 3
+
+
+@pytest.mark.parametrize("body", ["CC X+0 Y+0\nC X+0 Y+1 DR+", "CR X+0 Y+1 R+1 DR+", "CR X+0 Y+1 R-1 DR-"])
+def test_klartext_quarter_arcs(tmp_path, body):
+    """(1, 0) -> (0, 1) on the unit circle about the origin (the circle of radius 1 through both
+    points centred there or at (1, 1)): counter-clockwise, the short way, for C about CC with DR+
+    and CR R+1 DR+ (R+: central angle <= 180 deg); clockwise, the long way (270 deg, through
+    (0, -1) and (-1, 0)), for CR R-1 DR- (R-: more than 180 deg) -- about the origin too."""
+    p, _ = _klartext(tmp_path, body)
+    arc = p.tip[2:]
+    np.testing.assert_allclose(arc[-1], [0, 1, 5], atol=1e-12)
+    np.testing.assert_allclose(np.hypot(arc[:, 0], arc[:, 1]), 1.0, atol=1e-9)
+    turn = np.diff(np.unwrap(np.r_[0.0, np.arctan2(arc[:, 1], arc[:, 0])]))
+    if "R-1" in body:
+        assert np.all(turn < 0) and turn.sum() == pytest.approx(-1.5 * math.pi)
+        assert arc[:, 1].min() == pytest.approx(-1.0, abs=1e-3) and arc[:, 0].min() == pytest.approx(-1.0, abs=1e-3)
+    else:
+        assert np.all(turn > 0) and turn.sum() == pytest.approx(0.5 * math.pi)
+
+
+def test_klartext_inch_program(tmp_path):
+    """BEGIN PGM ... INCH: X Y Z in inch (X+1 = 25.4 mm), F in 0.1 inch/min (F100 = 10 inch/min =
+    254 mm/min)."""
+    p, _ = _klartext(tmp_path, "L X+1 Y+0 Z+1 F100", head="BEGIN PGM T INCH")
+    np.testing.assert_allclose(p.tip[2], [25.4, 0, 25.4], atol=1e-9)
+    assert p.feed[2] == pytest.approx(254.0)
+
+
+@pytest.mark.parametrize("body, reason", [
+    ("PLANE VECTOR BX+1 BY+0 BZ+0 NX+0 NY+0 NZ+0 STAY", "PLANE VECTOR with a zero normal"),
+    ("PLANE VECTOR BX+0 BY+0 BZ+1 NX+0 NY+0 NZ+1 STAY", "PLANE VECTOR whose base vector is along the normal"),
+    ("PLANE RELATIV STAY", "PLANE RELATIV without SPA, SPB or SPC"),
+    ("PLANE AXIAL B+30 STAY", "PLANE AXIAL is not read (SPATIAL, EULER, VECTOR, RELATIV and RESET are)"),
+    ("C X+0 Y+1", "C without DR+ or DR-"),
+    ("C X+0 Y+1 DR+", "C without a circle centre CC"),
+    ("CR X+0 Y+1 R+0.2 DR+", "CR radius 0.2 does not fit the chord 1.41421 mm"),
+    ("CC X+0 Y+0\nC X+0 Y+2 DR+", "arc end point radius 2 mm differs from the start radius 1 mm"),
+    ("L X+2 Y+0 Z+5 RL", "radius compensation RL/RR: the programmed path is not the tool's"),
+    ("L X+2 Y+0 Z+5 RR F100", "radius compensation RL/RR"),
+    ("CT X+2 Y+1", "CT is not read"),
+    ("CALL PGM SUB.H", "CALL PGM (another program file) is not read"),
+    ("CALL LBL 9", "label 9 is not in this program"),
+    ("CALL LBL", "CALL LBL without a label"),
+    ("FOO 3", "FOO is not read by the heidenhain reader"),
+    ("FN 20: Q1 = +1", "FN 20 (jump, error, print or table functions) is not executed"),
+    ("FN 9: IF +1 EQU +1 GOTO LBL 5", "jump to label 5, which is not in this program"),
+    ("CYCL DEF 7.0 DATUM SHIFT\nCYCL DEF 7.1 #5", "CYCL DEF 7 from a datum table (#) is not read"),
+    ("CYCL DEF 10.0 ROTATION\nCYCL DEF 10.1 IROT", "CYCL DEF 10 without ROT"),
+    ("CYCL DEF 19.0 WORKING PLANE", "CYCL DEF 19 (tilted plane by cycle) is not read; PLANE is"),
+    ("CYCL DEF 999", "CYCL DEF 999 is not read"),
+    ("CYCL DEF ABC", "CYCL DEF without a cycle number"),
+    ("CYCL CALL", "cycle call without a CYCL DEF"),
+    ("CYCL DEF 200 DRILLING ~\nQ201=-5 ;DEPTH ~\nQ203=+1 ;SURFACE COORDINATE\nCYCL CALL PAT",
+     "CYCL CALL PAT (point tables) is not read"),
+])
+def test_klartext_refusals_name_their_reason(tmp_path, body, reason):
+    p, notes = _klartext(tmp_path, body)
+    assert "operation 'BAD' (line 6) dropped" in notes and reason in notes, notes
+    np.testing.assert_allclose(p.tip, [[0, 0, 5], [1, 0, 5]])
