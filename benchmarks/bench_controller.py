@@ -20,6 +20,14 @@ time over it).
     .venv/bin/python benchmarks/bench_controller.py [--samples blade,wave] [--rows 3] [--methods none,spline,nlp]
     .venv/bin/python benchmarks/bench_controller.py --sample dome    (the A/C trunnion of surfaces/dome_machine.toml)
     .venv/bin/python benchmarks/bench_controller.py --sample dome --machine surfaces/nutating_machine.toml
+    .venv/bin/python benchmarks/bench_controller.py --mode tcp --samples dome,wave --rows 3
+
+``--mode tcp``: on table machines LinuxCNC's trt kinematics describes (the dome's A/C trunnion; the
+other samples on a B/C trunnion with the dome machine's limits), the nlp program written and run in
+both LinuxCNC modes: TCP (``M428``, camsmooth.controller.tcp: its blocks, F words held so that the
+joints stay within their limits, run on the simulation's xyzac-trt / xyzbc-trt switchkins
+kinematics) and machine mode (G93, trivkins); per row executed / predicted / floor, the F factor
+the TCP row was held down by, the tip's largest distance and the linear joints' peaks.
 
 A sample with a machine file beside it (``surfaces/<sample>_machine.toml``) runs on that machine
 (its post set to linuxcnc, machine mode); the others on the default AB head.
@@ -31,6 +39,7 @@ user for the simulation.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import tempfile
 import time
@@ -41,8 +50,17 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from camsmooth.constants import DEFAULT_SAFE_HEIGHT_MM  # noqa: E402
+from camsmooth.controller.blocks import tip_deviation  # noqa: E402
 from camsmooth.controller.linuxcnc import least_row_times  # noqa: E402
-from camsmooth.controller.linuxcnc_sim import linuxcnc_missing, row_runs, simulate  # noqa: E402
+from camsmooth.controller.linuxcnc_sim import (  # noqa: E402
+    camsmooth_joints,
+    linuxcnc_missing,
+    row_runs,
+    row_samples,
+    simulate,
+    trt_missing,
+)
 from camsmooth.geometry.clearance import MeshIndex  # noqa: E402
 from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl  # noqa: E402
 from camsmooth.geometry.frames import axis_from_lead_tilt, local_frames  # noqa: E402
@@ -54,27 +72,38 @@ from camsmooth.machine.kinematics import (  # noqa: E402
     PostConfig,
     load_machine,
     machine_from_dict,
+    preset_machine,
 )
 from camsmooth.post import load_program  # noqa: E402
 from camsmooth.smoothing.cam import cam_program  # noqa: E402
+from camsmooth.smoothing.evaluate import time_law  # noqa: E402
 from camsmooth.smoothing.pipeline import smooth  # noqa: E402
 from camsmooth.smoothing.posting import write_gcode  # noqa: E402
 
 TOLERANCE = 0.005
 
 
-def linuxcnc_machine(sample: str | None = None, machine_file: Path | None = None):
+def linuxcnc_machine(sample: str | None = None, machine_file: Path | None = None, mode: str = "machine"):
     """``machine_file`` when given, else the sample's own machine (``surfaces/<sample>_machine.toml``)
-    when it has one, else the default AB head; the post LinuxCNC's, machine mode."""
-    import dataclasses
+    when it has one, else the default AB head; the post LinuxCNC's, in ``mode``."""
     import tomllib
 
     own = machine_file or ROOT / "surfaces" / f"{sample}_machine.toml"
     if (sample is not None or machine_file is not None) and own.is_file():
-        return dataclasses.replace(load_machine(str(own)), post=PostConfig(dialect="linuxcnc", mode="machine"))
+        return dataclasses.replace(load_machine(str(own)), post=PostConfig(dialect="linuxcnc", mode=mode))
     data = tomllib.loads(DEFAULT_MACHINE_TOML)
-    data["post"] = {"dialect": "linuxcnc", "mode": "machine"}
+    data["post"] = {"dialect": "linuxcnc", "mode": mode}
     return machine_from_dict(data, "<bench machine>")
+
+
+def bc_table_machine(mode: str = "tcp"):
+    """A B/C trunnion (B about +Y tilting, C about +Z; LinuxCNC's xyzbc-trt) with the dome machine's
+    limits (B those of its A) and table centre, the post LinuxCNC's in ``mode``."""
+    dome = load_machine(str(ROOT / "surfaces" / "dome_machine.toml"))
+    lim = dict(dome.limits)
+    lim["B"] = lim.pop("A")
+    return preset_machine("BC-table", centre=dome.table_centre, name="B/C trunnion (the dome machine's limits)",
+                          limits=lim, post=PostConfig(dialect="linuxcnc", mode=mode))
 
 
 def cam_clsf(path: CCPath, cutter: ToroidalCutter, lead_deg: float = 11.0) -> str:
@@ -97,10 +126,10 @@ def cam_clsf(path: CCPath, cutter: ToroidalCutter, lead_deg: float = 11.0) -> st
     return "\n".join(lines + ["END-OF-PATH"]) + "\n"
 
 
-def smoothed(sample: str, rows: int, methods: list[str], machine_file: Path | None = None):
+def smoothed(sample: str, rows: int, methods: list[str], machine_file: Path | None = None, machine=None):
     """(machine, cutter, SmoothResult) of ``rows`` rows from the middle of the sample's path,
-    smoothed for LinuxCNC (``linuxcnc_machine``) at 2000 mm/min and TOLERANCE."""
-    machine = linuxcnc_machine(sample, machine_file)
+    smoothed for LinuxCNC (``machine``, default ``linuxcnc_machine``) at 2000 mm/min and TOLERANCE."""
+    machine = machine or linuxcnc_machine(sample, machine_file)
     shipped = ROOT / "surfaces" / f"{sample}.toml"
     if shipped.exists():
         surf = load_surface(shipped)
@@ -153,6 +182,93 @@ def run(sample: str, rows: int, methods: list[str], keep: Path | None, machine_f
     return out
 
 
+def _joint_peaks(machine, joints: np.ndarray, k: np.ndarray, dt: float) -> tuple[float, float]:
+    """The largest |velocity| / vmax and |acceleration| / amax of the linear joints X Y Z (the ones
+    LinuxCNC does not limit in TCP mode) over the servo samples k and one either side (finite
+    differences); joints (K, 5) mm, rad."""
+    from camsmooth.machine.kinematics import axis_limits
+
+    vmax, amax, _ = axis_limits(machine)
+    q = joints[max(k[0] - 2, 0):k[-1] + 3]
+    return (float((np.abs(np.diff(q, axis=0)).max(axis=0) / dt / vmax)[:3].max()),
+            float((np.abs(np.diff(q, 2, axis=0)).max(axis=0) / dt ** 2 / amax)[:3].max()))
+
+
+def run_modes(sample: str, rows: int, keep: Path | None, machine) -> list[dict]:
+    """The nlp program of ``sample`` on a table machine LinuxCNC's trt kinematics describes, written
+    and run in both modes: TCP (``M428``; the blocks and held F words of camsmooth.controller.tcp,
+    on the simulation's trt switchkins kinematics, linuxcnc_sim.trt_config) and machine mode (G93,
+    trivkins). Per row and mode: executed, predicted and floor (s), the tip's largest distance (um)
+    from the programmed path (TCP: the tips' polyline; machine: the joints' tip curves), the linear
+    joints' largest velocity and acceleration over their limits."""
+    tcp_machine = dataclasses.replace(machine, post=PostConfig(dialect="linuxcnc", mode="tcp"))
+    _, cutter, res = smoothed(sample, rows, ["nlp"], machine=tcp_machine)
+    r = res.methods["nlp"]
+    mm = dataclasses.replace(machine, post=PostConfig(dialect="linuxcnc", mode="machine"))
+    q = np.column_stack([r.xyz, r.rotary.values])
+    law = time_law(mm, r.rows, q, r.cl, np.full(len(q), 2000.0), tolerance=TOLERANCE, plan=r.plan)
+    out = []
+    for mode, m, plan in (("tcp", tcp_machine, r.controller), ("machine", mm, law.controller)):
+        rr = dataclasses.replace(r, controller=plan)
+        with tempfile.TemporaryDirectory() as tmp:
+            ngc = Path(tmp) / f"{sample}_{mode}.ngc"
+            write_gcode(ngc, rr, m, cutter, 2000.0, tolerance=TOLERANCE)
+            sim = simulate(ngc, m, trt=mode == "tcp", keep=(keep / f"{sample}_{mode}") if keep else None, timeout=300)
+            text = ngc.read_text()
+        joints = camsmooth_joints(m, sim.joints)
+        tips = m.tool_pose_np(joints[:, 3], joints[:, 4], joints[:, 0], joints[:, 1], joints[:, 2])[0]
+        dev = {x.row: x.deviation for x in row_runs(m, rr, text, sim)}
+        for row, k in row_samples(text, sim).items():
+            j = list(plan.row_ids).index(row)
+            sel = np.flatnonzero(r.rows == row)
+            if mode == "tcp":
+                path = np.vstack([r.cl[sel[0]] + DEFAULT_SAFE_HEIGHT_MM * r.axis[sel[0]], r.cl[sel]])
+                dev[row] = float(tip_deviation(tips[k[0]:k[-1] + 1], path).max())
+            v, a = _joint_peaks(m, joints, k, sim.servo_period)
+            out.append(dict(sample=sample, machine=m.name, mode=mode, row=int(row),
+                            executed=float((k[-1] - k[0] + 1) * sim.servo_period),
+                            predicted=float(plan.row_cycle_time[j]), floor=float(plan.row_floor[j]),
+                            blocks=int(plan.keep[sel].sum() - 1), deviation_um=1e3 * dev[row], v=v, a=a,
+                            scale=float(getattr(plan, "row_feed_scale", np.ones(len(plan.row_ids)))[j])))
+    return out
+
+
+def main_modes(args: argparse.Namespace) -> None:
+    """``--mode tcp``: both modes per row (``run_modes``) for each sample: the dome on its own A/C
+    trunnion, the other samples on ``bc_table_machine``."""
+    print(f"LinuxCNC simulation, tolerance {TOLERANCE} mm, servo period 1 ms; TCP mode on the trt switchkins "
+          "kinematics (M428), machine mode on trivkins; linear joints' peaks over their limits at 1 ms")
+    print(f"{'sample':7s} {'mode':8s} {'row':>4s} {'blocks':>6s} {'executed s':>10s} {'predicted s':>11s} "
+          f"{'pred/exec-1':>11s} {'floor s':>8s} {'exec/floor':>10s} {'F scale':>7s} {'tip um':>7s} {'v/vmax':>7s} "
+          f"{'a/amax':>7s}")
+    totals: dict[tuple[str, str], list[float]] = {}
+    for sample in args.samples.split(","):
+        machine = linuxcnc_machine(sample, args.machine) if sample == "dome" or args.machine else bc_table_machine()
+        missing = trt_missing(machine)
+        if missing:
+            print(f"{sample}: {missing}")
+            continue
+        print(f"# {sample} on {machine.name}")
+        for x in run_modes(sample, args.rows, args.keep, machine):
+            print(f"{x['sample']:7s} {x['mode']:8s} {x['row']:4d} {x['blocks']:6d} {x['executed']:10.3f} "
+                  f"{x['predicted']:11.3f} {x['predicted'] / x['executed'] - 1:+11.2%} {x['floor']:8.3f} "
+                  f"{x['executed'] / x['floor']:10.3f} {x['scale']:7.3f} {x['deviation_um']:7.2f} {x['v']:7.2f} "
+                  f"{x['a']:7.2f}")
+            t = totals.setdefault((x["sample"], x["mode"]), [0.0, 0.0, 0.0])
+            t[0] += x["executed"]
+            t[1] += x["predicted"]
+            t[2] += x["floor"]
+    print("\ntotals over the rows")
+    for (sample, mode), (ex, pr, fl) in totals.items():
+        print(f"{sample:7s} {mode:8s} executed {ex:8.3f} s  predicted {pr:8.3f} s ({pr / ex - 1:+.2%})  "
+              f"floor {fl:8.3f} s")
+    for sample in {s for s, _ in totals}:
+        if (sample, "tcp") in totals and (sample, "machine") in totals:
+            tcp, mach = totals[(sample, "tcp")][0], totals[(sample, "machine")][0]
+            print(f"{sample}: executed TCP {tcp:.3f} s, machine {mach:.3f} s: "
+                  f"TCP {100 * (mach / tcp - 1):+.1f}% faster")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--samples", "--sample", default="blade,wave,ridge",
@@ -163,10 +279,16 @@ def main() -> None:
     ap.add_argument("--keep", type=Path, default=None, help="folder to keep the simulations' files in")
     ap.add_argument("--machine", type=Path, default=None,
                     help="run every sample on this machine file (e.g. surfaces/nutating_machine.toml)")
+    ap.add_argument("--mode", choices=("machine", "tcp"), default="machine",
+                    help="tcp: TCP mode beside machine mode per row (the dome on its A/C trunnion, the other samples "
+                         "on a B/C trunnion with the dome's limits; nlp only)")
     args = ap.parse_args()
     missing = linuxcnc_missing()
     if missing:
         sys.exit(f"bench_controller: {missing}")
+    if args.mode == "tcp":
+        main_modes(args)
+        return
     print(f"LinuxCNC simulation, tolerance {TOLERANCE} mm, servo period 1 ms")
     print(f"{'sample':8s} {'method':7s} {'row':>4s} {'points':>6s} {'blocks':>6s} {'executed s':>10s} "
           f"{'predicted s':>11s} {'pred/exec-1':>11s} {'optimal s':>9s} {'exec/opt':>8s} {'bound/opt':>9s} "

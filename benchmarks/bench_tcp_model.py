@@ -1,4 +1,6 @@
-"""TCP mode against machine mode, on camsmooth's model of LinuxCNC's planner (an experiment).
+"""TCP mode against machine mode, on camsmooth's model of LinuxCNC's planner (the experiment that
+camsmooth.controller.tcp grew from: the library's TCP mode places its blocks by the model, holds
+the F words per row and models the last block's stop at the whole acceleration).
 
 In TCP mode (M428 with LinuxCNC's trt switchkins kinematics) the program gives the tool tip and
 the rotary axes; LinuxCNC's planner plans those world coordinates with the [AXIS_*] limits and
@@ -45,8 +47,9 @@ from bench_controller import TOLERANCE, smoothed  # noqa: E402
 
 from camsmooth.constants import DEFAULT_SAFE_HEIGHT_MM  # noqa: E402
 from camsmooth.controller import PATH_TOLERANCE_SHARE, LinuxCNCPlanner  # noqa: E402
-from camsmooth.controller.blocks import BLOCK_TOLERANCE_SHARE, MAX_BLOCK_POINTS, tip_deviation  # noqa: E402
+from camsmooth.controller.blocks import BLOCK_TOLERANCE_SHARE, tip_deviation  # noqa: E402
 from camsmooth.controller.linuxcnc import SERVO_PERIOD_S, canon_segments  # noqa: E402
+from camsmooth.controller.tcp import chord_reach  # noqa: E402
 from camsmooth.machine.kinematics import axis_limits  # noqa: E402
 
 FEED = 2000.0
@@ -57,26 +60,11 @@ def _rotary(r) -> np.ndarray:
     return np.asarray(r.rotary.values, float)
 
 
-def chord_reach(tip: np.ndarray, tolerance: float, max_points: int = MAX_BLOCK_POINTS) -> np.ndarray:
-    """(n,) per point of one row, the most points a TCP block from it may span: every skipped tip
-    within ``tolerance`` (mm) of the chord (the tip path of a TCP block)."""
-    n = len(tip)
-    reach = np.ones(n, int)
-    for a in range(n - 1):
-        for k in range(2, min(max_points, n - 1 - a) + 1):
-            p, b = tip[a + 1:a + k], tip[a + k] - tip[a]
-            t = np.clip((p - tip[a]) @ b / max(b @ b, 1e-300), 0.0, 1.0)
-            if np.linalg.norm(p - tip[a] - t[:, None] * b, axis=1).max() > tolerance:
-                break
-            reach[a] = k
-    return reach
-
-
 def tcp_row(machine, planner: LinuxCNCPlanner, tip: np.ndarray, rot: np.ndarray, axis0: np.ndarray,
             scale: float) -> dict:
     """One row in TCP mode on the model: blocks, time (s), joint peaks over the limits, tip error."""
     n = len(tip)
-    reach = chord_reach(tip, BLOCK_TOLERANCE_SHARE * TOLERANCE)
+    reach = chord_reach(np.zeros(n, int), tip, BLOCK_TOLERANCE_SHARE * TOLERANCE).sum(axis=1)
     k, i = [0], 0
     while i < n - 1:
         i = min(i + int(reach[i]), n - 1)

@@ -5,12 +5,14 @@ trunnion, the same blocks and block times written twice and run on the headless 
 - TCP mode ("tcp"): the same blocks written in TCP mode (tool tips and A C, ``M428`` on, F = the
   tip feed that gives each block the same time); "tcp chord": TCP blocks of their own, the longest
   whose skipped tips stay within BLOCK_TOLERANCE_SHARE of the tolerance of the chord (the tip path
-  of a TCP block; bench_tcp_model.chord_reach), timed by the time-optimal law; both on
+  of a TCP block; camsmooth.controller.tcp.chord_reach), timed by the time-optimal law; both on
   LinuxCNC's own ``xyzac-trt-kins`` switchkins
   kinematics, configured as its sample ``xyzac-trt.ini`` does: ``sparm=identityfirst``, the
   shipped ``M428``/``M429`` remap subroutines (``HAL_PIN_VARS = 1``), ``motion.analog-out-03``
   netted to ``motion.switchkins-type``, the rotation point at the machine file's table centre
-  and no offsets (``x/y/z-rot-point``, ``y-offset = z-offset = tool-offset = 0``).
+  and no offsets (``x/y/z-rot-point``, offsets 0: camsmooth.controller.linuxcnc_sim.trt_config).
+  camsmooth's own TCP-mode program (its blocks and held F words, camsmooth.controller.tcp) is
+  what ``bench_controller.py --mode tcp`` runs.
 
 Per row and mode: the executed cut time (first to last servo sample of the row's cut blocks), the
 tool tip's largest distance (forward kinematics of the recorded joints) from the programmed tips'
@@ -44,35 +46,14 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from bench_controller import TOLERANCE, smoothed  # noqa: E402
-from bench_tcp_model import chord_reach  # noqa: E402
 
 from camsmooth.controller.blocks import BLOCK_TOLERANCE_SHARE, tip_deviation  # noqa: E402
-from camsmooth.controller.linuxcnc_sim import (  # noqa: E402
-    _HAL,
-    camsmooth_joints,
-    linuxcnc_missing,
-    row_samples,
-    simulate,
-)
+from camsmooth.controller.linuxcnc_sim import camsmooth_joints, row_samples, simulate, trt_missing  # noqa: E402
+from camsmooth.controller.tcp import chord_reach  # noqa: E402
 from camsmooth.machine.kinematics import PostConfig, axis_limits  # noqa: E402
 from camsmooth.smoothing.posting import write_gcode  # noqa: E402
 
-TRT = Path("/usr/share/doc/linuxcnc/examples/sample-configs/sim/axis/vismach/5axis/table-rotary-tilting")
 FEED = 2000.0
-
-
-def trt_config(machine) -> dict:
-    """``simulate`` keywords for LinuxCNC's xyzac-trt switchkins kinematics (module docstring)."""
-    cx, cy, cz = machine.table_centre
-    hal = _HAL + (
-        "net kinstype motion.analog-out-03 => motion.switchkins-type\n"
-        f"setp xyzac-trt-kins.x-rot-point {cx}\nsetp xyzac-trt-kins.y-rot-point {cy}\n"
-        f"setp xyzac-trt-kins.z-rot-point {cz}\nsetp xyzac-trt-kins.y-offset 0\nsetp xyzac-trt-kins.z-offset 0\n"
-        "setp xyzac-trt-kins.tool-offset 0\n")
-    remaps = [ln.strip() for ln in (TRT / "xyzac-trt.ini").read_text().splitlines()
-              if ln.strip().startswith("REMAP") and ("M428" in ln or "M429" in ln)]
-    rs274 = f"SUBROUTINE_PATH = {TRT / 'remap_subs'}\nHAL_PIN_VARS = 1\n" + "".join(f"{r}\n" for r in remaps)
-    return dict(kins="xyzac-trt-kins sparm=identityfirst", rs274ngc=rs274, hal=hal)
 
 
 def per_row(machine, r, text: str, run) -> dict[int, dict]:
@@ -96,9 +77,10 @@ def per_row(machine, r, text: str, run) -> dict[int, dict]:
 def chord_blocks(r):
     """The MethodResult with TCP blocks of its own (module docstring, "tcp chord")."""
     keep = np.zeros(len(r.rows), bool)
+    ok = chord_reach(r.rows, r.cl, BLOCK_TOLERANCE_SHARE * TOLERANCE)
     for rid in np.unique(r.rows):
         sel = np.flatnonzero(r.rows == rid)
-        reach = chord_reach(r.cl[sel], BLOCK_TOLERANCE_SHARE * TOLERANCE)
+        reach = ok[sel].sum(axis=1)
         i = 0
         keep[sel[0]] = True
         while i < len(sel) - 1:
@@ -117,10 +99,10 @@ def main() -> None:
     ap.add_argument("--rows", type=int, default=3)
     ap.add_argument("--keep", type=Path, default=None)
     args = ap.parse_args()
-    missing = linuxcnc_missing() or (None if TRT.is_dir() else f"{TRT} missing (LinuxCNC's sample configurations)")
+    machine, cutter, res = smoothed("dome", args.rows, ["nlp"])
+    missing = trt_missing(machine)
     if missing:
         sys.exit(f"bench_tcp_sim: {missing}")
-    machine, cutter, res = smoothed("dome", args.rows, ["nlp"])
     r = res.methods["nlp"]
     got = {}
     with tempfile.TemporaryDirectory() as tmp:
@@ -129,9 +111,8 @@ def main() -> None:
             ngc = Path(tmp) / f"dome_{mode.replace(' ', '_')}.ngc"
             prog = chord_blocks(r) if mode == "tcp chord" else r
             write_gcode(ngc, prog, m, cutter, FEED, tolerance=TOLERANCE)
-            extra = trt_config(machine) if mode != "machine" else {}
             keep = args.keep / mode.replace(" ", "_") if args.keep else None
-            run = simulate(ngc, machine, keep=keep, timeout=300, **extra)
+            run = simulate(ngc, machine, keep=keep, timeout=300, trt=mode != "machine")
             got[mode] = per_row(machine, r, ngc.read_text(), run)
             got[mode]["blocks"] = {int(x): int(prog.controller.keep[r.rows == x].sum() - 1) for x in np.unique(r.rows)}
     print(f"LinuxCNC simulation, dome rows on {machine.name}, tolerance {TOLERANCE} mm; tcp: machine mode's blocks "
