@@ -180,8 +180,8 @@ TARGETS: dict[str, Target] = {
     # the jerk-limited law: every mutant that reaches it reruns jerk-limited plans (seconds each, minutes with
     # the direct-NLP reference of test_jerk.py): a sample
     "jerk": Target(("camsmooth/smoothing/jerk.py",), (
-        "tests/test_mutants_jerk.py", "tests/test_jerk.py", "tests/test_invariants.py", "-k",
-        "jerk or limit or binding or default_machine or piece or nodes or rates"), sample=25),
+        "tests/test_mutants_jerk.py", "tests/test_mutants_jerk2.py", "tests/test_jerk.py", "tests/test_invariants.py",
+        "-k", "jerk or limit or binding or default_machine or piece or nodes or rates"), sample=50),
     "pole": Target(("camsmooth/smoothing/pole.py",), (
         "tests/test_mutants_pole.py", "tests/test_invariants.py",
         "tests/test_samples.py::test_dome_sample_passes_the_pole_of_its_machines_c_axis", "-k",
