@@ -323,3 +323,32 @@ def test_a_tcp_program_on_linuxcncs_trt_kinematics_runs_as_predicted_within_the_
         a = np.abs(np.diff(j, 2, axis=0)).max(axis=0) / run.servo_period ** 2 / amax
         assert v.max() <= 1.0 and a[:3].max() <= 1.0, (row, v, a)
         assert a[3:].max() <= 1.01, (row, a)
+
+
+def test_smooth_and_the_report_print_both_modes_with_their_floors(dome, capsys):
+    """``smooth``'s summary and the report's verdict for a TCP program on the A/C trunnion: the
+    floor line names TCP mode (the written one) and the mode line gives both predictions and
+    floors, the TCP floor recomputed here (least time on the world coordinates), and which is
+    faster by the predicted times."""
+    from camsmooth.cli.main import _print_floor
+    from camsmooth.report.smoothing import _modes_line
+
+    _print_floor(dome)
+    out = capsys.readouterr().out
+    r = dome.methods["nlp"]
+    mt = r.metrics
+    assert re.search(r"^nlp: LinuxCNC TCP mode \(M428\) cannot run straight blocks", out, re.M), out
+    got = re.search(r"^nlp: TCP mode \(M428\): ([\d.]+) s, floor ([\d.]+) s; machine mode: ([\d.]+) s, floor "
+                    r"([\d.]+) s: (TCP|machine mode) is ([\d.]+)% faster$", out, re.M)
+    assert got, out
+    tcp, tcp_floor, mach, mach_floor = (float(got.group(i)) for i in range(1, 5))
+    q = np.column_stack([r.xyz, r.rotary.values])
+    want = TCPPlanner().row_floor(dome.machine, r.rows, q, r.cl, np.full(len(q), 2000.0), TOL)
+    assert tcp_floor == pytest.approx(want.sum(), rel=1e-3)
+    assert tcp == pytest.approx(mt.tcp_cycle_time_s, rel=1e-3) and mach == pytest.approx(mt.machine_cycle_time_s,
+                                                                                         rel=1e-3)
+    assert tcp_floor <= tcp and mach_floor <= mach
+    faster = "TCP" if tcp < mach else "machine mode"
+    assert got.group(5) == faster
+    assert float(got.group(6)) == pytest.approx(100 * (max(tcp, mach) / min(tcp, mach) - 1), abs=0.1)
+    assert _modes_line(mt) in out
