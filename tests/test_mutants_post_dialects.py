@@ -436,3 +436,84 @@ def test_klartext_refusals_name_their_reason(tmp_path, body, reason):
     p, notes = _klartext(tmp_path, body)
     assert "operation 'BAD' (line 6) dropped" in notes and reason in notes, notes
     np.testing.assert_allclose(p.tip, [[0, 0, 5], [1, 0, 5]])
+
+
+# ---- Siemens 840D reader (camsmooth.post.siemens) ---------------------------------------------------------
+def _sinumerik(tmp_path: Path, body: str):
+    """Operations GOOD (a rapid to (0, 0, 5), a feed to (1, 0, 5) at F100) and BAD (``body``, from line 6
+    on), ';(NAME)' headings as NX's Sinumerik posts write them; no rotary word: X Y Z is the tip."""
+    path = tmp_path / "t.mpf"
+    path.write_text("G71 G90 G17\n;(GOOD)\nG0 X0 Y0 Z5\nG1 X1 Y0 Z5 F100\n;(BAD)\n" + body + "\nM30\n")
+    p = read_posted(path, dialect="siemens")
+    notes = [w for w in p.warnings if "nominal" not in w and "no machine file" not in w]
+    return p, " | ".join(notes)
+
+
+@pytest.mark.parametrize("body, tips", [
+    # DEF variables and R parameters as word values (840D Fundamentals, "Assignments": X=R1+5, user
+    # variables DEF REAL name=value): X=XX is 2 when DEF REAL XX=2
+    ("DEF REAL XX=2, YY=3\nG1 X=XX Y=YY Z5", [[2, 3, 5]]),
+    ("R1=1.5 R2=R1*2\nG1 X=R1+1 Y=R2 Z5", [[2.5, 3, 5]]),
+    ("DEF REAL DX=0.5\nG1 X=IC(DX) Y0 Z5", [[1.5, 0, 5]]),
+    # per-word incremental IC() from the current position (1, 0, 5)
+    ("G1 X=IC(1) Y0 Z=IC(2)", [[2, 0, 7]]),
+    # TRANS replaces the programmable frame, ATRANS adds to it, TRANS alone resets it
+    ("TRANS X10\nG1 X1 Y0 Z5\nATRANS Y5\nG1 X1 Y0 Z5\nTRANS\nG1 X1 Y0 Z5", [[11, 0, 5], [11, 5, 5], [1, 0, 5]]),
+    # ROT Z90 turns (1, 0, 5) to (0, 1, 5); AROT X90 then turns about the rotated X: (1, 0, 5) -> R (1, -5, 0)
+    # with R = Rz(90) Rx(90): (5, 1, 0); ROT alone resets
+    ("ROT Z90\nG1 X1 Y0 Z5\nAROT X90\nG1 X1 Y0 Z5\nROT\nG1 X1 Y0 Z5", [[0, 1, 5], [5, 1, 0], [1, 0, 5]]),
+    # CYCLE800 axis by axis, _MODE 57 = 0b111001 (X, then Y, then Z): A = 90 about X: (1, 0, 5) -> (1, -5, 0)
+    ('CYCLE800(1,"TC1",0,57,0,0,0,90,0,0,0,0,0,1)\nG1 X1 Y0 Z5', [[1, -5, 0]]),
+    # ... with the reference point X0 = (10, 0, 0) and the zero point X1 = (0, 0, 1): 10 + Rx(90) (1, 0, 6)
+    ('CYCLE800(1,"TC1",0,57,10,0,0,90,0,0,0,0,1,1)\nG1 X1 Y0 Z5', [[11, -6, 0]]),
+    # G70 inch, G71 mm; SUPA (machine coordinates) is no point; settings and dwell move nothing
+    ("G70\nG1 X1 Y0 Z1\nG71", [[25.4, 0, 25.4]]),
+    ("SUPA G0 Z0\nG1 X2 Y0 Z5", [[2, 0, 5]]),
+    ("FFWON SOFT COMPCAD\nG642\nCTOL=0.01\nG4 F2\nG1 X2", [[2, 0, 5]]),
+    ('T="MILL" D1\nM6\nG500\nG505\nG1 X2', [[2, 0, 5]]),
+])
+def test_sinumerik_variables_frames_and_units(tmp_path, body, tips):
+    p, notes = _sinumerik(tmp_path, body)
+    assert "dropped" not in notes, notes
+    np.testing.assert_allclose(p.tip[2:], tips, atol=1e-9)
+
+
+def test_sinumerik_tool_vector_radius_arc_and_centre_ac(tmp_path):
+    """A3 B3 C3 give the tool vector; CR=0.5 from (1, 0) to (2, 0) clockwise is the half circle about
+    (1.5, 0); I=AC(1.5) J=AC(0) gives the same centre absolutely."""
+    p, _ = _sinumerik(tmp_path, "G1 X2 Y0 Z5 A3=0 B3=0.6 C3=0.8")
+    np.testing.assert_allclose(p.axis[2], [0, 0.6, 0.8], atol=1e-12)
+    for body in ("G2 X2 Y0 Z5 CR=0.5", "G2 X2 Y0 Z5 I=AC(1.5) J=AC(0)"):
+        p, _ = _sinumerik(tmp_path, body)
+        arc = p.tip[2:]
+        np.testing.assert_allclose(arc[-1], [2, 0, 5], atol=1e-12)
+        np.testing.assert_allclose(np.hypot(arc[:, 0] - 1.5, arc[:, 1]), 0.5, atol=1e-9)
+        assert np.all(arc[:-1, 1] > 0)  # clockwise from (1, 0) about (1.5, 0) passes above the X axis
+
+
+def test_sinumerik_mcall_holes(tmp_path):
+    """MCALL CYCLE81(RTP 10, RFP 0, SDIS 2, DP -5): a hole at every X Y position until MCALL alone;
+    CYCLE81 with DPR 3 (relative depth) and no DP: the bottom at RFP - DPR = -3."""
+    p, notes = _sinumerik(tmp_path, "MCALL CYCLE81(10,0,2,-5)\nG0 X2 Y0\nX3\nMCALL\nG0 X4")
+    holes = [h for c in p.cycles for h in c.holes]
+    np.testing.assert_allclose(holes, [[2, 0, -5], [3, 0, -5]])
+    assert "CYCLE81 (2 holes)" in notes
+    p, _ = _sinumerik(tmp_path, "CYCLE81(10,0,2,,3)")
+    np.testing.assert_allclose([h for c in p.cycles for h in c.holes], [[1, 0, -3]])
+
+
+@pytest.mark.parametrize("body, reason", [
+    ("IF R1 > 2 GOTOF END", "control flow IF is not executed by this reader"),
+    ("CIP X2 Y1 I1=1 J1=1", "CIP (arc through an intermediate point / tangential arc) is not read"),
+    ("MIRROR X0", "MIRROR (a frame from the tool, a mirror or a scale) is not read"),
+    ("G1 X2 Y0 Z5 QQ=3", "QQ=3 is not read"),
+    ("G1 X2 I=IC(1)", "I=IC(1) (IC on I) is not read"),
+    ("CYCLE800", "CYCLE800 without its arguments"),
+    ('CYCLE800(1,"TC1",0,57)', "CYCLE800 with fewer than 13 arguments"),
+    ('CYCLE800(1,"TC1",0,128,0,0,0,0,0,0,0,0,0,1)', "CYCLE800 mode 128 (projection, solid or direct angles"),
+    ("CYCLE81", "CYCLE81 without its arguments"),
+])
+def test_sinumerik_refusals_name_their_reason(tmp_path, body, reason):
+    p, notes = _sinumerik(tmp_path, body)
+    assert "operation 'BAD' (line 5) dropped" in notes and reason in notes, notes
+    np.testing.assert_allclose(p.tip, [[0, 0, 5], [1, 0, 5]])

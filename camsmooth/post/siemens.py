@@ -60,8 +60,16 @@ class _Siemens(IsoInterpreter):
         self.swivel = Frame3()
         self.mcall: tuple[str, float] | None = None
 
-    def _refs(self, expr: str) -> str:
-        return re.sub(r"\bR(\d+)\b", lambda m: f"#<r{m.group(1)}>", expr)
+    def _refs(self, expr: str, names: bool = False) -> str:
+        """R parameters as ``#<rN>`` for the ISO words' evaluator; with ``names`` (the value of a
+        ``NAME=value`` word) the variables a DEF or an assignment gave a value (``X=XX``) too."""
+        def ref(m: re.Match[str]) -> str:
+            word = m.group(0)
+            if re.fullmatch(r"R\d+", word, re.I):
+                return f"#<r{word[1:]}>"
+            return f"#<{word.lower()}>" if names and word.lower() in self.vars else word
+
+        return re.sub(r"(?<![<\w])[A-Z_][A-Z0-9_]*\b", ref, expr, flags=re.I)  # not inside a '#<name>' made here
 
     def _num(self, expr: str) -> float:
         lookup = {f"v_{k}": v for k, v in self.vars.items()}
@@ -162,7 +170,7 @@ class _Siemens(IsoInterpreter):
                     val = mode.group(2)
                     val = self._per_word(name, mode.group(1), val, tok)
                 if name == "TURN":  # helix: full turns beyond the end point's angle
-                    out.append(f"P[{self._refs(val)}+1]")
+                    out.append(f"P[{self._refs(val, True)}+1]")
                     continue
                 if name in ("A3", "B3", "C3"):
                     self.tcp_vector = True
@@ -171,7 +179,7 @@ class _Siemens(IsoInterpreter):
                     name = "R"
                 elif len(name) != 1:
                     raise Skip(f"{tok} is not read")
-                out.append(f"{name}[{self._refs(val)}]")
+                out.append(f"{name}[{self._refs(val, True)}]")
             else:
                 out.append(self._refs(tok))
         return " ".join(out)
@@ -187,12 +195,12 @@ class _Siemens(IsoInterpreter):
             base = self.pos[name] * scale if name in "XYZ" else self.rot.get(name, 0.0)
             if math.isnan(base):
                 raise Skip(f"{tok}: incremental from an unknown position")
-            return f"{base!r}+({self._refs(val)})"
+            return f"{base!r}+({self._refs(val, True)})"
         if mode == "AC" and name in ("I", "J", "K"):
             base = self.pos["XYZ"["IJK".index(name)]] * scale
             if math.isnan(base):
                 raise Skip(f"{tok}: an arc centre from an unknown start point")
-            return f"({self._refs(val)})-{base!r}"
+            return f"({self._refs(val, True)})-{base!r}"
         if mode == "IC":
             raise Skip(f"{tok} (IC on {name}) is not read")
         return val
