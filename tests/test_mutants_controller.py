@@ -1,0 +1,612 @@
+"""Closed-form checks of the controller models (camsmooth.controller.blocks and .linuxcnc) written
+against the mutants benchmarks/mutation.py left alive (targets controller-blocks and
+controller-linuxcnc).
+
+The oracles are worked by hand: the trapezoid and triangle of a single block from rest to rest
+(time L/v + v/a, or 2 sqrt(L/a)), the chain of parabolic blends at half the acceleration (the next
+block starts when the one before it decelerates below the blend speed: n equal triangle blocks take
+(n + 1) sqrt(L/a_h), two equal trapezoid blocks 2 L/v + v/a_h), the ``G64 P`` corner cap
+2 sqrt(a_h P / cos(theta/2)) (LinuxCNC 2.9 ``blendmath.c``, tpComputeBlendVelocity), the sagitta of
+chords of a circle and brute force over short rows. The default AB head (pivot 150 mm; X Y Z
+500 mm/s, 3000 mm/s^2; A B 60 deg/s, 300 deg/s^2) with a LinuxCNC post throughout; servo period
+1 ms. Units mm, s, deg in the programs; rad inside.
+"""
+
+from __future__ import annotations
+
+import itertools
+import tomllib
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from camsmooth.controller import blocks as B
+from camsmooth.controller import linuxcnc as L
+from camsmooth.machine.kinematics import DEFAULT_MACHINE_TOML, machine_from_dict
+
+DT = L.SERVO_PERIOD_S
+A_LIN = 3000.0  # mm/s^2, X Y Z of the default machine
+V_LIN = 500.0  # mm/s
+
+
+def _machine():
+    data = tomllib.loads(DEFAULT_MACHINE_TOML)
+    data["post"] = {"dialect": "linuxcnc", "mode": "machine"}
+    return machine_from_dict(data, "<test machine>")
+
+
+M = _machine()
+PIVOT = M.pivot
+
+
+def _feed_run(joints, feed_mm_min, *, tolerance: float = 0.0, start=None):
+    """The planner model's BlockTimes of G94 feed moves (X Y Z mm, A B deg) from ``start``."""
+    joints = np.atleast_2d(np.asarray(joints, float))
+    n = len(joints)
+    p = L.LinuxCNCPlanner(tolerance=tolerance)
+    seg = p.segments(M, np.zeros(5) if start is None else np.asarray(start, float), joints, np.zeros(n, bool),
+                     np.full(n, float(feed_mm_min)), np.zeros(n, bool))
+    return p.run(seg), seg
+
+
+# ---- linuxcnc.py: the canonical layer ---------------------------------------------------------------------
+
+
+def test_move_limits_of_a_combined_move_by_hand():
+    """X 3, Y 4 mm and B 2 deg in one move: length 5 mm (the XYZ distance), v_ini = 5 / max(3/500, 4/500,
+    2/60) = 150 mm/s, acc = 5 / max(3/3000, 4/3000, 2/300) = 750 mm/s^2, direction (0.6, 0.8, 0); a
+    Z of 5e-8 mm (below emccanon's 1e-7) does not move the axis."""
+    vmax, amax = L._limits(M)
+    dq = np.array([[3.0, -4.0, 5e-8, 0.0, 2.0]])
+    length, v_ini, acc, maxvel, pure, direction = L._move_limits(dq, vmax, amax, DT, 1e9)
+    assert length[0] == pytest.approx(5.0, rel=1e-15)
+    assert v_ini[0] == pytest.approx(150.0, rel=1e-12)
+    assert acc[0] == pytest.approx(750.0, rel=1e-12)
+    assert maxvel[0] == pytest.approx(150.0, rel=1e-12)
+    assert not pure[0]
+    assert np.allclose(direction[0], [0.6, -0.8, 1e-8], atol=1e-15)
+    # the sample rate caps the speed: 5 mm in 1.02 cycles; and [TRAJ] MAX_LINEAR_VELOCITY
+    dq = np.array([[0.1, 0.0, 0.0, 0.0, 0.0]])
+    assert L._move_limits(dq, vmax, amax, DT, 1e9)[3][0] == pytest.approx(0.1 / (1.02 * DT), rel=1e-12)
+    assert L._move_limits(dq, vmax, amax, DT, 20.0)[3][0] == pytest.approx(20.0, rel=1e-15)
+
+
+def test_move_limits_of_a_pure_rotary_and_a_pure_linear_move():
+    """B alone by 10 deg: length 10 deg, 60 deg/s and 300 deg/s^2 (only the rotary axes count), the
+    linear speed limit does not apply, no XYZ direction; X alone by 2 mm: the linear axis only."""
+    vmax, amax = L._limits(M)
+    assert np.allclose(vmax, [500, 500, 500, 60, 60]) and np.allclose(amax, [3000, 3000, 3000, 300, 300])
+    length, v_ini, acc, maxvel, pure, direction = L._move_limits(
+        np.array([[0.0, 0, 0, 0, -10.0], [2.0, 0, 0, 0, 0]]), vmax, amax, DT, 5.0)
+    assert list(pure) == [True, False]
+    assert np.allclose(length, [10.0, 2.0])
+    assert np.allclose(v_ini, [60.0, 500.0]) and np.allclose(acc, [300.0, 3000.0])
+    assert np.allclose(maxvel, [60.0, 5.0])
+    assert np.allclose(direction, [[0, 0, 0], [1, 0, 0]])
+    # no move at all: no length, unbounded speed and acceleration (LinuxCNC drops the segment)
+    length, v_ini, acc, *_ = L._move_limits(np.zeros((1, 5)), vmax, amax, DT, 5.0)
+    assert length[0] == 0 and np.isinf(v_ini[0]) and np.isinf(acc[0])
+
+
+def test_canon_segments_feed_modes_rapids_and_stops():
+    """G93: rate = length * F / 60; G94: F / 60; a rapid at v_ini; a segment stops where the motion mode
+    changes and at the program's end; the joints are taken after ``start``; G64 P carried."""
+    start = np.array([1.0, 0, 0, 0, 0])
+    joints = np.array([[4.0, 4.0, 0, 0, 0], [4.0, 4.0, 2.0, 0, 0], [4.0, 4.0, 12.0, 0, 0], [4.0, 4.0, 12.1, 0, 0]])
+    seg = L.canon_segments(start, joints, np.array([False, False, True, False]), np.array([6.0, 600.0, 1.0, 1e6]),
+                           np.array([True, False, False, False]), M, tolerance=0.002)
+    assert np.allclose(seg.length, [5.0, 2.0, 10.0, 0.1])
+    assert seg.reqvel[0] == pytest.approx(5.0 * 6.0 / 60.0)  # G93: 0.5 mm/s
+    assert seg.reqvel[1] == pytest.approx(10.0)  # G94: 600 mm/min
+    assert seg.reqvel[2] == pytest.approx(500.0)  # rapid: v_ini, whatever F
+    assert seg.reqvel[3] == pytest.approx(500.0)  # F above the axes: v_ini
+    assert list(seg.stop_after) == [False, True, True, True]
+    assert list(seg.rapid) == [False, False, True, False]
+    assert seg.tolerance == 0.002
+    assert np.allclose(seg.maxvel, [500.0, 500.0, 500.0, 0.1 / (1.02 * DT)])
+    # v_limit caps the linear speed; None takes the fastest linear axis
+    slow = L.canon_segments(start, joints, np.zeros(4, bool), np.full(4, 1e6), np.zeros(4, bool), M, v_limit=7.0)
+    assert np.allclose(slow.maxvel, 7.0)
+    assert np.allclose(slow.reqvel, [625.0, 500.0, 500.0, 500.0])  # 3-4-5: v_ini = 5 / (4 / 500)
+    p = L.LinuxCNCPlanner(v_limit=7.0, tolerance=0.003)
+    via = p.segments(M, start, joints, np.zeros(4, bool), np.full(4, 1e6), np.zeros(4, bool))
+    assert np.allclose(via.maxvel, 7.0) and via.tolerance == 0.003
+
+
+def test_linuxcnc_sense_is_the_machines():
+    assert np.array_equal(L.linuxcnc_sense(M), [1.0, 1.0])
+    assert L.linuxcnc_sense(M).dtype == float
+
+
+# ---- linuxcnc.py: the planner's kernels ------------------------------------------------------------------
+
+
+def test_trapezoid_velocity_by_hand():
+    """findTrapezoidalDesiredVel: the speed that still stops within dx, -a dt/2 + sqrt(vf^2 + a (2 dx - v dt)
+    + (a dt / 2)^2); 0 when that square root has no real value."""
+    a, dx, vf, v, dt = 2000.0, 0.3, 4.0, 10.0, 0.001
+    want = -a * dt / 2 + np.sqrt(vf ** 2 + a * (2 * dx - v * dt) + (a * dt / 2) ** 2)
+    assert L._trapezoid_vel(a, dx, vf, v, dt) == pytest.approx(want, rel=1e-14)
+    assert L._trapezoid_vel(a, -1.0, 0.0, 10.0, dt) == 0.0
+
+
+def test_solo_segment_is_the_triangle_or_the_trapezoid():
+    """From rest to rest at a = 1000 mm/s^2: L = 1 mm reaches sqrt(a L) = 31.6 mm/s in 2 sqrt(L/a);
+    capped at 10 mm/s it cruises: L/v + v/a; no length, no time."""
+    t, v = L._solo(1.0, 100.0, 1000.0)
+    assert (t, v) == (pytest.approx(2 * np.sqrt(1e-3), rel=1e-14), pytest.approx(np.sqrt(1000.0), rel=1e-14))
+    t, v = L._solo(1.0, 10.0, 1000.0)
+    assert (t, v) == (pytest.approx(0.1 + 0.01, rel=1e-14), 10.0)
+    assert L._solo(0.0, 10.0, 1000.0) == (0.0, 0.0)
+    # exactly at the cap: both formulas agree
+    t, v = L._solo(0.1, 10.0, 1000.0)
+    assert t == pytest.approx(0.02, rel=1e-12) and v == pytest.approx(10.0, rel=1e-12)
+
+
+def test_lag_is_the_time_until_the_blend_speed_on_the_final_deceleration():
+    """Two trapezoid segments (10 mm at 50 mm/s, a_h = 1500): blend speed 50, so the next starts when
+    the first begins to decelerate, at L/v = 0.2 s; at a 90 deg corner with G64 P = 1 um the cap
+    2 sqrt(a_h P / cos 45 deg) holds it back to T - v_tol / a_h; straight on, no cap."""
+    ap = 1500.0
+    tp = 10 / 50 + 50 / ap
+    x, y = np.array([1.0, 0, 0]), np.array([0.0, 1, 0])
+    assert L._lag(10.0, 50.0, ap, tp, x, 10.0, 50.0, ap, y, 0.0) == pytest.approx(0.2, rel=1e-12)
+    v_tol = 2 * np.sqrt(ap * 0.001 / np.cos(np.pi / 4))
+    assert L._lag(10.0, 50.0, ap, tp, x, 10.0, 50.0, ap, y, 0.001) == pytest.approx(tp - v_tol / ap, rel=1e-12)
+    assert L._lag(10.0, 50.0, ap, tp, x, 10.0, 50.0, ap, x, 0.001) == pytest.approx(0.2, rel=1e-12)
+    # triangle segments (1 mm, a_h 1000): the blend speed is the peak sqrt(a_h L): the next starts at the top
+    tp, vp = L._solo(1.0, 1e3, 1000.0)
+    assert L._lag(1.0, vp, 1000.0, tp, x, 1.0, vp, 1000.0, x, 0.0) == pytest.approx(tp / 2, rel=1e-12)
+    # a short next segment (0.25 mm: it reaches it in half the time) lowers the blend speed
+    tn, vn = L._solo(0.25, 1e3, 1000.0)
+    t_blend = min(1.0 / vp, 0.25 / vn)  # = the time to cover the next at its peak
+    assert L._lag(1.0, vp, 1000.0, tp, x, 0.25, vn, 1000.0, x, 0.0) == pytest.approx(tp - t_blend, rel=1e-12)
+
+
+def test_one_block_from_rest_to_rest_is_the_trapezoid_or_the_triangle():
+    """A lone block (the program's last: full acceleration 3000 mm/s^2). 20 mm at 50 mm/s: L/v + v/a;
+    0.3 mm with no feed limit: the triangle 2 sqrt(L/a) = 20 ms; within two servo cycles (the end
+    is counted at the end of its cycle)."""
+    bt, seg = _feed_run([[20.0, 0, 0, 0, 0]], 3000.0)
+    t = 20 / 50 + 50 / A_LIN
+    assert bt.start[0] == 0.0
+    assert t <= bt.end[0] + 1e-9 <= t + 2 * DT
+    bt, _ = _feed_run([[0, 0.3, 0, 0, 0]], 1e6)
+    t = 2 * np.sqrt(0.3 / A_LIN)
+    assert t - DT <= bt.end[0] <= t + 2 * DT
+    # one cycle per record, ending at the end point; the head past the last after the end
+    pos = bt.positions(np.zeros(5), np.array([[0, 0.3, 0, 0, 0]]))
+    assert len(pos) == round(bt.end[0] / DT)
+    assert np.allclose(pos[-1], [0, 0.3, 0, 0, 0])
+    assert np.all(np.diff(pos[:, 1]) >= 0)
+
+
+def test_a_pure_rotary_block_runs_its_degrees():
+    """B alone by 30 deg at 60 deg/s, 300 deg/s^2 (a lone block): 30/60 + 60/300 = 0.7 s."""
+    bt, seg = _feed_run([[0, 0, 0, 0, 30.0]], 1e6)
+    assert seg.pure_rotary[0] and seg.length[0] == 30.0
+    assert 0.7 <= bt.end[0] + 1e-9 <= 0.7 + 2 * DT
+
+
+@pytest.mark.parametrize("n", [2, 5])
+def test_equal_triangle_blocks_chain_at_half_the_acceleration(n):
+    """n equal blocks of 0.4 mm, too short to reach their feed: each runs its triangle at half the
+    acceleration (1500 mm/s^2), in 2 sqrt(L/a_h), and the next starts at the top of the one before
+    (the blend speed is the peak): block i ends at (i + 2) sqrt(L/a_h)."""
+    x = 0.4 * np.arange(1, n + 1)
+    joints = np.column_stack([x, np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)])
+    bt, _ = _feed_run(joints, 1e6)
+    h = np.sqrt(0.4 / (A_LIN / 2))
+    assert bt.end[-1] == pytest.approx((n + 1) * h, abs=2.5 * DT)
+    assert np.allclose(bt.end, h * np.arange(2, n + 2), atol=2.5 * DT)
+    assert np.array_equal(bt.start, np.r_[0.0, bt.end[:-1]])  # the head of the queue once the one before ends
+
+
+def test_two_trapezoid_blocks_blend_at_full_speed():
+    """Two 10 mm blocks along X at 50 mm/s: each a trapezoid at a_h = 1500; the second starts when the
+    first begins to decelerate (L/v): 2 L/v + v/a_h, the time of one 20 mm block at a_h."""
+    bt, _ = _feed_run([[10.0, 0, 0, 0, 0], [20.0, 0, 0, 0, 0]], 3000.0)
+    t = 2 * 10 / 50 + 50 / 1500
+    assert t - DT <= bt.end[-1] <= t + 2 * DT
+    assert bt.end[0] == pytest.approx(10 / 50 + 50 / 1500, abs=2 * DT) and bt.start[1] == bt.end[0]
+    pos = bt.positions(np.zeros(5), np.array([[10.0, 0, 0, 0, 0], [20.0, 0, 0, 0, 0]]))
+    speed = np.diff(pos[:, 0]) / DT
+    assert speed.max() == pytest.approx(50.0, rel=1e-3)  # the blend adds the two speeds up to the feed
+
+
+@pytest.mark.parametrize("tol", [0.0, 0.001])
+def test_a_corner_blend_is_capped_by_the_g64_tolerance(tol):
+    """10 mm along X then 10 mm along Y at 50 mm/s (a_h = 1500): without G64 P the second starts at
+    the first's deceleration (2 L/v + v/a_h); with P = 1 um the blend speed is 2 sqrt(a_h P / cos 45)
+    = 2.91 mm/s, so the second starts (v - v_tol)/a_h later."""
+    bt, _ = _feed_run([[10.0, 0, 0, 0, 0], [10.0, 10.0, 0, 0, 0]], 3000.0, tolerance=tol)
+    t = 2 * 10 / 50 + 50 / 1500
+    if tol:
+        v_tol = 2 * np.sqrt(1500 * tol / np.cos(np.pi / 4))
+        t += (50 - v_tol) / 1500
+    assert t - DT <= bt.end[-1] <= t + 2 * DT
+    # straight on with the same tolerance: no cap (the corner is closer to straight than 1e-3 rad)
+    bt, _ = _feed_run([[10.0, 0, 0, 0, 0], [20.0, 0, 0, 0, 0]], 3000.0, tolerance=tol)
+    assert bt.end[-1] <= 2 * 10 / 50 + 50 / 1500 + 2 * DT
+
+
+def test_a_mode_change_stops_the_feed_block():
+    """A feed block followed by a rapid ends at rest at full acceleration: 10 mm at 50 mm/s takes
+    L/v + v/a = 0.2167 s, then the rapid (10 mm at 500 mm/s, a 3000: a triangle 2 sqrt(L/a)) starts."""
+    p = L.LinuxCNCPlanner()
+    joints = np.array([[10.0, 0, 0, 0, 0], [20.0, 0, 0, 0, 0]])
+    seg = p.segments(M, np.zeros(5), joints, np.array([False, True]), np.array([3000.0, 0.0]), np.zeros(2, bool))
+    bt = p.run(seg)
+    t0 = 10 / 50 + 50 / A_LIN
+    assert t0 <= bt.end[0] + 1e-9 <= t0 + 2 * DT
+    assert bt.start[1] == pytest.approx(bt.end[0], abs=1.5 * DT)
+    t1 = 2 * np.sqrt(10 / A_LIN)
+    assert bt.end[1] == pytest.approx(bt.end[0] + t1, abs=2.5 * DT)
+
+
+def test_dropped_segments_keep_the_positions_of_the_others():
+    """A repeated point first and in the middle: the BlockTimes of the moving segments with the
+    dropped ones ending where the one before ends (the first at 0), and the positions at every
+    cycle those of the program without them."""
+    p = L.LinuxCNCPlanner()
+    joints = np.array([[0.0, 0, 0, 0, 0], [1.0, 0, 0, 0, 0.5], [1.0, 0, 0, 0, 0.5], [2.0, 0, 0, 0, 1.0]])
+    seg = p.segments(M, np.zeros(5), joints, np.zeros(4, bool), np.full(4, 600.0), np.ones(4, bool))
+    t = p.run(seg)
+    w = p.run(p.segments(M, np.zeros(5), joints[[1, 3]], np.zeros(2, bool), np.full(2, 600.0), np.ones(2, bool)))
+    assert t.end[0] == 0.0 and t.start[0] == 0.0
+    assert t.start[1] == w.start[0] and t.end[1] == w.end[0]
+    assert t.start[2] == t.end[2] == w.end[0]
+    assert t.start[3] == w.start[1] and t.end[3] == w.end[1]
+    assert np.array_equal(t.head[t.head < 4], np.array([1, 3])[w.head[w.head < 2]])
+    assert np.all(t.head[w.head == 2] == 4)
+    assert np.allclose(t.positions(np.zeros(5), joints), w.positions(np.zeros(5), joints[[1, 3]]), atol=1e-12)
+
+
+def test_positions_are_the_head_and_following_fractions_by_hand():
+    bt = L.BlockTimes(start=np.zeros(2), end=np.ones(2), head=np.array([0, 0, 1, 2]),
+                      head_fraction=np.array([0.5, 0.9, 0.25, 0.0]), following=np.array([1, 1, 2, 3]),
+                      following_fraction=np.array([0.0, 0.1, 0.0, 0.0]))
+    start = np.array([0.0, 0.0])
+    joints = np.array([[2.0, 0.0], [2.0, 4.0]])
+    pos = bt.positions(start, joints)
+    assert np.allclose(pos, [[1.0, 0.0], [1.8, 0.4], [2.0, 1.0], [2.0, 4.0]])
+
+
+def test_row_run_writes_four_decimals_and_degrees():
+    """row_run rounds the joints as the writer does (4 decimals, mm and deg) and returns radians;
+    its block times are G93 F = 60 / t; row_times counts from the row's first point."""
+    p = L.LinuxCNCPlanner()
+    entry = np.array([0.0, 0.0, 10.0, 0.0, 0.0])
+    q = np.array([[0.0, 0.0, 0.0, 0.0, 0.0], [5.00004, 0.0, 0.0, 0.0, np.radians(1.00004)],
+                  [10.0, 0.0, 0.0, 0.0, np.radians(2.0)]])
+    bt, joints = p.row_run(M, q, np.array([2.0, 2.0]), entry, 4.0)
+    assert np.allclose(joints[-1], [10.0, 0, 0, 0, np.radians(2.0)], atol=1e-12)
+    at_corner = bt.head == 2  # the cycles of the last block start at the written point
+    seg = p.segments(M, [0, 0, 10.0, 0, 0], [[0, 0, 0, 0, 0], [5.0, 0, 0, 0, 1.0], [10.0, 0, 0, 0, 2.0]],
+                     np.zeros(3, bool), np.array([15.0, 30.0, 30.0]), np.ones(3, bool))
+    want = p.run(seg)
+    assert np.array_equal(want.end, bt.end) and at_corner.any()
+    assert np.allclose(p.row_times(M, q, np.array([2.0, 2.0]), entry, 4.0), bt.end[1:] - bt.end[0])
+    # each block long enough to run at its feed: 2 s apiece after the 4 s entry move (plus the ramps)
+    assert bt.end[-1] == pytest.approx(8.0, abs=0.05)
+    # block times below 1 us are taken as 1 us (F of at most 6e7)
+    fast, _ = p.row_run(M, q, np.array([0.0, 0.0]), entry, 0.0)
+    assert np.all(np.isfinite(fast.end))
+
+
+# ---- linuxcnc.py: the floor and the block ends -----------------------------------------------------------
+
+
+def _straight_row(n: int, b_deg: float, length: float = 20.0):
+    x = np.linspace(0, length, n)
+    Bq = np.radians(np.linspace(0, b_deg, n))
+    q = np.column_stack([x, np.zeros(n), np.full(n, PIVOT), np.zeros(n), Bq])
+    tip = M.tool_pose_np(np.zeros(n), Bq, q[:, 0], q[:, 1], q[:, 2])[0]
+    return q, tip
+
+
+def test_row_floor_without_a_feed_is_the_bound_of_the_axes_only():
+    """feed None (or 0 at a point) does not bound a block: the floor of a straight row moving X 20 mm
+    with B still is one block at the X speed, 20/500 s; with a feed of 600 mm/min, 20 mm / 10 mm/s."""
+    q, tip = _straight_row(9, 0.0)
+    p = L.LinuxCNCPlanner()
+    rows = np.zeros(9, int)
+    assert p.row_floor(M, rows, q, tip, None, 0.01)[0] == pytest.approx(20 / 500, rel=1e-9)
+    assert p.row_floor(M, rows, q, tip, np.zeros(9), 0.01)[0] == pytest.approx(20 / 500, rel=1e-9)
+    assert p.row_floor(M, rows, q, tip, np.full(9, 600.0), 0.01)[0] == pytest.approx(2.0, rel=1e-9)
+    # the longest block considered: 4 points, so the 9 points are at least 3 blocks (2 of 3 steps, 1 of 2)
+    got = L.least_row_times(M, rows, q, tip, np.full(9, 600.0), 0.01, max_points=3)[0]
+    assert got == pytest.approx(2.0, rel=1e-9)
+    # with B turning 8 deg over the row: each block at least sqrt(2 max(d_i / a_i)), best with 3 blocks
+    q, tip = _straight_row(9, 8.0)
+    got = L.least_row_times(M, rows, q, tip, np.full(9, 1e9), 100.0, max_points=3)[0]
+    d_b = np.radians(8.0) / 8  # per step
+    want = min(
+        sum(max(np.sqrt(2 * max(s * 2.5 / 3000, s * d_b / np.radians(300.0))), s * 2.5 / 500, s * d_b / np.radians(60))
+            for s in split)
+        for split in ((3, 3, 2), (3, 2, 3), (2, 3, 3)))
+    assert got == pytest.approx(want, rel=1e-12)
+
+
+def test_block_ends_of_short_rows_and_rows_without_motion():
+    """A row of one point is its own end; a row of repeated points has no chain of moving blocks: None."""
+    p = L.LinuxCNCPlanner()
+    q = np.zeros((1, 5))
+    assert np.array_equal(p.block_ends(M, q, np.zeros(1), np.ones((1, 4), bool), q[0], 1.0), [0])
+    q = np.zeros((3, 5))
+    assert p.block_ends(M, q, np.arange(3.0), np.ones((3, 4), bool), q[0] + [0, 0, 10, 0, 0], 1.0) is None
+
+
+def _chain_time(p, q, t, ends, entry_q, entry_time):
+    return float(p.row_run(M, q[ends], np.diff(t[ends]), entry_q, entry_time)[0].end[-1])
+
+
+@pytest.mark.parametrize("entry_mm", [0.0, 10.0])
+def test_block_ends_are_the_fastest_on_the_model_by_brute_force(entry_mm):
+    """A straight row of 7 points along X with B turning, every block allowed but those over 4 points:
+    the chosen ends run through the planner model (servo cycles) no slower than the best of every choice
+    but a cycle per block, and the one block that fits is not allowed, so the choice is a real one.
+    Without an entry move (entry at the first point) the row starts from rest."""
+    n = 7
+    q, tip = _straight_row(n, 3.0, 3.0)
+    t = np.linspace(0.0, 0.03, n)  # the law asks for 100 mm/s: more than short blocks reach
+    ok = np.ones((n, 4), bool)
+    p = L.LinuxCNCPlanner()
+    entry_q = q[0] + [0, 0, entry_mm, 0, 0]
+    entry_time = 60 * entry_mm / 2000.0
+    ends = p.block_ends(M, q, t, ok, entry_q, entry_time)
+    assert ends[0] == 0 and ends[-1] == n - 1 and np.diff(ends).max() <= 4
+    best = min(_chain_time(p, q, t, np.r_[0, 1 + np.flatnonzero(mask), n - 1], entry_q, entry_time)
+               for mask in itertools.product([False, True], repeat=n - 2)
+               if np.diff(np.r_[0, 1 + np.flatnonzero(mask), n - 1]).max() <= 4)
+    assert _chain_time(p, q, t, ends, entry_q, entry_time) <= best + (len(ends) - 1) * DT
+
+
+# ---- blocks.py --------------------------------------------------------------------------------------------
+
+
+def test_tool_tips_are_the_pivot_less_the_tool_axis():
+    """tip = (X, Y, Z) - pivot T, T = (sin B, -sin A cos B, cos A cos B) on the AB head."""
+    q = np.array([[1.0, 2.0, 3.0, 0.0, 0.0], [1.0, 2.0, 3.0, 0.0, np.pi / 2], [1.0, 2.0, 3.0, np.pi / 2, 0.0]])
+    assert np.allclose(B.tool_tips(M, q), [[1, 2, 3 - PIVOT], [1 - PIVOT, 2, 3], [1, 2 + PIVOT, 3]], atol=1e-12)
+
+
+def test_row_entry_is_up_the_tool_axis_at_the_entry_feed():
+    q = np.array([1.0, 2.0, 3.0, 0.0, np.pi / 2])
+    entry_q, t = B.row_entry(M, q, 10.0, 2000.0)
+    assert np.allclose(entry_q, [11.0, 2.0, 3.0, 0.0, np.pi / 2]) and t == pytest.approx(0.3)
+    assert np.array_equal(q, [1.0, 2.0, 3.0, 0.0, np.pi / 2])  # the point itself is not moved
+
+
+def _brute_distance(pts, curve):
+    a, d = curve[:-1], np.diff(curve, axis=0)
+    rel = pts[:, None, :] - a[None]
+    t = np.clip((rel * d).sum(-1) / np.maximum((d * d).sum(-1), 1e-300), 0, 1)
+    return np.linalg.norm(rel - t[..., None] * d, axis=-1).min(axis=1)
+
+
+def test_polyline_distance_in_chunks_is_the_distance_to_every_segment(monkeypatch):
+    """Random polylines and points: the same distances whole and in chunks of a few floats (one block's
+    points split, and blocks split)."""
+    rng = np.random.default_rng(11)
+    curve = np.cumsum(rng.normal(0, 1, (5, 6, 3)), axis=1)
+    pts = rng.normal(0, 2, (5, 7, 3))
+    want = np.array([_brute_distance(pts[b], curve[b]) for b in range(5)])
+    assert np.allclose(B._polyline_distance(pts, curve), want, atol=1e-12)
+    for chunk in (1, 20, 100, 200):
+        monkeypatch.setattr(B, "_DISTANCE_CHUNK", chunk)
+        assert np.allclose(B._polyline_distance(pts, curve), want, atol=1e-12), chunk
+    # a degenerate segment (two equal vertices) is a point
+    curve = np.zeros((1, 2, 3))
+    assert np.allclose(B._polyline_distance(np.array([[[3.0, 4.0, 0.0]]]), curve), [[5.0]])
+
+
+def test_tip_deviation_of_a_point_path_and_in_batches(monkeypatch):
+    path = np.array([[1.0, 1.0, 1.0]])
+    assert np.allclose(B.tip_deviation([[1.0, 1.0, 4.0], [1.0, 5.0, 4.0]], path), [3.0, 5.0])
+    rng = np.random.default_rng(5)
+    path = np.cumsum(rng.normal(0, 1, (9, 3)), axis=0)
+    pts = rng.normal(0, 3, (13, 3))
+    want = _brute_distance(pts, path)
+    monkeypatch.setattr(B, "_DEVIATION_BATCH", 17)  # two segments' worth: batches of two points
+    assert np.allclose(B.tip_deviation(pts, path), want, atol=1e-12)
+    assert np.allclose(B.tip_deviation(pts[0], path), want[:1], atol=1e-12)
+
+
+def test_programmed_tip_path_steps_and_vertices():
+    """Three points: X 1 mm with B still (sub = 2 steps) then B 1 deg (4 steps of 0.25 deg): 7
+    vertices, each the tip of the linearly interpolated joints, after the entry tip."""
+    q = np.array([[0.0, 0, PIVOT, 0, 0], [1.0, 0, PIVOT, 0, 0], [1.0, 0, PIVOT, 0, np.radians(1.0)]])
+    path, at = B._tip_polyline(M, q, None, 2, np.radians(0.25))
+    assert np.array_equal(at, [0, 2, 6])
+    s = np.r_[0.0, 0.5, 1.0, 1.25, 1.5, 1.75, 2.0]
+    qs = np.array([q[0] + min(v, 1.0) * (q[1] - q[0]) + max(v - 1.0, 0.0) * (q[2] - q[1]) for v in s])
+    assert np.allclose(path, B.tool_tips(M, qs), atol=1e-12)
+    entry = np.array([0.0, 0.0, 10.0])
+    full, at = B._tip_polyline(M, q, entry, 2, np.radians(0.25))
+    assert np.array_equal(at, [1, 3, 7]) and np.allclose(full[0], entry) and np.allclose(full[1:], path)
+    assert np.allclose(B.programmed_tip_path(M, q, entry, 2, np.radians(0.25)), full)
+    # the defaults: 16 steps a block, and a step turns B by at most 0.25 deg
+    assert len(B.programmed_tip_path(M, q)) == 1 + 16 + 16
+    q[2, 4] = np.radians(5.0)
+    assert len(B.programmed_tip_path(M, q)) == 1 + 16 + 20
+
+
+def _arc(n: int, radius: float, step_deg: float, rows=None):
+    """Tips on a circle in the XY plane, the tool vertical (A = B = 0): a block's tip curve is its chord."""
+    th = np.radians(step_deg * np.arange(n))
+    tip = np.column_stack([radius * np.sin(th), radius * (1 - np.cos(th)), np.zeros(n)])
+    q = np.column_stack([tip + [0, 0, PIVOT], np.zeros(n), np.zeros(n)])
+    return (np.zeros(n, int) if rows is None else np.asarray(rows)), q, tip
+
+
+def test_block_reach_is_the_sagitta_rule_on_a_circle():
+    """Chords of a circle (R 100 mm, 0.2 deg a point): a block of k steps passes when every skipped tip is
+    within the tolerance of its chord, (worked here point by point), and once it fails the longer
+    ones from that point are not tried; blocks stop at their row's end and at max_points."""
+    rows = np.repeat([0, 1], [12, 9])
+    rows, q, tip = _arc(21, 100.0, 0.2, rows)
+    tol = 0.004
+    ok = B.block_reach(M, rows, q, tip, tol, 8)
+    assert ok.shape == (21, 8) and ok[:, 0].all()
+    for a in range(21):
+        alive = True
+        for k in range(2, 9):
+            b = a + k
+            fits = b < 21 and rows[b] == rows[a]
+            if fits:
+                dev = _brute_distance(tip[a + 1:b], tip[[a, b]]).max()
+                alive = alive and dev <= tol
+            assert ok[a, k - 1] == (fits and alive), (a, k)
+    # the sagitta R (1 - cos(k theta / 2)) of an even k: 4 steps 2.4 um, 6 steps 5.5 um; 5 steps:
+    # R (cos(theta / 2) - cos(5 theta / 2)) = 3.7 um
+    assert ok[0, 3] and ok[0, 4] and not ok[0, 5]
+    assert B.block_reach(M, rows[:0], q[:0], tip[:0], tol).shape == (0, B.MAX_BLOCK_POINTS)
+    one = B.block_reach(M, rows[:1], q[:1], tip[:1], tol, 4)
+    assert one.tolist() == [[True, False, False, False]]
+
+
+def test_block_reach_also_holds_the_middle_of_each_skipped_step():
+    """Tips on the X axis, B alternating 0 / 2 deg with X set so that every tip stays on the line: the
+    skipped tip of a two-step block (B 0 -> 0) lies on its chord, but the tip at the middle of each
+    skipped step (joints interpolated linearly) swings off the line: the block fails a tolerance
+    below that swing and passes above it."""
+    n = 5
+    x = np.arange(n) * 1.0
+    Bq = np.radians(np.array([0.0, 2.0, 0.0, 2.0, 0.0]))
+    tip = np.column_stack([x, np.zeros(n), np.zeros(n)])
+    q = np.column_stack([M.linear_axes(tip, np.zeros(n), Bq), np.zeros(n), Bq])
+    mid = B.tool_tips(M, 0.5 * (q[1:] + q[:-1]))
+    off = np.linalg.norm(mid[:, 1:], axis=1).max()
+    assert off > 1e-3
+    ok = B.block_reach(M, np.zeros(n, int), q, tip, 0.5 * off, 4)
+    assert not ok[0, 1]  # the skipped tip of a 2-step block (B 0 -> 0) is on the chord, its middles are not
+    assert B.block_reach(M, np.zeros(n, int), q, tip, 2 * off + 1e-3, 4)[0, 1]
+
+
+def test_decimate_is_the_greedy_walk_over_the_reach():
+    """Hand example: rows of 6 and 4 points; from 0 two points reach, from 2 three (to the row's end), from
+    6 one, from 7 three (clipped at the row's end 9): ends 0 2 5 | 6 7 9."""
+    rows = np.repeat([0, 1], [6, 4])
+    ok = np.zeros((10, 3), bool)
+    ok[:, 0] = True
+    ok[0, :2] = True
+    ok[2, :] = True
+    ok[7, :] = True
+    keep = B.decimate(M, rows, np.zeros((10, 5)), np.zeros((10, 3)), 0.005, ok=ok)
+    assert np.flatnonzero(keep).tolist() == [0, 2, 5, 6, 7, 9]
+    assert B.decimate(M, rows[:0], np.zeros((0, 5)), np.zeros((0, 3)), 0.005).shape == (0,)
+    # without ok: block_reach at BLOCK_TOLERANCE_SHARE of the tolerance
+    rows, q, tip = _arc(21, 100.0, 0.2)
+    tol = 0.004 / B.BLOCK_TOLERANCE_SHARE
+    ok = B.block_reach(M, rows, q, tip, 0.004)
+    assert np.array_equal(B.decimate(M, rows, q, tip, tol), B.decimate(M, rows, q, tip, tol, ok=ok))
+    assert np.flatnonzero(B.decimate(M, rows, q, tip, tol)).tolist() == [0, 5, 10, 15, 20]
+
+
+def test_controller_plan_floor_and_blocks():
+    plan = B.ControllerPlan(controller="x", keep=np.array([True, False, True, True, True]), block_time=np.zeros(5),
+                            t_plan=np.zeros(5), feed_plan=np.zeros(5), row_ids=np.array([0, 1]),
+                            row_cycle_time=np.zeros(2), cycle_time=0.0, row_deviation=np.zeros(2),
+                            row_floor=np.array([0.5, 0.25]))
+    assert plan.blocks == 2 and plan.floor == 0.75
+    assert B.ControllerPlan(**{**vars(plan), "row_floor": None}).floor is None
+
+
+def test_blend_excess_counts_both_segments_of_a_blend_over_the_limit():
+    """Samples: (head, following, fraction, deviation). Only samples in a blend (fraction > 0) over the
+    limit count, for both segments; the entry move's (segment 0) goes to the first block."""
+    run = SimpleNamespace(head=np.array([0, 1, 1, 2, 2, 3]), following=np.array([1, 2, 2, 3, 3, 4]),
+                          following_fraction=np.array([0.2, 0.0, 0.5, 0.1, 0.3, 0.0]))
+    dev = np.array([7.0, 9.0, 3.0, 6.0, 5.0, 8.0])
+    got = B._blend_excess(run, dev, 4.0, 3)
+    # sample 0 (entry -> block 1, 7): block 1; sample 2 (1 -> 2, 3): under; samples 3, 4 (2 -> 3, 6 and 5):
+    # blocks 2 and 3; samples 1 and 5 are not in a blend
+    assert got.tolist() == [7.0, 6.0, 6.0]
+
+
+class _FakePlanner:
+    """A planner that runs every block in its commanded time (no blends; ``slow``: a row of that many
+    blocks runs 3 times slower) and proposes the block ends ``ends``."""
+
+    name = "fake"
+    title = "Fake"
+
+    def __init__(self, ends=None, floor=None, slow=-1):
+        self.ends, self.floor, self.slow, self.calls = ends, floor, slow, []
+
+    def block_ends(self, machine, q, t_opt, ok, entry_q, entry_time):
+        self.calls.append(len(q))
+        return None if self.ends is None else np.asarray(self.ends)
+
+    def row_floor(self, machine, rows, q, tip, feed, tolerance):
+        self.floor_args = (feed, tolerance)
+        return self.floor
+
+    def row_run(self, machine, q_blocks, block_time, entry, entry_time):
+        bt = np.asarray(block_time, float) * (3.0 if len(block_time) == self.slow else 1.0)
+        end = np.cumsum(np.r_[entry_time, bt])
+        k = len(end)
+        run = SimpleNamespace(end=end, head=np.arange(k), following=np.arange(1, k + 1),
+                              following_fraction=np.zeros(k))
+        return run, np.vstack([entry[None, :], q_blocks])
+
+
+def test_place_takes_the_planner_ends_only_when_the_model_runs_them_faster():
+    """A straight row of 9 points (every block fits: decimate keeps 0 and 8) and a row of 2. The planner
+    proposes 0 4 8: at the same time decimate's ends stay; when the model runs the one block 3 times
+    slower the proposal is taken, when it runs the two blocks slower it is not; None keeps decimate's
+    ends; a row of fewer than 3 points is not asked."""
+    rows = np.repeat([0, 1], [9, 2])
+    x = np.r_[np.linspace(0, 4, 9), 10.0, 11.0]
+    tip = np.column_stack([x, np.zeros(11), np.zeros(11)])
+    q = np.column_stack([tip + [0, 0, PIVOT], np.zeros(11), np.zeros(11)])
+    t = np.r_[np.arange(9.0), 0.0, 1.0]
+    feed = np.full(2, 2000.0)
+
+    def placed(p):
+        return np.flatnonzero(B.place(p, M, rows, q, tip, t, 0.005, entry_height=10.0, entry_feed=feed)).tolist()
+
+    p = _FakePlanner(ends=[0, 4, 8])
+    assert placed(p) == [0, 8, 9, 10] and p.calls == [9]
+    assert placed(_FakePlanner(ends=[0, 4, 8], slow=1)) == [0, 4, 8, 9, 10]
+    assert placed(_FakePlanner(ends=[0, 4, 8], slow=2)) == [0, 8, 9, 10]
+    assert placed(_FakePlanner(ends=[0, 8], slow=1)) == [0, 8, 9, 10]
+    assert placed(_FakePlanner(ends=None)) == [0, 8, 9, 10]
+    # entered as predict enters a row: 10 mm up the tool axis at the row's entry feed (0.3 s at 2000 mm/min)
+    p = _FakePlanner(ends=[0, 4, 8])
+    seen = []
+    p.block_ends = lambda m, qq, tt, ok, eq, et: seen.append((eq, et, ok.shape)) or np.array([0, 4, 8])
+    placed(p)
+    assert np.allclose(seen[0][0], q[0] + [0, 0, 10.0, 0, 0]) and seen[0][1] == pytest.approx(0.3)
+    assert seen[0][2] == (9, B.MAX_BLOCK_POINTS)
+
+
+def test_predict_times_points_by_their_share_of_the_pivot_travel():
+    """The fake model runs each block in its commanded time: a row of 5 points with blocks 0-2-4 (pivot
+    travel 1, 1, 2, 2 mm; law at 1 s a point): t_plan at the dropped point 1 is 1/2 of the first block's
+    2 s, at point 3 1/2 of the second's 2 s after 2 s; the feed is the block's tip chord over its time
+    at its end, interpolated by the pivot travel between, 0 at the row's ends;
+    the row's time from the first point (the entry move not counted)."""
+    x = np.array([0.0, 1.0, 2.0, 4.0, 6.0])
+    tip = np.column_stack([x, np.zeros(5), np.zeros(5)])
+    q = np.column_stack([tip + [0, 0, PIVOT], np.zeros(5), np.zeros(5)])
+    t = np.arange(5.0)
+    p = _FakePlanner(floor=np.array([1.5]))
+    keep = np.array([True, False, True, False, True])
+    plan = B.predict(p, M, np.zeros(5, int), q, tip, t, keep, entry_height=10.0, entry_feed=np.array([2000.0]))
+    assert plan.controller == "fake"
+    assert np.allclose(plan.t_plan, [0.0, 1.0, 2.0, 2.0 + 2 / 4 * 2, 4.0])
+    assert np.allclose(plan.block_time, [0, 0, 2.0, 0, 2.0])
+    # blocks' feeds 60 * 2 mm / 2 s and 60 * 4 mm / 2 s at their ends (s = 2, 6), linear in s between
+    assert np.allclose(plan.feed_plan, [0.0, 60.0, 60.0, 90.0, 0.0])
+    assert plan.row_cycle_time.tolist() == [4.0] and plan.cycle_time == 4.0
+    assert plan.row_floor is None and plan.row_deviation.tolist() == [0.0]
+    assert plan.keep.tolist() == keep.tolist() and plan.row_ids.tolist() == [0]
+    # with a tolerance: the floor asked for at the tolerance and with the programmed feed
+    plan = B.predict(p, M, np.zeros(5, int), q, tip, t, keep, entry_height=10.0, entry_feed=np.array([2000.0]),
+                     tolerance=1.0, feed=np.full(5, 600.0))
+    assert plan.row_floor.tolist() == [1.5] and plan.floor == 1.5
+    assert p.floor_args[1] == 1.0 and np.array_equal(p.floor_args[0], np.full(5, 600.0))
+    assert plan.row_deviation[0] == pytest.approx(0.0, abs=1e-9)  # the blocks run on the straight path
