@@ -517,3 +517,141 @@ def test_sinumerik_refusals_name_their_reason(tmp_path, body, reason):
     p, notes = _sinumerik(tmp_path, body)
     assert "operation 'BAD' (line 5) dropped" in notes and reason in notes, notes
     np.testing.assert_allclose(p.tip, [[0, 0, 5], [1, 0, 5]])
+
+
+# ---- camsmooth's own G-code read back (camsmooth.post.own) ------------------------------------------------
+OWN = """(camsmooth post: dialect=generic mode=machine units=mm pivot=150.000000 method=nlp tolerance=0.01 \
+kind=AB-head rotary=A,B sense=iso)
+(tool: ball end R 0.0 mm, r 3.0 mm, diameter 6.0 mm, shank 40.0 mm)
+(method: nlp; 3 points)
+G21 G90 G17
+G93
+(row 5: 3 points)
+G00 X0 Y0 Z160 A0 B0
+G01 X0 Y0 Z150 A0 B0 F60. (t=0.000000000 f=600.000)
+G01 X2 Y0 Z150 A0 B0 F300. (t=0.200000000)
+G01 X4 Y0 Z150 A0 B0 F300. (t=0.400000000)
+G00 X4 Y0 Z160 A0 B0
+G94
+M30
+"""
+
+
+def _own(tmp_path: Path, text: str):
+    from camsmooth.post.own import read_gcode
+
+    path = tmp_path / "own.nc"
+    path.write_text(text)
+    return read_gcode(path)
+
+
+def test_own_program_read_back_by_hand(tmp_path):
+    """Machine mode on the AB head of pivot 150 at A = B = 0: tip = pivot position - (0, 0, 150); G93
+    feed = the block's tip path x F: the entry 10 mm x 60 = 600, the row 2 mm x 300 = 600 (mm/min);
+    the t= annotations, the programmed feed, the row id 5, the method's 3 points (every point
+    written), the tolerance and the tool of the header; the block times 60 / F from the row's start:
+    0, 0.2, 0.4 s."""
+    p = _own(tmp_path, OWN)
+    np.testing.assert_allclose(p.tip, [[0, 0, 10], [0, 0, 0], [2, 0, 0], [4, 0, 0], [4, 0, 10]], atol=1e-9)
+    np.testing.assert_allclose(p.feed, [np.nan, 600, 600, 600, np.nan])
+    assert p.rows.tolist() == [-1, 0, 0, 0, -1] and p.rapid.tolist() == [True, False, False, False, True]
+    w = p.written
+    assert (w.method, w.tolerance, w.every_point, w.dialect) == ("nlp", 0.01, True, "generic")
+    np.testing.assert_allclose(w.t, [np.nan, 0, 0.2, 0.4, np.nan])
+    np.testing.assert_allclose(w.feed, [np.nan, 600, 600, 600, np.nan])
+    np.testing.assert_allclose(w.t_plan, [np.nan, 0, 0.2, 0.4, np.nan])
+    assert w.row_id.tolist() == [-1, 5, 5, 5, -1]
+    tool = p.toolpaths[0].tool
+    assert (tool.diameter, tool.corner_radius, tool.length) == (6.0, 3.0, 40.0)
+    assert p.warnings == ["dialect generic, mode machine"]
+
+
+def test_own_program_variants(tmp_path):
+    """A method that wrote 4 points of which 3 are here: not every point; a mangled tolerance: None;
+    a row comment count that does not match the rows: no row ids; no post tag: read as generic with
+    a warning, mode from the TCP word (G43.4: tcp, X Y Z the tip); feed per minute in machine mode:
+    F as written, with a warning."""
+    w = _own(tmp_path, OWN.replace("3 points)", "4 points)", 1).replace("tolerance=0.01", "tolerance=x")).written
+    assert w.every_point is False and w.tolerance is None
+    assert _own(tmp_path, OWN.replace("(row 5: 3 points)\n", "")).written.row_id is None
+    untagged = "G21 G90\nG43.4 H1\nG00 X0 Y0 Z10 A0 B0\nG01 X1 Y0 Z0 A0 B0 F500\nG49\nM30\n"
+    p = _own(tmp_path, untagged)
+    assert p.warnings[0] == "no camsmooth post header: read as generic G-code"
+    assert p.warnings[-1] == "dialect generic, mode tcp" and p.written is None
+    np.testing.assert_allclose(p.tip, [[0, 0, 10], [1, 0, 0]])
+    np.testing.assert_allclose(p.feed, [np.nan, 500])
+    p = _own(tmp_path, OWN.replace("G93\n", "G94\n"))
+    assert any("machine-mode program in feed per minute (G94)" in x for x in p.warnings)
+    np.testing.assert_allclose(p.feed, [np.nan, 60, 300, 300, np.nan])
+
+
+@pytest.mark.parametrize("change, message", [
+    (("pivot=150.000000", "pivot=abc"), "gives pivot=abc: not a length of 0 to"),
+    (("pivot=150.000000", "pivot=-1"), "gives pivot=-1: not a length of 0 to"),
+    (("sense=iso", "sense=left"), "gives sense=left: not iso or linuxcnc"),
+    (("kind=AB-head", "kind=AB-head centre=1,2"), "gives centre=1,2: not three lengths x,y,z (mm)"),
+    (("kind=AB-head", "kind=AB-head centre=1,2,x"), "gives centre=1,2,x: not three lengths"),
+    (("G01 X2 Y0", "G01 X2000000000 Y0"), "X2e+09 is beyond +-1e+09 (not a position of a machine)"),
+    (("G00 X0 Y0 Z160 A0 B0", "G00 X0 Y0 Z160 A0"), "first motion block does not give B"),
+    (("G21 G90 G17", "G20 G90 G17"), "inch programs (G20) are not read: camsmooth writes mm"),
+    (("G00 X0 Y0 Z160 A0 B0\nG01 X0", "(G00 X0 Y0 Z160 A0 B0)\nG01 X0"), ""),
+])
+def test_own_program_refusals(tmp_path, change, message):
+    text = OWN.replace(*change)
+    if not message:  # the first block commented out: the next one misses nothing, the program reads
+        assert len(_own(tmp_path, text).tip) == 4
+        return
+    with pytest.raises(InputError, match=re.escape(message)):
+        _own(tmp_path, text)
+
+
+# ---- MillPlus reader (camsmooth.post.millplus) ------------------------------------------------------------
+def _millplus(tmp_path: Path, body: str):
+    path = tmp_path / "t.pm"
+    path.write_text("%PM\nN9000 (T)\nG17\n(Operation: GOOD)\nG0 X0 Y0 Z5\nG1 X1 Y0 Z5 F100\n(Operation: BAD)\n" + body
+                    + "\nM30\n")
+    p = read_posted(path, dialect="millplus")
+    notes = [w for w in p.warnings if "nominal" not in w and "no machine file" not in w]
+    return p, " | ".join(notes)
+
+
+@pytest.mark.parametrize("body, tips, axis", [
+    # G7 A5=90: R = Rz(0) Ry(0) Rx(90): (1, 0, 5) -> (1, -5, 0), the axis Rx(90) e_z = (0, -1, 0); G7 alone resets
+    ("G7 A5=90 B5=0 C5=0 L1=0\nG1 X1 Y0 Z5\nG7 L1=0\nG1 X1 Y0 Z5", [[1, -5, 0], [1, 0, 5]], [0, -1, 0]),
+    ("G7 A5=0 B5=0 C5=90 L1=1\nG1 X1 Y0 Z5", [[0, 1, 5]], [0, 0, 1]),
+    # G93 the absolute datum shift, G92 the incremental one
+    ("G93 X10 Y0 Z0\nG1 X1 Y0 Z5\nG92 X0 Y5 Z0\nG1 X1 Y0 Z5\nG93 X0 Y0 Z0\nG1 X1", [[11, 0, 5], [11, 5, 5], [1, 0, 5]],
+     [0, 0, 1]),
+    # no motion: G141 with its correction data, G4 dwell, G74 machine move, F2= words
+    ("G141 R3 R1=2 L2=1\nG4 X2\nG74 Z0 L1\nG1 X2 F2=50", [[2, 0, 5]], [0, 0, 1]),
+])
+def test_millplus_frames_and_words(tmp_path, body, tips, axis):
+    p, notes = _millplus(tmp_path, body)
+    assert "dropped" not in notes, notes
+    np.testing.assert_allclose(p.tip[2:], tips, atol=1e-9)
+    np.testing.assert_allclose(p.axis[2], axis, atol=1e-9)
+    if "F2=" in body:
+        assert "F2= (not applied)" in notes and "G141 R R1= L2= (3D tool correction data)" in notes
+        assert not np.asarray(p.modes["tcp"]).any()
+
+
+def test_millplus_drilling_and_arcs(tmp_path):
+    """G81 Z-5 defines a hole 5 mm below its surface; G79 X2 Y0 Z1 drills at (2, 0) from Z1: bottom
+    Z = -4; G3 with I J the absolute centre (2, 0): from (1, 0) counter-clockwise to (3, 0), the half
+    circle below the X axis... about (2, 0) radius 1."""
+    p, notes = _millplus(tmp_path, "G81 Z-5 Y2 B1\nG79 X2 Y0 Z1")
+    np.testing.assert_allclose([h for c in p.cycles for h in c.holes], [[2, 0, -4]])
+    p, _ = _millplus(tmp_path, "G3 X3 Y0 Z5 I2 J0")
+    arc = p.tip[2:]
+    np.testing.assert_allclose(arc[-1], [3, 0, 5], atol=1e-12)
+    np.testing.assert_allclose(np.hypot(arc[:, 0] - 2, arc[:, 1]), 1.0, atol=1e-9)
+    assert np.all(arc[:-1, 1] < 0)
+
+
+@pytest.mark.parametrize("body, reason", [
+    ("G81 Y2 B1", "G81 without its depth Z"),
+    ("G79 X2 Y0 Z1", "G79 (cycle call) without a cycle definition"),
+])
+def test_millplus_refusals(tmp_path, body, reason):
+    p, notes = _millplus(tmp_path, body)
+    assert "operation 'BAD' (line 7) dropped" in notes and reason in notes, notes
