@@ -178,6 +178,36 @@ def test_a_block_that_only_turns_is_timed_by_the_rotary_speed_limit(tmp_path):
     assert [_words(ln)["F"] for ln in slow if _code(ln).startswith("G01")] == pytest.approx([1e6, 300.0, 300.0])
 
 
+def test_a_table_machine_times_its_first_rotary_axis_and_says_linuxcncs_sense(tmp_path):
+    """A BC table (rotary axes B, C; B turns at most 30 deg/s, C 90 deg/s) with the tip at the table
+    centre while B turns 0 -> 6 -> 12 deg: the linear axes stay at the centre and the tip does not
+    move, so each block takes 6 deg / 30 deg/s = 0.2 s = 1/300 min (F = 300), timed by B's limit, not
+    C's (which does not turn); LinuxCNC writes the table's own turn, b = -B (B-6.0000), and the header
+    says 'b = -B, c = -C'."""
+    axes = {"B": {"min": -110.0, "max": 110.0, "vmax": 30.0, "amax": 300.0},
+            "C": {"min": -400.0, "max": 400.0, "vmax": 90.0, "amax": 300.0}}
+    m = machine_from_dict({"machine": {"name": "bc", "kind": "BC-table"}, "axis": axes,
+                           "post": {"dialect": "linuxcnc", "mode": "machine"}}, "<bc>")
+    n = 3
+    B, C = np.radians([0.0, 6.0, 12.0]), np.zeros(n)
+    tips = np.zeros((n, 3))
+    T = np.column_stack([np.sin(B), np.zeros(n), np.cos(B)])  # Rz(0) Ry(B) e_z
+    p = PostProgram(rows=np.zeros(n, int), idx=np.arange(n), joints=np.column_stack([tips, B, C]), tips=tips, axis=T,
+                    feed=np.full(n, 600.0))
+    lines = _lines(write_program(tmp_path / "bc.ngc", p, m, safe_height=0.0))
+    moves = [ln for ln in lines if _code(ln).startswith("G01")]
+    assert [_words(ln)["F"] for ln in moves] == pytest.approx([1e6, 300.0, 300.0])
+    assert [_words(ln)["B"] for ln in moves] == [0.0, -6.0, -12.0]
+    assert any("b = -B, c = -C, where B C are the tool's rotation" in ln for ln in lines)
+
+
+def test_an_empty_program_is_its_frame_only(tmp_path):
+    p = PostProgram(rows=np.zeros(0, int), idx=np.zeros(0, int), joints=np.zeros((0, 5)), tips=np.zeros((0, 3)),
+                    axis=np.zeros((0, 3)), feed=np.zeros(0))
+    code = [_code(ln) for ln in _lines(write_program(tmp_path / "e.nc", p, _machine())) if _code(ln)]
+    assert code == ["G21", "G90", "G17", "G93", "G94", "M30"]
+
+
 def test_format_blocks_inverse_time_and_per_minute():
     """format_blocks: G93 F on every feed block (7 significant digits), none on a rapid; per minute F
     written where it changes or after a rapid (1 decimal)."""
