@@ -210,7 +210,7 @@ TARGETS: dict[str, Target] = {
     "controller-linuxcnc": Target(("camsmooth/controller/linuxcnc.py",), (
         "tests/test_mutants_controller.py", "tests/test_controller.py", "tests/test_floor.py",
         "-k", "not linuxcnc and not tcp_codes and not blade_rows and not placement and not every_method "
-        "and not smooth_prints and not tool_tip_within"), strip_njit=True, sample=100),
+        "and not smooth_prints and not tool_tip_within and not decimated_blocks"), strip_njit=True, sample=100),
     # --- end controller targets ---
     # --- targets: post writer and dialect readers (post/writer.py, post/iso.py, heidenhain, siemens, millplus, own) ---
     # the one writer and the dialect readers (issue #31 item 3) against the writer / reader / rewrite tests (not the
@@ -1342,12 +1342,31 @@ for _k in ("float", "bool"):
         "the tuples hold Python floats (axes) and bools (rapid): numpy infers float64 and bool, the same arrays")
 
 # --- equivalents: machine/kinematics.py and smoothing/jerk.py (issue #31 item 3, second round) ---
+_equivalent(_KIN, "Machine.pole_angle", [
+    "T = np.atleast_2d(np.asarray(T, float)) -> T = np.atleast_2d(np.asarray(T, None))",
+    "T = np.atleast_2d(np.asarray(T, float)) -> T = np.atleast_2d(np.asarray(T, ))"],
+    "T only enters T @ w1 with the float screw direction w1: the same floats for integer or list input")
 # --- end kinematics/jerk equivalents ---
 
 # --- equivalents: controller (controller/blocks.py, controller/linuxcnc.py) ---
 # --- end controller equivalents ---
 
 # --- equivalents: post writer and dialect readers ---
+_WR = "camsmooth/post/writer.py"
+_equivalent(_WR, "_moves", [
+    "to = np.full(n, np.nan) if t_opt is None else np.asarray(t_opt[sl], float) -> "
+    "to = np.full(n, np.nan) if t_opt is None else np.asarray(t_opt[sl], )"],
+    "PostProgram.t_opt is a float array (s) or None; an integer one would be upcast to float by the np.concatenate "
+    "with the nan entries of the rapids: the same array")
+_equivalent(_WR, "write_program", [
+    "feed = np.asarray(program.feed, dtype=float) -> feed = np.asarray(program.feed, dtype=None)"],
+            "PostProgram.feed is float (mm/min); an integer feed gives the same checks (isfinite, > 0) and enters only "
+            "float arithmetic (the tip path / feed, the F words)")
+_equivalent(_WR, "format_blocks", [
+    "mv = _Moves(np.zeros((len(coords), 5)), np.zeros((len(coords), 3)), rapid, np.asarray(F, float)) -> "
+    "mv = _Moves(np.zeros((len(coords), 5)), np.zeros((len(coords), 3)), rapid, np.asarray(float))"],
+    "format_blocks' _Moves has no t_prog, so _annotations returns before it reads mv.feed, and _blocks takes the F "
+    "words from its F argument: mv.feed is never read")
 # --- end post equivalents ---
 
 # mutmut's exit codes; -9 is the SIGKILL its runner sends one second after the CPU limit's SIGXCPU (a

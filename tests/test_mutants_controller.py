@@ -610,3 +610,159 @@ def test_predict_times_points_by_their_share_of_the_pivot_travel():
     assert plan.row_floor.tolist() == [1.5] and plan.floor == 1.5
     assert p.floor_args[1] == 1.0 and np.array_equal(p.floor_args[0], np.full(5, 600.0))
     assert plan.row_deviation[0] == pytest.approx(0.0, abs=1e-9)  # the blocks run on the straight path
+
+
+def test_run_deviation_measures_each_head_against_its_window_of_the_path():
+    """The path: vertices at x = 0 .. 15 mm on the X axis; segments end at vertices 2, 5, 9, 12 (segment 0
+    the entry move). A sample while segment h executes is measured against the path from the vertex
+    before h's start to the vertex after the end of the segment after h (h = 0 from the path's start;
+    past the last segment, around the last end). Tips at every vertex under every head: distance 0
+    inside the window, the distance along the line to the window outside it."""
+    path = np.column_stack([np.arange(16.0), np.zeros(16), np.zeros(16)])
+    ends = np.array([2, 5, 9, 12])
+    window = {0: (0, 6), 1: (1, 10), 2: (4, 13), 3: (8, 13), 4: (11, 13)}  # (first, last) vertex, by hand
+    heads = np.repeat(np.arange(5), 16)
+    tips = np.tile(path, (5, 1)) + [0.0, 0.0, 0.0]
+    got = B._run_deviation(SimpleNamespace(head=heads), tips, path, ends)
+    want = np.array([max(window[h][0] - v, 0, v - window[h][1]) for h in range(5) for v in range(16)], float)
+    assert np.allclose(got, want, atol=1e-12)
+    # off the line by 0.5 mm: the distance to the nearest window vertex
+    got = B._run_deviation(SimpleNamespace(head=heads), tips + [0.0, 0.5, 0.0], path, ends)
+    assert np.allclose(got, np.hypot(want, 0.5), atol=1e-12)
+
+
+def test_chord_deviation_is_each_blocks_chord_against_its_stretch_of_the_path():
+    """Tool vertical (A = B = 0): a block's tip curve is its chord. Points at x = 0, 2, 4 mm on the X axis,
+    at path vertices 0, 2, 4 of the path (0,0) (1,1) (2,0) (3,-2) (4,0) (3,0.1): the first chord's middle
+    is 1/sqrt 2 from the tent over it, the second's 2/sqrt 5 from the V under it (the path's last vertex,
+    after the block's end, is not its stretch)."""
+    tip = np.array([[0.0, 0, 0], [2.0, 0, 0], [4.0, 0, 0]])
+    q = np.column_stack([tip + [0, 0, PIVOT], np.zeros(3), np.zeros(3)])
+    path = np.array([[0.0, 0, 0], [1.0, 1, 0], [2.0, 0, 0], [3.0, -2, 0], [4.0, 0, 0], [3.0, 0.1, 0]])
+    got = B._chord_deviation(M, q, np.array([0, 1, 2]), path, np.array([0, 2, 4]))
+    assert np.allclose(got, [1 / np.sqrt(2), 2 / np.sqrt(5)], atol=1e-12)
+    got = B._chord_deviation(M, q, np.array([0, 2]), path, np.array([0, 2, 4]))
+    assert got.shape == (1,) and got[0] == pytest.approx(2 / np.sqrt(5), rel=1e-12)  # one block 0-4: the V
+
+
+class _BlendPlanner:
+    """Runs each block in max(commanded, t_min) s; at every junction between blocks i and i + 1 one servo
+    sample in the blend, off the path (in Y) by c_i / (T_i T_{i+1}) (a parabolic blend's deviation grows
+    with the square of the speed; c one value for every junction or one per junction), and one sample
+    at every block end, on the path."""
+
+    name = "blend"
+
+    def __init__(self, c: float, t_min: float = 0.0):
+        self.c, self.t_min, self.calls = c, t_min, 0
+
+    def row_run(self, machine, q_blocks, block_time, entry, entry_time):
+        self.calls += 1
+        T = np.maximum(np.asarray(block_time, float), self.t_min)
+        end = np.cumsum(np.r_[entry_time, T])
+        heads, follow, frac, joints = [], [], [], []
+        for i in range(1, len(q_blocks)):  # block i ends at q_blocks[i]
+            heads.append(i)
+            follow.append(i + 1)
+            frac.append(0.0)
+            joints.append(q_blocks[i])
+            if i + 1 < len(q_blocks):
+                heads.append(i)
+                follow.append(i + 1)
+                frac.append(0.5)
+                c = np.broadcast_to(np.asarray(self.c, float), (len(q_blocks) - 2,))[i - 1]
+                joints.append(q_blocks[i] + [0.0, c / (T[i - 1] * T[i]), 0, 0, 0])
+        run = SimpleNamespace(end=end, head=np.array(heads), following=np.array(follow),
+                              following_fraction=np.array(frac))
+        return run, np.array(joints)
+
+
+def _line(n: int, bump: float = 0.0):
+    tip = np.column_stack([np.arange(n, dtype=float), np.zeros(n), np.zeros(n)])
+    tip[3 if n > 3 else 0, 1] = bump
+    q = np.column_stack([tip + [0, 0, PIVOT], np.zeros(n), np.zeros(n)])
+    return q, tip
+
+
+def test_hold_row_slows_the_blends_over_the_limit_by_the_square_root_and_five_percent():
+    """Blocks 0-2-4-6 on a straight path, 2 s each; the blend at point 4 (between the second and third
+    blocks) deviates 4 limits, the one at point 2 half a limit: one round lengthens the two blocks of
+    the first by sqrt(4) * 1.05 (and leaves the first block), after which both blends are within the
+    limit (4 / 2.1^2 = 0.907 limit): no third run. Without a path one run at the law's times."""
+    q, tip = _line(7)
+    t = np.arange(7.0)
+    k = np.array([0, 2, 4, 6])
+    lim = 0.01
+    p = _BlendPlanner(c=[0.5 * lim * 4.0, 4 * lim * 4.0])  # c / (T_i T_{i+1}) at T = 2 s
+    kk, bt, tk, worst = B._hold_row(p, M, q, k, t, q[0], 0.0, tip, np.arange(7), lim)
+    assert kk.tolist() == [0, 2, 4, 6] and p.calls == 2
+    f = np.sqrt(4.0) * 1.05
+    assert np.allclose(bt, [2.0, 2.0 * f, 2.0 * f], rtol=1e-12)
+    assert worst == pytest.approx(4 * lim / f ** 2, rel=1e-9)
+    assert np.allclose(tk, np.r_[0.0, np.cumsum(bt)], rtol=1e-12)
+    p = _BlendPlanner(c=p.c)
+    kk, bt, tk, worst = B._hold_row(p, M, q, k, t, q[0], 0.0, None, None, lim)
+    assert p.calls == 1 and bt.tolist() == [2.0, 2.0, 2.0] and worst == 0.0 and tk.tolist() == [0, 2, 4, 6]
+
+
+def test_hold_row_lengthens_from_what_the_model_took_and_stops_after_twenty_rounds():
+    """The model runs no block in less than 3 s: the blend over the limit is lengthened from the 3 s it
+    took, not the 2 s commanded. A blend that no speed helps (it is off the path whatever the times) is
+    tried _ROUNDS times; a deviation off every blend (the block's own tip curve) stops at once."""
+    q, tip = _line(7)
+    t = np.arange(7.0)
+    k = np.array([0, 2, 4, 6])
+    lim = 0.01
+    p = _BlendPlanner(c=[0.0, 4 * lim * 3.0 * 3.0], t_min=3.0)
+    _, bt, tk, worst = B._hold_row(p, M, q, k, t, q[0], 0.0, tip, np.arange(7), lim)
+    f = np.sqrt(4.0) * 1.05
+    assert bt.tolist() == pytest.approx([2.0, 3.0 * f, 3.0 * f], rel=1e-12)
+    assert np.allclose(tk, np.r_[0.0, np.cumsum(np.maximum(bt, 3.0))])
+
+    class Stuck(_BlendPlanner):
+        def row_run(self, machine, q_blocks, block_time, entry, entry_time):
+            run, joints = super().row_run(machine, q_blocks, block_time, entry, entry_time)
+            joints[run.following_fraction > 0, 1] = self.c  # the blend sample stays c off the path
+            return run, joints
+
+    p = Stuck(c=2 * lim)
+    _, _, _, worst = B._hold_row(p, M, q, k, t, q[0], 0.0, tip, np.arange(7), lim)
+    assert p.calls == B._ROUNDS and worst == pytest.approx(2 * lim)
+
+    class Own(_BlendPlanner):
+        def row_run(self, machine, q_blocks, block_time, entry, entry_time):
+            run, joints = super().row_run(machine, q_blocks, block_time, entry, entry_time)
+            run.following_fraction = np.zeros_like(run.following_fraction)  # no sample is in a blend
+            return run, joints
+
+    p = Own(c=4 * lim * 4.0)
+    _, bt, _, worst = B._hold_row(p, M, q, k, t, q[0], 0.0, tip, np.arange(7), lim)
+    assert p.calls == 1 and bt.tolist() == [2.0, 2.0, 2.0] and worst == pytest.approx(4 * lim)
+
+
+@pytest.mark.parametrize("lim, split", [(0.005, True), (0.0102, False)])
+def test_hold_row_splits_a_block_whose_own_chord_leaves_too_little(lim, split):
+    """Points on the X axis, point 3 lifted 0.01 mm: the block 2-6 skips it, its chord 0.01 mm off the
+    path: over 0.99 of a 5 um limit it is split into its points (2 3 4 5 6); a limit of 10.2 um takes it
+    (0.99 limit = 10.1 um). The straight block 0-2 is never split."""
+    q, tip = _line(7, bump=0.01)
+    t = np.arange(7.0)
+    p = _BlendPlanner(c=0.0)
+    kk, bt, _, _ = B._hold_row(p, M, q, np.array([0, 2, 6]), t, q[0], 0.0, tip, np.arange(7), lim)
+    assert kk.tolist() == ([0, 2, 3, 4, 5, 6] if split else [0, 2, 6])
+    assert bt.tolist() == ([2.0, 1.0, 1.0, 1.0, 1.0] if split else [2.0, 4.0])
+
+
+def test_predict_with_a_tolerance_splits_the_blocks_and_marks_their_points():
+    """predict with the user's tolerance 5 um (executed limit 4 um): the block 2-6 over a point lifted
+    10 um is split back (keep gains 3 4 5; their block times the law's 1 s), the row's time the law's."""
+    q, tip = _line(7, bump=0.01)
+    t = np.arange(7.0)
+    keep = np.array([True, False, True, False, False, False, True])
+    p = _FakePlanner(floor=np.array([0.5]))
+    plan = B.predict(p, M, np.zeros(7, int), q, tip, t, keep, entry_height=10.0, entry_feed=np.array([2000.0]),
+                     tolerance=0.005)
+    assert np.flatnonzero(plan.keep).tolist() == [0, 2, 3, 4, 5, 6]
+    assert np.allclose(plan.block_time, [0, 0, 2.0, 1.0, 1.0, 1.0, 1.0])
+    assert plan.row_cycle_time.tolist() == [6.0] and np.allclose(plan.t_plan, t)
+    assert keep.tolist() == [True, False, True, False, False, False, True]  # the caller's array is not changed
