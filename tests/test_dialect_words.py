@@ -70,8 +70,8 @@ def test_machine_mode_inverse_time_words(tmp_path, dialect):
     Mode": "In inverse time feed rate mode, an F word means the move should be completed in [one
     divided by the F number] minutes. ... When the inverse time feed rate mode is active, an F word
     must appear on every line which has a G1, G2, or G3 motion ... Being in inverse time feed rate
-    mode does not affect G0 (rapid traverse) motions." Fanuc Series 30i (B-63944EN) "Inverse time
-    feed (G93)" reads F the same way.
+    mode does not affect G0 (rapid traverse) motions." (the NIST RS274NGC Interpreter version 3,
+    section "Set Feed Rate Mode", has the same words).
 
     By hand: the three row blocks move the tip 2 mm at fixed angles, 2 / 600 min each: F = 300;
     the entry block moves it 10 mm down the tool axis: 10 / 600 min, F = 60. G93 stands before the
@@ -127,8 +127,9 @@ def test_fanuc_tcp_is_g43_4_with_the_tool_offset_and_g49_cancels_it(tmp_path):
 
 def test_fanuc_look_ahead_word_and_no_tolerance_word(tmp_path):
     """FANUC Series 30i/300i/300is-MODEL A, list of G codes (machining centre): "G05.1, group 00:
-    AI contour control / Nano smoothing / Smooth interpolation"; AI contour control is switched on
-    by G05.1 Q1 and its tolerance is a CNC parameter, not a word of the program. So a Fanuc
+    AI contour control / Nano smoothing / Smooth interpolation". camsmooth writes G05.1 Q1 (AI
+    contour control on) and no tolerance word: the G05.1 entry takes no tolerance value (the
+    tolerance of AI contour control is a CNC parameter; camsmooth.post.iso, FANUC). So a Fanuc
     program given a path tolerance switches AI contour control on once, after the program start
     and before the first motion, and writes the tolerance (0.02 mm) in no block; a program without
     one writes no G05.1."""
@@ -179,9 +180,10 @@ def test_haas_g234_tcpc_until_g49_and_g187_moves_nothing(tmp_path):
     (TCPC) (Group 08)": "The Haas CNC control combines the known centers of rotation for the
     rotary table (MRZP) and the location of the workpiece (e.g., active work offset G54) into a
     coordinate system. TCPC makes sure that this coordinate system remains fixed relative to the
-    table": under G234 X Y Z are the tool tip in the workpiece frame. G234 is in group 08 with G43 /
-    G44 / G49 (the manual's G-code list), so G49 ends it. "G187 Accuracy Control (Group 00)" sets
-    the smoothness (P) and the corner rounding (E) and moves no axis: its E is not a position.
+    table": under G234 X Y Z are the tool tip in the workpiece frame. Group 08 is the tool length
+    offset group (RS274/NGC, Table 4 "Modal Groups": "8: G43, G49, tool length offset"), so G49
+    ends G234. G187 (the Haas accuracy control: smoothness P, corner rounding E) is a group 00 code
+    that moves no axis: its E is not a position.
 
     By hand: the two blocks between G234 and G49 are TCP points whose tips are their X Y Z words,
     with the tool axis of a BC table T = Rz(C) Ry(B) e_z = (sin B cos C, sin B sin C, cos B); the
