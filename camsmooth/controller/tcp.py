@@ -198,7 +198,8 @@ class TCPPlanner:
                 entry_time: float) -> tuple[BlockTimes, np.ndarray]:
         """One row as LinuxCNC runs it in TCP mode: entered from rest at ``entry_world`` by a feed
         move of ``entry_time`` s, then one G94 block per further world position with F = the tip
-        chord over the block time ``block_time`` (s), written with one decimal (mm/min), ending at
+        chord over the block time ``block_time`` (s), written with one decimal (mm/min; a block
+        whose tip does not move: its rotary travel, deg/min, as LinuxCNC reads F there), ending at
         rest. Positions rounded as the writer writes them (4 decimals, mm and degrees). Returns the
         segments' BlockTimes (the entry move first) and (K, 5) the world position (tip mm, rotary
         rad) at the end of every servo cycle."""
@@ -209,7 +210,10 @@ class TCPPlanner:
         start, pts = written(entry_world)[0], written(world_blocks)
         if len(pts) != len(np.atleast_1d(block_time)) + 1:
             raise ValueError(f"{len(pts)} world positions need {len(pts) - 1} block times, got {len(block_time)}")
-        chord = np.linalg.norm(np.diff(np.vstack([start[None, :3], pts[:, :3]]), axis=0), axis=1)
+        d = np.diff(np.vstack([start[None, :], pts]), axis=0)
+        chord = np.linalg.norm(d[:, :3], axis=1)
+        # a block that turns the rotary axes about a still tip is a pure rotary move: F in deg/min
+        chord = np.where(chord > 0, chord, np.linalg.norm(d[:, 3:], axis=1))
         times = np.maximum(np.r_[entry_time, np.asarray(block_time, float)], 1e-6)
         fword = np.maximum(np.round(60.0 * chord / times, 1), _LEAST_F)
         k = len(times)
