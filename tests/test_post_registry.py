@@ -235,3 +235,27 @@ def test_round_trip_can_fail(tmp_path):
     with pytest.raises(AssertionError):
         _compare(prog, shifted, "shifted")
     assert math.isclose(float(np.abs(prog.tip[~prog.rapid] - model.tips).max()), 0.0, abs_tol=TIP_TOL_MM)
+
+
+@pytest.mark.parametrize("dialect", ["linuxcnc", "fanuc"])
+def test_tcp_block_turning_about_a_standing_tip_gets_the_rotary_feed(tmp_path, dialect):
+    """In TCP mode (G94) a block of given time whose tip does not move takes F as degrees per minute
+    over D = sqrt(dA^2 + dC^2) (the machining-centre overview of LinuxCNC, "Feed Rate", after RS274/NGC
+    3 section 2.1.2.5), not the tip's 0 mm/min, which a controller refuses; a moving tip keeps the tip
+    feed chord / time. By hand: the third block turns A by 3 deg and C by 4 deg in 0.5 s:
+    D = 5 deg -> F600.0; the second moves the tip 6 mm in 0.2 s -> F1800.0."""
+    machine = _machine(dialect, "tcp")
+    tips = np.array([[0.0, 0.0, 0.0], [6.0, 0.0, 0.0], [6.0, 0.0, 0.0], [9.0, 4.0, 0.0]])
+    A = np.radians([10.0, 10.0, 13.0, 13.0])
+    C = np.radians([20.0, 20.0, 24.0, 24.0])
+    axis = machine.tool_axis_np(A, C)
+    prog = PostProgram(rows=np.zeros(4, int), idx=np.arange(4),
+                       joints=np.column_stack([machine.linear_axes(tips, A, C), A, C]), tips=tips, axis=axis,
+                       feed=np.full(4, 1000.0), block_time=np.array([np.nan, 0.2, 0.5, 0.25]), tolerance=0.01)
+    text = write_program(tmp_path / f"t.{dialect}.nc", prog, machine).read_text()
+    cut = [ln for ln in text.splitlines() if ln.startswith("G01")][-3:]  # the row's three blocks
+    fs = [float(ln.split(" F")[1].split()[0]) if " F" in ln else None for ln in cut]
+    assert fs[0] == pytest.approx(1800.0)
+    assert fs[1] == pytest.approx(600.0)  # 5 deg in 0.5 s, never F0
+    assert fs[2] == pytest.approx(60.0 * 5.0 / 0.25)  # the tip moves 5 mm in 0.25 s
+    assert all(f is None or f > 0 for f in fs)

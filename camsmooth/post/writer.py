@@ -167,6 +167,12 @@ def _fixed_sig(values: np.ndarray, digits: int = 7, max_decimals: int = 5) -> np
 
 # ----------------------------------------------------------------------------------------------
 # writer
+#: a block whose tip moves less than this (mm) stands still (its F is the rotary feed in tcp mode)
+_STILL_MM = 1e-6
+#: ... and whose rotary axes turn less than this (deg) does not move at all
+_STILL_DEG = 1e-6
+
+
 @dataclass
 class _Moves:
     joints: np.ndarray  # (M, 5) X Y Z (pivot) A B
@@ -229,7 +235,14 @@ def _moves(rows: np.ndarray, joints: np.ndarray, tips: np.ndarray, T: np.ndarray
 def _block_feeds(machine: Any, mv: _Moves, mode: str) -> tuple[np.ndarray, int]:
     """F word per move: inverse time (1/min) in machine mode, the tip feed (mm/min) in tcp mode;
     nan for rapids. Also the number of cut blocks whose tip does not move (time from the rotary
-    axes' speed limits)."""
+    axes' speed limits).
+
+    In tcp mode a block of given time whose tip stands still (it only turns the tool about its
+    tip) gets the rotary feed, deg/min over the rotary axes' Euclidean distance: under G94 the F of
+    a move whose linear axes do not move is the rotation in degrees per minute, two rotary axes
+    together by D = sqrt(dA^2 + dB^2 + dC^2) (LinuxCNC's machining-centre overview, "Feed Rate",
+    after RS274/NGC 3 section 2.1.2.5; a tip feed there would be F0, which LinuxCNC refuses); a
+    block that moves neither keeps the programmed feed."""
     F = np.full(len(mv.rapid), np.nan)
     cut = np.flatnonzero(~mv.rapid)
     if mode == "tcp" or len(cut) == 0:
@@ -237,7 +250,11 @@ def _block_feeds(machine: Any, mv: _Moves, mode: str) -> tuple[np.ndarray, int]:
         if mv.block_time is not None and len(cut):
             timed = cut[np.isfinite(mv.block_time[cut])]
             chord = np.linalg.norm(mv.tips[timed] - mv.tips[timed - 1], axis=1)
-            F[timed] = np.round(60.0 * chord / np.maximum(mv.block_time[timed], 1e-6), 1)
+            turn = np.degrees(np.linalg.norm(mv.joints[timed, 3:] - mv.joints[timed - 1, 3:], axis=1))
+            minutes = np.maximum(mv.block_time[timed], 1e-6) / 60.0
+            rate = np.where(chord >= _STILL_MM, chord, turn) / minutes
+            moves = (chord >= _STILL_MM) | (turn >= _STILL_DEG)
+            F[timed[moves]] = np.maximum(np.round(rate[moves], 1), 0.1)
         return F, 0
     q0 = mv.joints[cut - 1]  # a row always starts with its entry rapid, so cut - 1 >= 0
     q1 = mv.joints[cut]
