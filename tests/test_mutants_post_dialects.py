@@ -118,6 +118,29 @@ def test_settings_take_the_machine_post_and_refuse_what_cannot_be_written():
             settings(m, safe_height=bad)
 
 
+def test_settings_of_a_post_table_without_a_tool_or_tcp_words():
+    """A [post] given as a bare object with dialect and mode only: tool 1, the dialect's TCP words."""
+    from types import SimpleNamespace
+
+    st = settings(SimpleNamespace(post=SimpleNamespace(dialect="fanuc", mode="tcp")))
+    assert (st.tool, st.tcp_on, st.tcp_off) == (1, "G43.4 H{tool}", "G49")
+
+
+def test_a_retract_out_of_travel_is_named(tmp_path):
+    """The pivot runs at Z = 150 (tip Z 0 + 150); Z travels up to 155 mm: the points fit, the retract
+    10 mm up the tool axis (Z 160) does not, at row 3, point 0 (the row's first point)."""
+    from camsmooth.errors import InfeasibleError
+
+    axes = {a: {"min": -110.0, "max": 110.0, "vmax": 60.0, "amax": 300.0} for a in ("A", "B")}
+    axes["Z"] = {"min": -500.0, "max": 155.0, "vmax": 500.0, "amax": 3000.0}
+    m = machine_from_dict({"machine": {"name": "short Z", "kind": "AB-head", "pivot": PIVOT}, "axis": axes}, "<z>")
+    p = _line_program(rows=[3, 3, 3, 3])
+    with pytest.raises(InfeasibleError, match=r"G-code retract \(10 mm along the tool axis\): axis Z = 160.0000 mm "
+                       r"outside travel \[-500.0000, 155.0000\] mm at row 3, point 0"):
+        write_program(tmp_path / "z.nc", p, m)
+    write_program(tmp_path / "z.nc", p, m, safe_height=5.0)  # Z 155: within travel
+
+
 # ---- writer: whole programs ---------------------------------------------------------------------------
 def test_bad_feed_and_non_finite_points_are_named(tmp_path):
     p = _line_program()
