@@ -1369,6 +1369,27 @@ _equivalent(_WR, "format_blocks", [
     "mv = _Moves(np.zeros((len(coords), 5)), np.zeros((len(coords), 3)), rapid, np.asarray(float))"],
     "format_blocks' _Moves has no t_prog, so _annotations returns before it reads mv.feed, and _blocks takes the F "
     "words from its F argument: mv.feed is never read")
+_equivalent(_WR, "settings", [
+    'tcp_on = (getattr(post, "tcp_on", None) if post is not None else None) or d.tcp_on -> '
+    'tcp_on = (getattr(post, "tcp_on", None) if (post is not None) or True else None) or d.tcp_on'],
+    "with post None the mutant reads getattr(None, 'tcp_on', None), which is None: the else branch's value")
+_equivalent(_WR, "_annotations", ["prev_cut = np.r_[True, rapid[:-1]] -> prev_cut = np.r_[False, rapid[:-1]]"],
+            "prev_cut[0] is read only for block 0, which is always a row's entry rapid (_moves), never one of the cut "
+            "blocks k the annotations are written for")
+_PISO = "camsmooth/post/iso.py"
+_equivalent(_PISO, "IsoInterpreter._cycle", [
+    "if self.b.has_motion() is False and math.isnan(self.initial_z): -> "
+    "if self.b.has_motion() is not False and math.isnan(self.initial_z):"],
+    "initial_z is only ever written (here and in __init__), never read: what it holds changes nothing")
+_equivalent(_PISO, "IsoInterpreter._cycle", [
+    'if vals.get("L", vals.get("K", 1.0)) == 0.0: -> if vals.get("L", vals.get("K", None)) == 0.0:'],
+    "without L and K the default is compared with 0.0: 1.0 and None both differ from it")
+_equivalent(_PISO, "_in_func", [
+    "while k > 0 and s[k - 1].isalpha(): -> while k > 1 and s[k - 1].isalpha():",
+    'return bool(re.match(r"[A-Za-z]+\\[", s[k:])) -> return bool(re.match(r"[A-ZA-Z]+\\[", s[k:]))'],
+    "the backward scan is dead: it runs only when the letters from s[j] on are not followed by '[', and s[k:] "
+    "(more letters of the same run, then the same end) is then never letters + '[' either: it returns False "
+    "whatever k is and whatever letters the class holds")
 # --- end post equivalents ---
 
 # mutmut's exit codes; -9 is the SIGKILL its runner sends one second after the CPU limit's SIGXCPU (a

@@ -708,3 +708,44 @@ def test_millplus_drilling_and_arcs(tmp_path):
 def test_millplus_refusals(tmp_path, body, reason):
     p, notes = _millplus(tmp_path, body)
     assert "operation 'BAD' (line 7) dropped" in notes and reason in notes, notes
+
+
+def test_iso_tool_change_names_the_operation_after_its_comment(tmp_path):
+    """'(FINISH WALLS)' before 'T3 M6' names the operation the tool change starts; the tool is T3,
+    number 3, called at line 5."""
+    path = tmp_path / "t.nc"
+    path.write_text("G90 G21 G17\nG00 X0 Y0 Z5\nG01 X1 Y0 Z5 F100\n(FINISH WALLS)\nT3 M6\nG01 X2 Y0 Z5\nM30\n")
+    p = read_posted(path, dialect="iso")
+    tp = p.toolpaths[-1]
+    assert (tp.name, tp.tool.name, tp.tool.number, tp.tool.line) == ("FINISH WALLS", "T3", 3, 5)
+
+
+@pytest.mark.parametrize("body, tip", [
+    # G68.2 with I and K left out: R = Rz(0) Rx(J) Rz(0), J = 90: (1, 0, 5) -> (1, -5, 0)
+    ("G68.2 X0 Y0 Z0 J90\nG01 X1 Y0 Z5", [1, -5, 0]),
+    # ... with its origin (10, 0, 0): 10 + Rx(90) (1, 0, 5)
+    ("G68.2 X10 Y0 Z0 I0 J90 K0\nG01 X1 Y0 Z5", [11, -5, 0]),
+    # a function in an assignment: 4 SIN[30] = 2
+    ("#100=4*SIN[30]\nG01 X#100 Y0 Z5", [2, 0, 5]),
+    ("#100=4*sin[30] #101=3\nG01 X#100 Y#101 Z5", [2, 3, 5]),
+])
+def test_iso_tilted_plane_and_functions(tmp_path, body, tip):
+    p, notes = _iso(tmp_path, body)
+    assert "dropped" not in notes, notes
+    np.testing.assert_allclose(p.tip[-1], tip, atol=1e-9)
+
+
+def test_iso_full_circles_and_their_turns(tmp_path):
+    """G03 from (1, 0) back to (1, 0) about the origin (I-1 J0): a full circle; with P2 two turns
+    (RS274/NGC and LinuxCNC: P = the number of turns), 4 pi of angle, every point on the unit circle.
+    read_iso reads as the 'iso' dialect by default, where P counts."""
+    from camsmooth.post.iso import read_iso
+
+    text = "G90 G21 G17\nG00 X1 Y0 Z5\nG01 X1 Y0 Z4 F100\nG03 X1 Y0 Z4 I-1 J0 P2\nM30\n"
+    path = tmp_path / "c.nc"
+    path.write_text(text)
+    for p in (read_posted(path, dialect="iso"), read_iso(str(path), text)):
+        arc = p.tip[2:]
+        np.testing.assert_allclose(np.hypot(arc[:, 0], arc[:, 1]), 1.0, atol=1e-9)
+        turn = np.diff(np.unwrap(np.r_[0.0, np.arctan2(arc[:, 1], arc[:, 0])]))
+        assert np.all(turn > 0) and turn.sum() == pytest.approx(4 * math.pi)
