@@ -749,3 +749,12 @@ def test_iso_full_circles_and_their_turns(tmp_path):
         np.testing.assert_allclose(np.hypot(arc[:, 0], arc[:, 1]), 1.0, atol=1e-9)
         turn = np.diff(np.unwrap(np.r_[0.0, np.arctan2(arc[:, 1], arc[:, 0])]))
         assert np.all(turn > 0) and turn.sum() == pytest.approx(4 * math.pi)
+
+
+def test_iso_incremental_rotary_words_start_from_zero(tmp_path):
+    """G91 C5 before any C word: C = 0 + 5; then B2 C5 adds to both: B 2, C 10 (deg)."""
+    path = tmp_path / "r.nc"
+    path.write_text("G90 G21 G17\nG00 X0 Y0 Z5 B0\nG91 G01 C5 F100\nG01 B2 C5\nM30\n")
+    p = read_posted(path, dialect="iso")
+    assert p.rotary == ("B", "C")
+    np.testing.assert_allclose(np.degrees(p.angles), [[0, 0], [0, 5], [2, 10]], atol=1e-12)
