@@ -879,3 +879,123 @@ def test_a_segment_that_cannot_move_raises_instead_of_exhausting_memory():
     root = Path(__file__).resolve().parent.parent
     out = subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True, text=True, timeout=120)
     assert out.stdout.startswith("RuntimeError"), (out.stdout, out.stderr[-500:])
+
+
+def _one_update(length: float, progress: float, vel: float, a: float = 1000.0, v_cap: float = 100.0):
+    """One servo cycle of ``_update`` on a lone segment; returns (progress, vel, splitting, dt_k)."""
+    arrays = [np.array([x], float) for x in (length, v_cap, v_cap, a, progress, vel, DT)]
+    length_a, reqvel, maxvel, acc_h, prog, v, dt_k = arrays
+    fd, split = np.zeros(1, bool), np.zeros(1, bool)
+    L._update(0, length_a, reqvel, maxvel, acc_h, prog, v, dt_k, fd, split, DT)
+    return prog[0], v[0], bool(split[0]), dt_k[0]
+
+
+def test_update_ends_a_segment_that_cannot_stop_in_time_at_the_full_deceleration():
+    """checkEndCondition by hand (a = 1000 mm/s^2, 1 ms): 1 mm segment, 0.01 mm left at 10 mm/s. The
+    cycle decelerates at -a: 9 mm/s, 9.5 um done, 0.5 um left. At the average speed 4.5 mm/s that is
+    0.111 ms, but stopping from 9 mm/s within 0.5 um needs more than a: the end comes sooner, when
+    v t - a t^2 / 2 = rem: t = (9 - sqrt(81 - 2 a rem)) / a = 55.7 us: the segment splits there."""
+    prog, vel, split, dt_k = _one_update(1.0, 0.99, 10.0)
+    assert vel == pytest.approx(9.0, rel=1e-12) and prog == pytest.approx(0.9995, rel=1e-12)
+    assert split and dt_k == pytest.approx((9.0 - np.sqrt(81.0 - 2 * 1000 * 0.0005)) / 1000, rel=1e-9)
+    # far from the end: no split; at a crawl with nothing left: ends at once (dt 0)
+    prog, vel, split, dt_k = _one_update(1.0, 0.5, 10.0)
+    assert not split and dt_k == DT and vel == pytest.approx(11.0) and prog == pytest.approx(0.5105)
+
+
+def test_update_stops_a_crawling_segment_at_its_end():
+    """0.5 mm/s with 0.2 um left (less than v dt / 2): findTrapezoidalDesiredVel has no positive speed,
+    the speed would turn negative: it is 0 and the segment is at its end (dx < v dt), which splits at
+    once (dt 0)."""
+    prog, vel, split, dt_k = _one_update(1.0, 1.0 - 2e-4, 0.5)
+    assert vel == 0.0 and prog == 1.0 and split and dt_k == 0.0
+    # the same speed with 0.6 um left: 0.25 um this cycle, not yet the end
+    prog, vel, split, dt_k = _one_update(1.0, 1.0 - 6e-4, 0.5)
+    assert 0.0 < vel < 0.5 and prog < 1.0
+
+
+def test_place_row_of_one_block_after_the_entry_by_hand():
+    """One block (10 mm at 50 mm/s, a_h 1500) after an entry move of the same (trapezoids of 0.2333 s):
+    the block starts when the entry decelerates below the blend speed 50 mm/s, at 0.2 s, and ends at
+    0.4333 s; with G64 P = 1 um at the 90 deg corner between them the blend speed is 2 sqrt(a_h P /
+    cos 45) = 2.91 mm/s: it starts at 0.2333 - 2.91 / 1500 s, on the next servo cycle (0.232 s). The
+    direction that counts is the block's from the first point (the second point's is straight on)."""
+    ok = np.array([[True], [False]])
+    length = np.array([[10.0], [0.0]])
+    vcap = np.array([[50.0], [0.0]])
+    acc_h = np.array([[1500.0], [1.0]])
+    direction = np.array([[[1.0, 0, 0]], [[0.0, 0, -1.0]]])
+    entry = np.array([10.0, 50.0, 1500.0])
+    down = np.array([0.0, 0.0, -1.0])
+    T = 10 / 50 + 50 / 1500
+    best, ends = L._place_row(ok, length, vcap, acc_h, direction, entry, down, 0.0, DT)
+    assert ends.tolist() == [0, 1] and best == pytest.approx(0.2 + T, abs=1e-9)
+    best, ends = L._place_row(ok, length, vcap, acc_h, direction, entry, down, 0.001, DT)
+    v_tol = 2 * np.sqrt(1500 * 0.001 / np.cos(np.pi / 4))
+    start = np.ceil((T - v_tol / 1500) / DT) * DT
+    assert start == pytest.approx(0.232) and best == pytest.approx(start + T, abs=1e-9)
+    # no entry move (length 0): the block starts at once
+    best, ends = L._place_row(ok, length, vcap, acc_h, direction, np.array([0.0, 0.0, 1.0]), down, 0.001, DT)
+    assert best == pytest.approx(T, abs=1e-12)
+
+
+def test_place_row_chains_a_long_block_between_two_short_ones():
+    """Three blocks, a long one between two short ones (no entry), triangles at a_h = 1000: 1 mm (63.2 ms),
+    16 mm (253 ms), 1 mm: the second starts at the first's peak (31.6 ms, the next servo cycle), the
+    third 253 - 31.6 ms after the second (the blend speed is the short one's peak), each start on a
+    servo cycle; the row ends when the third does."""
+    n, K = 4, 1
+    ok = np.zeros((n, K), bool)
+    ok[:3, 0] = True
+    length = np.array([[1.0], [16.0], [1.0], [0.0]])
+    vcap = np.full((n, K), 1e3)
+    acc_h = np.full((n, K), 1000.0)
+    direction = np.zeros((n, K, 3))
+    direction[..., 0] = 1.0
+    best, ends = L._place_row(ok, length, vcap, acc_h, direction, np.array([0.0, 0.0, 1.0]), np.zeros(3), 0.0, DT)
+    t1, t2 = 2 * np.sqrt(1e-3), 2 * np.sqrt(16e-3)
+    s2 = np.ceil((t1 / 2) / DT - 1e-9) * DT
+    s3 = np.ceil((s2 + t2 - t1 / 2) / DT - 1e-9) * DT
+    assert ends.tolist() == [0, 1, 2, 3]
+    assert best == pytest.approx(s3 + t1, abs=1e-9)
+
+
+def test_the_floor_gives_the_blend_term_only_to_blocks_that_turn():
+    """A row whose B turns over its first half only: a block of the second half moves no rotary axis
+    and is bound by its chord and the axes' speeds alone; by brute force of the definition over every
+    choice of block ends (blocks of up to 3 points), at a tolerance every block meets."""
+    n = 8
+    x = np.linspace(0.0, 7.0, n)
+    Bq = np.radians(np.r_[np.linspace(0.0, 3.0, 4), np.full(4, 3.0)])
+    q = np.column_stack([x, np.zeros(n), np.full(n, PIVOT), np.zeros(n), Bq])
+    tip = M.tool_pose_np(np.zeros(n), Bq, q[:, 0], q[:, 1], q[:, 2])[0]
+    feed = 6000.0
+    from camsmooth.machine.kinematics import axis_limits
+
+    vmax, amax, _ = axis_limits(M)
+    best = np.inf
+    for mask in itertools.product([False, True], repeat=n - 2):
+        ends = np.r_[0, 1 + np.flatnonzero(mask), n - 1]
+        if np.diff(ends).max() > 3:
+            continue
+        total = 0.0
+        for i, j in zip(ends[:-1], ends[1:], strict=True):
+            d = np.abs(q[j] - q[i])
+            rest = np.sqrt(2 * np.max(d / amax)) if d[3:].max() > 0 else 0.0
+            total += max(np.linalg.norm(tip[j] - tip[i]) / (feed / 60), np.max(d / vmax), rest)
+        best = min(best, total)
+    got = L.least_row_times(M, np.zeros(n, int), q, tip, np.full(n, feed), 100.0, max_points=3)[0]
+    assert got == pytest.approx(best, rel=1e-12)
+    # two rows: each its own floor, in order
+    rows = np.repeat([5, 2], [n, n])
+    both = L.least_row_times(M, rows, np.vstack([q, q]), np.vstack([tip, tip]), np.full(2 * n, feed), 100.0,
+                             max_points=3)
+    assert both == pytest.approx([best, best], rel=1e-12)
+
+
+def test_block_ends_of_two_points():
+    """Two points: the one block, or None where they are the same point."""
+    p = L.LinuxCNCPlanner()
+    q = np.array([[0.0, 0, 0, 0, 0], [1.0, 0, 0, 0, 0]])
+    assert p.block_ends(M, q, np.array([0.0, 1.0]), np.ones((2, 4), bool), q[0], 0.0).tolist() == [0, 1]
+    assert p.block_ends(M, q[[0, 0]], np.array([0.0, 1.0]), np.ones((2, 4), bool), q[0], 0.0) is None
