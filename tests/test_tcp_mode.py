@@ -273,10 +273,10 @@ def test_smooth_says_both_modes_and_writes_the_tcp_program_with_the_held_feeds(d
 
 
 def test_the_mode_line_names_the_faster_mode():
-    """Hand numbers: 2.0 s against 2.2 s is 10% faster; a TCP program that cannot hold the joints
-    is not the one to run."""
-    assert mode_text(2.0, 1.8, 2.2, 1.9).endswith("TCP is 10% faster")
-    assert mode_text(2.2, 1.8, 2.0, 1.9).endswith("machine mode is 10% faster")
+    """Hand numbers: 2.0 s against 2.5 s is 0.5 s, 20% of the slower time, saved; a TCP program that
+    cannot hold the joints is not the one to run."""
+    assert mode_text(2.0, 1.8, 2.5, 1.9).endswith("TCP mode is faster by 0.5 s (20%)")
+    assert mode_text(2.5, 1.8, 2.0, 1.9).endswith("machine mode is faster by 0.5 s (20%)")
     assert "machine mode is the one to run" in mode_text(2.0, 1.8, 2.2, 1.9, within_limits=False)
 
 
@@ -339,7 +339,7 @@ def test_smooth_and_the_report_print_both_modes_with_their_floors(dome, capsys):
     mt = r.metrics
     assert re.search(r"^nlp: LinuxCNC TCP mode \(M428\) cannot run straight blocks", out, re.M), out
     got = re.search(r"^nlp: TCP mode \(M428\): ([\d.]+) s, floor ([\d.]+) s; machine mode: ([\d.]+) s, floor "
-                    r"([\d.]+) s: (TCP|machine mode) is ([\d.]+)% faster$", out, re.M)
+                    r"([\d.]+) s: (TCP mode|machine mode) is faster by ([\d.]+) s \(([\d.]+)%\)$", out, re.M)
     assert got, out
     tcp, tcp_floor, mach, mach_floor = (float(got.group(i)) for i in range(1, 5))
     q = np.column_stack([r.xyz, r.rotary.values])
@@ -348,7 +348,8 @@ def test_smooth_and_the_report_print_both_modes_with_their_floors(dome, capsys):
     assert tcp == pytest.approx(mt.tcp_cycle_time_s, rel=1e-3) and mach == pytest.approx(mt.machine_cycle_time_s,
                                                                                          rel=1e-3)
     assert tcp_floor <= tcp and mach_floor <= mach
-    faster = "TCP" if tcp < mach else "machine mode"
+    faster = "TCP mode" if tcp < mach else "machine mode"
     assert got.group(5) == faster
-    assert float(got.group(6)) == pytest.approx(100 * (max(tcp, mach) / min(tcp, mach) - 1), abs=0.1)
+    assert float(got.group(6)) == pytest.approx(abs(mach - tcp), abs=0.06)  # each printed to 4 digits
+    assert float(got.group(7)) == pytest.approx(100 * (1 - min(tcp, mach) / max(tcp, mach)), abs=0.1)
     assert _modes_line(mt) in out

@@ -377,15 +377,14 @@ def tcp_planner_for(machine: Machine, tolerance: float) -> TCPPlanner | None:
 def mode_text(tcp_s: float, tcp_floor_s: float | None, machine_s: float, machine_floor_s: float | None,
               within_limits: bool = True) -> str:
     """Both LinuxCNC modes in one line, as ``smooth`` and the report say it: 'TCP mode (M428): X s,
-    floor Y s; machine mode: Z s, floor W s: TCP is N% faster' (times s); ``within_limits``: the TCP
-    program keeps the joints within their limits (else it is not offered as the faster one). "N%
-    faster": the slower mode's time over the faster one's, less 1."""
+    floor Y s; machine mode: Z s, floor W s: TCP mode is faster by D s (P%)' (times s; D the
+    difference, P it over the slower mode's time); ``within_limits``: the TCP program keeps the
+    joints within their limits (else it is not offered as the faster one)."""
     def part(name: str, t: float, fl: float | None) -> str:
         return f"{name}: {t:.4g} s" + (f", floor {fl:.4g} s" if fl is not None else "")
 
     text = f"{part('TCP mode (M428)', tcp_s, tcp_floor_s)}; {part('machine mode', machine_s, machine_floor_s)}"
     if not within_limits:
         return text + ": TCP mode cannot keep the joints within their limits, machine mode is the one to run"
-    if tcp_s < machine_s:
-        return text + f": TCP is {100.0 * (machine_s / tcp_s - 1.0):.3g}% faster"
-    return text + f": machine mode is {100.0 * (tcp_s / machine_s - 1.0):.3g}% faster"
+    faster, fast, slow = ("TCP mode", tcp_s, machine_s) if tcp_s < machine_s else ("machine mode", machine_s, tcp_s)
+    return text + f": {faster} is faster by {slow - fast:.4g} s ({100.0 * (1.0 - fast / slow):.3g}%)"
