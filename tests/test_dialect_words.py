@@ -223,3 +223,33 @@ def test_millplus_g141_tcp_until_g40(tmp_path):
     p = read_posted(path)
     assert [int(v) for v in p.modes["tcp"]] == [0, 1, 1, 0]
     assert np.allclose(p.tip, [[0, 0, 50], [10, 0, 5], [12, 1, 5], [14, 2, 20]])
+
+
+# ---- Heidenhain: FUNCTION TCPM F TCP AXIS POS -------------------------------------------------------------
+def test_heidenhain_tcpm_feed_at_the_tool_point_and_axis_positions(tmp_path):
+    """HEIDENHAIN TNC 640 User's Manual (DIN/ISO programming, 5/2013), 12.5 "FUNCTION TCPM", "Mode of
+    action of the programmed feed rate": "F TCP determines that the programmed feed rate is
+    interpreted as the actual relative velocity between the tool point (tool center point) and the
+    workpiece"; "Interpretation of the programmed rotary axis coordinates": "AXIS POS determines that
+    the TNC interprets the programmed coordinates of rotary axes as the nominal position of the
+    respective axis".
+
+    So camsmooth's Klartext TCP program says F TCP and AXIS POS, its blocks carry the tool tip X Y Z
+    (the row 2 mm apart at Z = 0, the rapids 10 mm above), the rotary axes' positions (A = B = 0
+    here), and F the tip feed 600 mm/min (written once: F is modal in Klartext), so each 2 mm block
+    takes 2 / 600 min = 0.2 s, the t= annotation's step."""
+    p = _program()
+    p.t_prog = np.array([0.0, 0.2, 0.4, 0.6])
+    path = write_program(tmp_path / "h.h", p, _machine("heidenhain", "tcp"))
+    lines = [ln.split(" ", 1)[1] for ln in path.read_text().splitlines()]
+    tcpm = [ln for ln in lines if ln.startswith("FUNCTION TCPM")]
+    assert len(tcpm) == 1 and " F TCP " in tcpm[0] + " " and " AXIS POS " in tcpm[0] + " "
+    blocks = [ln for ln in lines if ln.startswith("L ")]
+    assert lines.index(tcpm[0]) < lines.index(blocks[0])
+    words = [_words(ln.split(";")[0]) for ln in blocks]
+    assert np.allclose([(w["X"], w["Z"]) for w in words],
+                       [(0.0, SAFE)] + [(STEP * i, 0.0) for i in range(N)] + [(STEP * (N - 1), SAFE)])
+    assert all(w["A"] == 0.0 and w["B"] == 0.0 for w in words)
+    assert [w["F"] for w in words if "F" in w] == [FEED]
+    t = [float(ln.split("t=")[1].split()[0]) for ln in blocks if "t=" in ln]
+    assert np.allclose(np.diff(t), 60.0 * STEP / FEED)
