@@ -353,3 +353,26 @@ def test_smooth_and_the_report_print_both_modes_with_their_floors(dome, capsys):
     assert float(got.group(6)) == pytest.approx(abs(mach - tcp), abs=0.06)  # each printed to 4 digits
     assert float(got.group(7)) == pytest.approx(100 * (1 - min(tcp, mach) / max(tcp, mach)), abs=0.1)
     assert _modes_line(mt) in out
+
+
+@pytest.mark.parametrize("written, tcp_s, hint", [("machine", 80.0, "tcp"), ("tcp", 120.0, "machine"),
+                                                  ("machine", 120.0, None), ("tcp", 80.0, None)])
+def test_smooth_says_how_to_write_the_faster_mode(capsys, written, tcp_s, hint):
+    """When the mode the machine file writes is the slower one on the controller, the summary says
+    which [post] mode writes the faster program; nothing when it already is the faster one."""
+    from types import SimpleNamespace
+
+    from camsmooth.cli.main import _print_floor
+
+    mt = SimpleNamespace(controller="linuxcnc", controller_floor_s=None, cycle_time_s=100.0, tcp_cycle_time_s=tcp_s,
+                         tcp_floor_s=70.0, machine_cycle_time_s=100.0, machine_floor_s=90.0, tcp_within_limits=True)
+    nlp = SimpleNamespace(method="nlp", metrics=mt)
+    res = SimpleNamespace(methods={"nlp": nlp}, result=nlp,
+                          machine=SimpleNamespace(post=SimpleNamespace(mode=written)))
+    _print_floor(res)
+    out = capsys.readouterr().out
+    said = re.search(r'^nlp is written in (\w+) mode; \[post\] mode = "(\w+)"', out, re.M)
+    if hint is None:
+        assert said is None, out
+    else:
+        assert said and said.groups() == (written, hint), out

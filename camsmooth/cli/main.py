@@ -352,6 +352,13 @@ def _print_floor(result) -> None:
             modes = mode_text(mm.tcp_cycle_time_s, mm.tcp_floor_s, mm.machine_cycle_time_s, mm.machine_floor_s,
                               bool(mm.tcp_within_limits))
             print(f"{name}: {modes}")
+    mm = result.result.metrics  # the written method: say how to write it in the faster mode
+    written = getattr(getattr(getattr(result, "machine", None), "post", None), "mode", None)
+    if mm.tcp_cycle_time_s is not None and mm.machine_cycle_time_s is not None and mm.tcp_within_limits:
+        faster = "tcp" if mm.tcp_cycle_time_s < mm.machine_cycle_time_s else "machine"
+        if written is not None and faster != written:
+            print(f"{result.result.method} is written in {written} mode; [post] mode = \"{faster}\" in the machine "
+                  f"file writes it in {faster} mode, which LinuxCNC runs faster")
 
 
 def _print_pole(result) -> None:
