@@ -439,6 +439,9 @@ def test_polyline_distance_in_chunks_is_the_distance_to_every_segment(monkeypatc
 def test_tip_deviation_of_a_point_path_and_in_batches(monkeypatch):
     path = np.array([[1.0, 1.0, 1.0]])
     assert np.allclose(B.tip_deviation([[1.0, 1.0, 4.0], [1.0, 5.0, 4.0]], path), [3.0, 5.0])
+    # a path of one segment: the distance to the segment, not to its first vertex
+    seg = np.array([[0.0, 0.0, 0.0], [10.0, 0.0, 0.0]])
+    assert np.allclose(B.tip_deviation([[5.0, 2.0, 0.0], [12.0, 0.0, 1.0]], seg), [2.0, np.sqrt(5.0)])
     rng = np.random.default_rng(5)
     path = np.cumsum(rng.normal(0, 1, (9, 3)), axis=0)
     pts = rng.normal(0, 3, (13, 3))
@@ -529,7 +532,7 @@ def test_decimate_is_the_greedy_walk_over_the_reach():
     ok[2, :] = True
     ok[7, :] = True
     keep = B.decimate(M, rows, np.zeros((10, 5)), np.zeros((10, 3)), 0.005, ok=ok)
-    assert np.flatnonzero(keep).tolist() == [0, 2, 5, 6, 7, 9]
+    assert np.flatnonzero(keep).tolist() == [0, 2, 5, 6, 7, 9] and keep.dtype == bool
     assert B.decimate(M, rows[:0], np.zeros((0, 5)), np.zeros((0, 3)), 0.005).shape == (0,)
     # without ok: block_reach at BLOCK_TOLERANCE_SHARE of the tolerance
     rows, q, tip = _arc(21, 100.0, 0.2)
@@ -644,6 +647,25 @@ def test_predict_times_points_by_their_share_of_the_pivot_travel():
     assert plan.row_floor.tolist() == [1.5] and plan.floor == 1.5
     assert p.floor_args[1] == 1.0 and np.array_equal(p.floor_args[0], np.full(5, 600.0))
     assert plan.row_deviation[0] == pytest.approx(0.0, abs=1e-9)  # the blocks run on the straight path
+    B.predict(p, M, np.zeros(5, int), q, tip, t, keep, entry_height=10.0, entry_feed=np.array([2000.0]), tolerance=1.0)
+    assert p.floor_args[0] is None  # the feed not given: unknown to the floor
+
+
+def test_predict_times_each_row_from_its_own_first_point():
+    """Two rows of the same shape (the second after the first in the arrays, entered at 6000 mm/min): the
+    same plan per row, each row's times from its own first point."""
+    x = np.array([0.0, 1.0, 2.0, 4.0, 6.0])
+    tip = np.column_stack([np.r_[x, x + 50.0], np.zeros(10), np.zeros(10)])
+    q = np.column_stack([tip + [0, 0, PIVOT], np.zeros(10), np.zeros(10)])
+    t = np.r_[np.arange(5.0), np.arange(5.0)]
+    keep = np.tile([True, False, True, False, True], 2)
+    p = _FakePlanner()
+    plan = B.predict(p, M, np.repeat([7, 3], 5), q, tip, t, keep, entry_height=10.0,
+                     entry_feed=np.array([2000.0, 6000.0]))
+    assert np.allclose(plan.t_plan, np.tile([0.0, 1.0, 2.0, 3.0, 4.0], 2))
+    assert np.allclose(plan.feed_plan, np.tile([0.0, 60.0, 60.0, 90.0, 0.0], 2))
+    assert plan.row_ids.tolist() == [7, 3] and np.allclose(plan.row_cycle_time, [4.0, 4.0])
+    assert plan.cycle_time == pytest.approx(8.0)
 
 
 def test_run_deviation_measures_each_head_against_its_window_of_the_path():
@@ -785,6 +807,9 @@ def test_hold_row_splits_a_block_whose_own_chord_leaves_too_little(lim, split):
     kk, bt, _, _ = B._hold_row(p, M, q, np.array([0, 2, 6]), t, q[0], 0.0, tip, np.arange(7), lim)
     assert kk.tolist() == ([0, 2, 3, 4, 5, 6] if split else [0, 2, 6])
     assert bt.tolist() == ([2.0, 1.0, 1.0, 1.0, 1.0] if split else [2.0, 4.0])
+    # a row of that one block alone
+    kk, bt, _, _ = B._hold_row(p, M, q, np.array([2, 6]), t, q[0], 0.0, tip, np.arange(7), lim)
+    assert kk.tolist() == ([2, 3, 4, 5, 6] if split else [2, 6])
 
 
 def test_predict_with_a_tolerance_splits_the_blocks_and_marks_their_points():
