@@ -1024,3 +1024,15 @@ def test_block_ends_of_two_points():
     q = np.array([[0.0, 0, 0, 0, 0], [1.0, 0, 0, 0, 0]])
     assert p.block_ends(M, q, np.array([0.0, 1.0]), np.ones((2, 4), bool), q[0], 0.0).tolist() == [0, 1]
     assert p.block_ends(M, q[[0, 0]], np.array([0.0, 1.0]), np.ones((2, 4), bool), q[0], 0.0) is None
+
+
+def test_a_repeated_last_point_takes_no_time():
+    """The program's last point repeated (a zero-length last block, dropped): it ends when the block before
+    it does, and the program takes as long as without it (the last moving block has no next to blend
+    into)."""
+    p = L.LinuxCNCPlanner()
+    joints = np.array([[1.0, 0, 0, 0, 0.5], [2.0, 0, 0, 0, 1.0], [2.0, 0, 0, 0, 1.0]])
+    t = p.run(p.segments(M, np.zeros(5), joints, np.zeros(3, bool), np.full(3, 600.0), np.ones(3, bool)))
+    w = p.run(p.segments(M, np.zeros(5), joints[:2], np.zeros(2, bool), np.full(2, 600.0), np.ones(2, bool)))
+    assert t.end[2] == t.end[1] == w.end[1] and t.end[0] == w.end[0]
+    assert np.allclose(t.positions(np.zeros(5), joints), w.positions(np.zeros(5), joints[:2]), atol=1e-12)
