@@ -1348,9 +1348,77 @@ _equivalent(_KIN, "Machine.pole_angle", [
     "T = np.atleast_2d(np.asarray(T, float)) -> T = np.atleast_2d(np.asarray(T, None))",
     "T = np.atleast_2d(np.asarray(T, float)) -> T = np.atleast_2d(np.asarray(T, ))"],
     "T only enters T @ w1 with the float screw direction w1: the same floats for integer or list input")
+_equivalent(_KIN, "Machine.branch_of", [
+    "h = np.asarray(self.chain.home, float)[:3, 2] -> h = np.asarray(self.chain.home, )[:3, 2]",
+    "h = np.asarray(self.chain.home, float)[:3, 2] -> h = np.asarray(self.chain.home, None)[:3, 2]"],
+    "every Chain's home pose is a float array (np.eye(4) in MachineChain.chain, cast to float by with_screws): "
+    "asarray without the dtype returns the same array")
 # --- end kinematics/jerk equivalents ---
 
 # --- equivalents: controller (controller/blocks.py, controller/linuxcnc.py) ---
+_LCNC = "camsmooth/controller/linuxcnc.py"
+_BLK = "camsmooth/controller/blocks.py"
+_WHY_EQ = "the comparison changes only at exact equality with the bound (a measure-zero set of inputs)"
+_acos = "cos_theta = np.cos(np.arccos(min(max(-dot, -1.0), 1.0)) / 2.0)"
+_equivalent(_LCNC, "_lag", [f"{_acos} -> {_acos.replace('-1.0), 1.0)', '-2.0), 1.0)')}"],
+            "the directions are unit vectors, so -dot >= -1 up to rounding; where rounding puts it below -1 "
+            "(straight on) arccos gives nan instead of pi and the cap test is false either way (nan, or cos(pi/2) "
+            "= 6e-17, is not > sin(1e-3))")
+_equivalent(_LCNC, "_lag", ["if cos_theta > np.sin(_MIN_ARC_ANGLE): -> if cos_theta >= np.sin(_MIN_ARC_ANGLE):"],
+            _WHY_EQ)
+_equivalent(_LCNC, "_update", ["if rem <= _POS_EPSILON: -> if rem < _POS_EPSILON:",
+                               "if v_avg > _VEL_EPSILON: -> if v_avg >= _VEL_EPSILON:"], _WHY_EQ)
+_equivalent(_LCNC, "_run", ["cap *= 2 -> cap *= 3"],
+            "only the capacity of the per-cycle record grows faster; the record is cut to the cycles run")
+_equivalent(_LCNC, "_run", ["dt_k = np.full(n, dt) -> dt_k = np.full(n, None)"],
+            "the initial values are never read: every _update(k) is preceded by dt_k[k] = dt, and _update sets it "
+            "itself when the segment splits (the target runs the kernel as plain Python, where an object array of "
+            "floats computes the same)")
+_equivalent(_LCNC, "canon_segments", ["rapid = np.asarray(rapid, bool) -> rapid = np.asarray(rapid, )"],
+            "the rapid flags only enter a comparison of neighbours and np.where: 0/1 or bool give the same "
+            "segments (the callers pass bool arrays)")
+_equivalent(_LCNC, "LinuxCNCPlanner.block_ends", [
+    "entry = np.array([0.0, 0.0, 1.0]) -> entry = np.array([0.0, 1.0, 1.0])"],
+            "an entry of no length takes no time and has no speed whatever its speed cap (_solo returns (0, 0) for "
+            "length 0), and the first block's lag after it is then 0 (t_reach = 0)")
+_equivalent(_LCNC, "LinuxCNCPlanner.block_ends", [
+    'with np.errstate(divide="ignore", invalid="ignore"): -> with np.errstate(divide="ignore", invalid=None):'],
+    "invalid=None keeps numpy's default for invalid operations (a warning): the quantities computed are the same")
+_equivalent(_LCNC, "LinuxCNCPlanner.row_run", [
+    "q = np.atleast_2d(np.asarray(q, float)) -> q = np.atleast_2d(np.asarray(q, None))"],
+    "np.degrees and the column stack with it give floats for integer input, rounded the same: the same written "
+    "values")
+_equivalent(_LCNC, "LinuxCNCPlanner.run", [
+    "following_fraction=np.minimum(p_next / L[head + 1], 1.0)) -> following_fraction=np.minimum(p_next / L[head + 1], "
+    "2.0))"],
+    "_update never takes progress past the segment's length and past the last segment the progress is 0 over "
+    "a length of 1: the fractions are at most 1, the cap never binds")
+_equivalent(_BLK, "_polyline_distance", ["per_point = max(curve.shape[1] - 1, 1) * 3 -> "
+                                         "per_point = max(curve.shape[1] - 1, 1) * 4"],
+            "per_point only sizes the chunks the points are taken in (memory): the distances are the same")
+_equivalent(_BLK, "_polyline_distance", [
+    'return np.sqrt(np.einsum("bpsk,bpsk->bps", close, close).min(axis=2)) -> '
+    'return np.sqrt(np.einsum("BPSK,BPSK->BPS", close, close).min(axis=2))'],
+    "einsum labels are arbitrary letters: the same contraction")
+_equivalent(_BLK, "_tip_polyline", [
+    "steps = np.maximum(int(sub), np.ceil(np.abs(dq[:, 3:]).max(axis=1, initial=0.0) / max_turn)).astype(np.int64) -> "
+    "steps = np.maximum(int(sub), np.ceil(np.abs(dq[:, 3:]).max(axis=1, ) / max_turn)).astype(np.int64)"],
+    "initial only matters for an empty reduction; the rows of dq[:, 3:] always hold the machine's two rotary axes")
+_equivalent(_BLK, "_tip_polyline", ["q = np.asarray(q, float) -> q = np.asarray(q, )"],
+            "q only enters q[owner] + frac dq with float fractions and the forward kinematics: the same tips for "
+            "integer input")
+_equivalent(_BLK, "block_reach", [
+    "frac = np.r_[np.arange(1, k) / k, (np.arange(k) + 0.5) / k] -> frac = np.r_[np.arange(k) / k, (np.arange(k) + "
+    "0.5) / k]"],
+    "frac only says where _all_within starts each point's search (outward from there over every segment until "
+    "one is within reach): the answers do not depend on it (tests/test_floor.py checks them against every "
+    "segment by brute force with random fractions)")
+_equivalent(_BLK, "_hold_row", [
+    "split = (_chord_deviation(machine, q, k, path, at) > _SPLIT_SHARE * limit) & (np.diff(k) > 1) -> "
+    "split = (_chord_deviation(machine, q, k, path, at) >= _SPLIT_SHARE * limit) & (np.diff(k) > 1)"], _WHY_EQ)
+_equivalent(_BLK, "predict", ["bt = np.zeros(0) -> bt = np.zeros(1)"],
+            "bt keeps this value only for a row of one kept point, where block_time[k[1:]] selects nothing and one "
+            "value broadcast to no entries changes nothing")
 # --- end controller equivalents ---
 
 # --- equivalents: post writer and dialect readers ---
