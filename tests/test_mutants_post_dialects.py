@@ -758,3 +758,15 @@ def test_iso_incremental_rotary_words_start_from_zero(tmp_path):
     p = read_posted(path, dialect="iso")
     assert p.rotary == ("B", "C")
     np.testing.assert_allclose(np.degrees(p.angles), [[0, 0], [0, 5], [2, 10]], atol=1e-12)
+
+
+def test_iso_a_first_position_without_a_motion_mode_and_a_feed_beyond_any_machine(tmp_path):
+    """A program's first position before any G0 / G1: no motion mode yet, refused by name (its only
+    operation dropped: nothing to read); F 2e9 mm/min is no feed: InputError naming file and line."""
+    path = tmp_path / "f.nc"
+    path.write_text("G90 G21\nX0 Y0 Z5\nG00 X0 Y0 Z5\nG01 X1 Y0 Z5 F100\nM30\n")
+    with pytest.raises(InputError, match="a position without a motion mode"):
+        read_posted(path, dialect="iso")
+    path.write_text("G90 G21\nG00 X0 Y0 Z5\nG01 X1 Y0 Z5 F2000000000.\nM30\n")
+    with pytest.raises(InputError, match=re.escape(f"{path}, line 3: F2e+09 is not a feed")):
+        read_posted(path, dialect="iso")
