@@ -99,9 +99,10 @@ TARGETS: dict[str, Target] = {
     # rewritten since its full run (RotaryValues results, inverse_candidates, nearest_with_outer, pole_angle, the
     # chains of every kind): ~1200 lines, a sample of its mutants
     "kinematics": Target(("camsmooth/machine/kinematics.py",),
-                         ("tests/test_kinematics.py", "tests/test_ik_continuity.py", "tests/test_machine_model.py",
-                          "tests/test_gcode.py", "tests/test_machine_file.py", "tests/test_kinematics_frames.py",
-                          "tests/test_machine_kinds.py", "tests/test_machine_chains.py", "tests/test_axes_values.py"),
+                         ("tests/test_mutants_kinematics.py", "tests/test_kinematics.py", "tests/test_ik_continuity.py",
+                          "tests/test_machine_model.py", "tests/test_gcode.py", "tests/test_machine_file.py",
+                          "tests/test_kinematics_frames.py", "tests/test_machine_kinds.py",
+                          "tests/test_machine_chains.py", "tests/test_axes_values.py"),
                          sample=120),
     "orientation": Target(("camsmooth/smoothing/orientation.py",),
                           ("tests/test_orientation.py", "tests/test_orientation_windows.py")),
