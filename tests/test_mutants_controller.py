@@ -962,6 +962,13 @@ def test_place_row_of_one_block_after_the_entry_by_hand():
     # no entry move (length 0): the block starts at once
     best, ends = L._place_row(ok, length, vcap, acc_h, direction, np.array([0.0, 0.0, 1.0]), down, 0.001, DT)
     assert best == pytest.approx(T, abs=1e-12)
+    # a slow axis: entry and block 10 mm at 2 mm/s, a_h 1 mm/s^2 (7 s each): the blend speed is 2 mm/s
+    # (t_blend = max(v / a) = 2 s, under the 5 s either takes to cover its length at 2 mm/s), so the
+    # block starts at 7 - 2 = 5 s and ends at 12 s
+    slow = np.array([[2.0], [0.0]])
+    best, ends = L._place_row(ok, length, slow, np.array([[1.0], [1.0]]), direction, np.array([10.0, 2.0, 1.0]),
+                              np.array([1.0, 0.0, 0.0]), 0.0, DT)
+    assert best == pytest.approx(12.0, abs=1e-9)
 
 
 def test_place_row_chains_a_long_block_between_two_short_ones():
