@@ -1459,6 +1459,9 @@ _equivalent(_PISO, "_in_func", [
     "the backward scan is dead: it runs only when the letters from s[j] on are not followed by '[', and s[k:] "
     "(more letters of the same run, then the same end) is then never letters + '[' either: it returns False "
     "whatever k is and whatever letters the class holds")
+_equivalent(_PISO, "IsoInterpreter._words", [
+    "words.append((ch, self._value(s[j:k], number))) -> words.append((ch, self._value(s[j:k], None)))"],
+    "IsoInterpreter._value does not read its number argument (the line): any value gives the same word")
 # --- end post equivalents ---
 
 # mutmut's exit codes; -9 is the SIGKILL its runner sends one second after the CPU limit's SIGXCPU (a

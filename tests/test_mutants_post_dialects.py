@@ -349,6 +349,8 @@ def test_iso_frames_units_and_parameters(tmp_path, body, points):
     ("G41 D1\nG01 X1 Y0 Z5", "cutter radius compensation (G41): the programmed path is not the tool's"),
     ("G300\nG01 X2 Y0 Z5", "G300 is not read by the iso reader"),
     ("o100 sub\nG01 X2 Y0 Z5", "LinuxCNC o-word sub (control flow and subroutines of o-words are not executed"),
+    ("o100 return", "LinuxCNC o-word return (control flow"),
+    ("o<name> while [1 LT 2]", "LinuxCNC o-word while (control flow"),
     ("G01 X[1/0] Y0 Z5", "has no value (division by zero or out of range)"),
 ])
 def test_iso_refusals_name_their_reason_and_cost_only_their_operation(tmp_path, body, reason):
