@@ -410,6 +410,9 @@ def _klartext(tmp_path: Path, body: str, head: str = "BEGIN PGM T MM"):
     ("PLANE EULER EULPR+90 EULNU+0 EULROT+0 TURN\nL X+1 Y+0 Z+5", [0, 1, 5], [0, 0, 1], 100),
     # PLANE EULER NU = 90 tilts Z to -Y: (0, 0, 5) -> (0, -5, 0), the axis R e_z = (0, -1, 0)
     ("PLANE EULER EULPR+0 EULNU+90 EULROT+0 TURN\nL X+0 Y+0 Z+5", [0, -5, 0], [0, -1, 0], 100),
+    # the angles left out are 0: PLANE EULER EULPR+90 alone is Rz(90)
+    ("PLANE EULER EULPR+90 TURN\nL X+1 Y+0 Z+5", [0, 1, 5], [0, 0, 1], 100),
+    ("PLANE SPATIAL SPC+90 TURN\nL X+1 Y+0 Z+5", [0, 1, 5], [0, 0, 1], 100),
     # PLANE VECTOR: Z along N = -Y, X along B = +X, Y = Z x X = +Z: (1, 2, 3) -> (1, -3, 2)
     ("PLANE VECTOR BX+1 BY+0 BZ+0 NX+0 NY-1 NZ+0 STAY\nL X+1 Y+2 Z+3", [1, -3, 2], [0, -1, 0], 100),
     # incremental words, Q parameters (Qn = and FN 0:), F AUTO = the TOOL CALL's F
