@@ -1375,6 +1375,16 @@ _equivalent(_LCNC, "_run", ["dt_k = np.full(n, dt) -> dt_k = np.full(n, None)"],
             "the initial values are never read: every _update(k) is preceded by dt_k[k] = dt, and _update sets it "
             "itself when the segment splits (the target runs the kernel as plain Python, where an object array of "
             "floats computes the same)")
+_equivalent(_LCNC, "_run", ["blend_vel[nx] = min(v_next, t_blend * acc_h[nx]) -> blend_vel[nx] = None"],
+            "a dead store: the next segment's blend speed is read nowhere (only by the G64 P cap of the same "
+            "entry) and is computed afresh, blend_vel[tc], once that segment is the head, before it is read")
+_equivalent(_LCNC, "_run", ["progress[tc] = length[tc] -> progress[tc] = None"],
+            "a dead store (None is nan in a float array): the segment is removed in the same cycle (i += 1) and the "
+            "record reads only the progress of the new head and the one after it")
+_equivalent(_LCNC, "_place_row", ["before_end = np.full((n, K), big) -> before_end = np.full((n, K), None)"],
+            "the initial values are never read: before_end[j, k] is set together with start[j, k], it is read only "
+            "for a state whose start was set (the loop skips the others), and the tie test that reads "
+            "before_end[j2, k2] is reached only when start[j2, k2] was set (plain Python in the target, as above)")
 _equivalent(_LCNC, "canon_segments", ["rapid = np.asarray(rapid, bool) -> rapid = np.asarray(rapid, )"],
             "the rapid flags only enter a comparison of neighbours and np.where: 0/1 or bool give the same "
             "segments (the callers pass bool arrays)")
