@@ -1472,6 +1472,10 @@ _equivalent(_PISO, "_in_func", [
 _equivalent(_PISO, "IsoInterpreter._words", [
     "words.append((ch, self._value(s[j:k], number))) -> words.append((ch, self._value(s[j:k], None)))"],
     "IsoInterpreter._value does not read its number argument (the line): any value gives the same word")
+_HH = "camsmooth/post/heidenhain.py"
+_equivalent(_HH, "_Klartext.__init__", ["self.file = file -> self.file = None",
+                                        "self.cycle7 = False -> self.cycle7 = True"],
+            "_Klartext.file and _Klartext.cycle7 are only ever written, never read (the Builder keeps the file name)")
 # --- end post equivalents ---
 
 # mutmut's exit codes; -9 is the SIGKILL its runner sends one second after the CPU limit's SIGXCPU (a

@@ -775,3 +775,33 @@ def test_iso_a_first_position_without_a_motion_mode_and_a_feed_beyond_any_machin
     path.write_text("G90 G21\nG00 X0 Y0 Z5\nG01 X1 Y0 Z5 F2000000000.\nM30\n")
     with pytest.raises(InputError, match=re.escape(f"{path}, line 3: F2e+09 is not a feed")):
         read_posted(path, dialect="iso")
+
+
+def test_klartext_plane_q_parameters_rotation_and_named_cycles(tmp_path):
+    """After PLANE the rotary positions Q120-Q122 the control computes read as 0 (named: the plane
+    gives the tool axis), so 'B+Q121 C+Q122' reads; CYCL DEF 10 ROT+90 turns (1, 0, 5) to (0, 1, 5);
+    CYCL DEF 13 and FUNCTION PARAX move nothing; each is named."""
+    p, notes = _klartext(tmp_path, "PLANE SPATIAL SPA+0 SPB+0 SPC+0 TURN\nL X+1 Y+0 Z+5 B+Q121 C+Q122\n"
+                                   "CYCL DEF 13.0 ORIENTATION\nCYCL DEF 10.0 ROTATION\nCYCL DEF 10.1 ROT+90\n"
+                                   "L X+1 Y+0 Z+5\nFUNCTION PARAXCOMP DISPLAY")
+    assert "dropped" not in notes, notes
+    np.testing.assert_allclose(p.tip[2:], [[1, 0, 5], [0, 1, 5]], atol=1e-9)
+    np.testing.assert_allclose(np.degrees(p.angles[2]), [0, 0], atol=1e-12)
+    for note in ("Q120-Q122 (rotary positions the control computes for PLANE) read as 0: the plane gives the tool "
+                 "axis (line 7)", "CYCL DEF 13 (oriented spindle stop) (line 9)", "CYCL DEF 10 (rotation) (line 11)",
+                 "FUNCTION PARAXCOMP (line 13)"):
+        assert note in notes, (note, notes)
+
+
+def test_klartext_plane_vector_base_words_left_out_are_zero(tmp_path):
+    """PLANE VECTOR BX+1 (BY, BZ left out: 0) with N = +Z: the identity, (1, 2, 3) stays."""
+    p, _ = _klartext(tmp_path, "PLANE VECTOR BX+1 NX+0 NY+0 NZ+1 STAY\nL X+1 Y+2 Z+3")
+    np.testing.assert_allclose(p.tip[2], [1, 2, 3], atol=1e-12)
+
+
+def test_iso_g43_5_vector_and_g49_are_named(tmp_path):
+    """G43.5 (TCP with the tool vector I J K) and G49 move nothing and are named; the block's I J K is
+    the tool axis."""
+    p, notes = _iso(tmp_path, "G43.5 H1\nG01 X2 Y0 Z5 I0 J0.6 K0.8\nG49")
+    assert "G43.5 (TCP, tool vector I J K) (line 6)" in notes and "G49 (line 8)" in notes
+    np.testing.assert_allclose(p.axis[2], [0, 0.6, 0.8], atol=1e-12)
