@@ -1354,6 +1354,18 @@ _equivalent(_KIN, "Machine.branch_of", [
     "h = np.asarray(self.chain.home, float)[:3, 2] -> h = np.asarray(self.chain.home, None)[:3, 2]"],
     "every Chain's home pose is a float array (np.eye(4) in MachineChain.chain, cast to float by with_screws): "
     "asarray without the dtype returns the same array")
+_equivalent(_JERK, "jerk_law", [
+    "Y = float(np.median(np.minimum(ymax, ymax[ymax > 0].min(initial=1.0) * 1e3))) or 1.0 -> "
+    "Y = float(np.median(np.minimum(ymax, ymax[ymax > 0].min(initial=1.0) * 1001.0))) or 1.0"],
+    "Y only scales the NLP's speed variables (x = y / Y; bounds and constraints scaled with it): the cap moves Y "
+    "only when over half the nodes' bounds exceed 1000 x the smallest, and then by 0.1 %, a change of the "
+    "problem's conditioning, not of its solution")
+_equivalent(_JERK, "jerk_law", [
+    "W = float(np.median(np.min(jmax / np.abs(d1), axis=1))) -> "
+    "W = float(np.median(np.min(jmax / np.abs(d1), axis=None)))"],
+    "W only scales the NLP's jerk variables (w = W x the variable, every constraint written in w): the smallest "
+    "ratio over every node and axis instead of the median of the per-node smallest is another positive finite "
+    "scale (a zero or non-finite one falls back to Z^1.5), which changes the conditioning, not the solution")
 # --- end kinematics/jerk equivalents ---
 
 # --- equivalents: controller (controller/blocks.py, controller/linuxcnc.py) ---
