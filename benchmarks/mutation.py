@@ -1488,6 +1488,15 @@ _HH = "camsmooth/post/heidenhain.py"
 _equivalent(_HH, "_Klartext.__init__", ["self.file = file -> self.file = None",
                                         "self.cycle7 = False -> self.cycle7 = True"],
             "_Klartext.file and _Klartext.cycle7 are only ever written, never read (the Builder keeps the file name)")
+_MP = "camsmooth/post/millplus.py"
+_equivalent(_MP, "_MillPlus._keyword", ['if up.startswith("%PM"): -> if up.startswith("XX%PMXX"):',
+                                       'return "" -> return "XXXX"'],
+            "the %PM line never reaches _keyword: it is the first line beginning with '%', and the ISO interpreter's "
+            "program starts after it (IsoInterpreter._program_range). (The key also names _keyword's other "
+            "'return \"\"' lines: their 'XXXX' is read as a word without a value and refused, which the G7 / G141 / "
+            "G93 / G74 / G4 / cycle tests see: those mutants are killed, never excused by this entry)")
+_equivalent(_MP, "_MillPlus._keyword", ["self.b.tcp = False -> self.b.tcp = None"],
+            "the Builder reads tcp only for its truth (1 if self.tcp else ...), and None is false like False")
 # --- end post equivalents ---
 
 # mutmut's exit codes; -9 is the SIGKILL its runner sends one second after the CPU limit's SIGXCPU (a

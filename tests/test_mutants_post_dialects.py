@@ -805,3 +805,30 @@ def test_iso_g43_5_vector_and_g49_are_named(tmp_path):
     p, notes = _iso(tmp_path, "G43.5 H1\nG01 X2 Y0 Z5 I0 J0.6 K0.8\nG49")
     assert "G43.5 (TCP, tool vector I J K) (line 6)" in notes and "G49 (line 8)" in notes
     np.testing.assert_allclose(p.axis[2], [0, 0.6, 0.8], atol=1e-12)
+
+
+def test_millplus_names_its_words_and_takes_the_chord_tolerance(tmp_path):
+    """G7 with C5 only (A5, B5 left out: 0) is Rz(90); G7, G141, G4 and G74 are named; the program's
+    source is its path; a half circle of radius 1 (G3 about the absolute centre (2, 0)) in chords of
+    sagitta 0.1 mm: angle step 2 acos(1 - 0.1) = 0.902 rad, ceil(pi / 0.902) = 4 points."""
+    p, notes = _millplus(tmp_path, "G7 C5=90 L1=1\nG1 X1 Y0 Z5\nG7 L1=0\nG141\nG4 X2\nG74 Z0 L1\nG1 X2 Y0 Z5\nG40")
+    assert "dropped" not in notes, notes
+    np.testing.assert_allclose(p.tip[2:], [[0, 1, 5], [2, 0, 5]], atol=1e-9)
+    for note in ("G7 (tilted working plane) (lines 8, 10)", "G141 (tool centre point) (line 11)",
+                 "G4 (dwell) (line 12)", "G74 (machine-coordinate move) (line 13)"):
+        assert note in notes, (note, notes)
+    assert p.source == str(tmp_path / "t.pm")
+    path = tmp_path / "a.pm"
+    path.write_text("%PM\nN9000\nG0 X1 Y0 Z5\nG1 X1 Y0 Z4 F100\nG3 X3 Y0 Z4 I2 J0\nM30\n")
+    steps = 2 * math.acos(1 - 0.1)
+    assert len(read_posted(path, dialect="millplus", chord_tol=0.1).tip) == 2 + math.ceil(math.pi / steps)
+
+
+def test_millplus_hole_positions(tmp_path):
+    """G79 without Y drills at the current Y (0); G79 before any position is refused by name."""
+    p, _ = _millplus(tmp_path, "G81 Z-5\nG79 X2 Z1")
+    np.testing.assert_allclose([h for c in p.cycles for h in c.holes], [[2, 0, -4]])
+    path = tmp_path / "u.pm"
+    path.write_text("%PM\nN9000\nG81 Z-5\nG79 X2\nG0 X0 Y0 Z5\nG1 X1 Y0 Z5 F100\nM30\n")
+    with pytest.raises(InputError, match="G79 at an unknown position"):
+        read_posted(path, dialect="millplus")
