@@ -831,15 +831,9 @@ def _triangle_chain(parts, step: float, a_h: float) -> float:
     """End (s) of a chain of triangle blocks of ``parts`` steps of ``step`` mm each, started from rest at
     0 (no entry move), at acceleration a_h: block j lasts T_j = 2 sqrt(L_j / a_h); the next starts once
     it decelerates below the blend speed min(v_j, v_{j+1}) (at T_j - min(T_j, T_{j+1}) / 2 after its
-    start: the peak of the shorter) and not before the block before it has ended."""
-    T = [2 * np.sqrt(p * step / a_h) for p in parts]
-    start = [0.0]
-    for j in range(1, len(T)):
-        s = start[-1] + T[j - 1] - min(T[j - 1], T[j]) / 2
-        if j >= 2:
-            s = max(s, start[-2] + T[j - 2])
-        start.append(s)
-    return start[-1] + T[-1]
+    start: the peak of the shorter) and not before the block before it has ended (``_blend_chain``
+    without a speed cap)."""
+    return _blend_chain([p * step for p in parts], a_h, np.inf)
 
 
 @pytest.mark.parametrize("blocked, want", [((), [0, 3, 6]), (((0, 1), (0, 2)), [0, 4, 6]),
@@ -1043,3 +1037,46 @@ def test_a_repeated_last_point_takes_no_time():
     w = p.run(p.segments(M, np.zeros(5), joints[:2], np.zeros(2, bool), np.full(2, 600.0), np.ones(2, bool)))
     assert t.end[2] == t.end[1] == w.end[1] and t.end[0] == w.end[0]
     assert np.allclose(t.positions(np.zeros(5), joints), w.positions(np.zeros(5), joints[:2]), atol=1e-12)
+
+
+def _blend_chain(lengths, a_h: float, vcap: float) -> float:
+    """End (s) of a chain of blocks of ``lengths`` mm from rest (no entry move) at acceleration a_h and
+    speed at most vcap: each block its own triangle (2 sqrt(L / a_h), peak sqrt(a_h L)) or trapezoid
+    (L / v + v / a_h); the next starts when it decelerates below the blend speed bv = min(v, a_h t_blend),
+    t_blend = min(L / v, L' / v', max(v, v') / a_h) (tpComputeBlendVelocity), i.e. bv / a_h before its end,
+    and not before the block before it has ended."""
+    TV = []
+    for length in lengths:
+        peak = np.sqrt(a_h * length)
+        TV.append((2 * length / peak, peak) if peak <= vcap else (length / vcap + vcap / a_h, vcap))
+    start = [0.0]
+    for j in range(1, len(lengths)):
+        (tp, vp), (_, vn) = TV[j - 1], TV[j]
+        t_blend = min(lengths[j - 1] / vp, lengths[j] / vn, max(vp, vn) / a_h)
+        s = start[-1] + tp - min(vp, a_h * t_blend) / a_h
+        if j >= 2:
+            s = max(s, start[-2] + TV[j - 2][0])
+        start.append(s)
+    return start[-1] + TV[-1][0]
+
+
+def test_block_ends_follow_the_speed_limit():
+    """Points along X at steps of 1, 2, 16, 16, 0.5 mm (no entry, a law too fast to bind, blocks of up to
+    4 steps): by brute force over every choice of ends on the chain of blends, the blocks 0-4-5 are the
+    fastest at the axes' 500 mm/s (a long block reaches 229 mm/s), but under [TRAJ] MAX_LINEAR_VELOCITY
+    120 mm/s the long block is capped and 0-3-5 wins; the placement follows its planner's v_limit."""
+    x = np.r_[0.0, np.cumsum([1.0, 2.0, 16.0, 16.0, 0.5])]
+    n = len(x)
+    q = np.column_stack([x, np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)])
+    ok = np.ones((n, 4), bool)
+    for v_limit in (None, 120.0):
+        times = {}
+        for mask in itertools.product([False, True], repeat=n - 2):
+            ends = np.r_[0, 1 + np.flatnonzero(mask), n - 1]
+            if np.diff(ends).max() <= 4:
+                times[tuple(ends.tolist())] = _blend_chain(np.diff(x[ends]), A_LIN / 2, v_limit or V_LIN)
+        ranked = sorted(times, key=times.get)
+        assert times[ranked[1]] - times[ranked[0]] > len(ranked[0]) * DT
+        assert ranked[0] == ((0, 4, 5) if v_limit is None else (0, 3, 5))
+        got = L.LinuxCNCPlanner(v_limit=v_limit).block_ends(M, q, np.zeros(n), ok, q[0], 0.0)
+        assert tuple(got.tolist()) == ranked[0]
