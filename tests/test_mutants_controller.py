@@ -54,9 +54,10 @@ def _feed_run(joints, feed_mm_min, *, tolerance: float = 0.0, start=None):
 
 
 def test_move_limits_of_a_combined_move_by_hand():
-    """X 3, Y 4 mm and B 2 deg in one move: length 5 mm (the XYZ distance), v_ini = 5 / max(3/500, 4/500,
-    2/60) = 150 mm/s, acc = 5 / max(3/3000, 4/3000, 2/300) = 750 mm/s^2, direction (0.6, 0.8, 0); a
-    Z of 5e-8 mm (below emccanon's 1e-7) does not move the axis."""
+    """X 3, Y -4 mm and B 2 deg in one move: length 5 mm (the XYZ distance), v_ini = 5 / max(3/500, 4/500,
+    2/60) = 150 mm/s, acc = 5 / max(3/3000, 4/3000, 2/300) = 750 mm/s^2; a Z of 5e-8 mm (below
+    emccanon's 1e-7) does not move the axis (nor count in the length); the direction is the signed
+    move over the length, (0.6, -0.8, 1e-8)."""
     vmax, amax = L._limits(M)
     dq = np.array([[3.0, -4.0, 5e-8, 0.0, 2.0]])
     length, v_ini, acc, maxvel, pure, direction = L._move_limits(dq, vmax, amax, DT, 1e9)
@@ -66,7 +67,7 @@ def test_move_limits_of_a_combined_move_by_hand():
     assert maxvel[0] == pytest.approx(150.0, rel=1e-12)
     assert not pure[0]
     assert np.allclose(direction[0], [0.6, -0.8, 1e-8], atol=1e-15)
-    # the sample rate caps the speed: 5 mm in 1.02 cycles; and [TRAJ] MAX_LINEAR_VELOCITY
+    # the sample rate caps the speed: 0.1 mm in 1.02 cycles; and [TRAJ] MAX_LINEAR_VELOCITY
     dq = np.array([[0.1, 0.0, 0.0, 0.0, 0.0]])
     assert L._move_limits(dq, vmax, amax, DT, 1e9)[3][0] == pytest.approx(0.1 / (1.02 * DT), rel=1e-12)
     assert L._move_limits(dq, vmax, amax, DT, 20.0)[3][0] == pytest.approx(20.0, rel=1e-15)
@@ -316,7 +317,7 @@ def test_row_run_writes_four_decimals_and_degrees():
                   [10.0, 0.0, 0.0, 0.0, np.radians(2.0)]])
     bt, joints = p.row_run(M, q, np.array([2.0, 2.0]), entry, 4.0)
     assert np.allclose(joints[-1], [10.0, 0, 0, 0, np.radians(2.0)], atol=1e-12)
-    at_corner = bt.head == 2  # the cycles of the last block start at the written point
+    at_corner = bt.head == 2  # the last block runs
     seg = p.segments(M, [0, 0, 10.0, 0, 0], [[0, 0, 0, 0, 0], [5.0, 0, 0, 0, 1.0], [10.0, 0, 0, 0, 2.0]],
                      np.zeros(3, bool), np.array([15.0, 30.0, 30.0]), np.ones(3, bool))
     want = p.run(seg)
