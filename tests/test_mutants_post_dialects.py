@@ -832,3 +832,39 @@ def test_millplus_hole_positions(tmp_path):
     path.write_text("%PM\nN9000\nG81 Z-5\nG79 X2\nG0 X0 Y0 Z5\nG1 X1 Y0 Z5 F100\nM30\n")
     with pytest.raises(InputError, match="G79 at an unknown position"):
         read_posted(path, dialect="millplus")
+
+
+def test_klartext_tool_machine_blocks_modal_rotaries_and_m129(tmp_path):
+    """An M91 block (machine-referenced) is no point, but its
+    rotary words hold for the next block (B 10, C 5 deg); rotary words are modal (B 10 kept by 'L X+2');
+    M129 in a block turns TCPM off for that block's own point."""
+    p, notes = _klartext(tmp_path, "L X+5 Y+5 Z+50 R0 FMAX M91\nL X+2 Y+0 Z+5")
+    np.testing.assert_allclose(p.tip[2:], [[2, 0, 5]])
+    assert "M91/M92 (machine-referenced block) (line 7)" in notes
+    p, _ = _klartext(tmp_path, "L X+5 Y+5 Z+50 B+10 C+5 R0 FMAX M91\nL X+2 Y+0 Z+5")
+    assert p.rotary == ("B", "C") and len(p.tip) == 3
+    np.testing.assert_allclose(np.degrees(p.angles[2]), [10, 5], atol=1e-12)
+    p, _ = _klartext(tmp_path, "L X+1 Y+0 Z+5 B+10 C+0\nL X+2")
+    np.testing.assert_allclose(np.degrees(p.angles[2:]), [[10, 0], [10, 0]], atol=1e-12)
+    p, _ = _klartext(tmp_path, "M128\nL X+2 Y+0 Z+5 B+0 C+0\nL X+3 M129")
+    assert [int(v) for v in p.modes["tcp"]] == [0, 0, 1, 0]
+
+
+def test_klartext_tool_number(tmp_path):
+    path = tmp_path / "n.h"
+    path.write_text("BEGIN PGM T MM\nTOOL CALL 5 Z S1000\nL X+0 Y+0 Z+5 R0 FMAX\nL X+1 Y+0 Z+5 F100\nEND PGM T MM\n")
+    tool = read_posted(path, dialect="heidenhain").toolpaths[0].tool
+    assert (tool.name, tool.number, tool.line) == ("5", 5, 2)
+
+
+@pytest.mark.parametrize("levels", [8, 9])
+def test_klartext_subprograms_nest_eight_deep(tmp_path, levels):
+    """CALL LBL 1 calls LBL 2 ... calls LBL <levels>, whose block is the point: 8 levels are read,
+    a 9th is refused ('subprograms nested deeper than 8')."""
+    body = "CALL LBL 1\nM30\n" + "".join(f"LBL {k}\nCALL LBL {k + 1}\nLBL 0\n" for k in range(1, levels)) + \
+        f"LBL {levels}\nL X+2 Y+0 Z+5\nLBL 0"
+    p, notes = _klartext(tmp_path, body)
+    if levels == 8:
+        np.testing.assert_allclose(p.tip[2:], [[2, 0, 5]])
+    else:
+        assert "subprograms nested deeper than 8" in notes and len(p.tip) == 2
