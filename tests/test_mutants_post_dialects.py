@@ -868,3 +868,19 @@ def test_klartext_subprograms_nest_eight_deep(tmp_path, levels):
         np.testing.assert_allclose(p.tip[2:], [[2, 0, 5]])
     else:
         assert "subprograms nested deeper than 8" in notes and len(p.tip) == 2
+
+
+def test_klartext_half_circle_and_a_first_move_with_unknown_axes(tmp_path):
+    """CR from (1, 0) to (3, 0) with R+1: the radius is exactly half the chord, a half circle about
+    (2, 0), counter-clockwise (DR+) below the X axis. A first block that gives Z only is no point (X
+    and Y not known yet); the next blocks are."""
+    p, _ = _klartext(tmp_path, "CR X+3 Y+0 R+1 DR+")
+    arc = p.tip[2:]
+    np.testing.assert_allclose(arc[-1], [3, 0, 5], atol=1e-9)
+    np.testing.assert_allclose(np.hypot(arc[:, 0] - 2, arc[:, 1]), 1.0, atol=1e-6)
+    assert np.all(arc[:-1, 1] < 0)
+    path = tmp_path / "z.h"
+    path.write_text("BEGIN PGM T MM\nL Z+50 R0 FMAX\nL X+0 Y+0 R0 FMAX\nL Z+5 F100\nL X+1\nEND PGM T MM\n")
+    p = read_posted(path, dialect="heidenhain")
+    np.testing.assert_allclose(p.tip, [[0, 0, 50], [0, 0, 5], [1, 0, 5]])
+    assert any("move before X, Y and Z are all known (not a point) (line 2)" in w for w in p.warnings)
