@@ -1366,6 +1366,12 @@ _equivalent(_JERK, "jerk_law", [
     "W only scales the NLP's jerk variables (w = W x the variable, every constraint written in w): the smallest "
     "ratio over every node and axis instead of the median of the per-node smallest is another positive finite "
     "scale (a zero or non-finite one falls back to Z^1.5), which changes the conditioning, not the solution")
+_last = 'last = ca.MX.sym("last", 2) # y, z at the last node'
+_vsym = 'v = ca.MX.sym("v", 4, n) # per interval: y, z at its first node, its w and h (scaled)'
+_equivalent(_JERK, "jerk_law", [f"{_last} -> {_last.replace(a, b)}" for a, b in (
+    ('"last"', '"LAST"'), ('"last"', '"XXlastXX"'))] + [f"{_vsym} -> {_vsym.replace(a, b)}" for a, b in (
+        ('"v"', '"V"'), ('"v"', '"XXvXX"'))],
+    "a CasADi symbol's name is a label: the NLP's variables are matched by position")
 # --- end kinematics/jerk equivalents ---
 
 # --- equivalents: controller (controller/blocks.py, controller/linuxcnc.py) ---

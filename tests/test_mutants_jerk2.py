@@ -27,7 +27,7 @@ import pytest
 from benchmarks.bench_jerk import helix, helix_function
 from camsmooth.machine.kinematics import DEFAULT_MACHINE_TOML, Machine, axis_limits, machine_from_dict
 from camsmooth.smoothing import jerk as jerk_mod
-from camsmooth.smoothing.feed import RowPath, plan_from_law, row_path
+from camsmooth.smoothing.feed import RowPath, _xmax, plan_from_law, row_path
 from camsmooth.smoothing.jerk import JerkLaw, jerk_law, law_rates
 
 B_VMAX = 45.0  # deg/s: below the 99.5 deg/s the helix's B swing asks at 6000 mm/min (see _vmax_row)
@@ -138,9 +138,12 @@ def test_a_feed_drop_mid_row_is_planned_at_each_blocks_feed_as_fast_as_a_direct_
 def test_an_axis_velocity_bound_between_the_points_is_planned_by_ipopt():
     """B's vmax binds mid-piece (``_vmax_row``): IPOPT's law meets it with nothing left for the dense
     check to slow (slowdown 1), and reaches it: B's largest velocity over the dense instants is
-    45 deg/s within 0.1 % (the feed asks twice that, so the time-optimal law runs at B's vmax)."""
+    45 deg/s within 0.1 % (the feed asks twice that, so the time-optimal law runs at B's vmax). At the
+    points s' stays within TOPP-RA's bound there (feed._xmax: the feed, every vmax and the chords'
+    bounds that keep each block's average speeds within limits) times (1 - MARGIN)."""
     rp, law = _vmax_row()
     assert law.converged and law.slowdown == 1.0
+    assert np.all(law.y[law.points] <= np.sqrt(_xmax(rp)) * (1 - jerk_mod.MARGIN) * (1 + 1e-6))
     r = law_rates(rp, law)
     b_peak = np.degrees(np.abs(r.velocity[:, 4]).max())
     assert B_VMAX * 0.999 <= b_peak <= B_VMAX * (1 + 1e-9)
@@ -230,3 +233,26 @@ def test_three_failed_solves_raise_naming_the_status_and_the_row(monkeypatch):
     for k, x in ((2.0, b), (4.0, c)):
         np.testing.assert_allclose(x[:, 0], a[:, 0] / k, rtol=1e-12, atol=1e-15)
         np.testing.assert_allclose(x[:, 1:], a[:, 1:] * [1 / k**2, 1 / k**3, k], rtol=1e-12, atol=1e-15)
+
+
+def test_the_law_does_not_depend_on_the_scale_of_the_path_parameter():
+    """The same row with its path parameter s stretched by k = 3 (s -> k s: the spline's derivatives
+    / k, / k^2, / k^3, the s'^2 bounds x k^2; the path itself unchanged): the same motion, so the same
+    time and the same points' times. (The NLP's scales Y, Z, W, H follow the stretch; a bound left
+    unscaled shows here.)"""
+    from dataclasses import replace
+
+    from scipy.interpolate import CubicSpline
+
+    rp, law = _vmax_row()
+    k = 3.0
+    s = k * rp.s
+    spline = CubicSpline(s, rp.q)
+    stretched = replace(rp, s=s, scale=rp.scale / k, spline=spline, dq=spline(s, 1), ddq=spline(s, 2),
+                        dp=rp.dp / k, x_feed=rp.x_feed * k**2, tip_spline=CubicSpline(s, rp.tip_spline(rp.s)))
+    np.testing.assert_allclose(stretched.dq, rp.dq / k, rtol=1e-9, atol=1e-12)
+    law_k = jerk_law(stretched)
+    assert law_k.converged and law_k.slowdown == 1.0
+    assert law_k.cycle_time == pytest.approx(law.cycle_time, rel=1e-6)
+    np.testing.assert_allclose(law_k.t[law_k.points], law.t[law.points], rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(law_k.y, law.y * k, rtol=1e-5, atol=1e-6 * law.y.max() * k)
