@@ -1081,3 +1081,22 @@ def test_block_ends_follow_the_speed_limit():
         assert ranked[0] == ((0, 4, 5) if v_limit is None else (0, 3, 5))
         got = L.LinuxCNCPlanner(v_limit=v_limit).block_ends(M, q, np.zeros(n), ok, q[0], 0.0)
         assert tuple(got.tolist()) == ranked[0]
+
+
+def test_least_block_times_gives_the_blend_term_only_to_the_blocks_that_turn():
+    """X at 0, 1, 2, 22 mm, B turning 0.5 deg between the second and third points only, blocks of up to
+    2 steps, a feed that binds nothing. Each block's bound is max(max_i |d_i| / vmax_i, sqrt(2 max_i
+    |d_i| / a_i) if it turns B): 0-1 2 ms, 1-2 and 0-2 sqrt(2 * 0.5 / 300) = 57.7 ms, 2-3 (X alone)
+    20 / 500 = 40 ms, 1-3 sqrt(2 * 21 / 3000) = 118 ms. The least is 0-2-3, 97.7 ms: the block 2-3 moves
+    no rotary axis, so the blend term (sqrt(2 * 20 / 3000) = 115 ms) is not its bound although the other
+    block into point 3 turns."""
+    from camsmooth.machine.kinematics import axis_limits
+
+    x = np.array([0.0, 1.0, 2.0, 22.0])
+    Bq = np.radians([0.0, 0.0, 0.5, 0.5])
+    q = np.column_stack([x, np.zeros(4), np.full(4, PIVOT), np.zeros(4), Bq])
+    tip = M.tool_pose_np(np.zeros(4), Bq, q[:, 0], q[:, 1], q[:, 2])[0]
+    vmax, amax, _ = axis_limits(M)
+    got = L.least_block_times(vmax, amax, np.zeros(4, int), q, tip, np.full(4, 1e12), np.ones((4, 2), bool), 2)
+    want = np.sqrt(2 * 0.5 / 300.0) + 20 / 500.0
+    assert got.tolist() == [pytest.approx(want, rel=1e-12)]
