@@ -1503,6 +1503,11 @@ _equivalent(_MP, "_MillPlus._keyword", ['if up.startswith("%PM"): -> if up.start
             "G93 / G74 / G4 / cycle tests see: those mutants are killed, never excused by this entry)")
 _equivalent(_MP, "_MillPlus._keyword", ["self.b.tcp = False -> self.b.tcp = None"],
             "the Builder reads tcp only for its truth (1 if self.tcp else ...), and None is false like False")
+_equivalent(_PISO, "IsoInterpreter._run_block", [
+    'self.b.machine_move(line, f"machine-coordinate move (G{g[0]:g})" if g else "machine move") -> '
+    'self.b.machine_move(line, f"machine-coordinate move (G{g[0]:g})" if g else "XXmachine moveXX")'],
+    "non_modal_machine is set only by a G53 / G28 / G30 of the block's G words, so g is never empty here and "
+    "the else text is never written")
 # --- end post equivalents ---
 
 # mutmut's exit codes; -9 is the SIGKILL its runner sends one second after the CPU limit's SIGXCPU (a

@@ -884,3 +884,27 @@ def test_klartext_half_circle_and_a_first_move_with_unknown_axes(tmp_path):
     p = read_posted(path, dialect="heidenhain")
     np.testing.assert_allclose(p.tip, [[0, 0, 50], [0, 0, 5], [1, 0, 5]])
     assert any("move before X, Y and Z are all known (not a point) (line 2)" in w for w in p.warnings)
+
+
+def test_iso_m428_m429_and_a_partial_tool_vector(tmp_path):
+    """In the iso dialect M428 turns TCP on (LinuxCNC's trt kinematics) and M429 off; G43.5 with K1
+    alone (I, J left out: 0) gives the tool axis +Z; machine moves name their G code."""
+    path = tmp_path / "m.nc"
+    path.write_text("G90 G21 G17\nG00 X0 Y0 Z5\nG01 X1 Y0 Z5 F100\nM428\nG01 X2 Y0 Z5 B10 C0\nM429\n"
+                    "G01 X3 Y0 Z5 B0 C0\nG43.5 H1\nG01 X2 Y0 Z5 K1\nG49\nG53 Z0\nM30\n")
+    p = read_posted(path, dialect="iso")
+    assert [int(v) for v in p.modes["tcp"]] == [0, 0, 1, 0, 1]
+    np.testing.assert_allclose(p.axis[4], [0, 0, 1], atol=1e-12)
+    np.testing.assert_allclose(p.tip[2], [2, 0, 5], atol=1e-12)  # TCP: X Y Z is the tip
+    notes = " | ".join(p.warnings)
+    assert "M428 (LinuxCNC trt kinematics: TCP on) (line 4)" in notes and "M429 (LinuxCNC identity kinematics: TCP " \
+        "off) (line 6)" in notes and "machine-coordinate move (G53) (line 11)" in notes
+
+
+def test_iso_subprogram_repeats_by_k(tmp_path):
+    """M98 P2000 K2 (the repeat count as K) runs O2000 twice."""
+    path = tmp_path / "k.nc"
+    path.write_text("%\nO1000\nG90 G21\nG00 X0 Y0 Z5\nG01 X0 Y0 Z4 F100\nM98 P2000 K2\nM30\nO2000\nG91 G01 X1\nG90\n"
+                    "M99\n%\n")
+    p = read_posted(path, dialect="iso")
+    np.testing.assert_allclose(p.tip[2:, 0], [1, 2])
