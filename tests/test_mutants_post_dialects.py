@@ -787,6 +787,8 @@ def test_klartext_plane_q_parameters_rotation_and_named_cycles(tmp_path):
     assert "dropped" not in notes, notes
     np.testing.assert_allclose(p.tip[2:], [[1, 0, 5], [0, 1, 5]], atol=1e-9)
     np.testing.assert_allclose(np.degrees(p.angles[2]), [0, 0], atol=1e-12)
+    q, _ = _klartext(tmp_path, "PLANE RESET STAY\nPLANE SPATIAL SPA+0 SPB+0 SPC+0 TURN\nL X+Q120 Y+Q121 Z+5")
+    np.testing.assert_allclose(q.tip[2:], [[0, 0, 5]], atol=1e-12)  # Q120 and Q121 are 0 after PLANE
     for note in ("Q120-Q122 (rotary positions the control computes for PLANE) read as 0: the plane gives the tool "
                  "axis (line 7)", "CYCL DEF 13 (oriented spindle stop) (line 9)", "CYCL DEF 10 (rotation) (line 11)",
                  "FUNCTION PARAXCOMP (line 13)"):
