@@ -1508,6 +1508,24 @@ _equivalent(_PISO, "IsoInterpreter._run_block", [
     'self.b.machine_move(line, f"machine-coordinate move (G{g[0]:g})" if g else "XXmachine moveXX")'],
     "non_modal_machine is set only by a G53 / G28 / G30 of the block's G words, so g is never empty here and "
     "the else text is never written")
+_SI = "camsmooth/post/siemens.py"
+_equivalent(_SI, "_Siemens._keyword", [
+    'if not m or m.group(1).upper() in ("CYCLE832",) or m.group(1).upper().startswith(("CR", "AR")) \\ -> '
+    'if not m or m.group(1).upper() in ("CYCLE832",) or m.group(1).lower().startswith(("CR", "AR")) \\'],
+    "the CR / AR clause is dead: it also needs a name of 2 characters, and the assignment pattern gives 2 only "
+    "for R0..R9 (other names have 3 or more), which never start with CR or AR")
+_equivalent(_SI, "_Siemens._keyword", [
+    'tokens = re.findall(r"[A-Z_][A-Z0-9_]*\\s*\\([^()]*\\)|[A-Z_][A-Z0-9_]*\\s*=\\s*\\"[^\\"]*\\"|" -> '
+    'tokens = re.findall(r"[a-z_][a-z0-9_]*\\s*\\([^()]*\\)|[a-z_][a-z0-9_]*\\s*=\\s*\\"[^\\"]*\\"|"'],
+    "the pattern is matched with re.I: upper- and lower-case classes match the same tokens")
+_equivalent(_SI, "_Siemens._frame", [
+    'm = re.match(r"([XYZ])\\s*=?\\s*(.+)$", t, re.I) -> m = re.match(r"([xyz])\\s*=?\\s*(.+)$", t, re.I)'],
+    "matched with re.I: [XYZ] and [xyz] match the same words (the letter is upper-cased after)")
+_equivalent(_SI, "_Siemens._drill", [
+    'args = [a.strip() for a in tok[tok.index("(") + 1:-1].split(",")] -> '
+    'args = [a.strip() for a in tok[tok.rindex("(") + 1:-1].split(",")]'],
+    "a cycle token is NAME( ... ) with no parenthesis inside (the token pattern \\([^()]*\\)): its only '(' is "
+    "both the first and the last")
 # --- end post equivalents ---
 
 # mutmut's exit codes; -9 is the SIGKILL its runner sends one second after the CPU limit's SIGXCPU (a

@@ -910,3 +910,29 @@ def test_iso_subprogram_repeats_by_k(tmp_path):
                     "M99\n%\n")
     p = read_posted(path, dialect="iso")
     np.testing.assert_allclose(p.tip[2:, 0], [1, 2])
+
+
+@pytest.mark.parametrize("body, tips", [
+    # ROT Y90: Ry(90) (1, 0, 5) = (5, 0, -1)
+    ("ROT Y90\nG1 X1 Y0 Z5", [[5, 0, -1]]),
+    # CYCLE800 with empty arguments resets the swivel: the point is as written
+    ('CYCLE800(1,"TC1",0,57,0,0,0,90,0,0,0,0,0,1)\nCYCLE800(,,)\nG1 X1 Y0 Z5', [[1, 0, 5]]),
+])
+def test_sinumerik_rot_about_y_and_a_swivel_reset(tmp_path, body, tips):
+    p, notes = _sinumerik(tmp_path, body)
+    np.testing.assert_allclose(p.tip[2:], tips, atol=1e-9)
+    if "CYCLE800(1" in body:
+        assert "CYCLE800 (swivel plane) (line 6)" in notes
+
+
+def test_sinumerik_zx_arc_with_absolute_centre_incremental_rotary_and_cycle_name(tmp_path):
+    """G18 (ZX plane): G2 from (1, 0, 5) to (1, 0, 7) about I=AC(1) K=AC(6), every point 1 mm from
+    (X 1, Z 6); B=IC(5) after B10 is B 15; a CYCLE81 hole is listed under its name."""
+    p, _ = _sinumerik(tmp_path, "G18\nG2 X1 Y0 Z7 I=AC(1) K=AC(6)")
+    arc = p.tip[2:]
+    np.testing.assert_allclose(arc[-1], [1, 0, 7], atol=1e-9)
+    np.testing.assert_allclose(np.hypot(arc[:, 0] - 1, arc[:, 2] - 6), 1.0, atol=1e-9)
+    p, _ = _sinumerik(tmp_path, "G1 X1 Y0 Z5 B10 C0\nG1 B=IC(5)")
+    np.testing.assert_allclose(np.degrees(p.angles[2:]), [[10, 0], [15, 0]], atol=1e-12)
+    p, _ = _sinumerik(tmp_path, "CYCLE81(10,0,2,-5)")
+    assert [c.code for c in p.cycles] == ["CYCLE81"]
