@@ -936,3 +936,12 @@ def test_sinumerik_zx_arc_with_absolute_centre_incremental_rotary_and_cycle_name
     np.testing.assert_allclose(np.degrees(p.angles[2:]), [[10, 0], [15, 0]], atol=1e-12)
     p, _ = _sinumerik(tmp_path, "CYCLE81(10,0,2,-5)")
     assert [c.code for c in p.cycles] == ["CYCLE81"]
+
+
+def test_sinumerik_settings_and_dwell_are_named(tmp_path):
+    """FFWON, SOFT, COMPCAD, G642 and G4 (a dwell: its F is a time, not a feed) move nothing and are
+    named with their lines; the next block keeps the feed 100 mm/min."""
+    p, notes = _sinumerik(tmp_path, "FFWON SOFT COMPCAD\nG642\nG4 F2\nG1 X2")
+    for note in ("FFWON (line 6)", "SOFT (line 6)", "COMPCAD (line 6)", "G642 (line 7)", "G4 (dwell) (line 8)"):
+        assert note in notes, (note, notes)
+    assert p.feed[-1] == pytest.approx(100.0)
