@@ -871,9 +871,6 @@ def test_block_ends_are_the_best_partition_of_a_triangle_chain(blocked, want):
     assert got.tolist() == best_ends
 
 
-@pytest.mark.xfail(strict=True, reason="LinuxCNCPlanner.run's cycle limit is 10 x the sum of L / max(v, 1e-9): a "
-                   "segment with no speed (F0) gets ~1e14 cycles and the per-cycle record grows until memory runs "
-                   "out, instead of the RuntimeError the code means to raise")
 def test_a_segment_that_cannot_move_raises_instead_of_exhausting_memory():
     """A G94 move at F0 (LinuxCNC's interpreter refuses it; the model should say it cannot finish). Run in
     a child process whose heap may grow by 300 MB only, so the failure cannot take the machine's memory."""

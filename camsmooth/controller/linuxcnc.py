@@ -603,8 +603,12 @@ class LinuxCNCPlanner:
             return BlockTimes(start=start, end=end, head=np.r_[idx, m][inner.head],
                               head_fraction=inner.head_fraction, following=np.r_[idx, m, m][inner.following],
                               following_fraction=inner.following_fraction)
+        speed = np.minimum(seg.reqvel, seg.maxvel)
+        if not np.all(speed > 0):  # a move at F0: LinuxCNC refuses it; the run would never end
+            k = int(np.flatnonzero(~(speed > 0))[0])
+            raise RuntimeError(f"LinuxCNC planner model: segment {k} cannot move (speed {speed[k]:g}: F0)")
         parabolic = ~seg.stop_after
-        expect = float(np.sum(seg.length / np.maximum(np.minimum(seg.reqvel, seg.maxvel), 1e-9)))
+        expect = float(np.sum(seg.length / speed))
         max_cycles = int(10 * expect / self.servo_period + 10 * len(seg.length) + 1e5)
         length = seg.length.astype(float)
         start, done, head, p_head, p_next = _run(length, seg.reqvel.astype(float), seg.maxvel.astype(float),
