@@ -1526,6 +1526,15 @@ _equivalent(_SI, "_Siemens._drill", [
     'args = [a.strip() for a in tok[tok.rindex("(") + 1:-1].split(",")]'],
     "a cycle token is NAME( ... ) with no parenthesis inside (the token pattern \\([^()]*\\)): its only '(' is "
     "both the first and the last")
+_equivalent(_HH, "_Klartext._plane", [
+    'for k in ("Q120", "Q121", "Q122"): # the rotary positions the control computes for the plane: the -> '
+    'for k in ("q120", "Q121", "Q122"): # the rotary positions the control computes for the plane: the'],
+    "_Klartext._num names a Q parameter by its key without the first letter (k[1:]): 'q120' and 'Q120' are the "
+    "same v_q120")
+_equivalent(_SI, "_read", [
+    'def _read(path: str, text: str, machine: Any = None, dialect: str = "siemens", -> '
+    'def _read(path: str, text: str, machine: Any = None, dialect: str = "SIEMENS",'],
+    "_read never reads its dialect parameter (the registry passes one; read_siemens takes none)")
 # --- end post equivalents ---
 
 # mutmut's exit codes; -9 is the SIGKILL its runner sends one second after the CPU limit's SIGXCPU (a
