@@ -1535,6 +1535,9 @@ _equivalent(_SI, "_read", [
     'def _read(path: str, text: str, machine: Any = None, dialect: str = "siemens", -> '
     'def _read(path: str, text: str, machine: Any = None, dialect: str = "SIEMENS",'],
     "_read never reads its dialect parameter (the registry passes one; read_siemens takes none)")
+_equivalent(_SI, "_Siemens._keyword", [
+    'elif word in ("G54", "G55", "G56", "G57"): -> elif word in ("G54", "G55", "G56", "XXG57XX"):'],
+    "G57 then goes on to the ISO words, where IsoInterpreter records the same offset 'G57' (its _OFFSETS)")
 # --- end post equivalents ---
 
 # mutmut's exit codes; -9 is the SIGKILL its runner sends one second after the CPU limit's SIGXCPU (a

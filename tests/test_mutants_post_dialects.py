@@ -361,6 +361,7 @@ def test_iso_refusals_name_their_reason_and_cost_only_their_operation(tmp_path, 
     else:  # the arc is read: its end point is (3, 0, 5), every point on the circle of radius hypot(1, .5)
         np.testing.assert_allclose(p.tip[-1], [3, 0, 5], atol=1e-12)
         np.testing.assert_allclose(np.hypot(p.tip[2:, 0] - 2, p.tip[2:, 1] - 0.5), math.hypot(1, 0.5), atol=1e-9)
+        assert len(p.tip) > 12 and p.tip[:, 1].max() == pytest.approx(0.5 + math.hypot(1, 0.5), abs=1e-3)
 
 
 def test_iso_words_that_move_nothing_are_named(tmp_path):
@@ -533,6 +534,8 @@ def _sinumerik(tmp_path: Path, body: str):
 def test_sinumerik_variables_frames_and_units(tmp_path, body, tips):
     p, notes = _sinumerik(tmp_path, body)
     assert "dropped" not in notes, notes
+    if "G500" in body:
+        assert "work offset(s) G500 (settable frames off), G505 selected" in notes
     np.testing.assert_allclose(p.tip[2:], tips, atol=1e-9)
 
 
@@ -546,7 +549,8 @@ def test_sinumerik_tool_vector_radius_arc_and_centre_ac(tmp_path):
         arc = p.tip[2:]
         np.testing.assert_allclose(arc[-1], [2, 0, 5], atol=1e-12)
         np.testing.assert_allclose(np.hypot(arc[:, 0] - 1.5, arc[:, 1]), 0.5, atol=1e-9)
-        assert np.all(arc[:-1, 1] > 0)  # clockwise from (1, 0) about (1.5, 0) passes above the X axis
+        assert len(arc) > 10 and np.all(arc[:-1, 1] > 0)  # clockwise from (1, 0) about (1.5, 0): above the X axis
+        assert arc[:, 1].max() == pytest.approx(0.5, abs=1e-3)  # through (1.5, 0.5)
 
 
 def test_sinumerik_mcall_holes(tmp_path):
@@ -570,6 +574,8 @@ def test_sinumerik_mcall_holes(tmp_path):
     ('CYCLE800(1,"TC1",0,57)', "CYCLE800 with fewer than 13 arguments"),
     ('CYCLE800(1,"TC1",0,128,0,0,0,0,0,0,0,0,0,1)', "CYCLE800 mode 128 (projection, solid or direct angles"),
     ("CYCLE81", "CYCLE81 without its arguments"),
+    ("G600\nG1 X2", "G600 is not read by the siemens reader"),
+    ("ASCALE X2", "ASCALE (a frame from the tool, a mirror or a scale) is not read"),
 ])
 def test_sinumerik_refusals_name_their_reason(tmp_path, body, reason):
     p, notes = _sinumerik(tmp_path, body)
