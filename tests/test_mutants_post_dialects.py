@@ -938,6 +938,7 @@ def test_sinumerik_zx_arc_with_absolute_centre_incremental_rotary_and_cycle_name
     arc = p.tip[2:]
     np.testing.assert_allclose(arc[-1], [1, 0, 7], atol=1e-9)
     np.testing.assert_allclose(np.hypot(arc[:, 0] - 1, arc[:, 2] - 6), 1.0, atol=1e-9)
+    assert len(arc) > 10 and np.abs(arc[:, 0] - 1).max() == pytest.approx(1.0, abs=1e-3)  # a half circle in ZX
     p, _ = _sinumerik(tmp_path, "G1 X1 Y0 Z5 B10 C0\nG1 B=IC(5)")
     np.testing.assert_allclose(np.degrees(p.angles[2:]), [[10, 0], [15, 0]], atol=1e-12)
     p, _ = _sinumerik(tmp_path, "CYCLE81(10,0,2,-5)")
