@@ -1544,6 +1544,10 @@ _equivalent(_PISO, "IsoInterpreter._run_block", [
     "the surviving ones are in the 'elif c == 53.1' branch, which is dead: 53.1 is a key of _NOTED_G, so the "
     "branch before it takes G53.1. (The same change in the live _NOTED_G branch is killed by the tests that "
     "check G05.1 / G61 / G13.1 are named with their lines: this entry excuses no mutant that survives there)")
+_equivalent(_SI, "_Siemens._keyword", [
+    'elif re.match(r"G5[0-9][0-9]$", word) and 505 <= int(word[1:]) <= 599: -> '
+    'elif re.match(r"G5[0-9][0-9]$", word) and 505 <= int(word[1:]) <= 600:'],
+    "the pattern G5[0-9][0-9] admits G500..G599 only: '<= 599' and '<= 600' agree on every word it lets through")
 # --- end post equivalents ---
 
 # mutmut's exit codes; -9 is the SIGKILL its runner sends one second after the CPU limit's SIGXCPU (a
