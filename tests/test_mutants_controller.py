@@ -429,7 +429,7 @@ def test_polyline_distance_in_chunks_is_the_distance_to_every_segment(monkeypatc
     pts = rng.normal(0, 2, (5, 7, 3))
     want = np.array([_brute_distance(pts[b], curve[b]) for b in range(5)])
     assert np.allclose(B._polyline_distance(pts, curve), want, atol=1e-12)
-    for chunk in (1, 20, 100, 200):
+    for chunk in (1, 20, 100, 200, 250, 400):  # 105 floats a block: blocks by 1, 2 and 3
         monkeypatch.setattr(B, "_DISTANCE_CHUNK", chunk)
         assert np.allclose(B._polyline_distance(pts, curve), want, atol=1e-12), chunk
     # a degenerate segment (two equal vertices) is a point
