@@ -1548,6 +1548,18 @@ _equivalent(_SI, "_Siemens._keyword", [
     'elif re.match(r"G5[0-9][0-9]$", word) and 505 <= int(word[1:]) <= 599: -> '
     'elif re.match(r"G5[0-9][0-9]$", word) and 505 <= int(word[1:]) <= 600:'],
     "the pattern G5[0-9][0-9] admits G500..G599 only: '<= 599' and '<= 600' agree on every word it lets through")
+_OWN = "camsmooth/post/own.py"
+_equivalent(_OWN, "_strip_comment", ['line = line.split(";", 1)[0] -> line = line.split(";", )[0]'],
+            "the first part of a split is the text before the first ';' whatever the number of splits")
+_equivalent(_OWN, "read_gcode", ['if not s or s.startswith("%"): -> if not s or s.startswith("XX%XX"):'],
+            "a '%' line (tape start / end) holds no motion word: without the skip it is passed over as a block "
+            "without X Y Z or L, the same result")
+_equivalent(_OWN, "read_gcode", [
+    'words = dict((w, float(v)) for w, v in _WORD.findall(s[2:].replace("FMAX", ""))) -> '
+    'words = dict((w, float(v)) for w, v in _WORD.findall(s[2:].replace("XXFMAXXX", "")))'],
+    "_WORD needs a number after the letter: 'FMAX' gives no word whether or not it is removed")
+_equivalent(_OWN, "read_gcode", ["q = np.asarray(joints, dtype=float) -> q = np.asarray(joints, dtype=None)"],
+            "joints is a list of lists of Python floats: numpy gives float64 either way")
 # --- end post equivalents ---
 
 # mutmut's exit codes; -9 is the SIGKILL its runner sends one second after the CPU limit's SIGXCPU (a

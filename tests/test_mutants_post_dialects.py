@@ -626,7 +626,7 @@ def test_own_program_read_back_by_hand(tmp_path):
     np.testing.assert_allclose(w.t_plan, [np.nan, 0, 0.2, 0.4, np.nan])
     assert w.row_id.tolist() == [-1, 5, 5, 5, -1]
     tool = p.toolpaths[0].tool
-    assert (tool.diameter, tool.corner_radius, tool.length) == (6.0, 3.0, 40.0)
+    assert (tool.diameter, tool.corner_radius, tool.length, tool.kind) == (6.0, 3.0, 40.0, "mill")
     assert p.warnings == ["dialect generic, mode machine"]
 
 
@@ -645,7 +645,8 @@ def test_own_program_variants(tmp_path):
     np.testing.assert_allclose(p.tip, [[0, 0, 10], [1, 0, 0]])
     np.testing.assert_allclose(p.feed, [np.nan, 500])
     p = _own(tmp_path, OWN.replace("G93\n", "G94\n"))
-    assert any("machine-mode program in feed per minute (G94)" in x for x in p.warnings)
+    assert "machine-mode program in feed per minute (G94): F applies to the joint motion, the tool tip feed is not " \
+        "known; feed = F as written" in p.warnings
     np.testing.assert_allclose(p.feed, [np.nan, 60, 300, 300, np.nan])
 
 
@@ -952,3 +953,19 @@ def test_sinumerik_settings_and_dwell_are_named(tmp_path):
     for note in ("FFWON (line 6)", "SOFT (line 6)", "COMPCAD (line 6)", "G642 (line 7)", "G4 (dwell) (line 8)"):
         assert note in notes, (note, notes)
     assert p.feed[-1] == pytest.approx(100.0)
+
+
+def test_own_program_mode_from_the_header_or_the_tcp_words(tmp_path):
+    """The header's mode=tcp holds without a TCP word: X Y Z are the tip (the first point (0, 0, 160));
+    an untagged program without a TCP word is machine mode (tip = pivot position - 150 e_z on the
+    default AB head: (0, 0, 10)); errors name their line."""
+    p = _own(tmp_path, OWN.replace("mode=machine", "mode=tcp").replace("G93\n", "G94\n"))
+    np.testing.assert_allclose(p.tip[0], [0, 0, 160])
+    assert p.warnings[-1] == "dialect generic, mode tcp"
+    p = _own(tmp_path, "G21 G90\nG00 X0 Y0 Z160 A0 B0\nG01 X0 Y0 Z150 A0 B0 F500\nM30\n")
+    assert p.warnings[-1] == "dialect generic, mode machine"
+    np.testing.assert_allclose(p.tip, [[0, 0, 10], [0, 0, 0]], atol=1e-9)
+    for change, line in ((("G01 X2 Y0", "G01 X2000000000 Y0"), 9), (("G00 X0 Y0 Z160 A0 B0", "G00 X0 Y0 Z160 A0"), 7)):
+        with pytest.raises(InputError) as err:
+            _own(tmp_path, OWN.replace(*change))
+        assert err.value.line == line
