@@ -25,6 +25,7 @@ Units: mm, s, rad inside; F words in 1/min (G93) as written.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -292,18 +293,31 @@ def place(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray, t
     t_opt = np.asarray(t_opt, float)
     ok = block_reach(real or machine, rows, q, tip, BLOCK_TOLERANCE_SHARE * float(tolerance))
     keep = decimate(real or machine, rows, q, tip, tolerance, ok=ok)
+    return sooner_blocks(planner, machine, rows, q, t_opt, ok, keep,
+                         lambda r, a: row_entry(machine, q[a], entry_height, float(entry_feed[r])))
+
+
+def sooner_blocks(planner: Planner, machine: Machine, rows: np.ndarray, x: np.ndarray, t_opt: np.ndarray,
+                  ok: np.ndarray, keep: np.ndarray, entry: Callable[[int, int], tuple[np.ndarray, float]]
+                  ) -> np.ndarray:
+    """``keep`` (N,) bool with each row's blocks replaced by the planner's (``Planner.block_ends``
+    among the blocks ``ok`` allows) where its model (``Planner.row_run``) runs them sooner. x (N, D)
+    the coordinates the planner runs (joints in machine mode, world coordinates in TCP mode); t_opt
+    (N,) s, the commanded law; entry(r, a): row r's (first point a) entry position and time (s).
+    One rule for both of LinuxCNC's modes (``place`` and camsmooth.controller.tcp)."""
+    keep = np.array(keep, bool)
     starts, ends = _row_bounds(rows)
     for r, (a, b) in enumerate(zip(starts, ends, strict=True)):
         if b - a < 3:
             continue
-        entry_q, entry_time = row_entry(machine, q[a], entry_height, float(entry_feed[r]))
-        found = planner.block_ends(machine, q[a:b], t_opt[a:b], ok[a:b], entry_q, entry_time)
+        entry_x, entry_time = entry(r, a)
+        found = planner.block_ends(machine, x[a:b], t_opt[a:b], ok[a:b], entry_x, entry_time)
         if found is None:
             continue
         old, new = a + np.flatnonzero(keep[a:b]), a + np.asarray(found)
         if len(old) == len(new) and np.array_equal(old, new):
             continue
-        took = [planner.row_run(machine, q[k], np.diff(t_opt[k]), entry_q, entry_time)[0].end[-1] for k in (old, new)]
+        took = [planner.row_run(machine, x[k], np.diff(t_opt[k]), entry_x, entry_time)[0].end[-1] for k in (old, new)]
         if took[1] < took[0]:
             keep[a:b] = False
             keep[new] = True

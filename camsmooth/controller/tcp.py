@@ -47,6 +47,7 @@ from camsmooth.controller.blocks import (
     _row_bounds,
     _run_deviation,
     decimate,
+    sooner_blocks,
 )
 from camsmooth.controller.linuxcnc import (
     LEAST_TIME_BLOCK_POINTS,
@@ -255,22 +256,8 @@ class TCPPlanner:
         w = world_coordinates(q, tip)
         ok = chord_reach(rows, tip, BLOCK_TOLERANCE_SHARE * float(tolerance))
         keep = decimate(machine, rows, q, tip, tolerance, ok=ok)
-        starts, ends = _row_bounds(rows)
-        for r, (a, b) in enumerate(zip(starts, ends, strict=True)):
-            if b - a < 3:
-                continue
-            entry_w, entry_time = self._entry(machine, q[a], tip[a], entry_height, float(entry_feed[r]))
-            found = self.block_ends(machine, w[a:b], t_opt[a:b], ok[a:b], entry_w, entry_time)
-            if found is None:
-                continue
-            old, new = a + np.flatnonzero(keep[a:b]), a + np.asarray(found)
-            if len(old) == len(new) and np.array_equal(old, new):
-                continue
-            took = [self.row_run(machine, w[k], np.diff(t_opt[k]), entry_w, entry_time)[0].end[-1] for k in (old, new)]
-            if took[1] < took[0]:
-                keep[a:b] = False
-                keep[new] = True
-        return keep
+        return sooner_blocks(self, machine, rows, w, t_opt, ok, keep,
+                             lambda r, a: self._entry(machine, q[a], tip[a], entry_height, float(entry_feed[r])))
 
     def _held_row(self, machine: Machine, w: np.ndarray, tip_path: np.ndarray, k: np.ndarray, bt0: np.ndarray,
                   entry_w: np.ndarray, entry_time: float, limit: float | None
