@@ -461,6 +461,23 @@ def _hold_row(planner: Planner, machine: Machine, q: np.ndarray, k: np.ndarray, 
     return k, bt, np.r_[0.0, run.end[1:] - run.end[0]], worst
 
 
+def points_timing(s: np.ndarray, k: np.ndarray, tk: np.ndarray, tip_k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One row's points as the controller passes them: (n,) s from the row's start and (n,) the
+    tool-tip feed (mm/min, each block's chord over its time; 0 at the row's first and last point).
+    s (n,): the points' travel along the row, by which a point inside a block gets its share of the
+    block's time (the pivot's in machine mode, the tip's in TCP mode, mm); k (m,) the block ends
+    (indices into the row, the first point first); tk (m,) their times (s); tip_k (m, 3) their tips
+    (mm, workpiece frame)."""
+    t = np.interp(s, s[k], tk)
+    chord = np.linalg.norm(np.diff(tip_k, axis=0), axis=1)
+    dt = np.diff(tk)
+    fb = np.where(dt > 0, 60.0 * chord / np.maximum(dt, 1e-12), 0.0)
+    feed = np.interp(s, s[k][1:], fb) if len(fb) else np.zeros(len(s))
+    feed[0] = 0.0
+    feed[-1] = 0.0
+    return t, feed
+
+
 def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
             t_opt: np.ndarray, keep: np.ndarray, *, entry_height: float, entry_feed: np.ndarray,
             tolerance: float | None = None, feed: np.ndarray | None = None) -> ControllerPlan:
@@ -505,14 +522,8 @@ def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray,
         block_time[k[1:]] = bt
         # points inside a block: by their share of the block's pivot travel
         s = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(q[a:b, :3], axis=0), axis=1))]
-        t_ctrl[a:b] = np.interp(s, s[k - a], tk)
+        t_ctrl[a:b], feed[a:b] = points_timing(s, k - a, tk, tip[k])
         row_cycle[r] = tk[-1]
-        chord = np.linalg.norm(np.diff(tip[k], axis=0), axis=1)
-        dt = np.diff(tk)
-        fb = np.where(dt > 0, 60.0 * chord / np.maximum(dt, 1e-12), 0.0)
-        feed[a:b] = np.interp(s, s[k - a][1:], fb) if len(fb) else 0.0
-        feed[a] = 0.0
-        feed[b - 1] = 0.0
     floor = None
     if tolerance is not None and n:
         floor = planner.row_floor(machine, rows, q, tip, prog_feed, float(tolerance))

@@ -47,6 +47,7 @@ from camsmooth.controller.blocks import (
     _row_bounds,
     _run_deviation,
     decimate,
+    points_timing,
     sooner_blocks,
 )
 from camsmooth.controller.linuxcnc import (
@@ -326,14 +327,8 @@ class TCPPlanner:
                 block_time[k[1:]] = bt0 / scale[r]
                 tk = np.r_[0.0, run.end[1:] - run.end[0]]
             s = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(tip[a:b], axis=0), axis=1))]
-            t_ctrl[a:b] = np.interp(s, s[k - a], tk)
+            t_ctrl[a:b], feed_plan[a:b] = points_timing(s, k - a, tk, tip[k])
             row_cycle[r] = tk[-1]
-            chord = np.linalg.norm(np.diff(tip[k], axis=0), axis=1)
-            dt = np.diff(tk)
-            fb = np.where(dt > 0, 60.0 * chord / np.maximum(dt, 1e-12), 0.0)
-            feed_plan[a:b] = np.interp(s, s[k - a][1:], fb) if len(fb) else 0.0
-            feed_plan[a] = 0.0
-            feed_plan[b - 1] = 0.0
         floor = None
         if tolerance is not None and n:
             floor = self.row_floor(machine, rows, q, tip, feed, float(tolerance))
