@@ -211,7 +211,26 @@ def block_reach(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarr
     X Y Z mm A B rad; tip: (N, 3) mm, workpiece frame."""
     q = np.asarray(q, float)
     tip = np.asarray(tip, float)
-    n = len(q)
+    mid = tool_tips(machine, 0.5 * (q[1:] + q[:-1])) if len(q) > 1 else np.zeros((0, 3))
+    s = np.linspace(0.0, 1.0, _CURVE_SAMPLES + 1)
+
+    def passes(a: np.ndarray, k: int) -> np.ndarray:
+        curve = tool_tips(machine, q[a][:, None, :] + s[None, :, None] * (q[a + k] - q[a])[:, None, :])
+        pts = np.concatenate([tip[a[:, None] + np.arange(1, k)[None, :]],
+                              mid[a[:, None] + np.arange(0, k)[None, :]]], axis=1)
+        frac = np.r_[np.arange(1, k) / k, (np.arange(k) + 0.5) / k]
+        return _all_within(pts, curve, frac, tolerance)
+
+    return reach_table(rows, len(q), max_points, passes)
+
+
+def reach_table(rows: np.ndarray, n: int, max_points: int,
+                passes: Callable[[np.ndarray, int], np.ndarray]) -> np.ndarray:
+    """(n, max_points) bool: entry [a, k - 1] says whether the block from point a over k points
+    (inside a's row) passes ``passes(a, k)`` (a: the start points still in the running, k >= 2;
+    returns a bool per start); always True for k = 1. Once a block from a fails, the longer ones
+    from a are not tried (marked False). The one search of ``block_reach`` (machine mode's tip
+    curve) and camsmooth.controller.tcp.chord_reach (the chord)."""
     K = int(max_points)
     ok = np.zeros((n, K), bool)
     if n == 0:
@@ -219,21 +238,14 @@ def block_reach(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarr
     ok[:, 0] = True
     starts, ends = _row_bounds(rows)
     row_end = np.repeat(ends - 1, ends - starts)
-    mid = tool_tips(machine, 0.5 * (q[1:] + q[:-1])) if n > 1 else np.zeros((0, 3))
     a_idx = np.arange(n)
     alive = np.ones(n, bool)
-    s = np.linspace(0.0, 1.0, _CURVE_SAMPLES + 1)
     for k in range(2, K + 1):
         alive &= a_idx + k <= row_end
         if not alive.any():
             break
         a = a_idx[alive]
-        bb = a + k
-        curve = tool_tips(machine, q[a][:, None, :] + s[None, :, None] * (q[bb] - q[a])[:, None, :])
-        pts = np.concatenate([tip[a[:, None] + np.arange(1, k)[None, :]],
-                              mid[a[:, None] + np.arange(0, k)[None, :]]], axis=1)
-        frac = np.r_[np.arange(1, k) / k, (np.arange(k) + 0.5) / k]
-        good = _all_within(pts, curve, frac, tolerance)
+        good = passes(a, k)
         ok[a, k - 1] = good
         alive[a[~good]] = False  # a longer block from a is not tried once one fails
     return ok

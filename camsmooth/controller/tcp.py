@@ -48,6 +48,7 @@ from camsmooth.controller.blocks import (
     _run_deviation,
     decimate,
     points_timing,
+    reach_table,
     sooner_blocks,
 )
 from camsmooth.controller.linuxcnc import (
@@ -118,30 +119,17 @@ def chord_reach(rows: np.ndarray, tip: np.ndarray, tolerance: float, max_points:
     block from point a to point a + k inside a's row (always True for k = 1). Once a block from a
     fails, the longer ones from a are not tried. tip (N, 3) mm."""
     tip = np.asarray(tip, float)
-    n, K = len(tip), int(max_points)
-    ok = np.zeros((n, K), bool)
-    if n == 0:
-        return ok
-    ok[:, 0] = True
-    starts, ends = _row_bounds(rows)
-    row_end = np.repeat(ends - 1, ends - starts)
-    a_idx = np.arange(n)
-    alive = np.ones(n, bool)
     tol2 = float(tolerance) ** 2
-    for k in range(2, K + 1):
-        alive &= a_idx + k <= row_end
-        if not alive.any():
-            break
-        a = a_idx[alive]
+
+    def passes(a: np.ndarray, k: int) -> np.ndarray:
         p0, d = tip[a], tip[a + k] - tip[a]
         rel = tip[a[:, None] + np.arange(1, k)[None, :]] - p0[:, None, :]
         t = np.clip(np.einsum("bpk,bk->bp", rel, d) / np.maximum(np.einsum("bk,bk->b", d, d), 1e-300)[:, None],
                     0.0, 1.0)
         off = rel - t[..., None] * d[:, None, :]
-        good = np.einsum("bpk,bpk->bp", off, off).max(axis=1) <= tol2
-        ok[a, k - 1] = good
-        alive[a[~good]] = False
-    return ok
+        return np.einsum("bpk,bpk->bp", off, off).max(axis=1) <= tol2
+
+    return reach_table(rows, len(tip), max_points, passes)
 
 
 def joint_ratio(machine: Machine, joints: np.ndarray, period: float = SERVO_PERIOD_S) -> np.ndarray:
