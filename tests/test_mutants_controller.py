@@ -878,23 +878,24 @@ def test_predict_with_a_tolerance_splits_the_blocks_and_marks_their_points():
     assert keep.tolist() == [True, False, True, False, False, False, True]  # the caller's array is not changed
 
 
-def _triangle_chain(parts, step: float, a_h: float) -> float:
+def _triangle_chain(parts, step: float, a: float) -> float:
     """End (s) of a chain of triangle blocks of ``parts`` steps of ``step`` mm each, started from rest at
-    0 (no entry move), at acceleration a_h: block j lasts T_j = 2 sqrt(L_j / a_h); the next starts once
-    it decelerates below the blend speed min(v_j, v_{j+1}) (at T_j - min(T_j, T_{j+1}) / 2 after its
-    start: the peak of the shorter) and not before the block before it has ended (``_blend_chain``
-    without a speed cap)."""
-    return _blend_chain([p * step for p in parts], a_h, np.inf)
+    0 (no entry move): ``_blend_chain`` without a speed cap (the inner blocks at a/2, the last at a)."""
+    return _blend_chain([p * step for p in parts], a, np.inf)
 
 
-@pytest.mark.parametrize("blocked, want", [((), [0, 3, 6]), (((0, 1), (0, 2)), [0, 4, 6]),
+@pytest.mark.parametrize("blocked, want", [((), [0, 2, 6]), (((0, 1), (0, 2)), [0, 1, 2, 6]),
                                             (tuple((i, k) for i in range(7) for k in (2, 3)), [0, 2, 4, 6])])
 def test_block_ends_are_the_best_partition_of_a_triangle_chain(blocked, want):
-    """Seven points 2 mm apart along X, a law too fast to bind, no entry move, blocks of up to 4 steps:
-    the placement's chain model is the chain of triangle blocks at half the acceleration; the best
-    partition of the 6 steps (brute force, blocks ``blocked`` (i, k) not allowed): 3 + 3 steps
-    (3 sqrt(3 l / a_h) = 190 ms against 198 ms of 4 + 2 steps, sqrt(l / a_h) (4 + sqrt 2)); without
-    blocks of 2 and 3 steps from the first point 4 + 2; with blocks of at most 2 steps 2 + 2 + 2."""
+    """Seven points l = 2 mm apart along X, a law too fast to bind, no entry move, blocks of up to 4 steps:
+    the placement's chain model is the chain of triangle blocks, the inner ones at a/2 and the last (it
+    ends at rest) at the whole a; the best partition of the 6 steps (brute force, blocks ``blocked``
+    (i, k) not allowed). By hand with u = sqrt(l/a) = 25.8 ms: 2 + 4 steps, the first peaks at
+    sqrt(2 l/(a/2)) = 2u, where the last starts (t_blend = 2u), which runs 2 sqrt(4 l/a) = 4u: 6u = 155 ms,
+    against 3 + 3 steps (2 sqrt 6 + sqrt 3) u = 171 ms (the last starts sqrt(3) u before the first ends);
+    without blocks of 2 and 3 steps from the first point 1 + 1 + 4, the long block starts when the first
+    ends (2 sqrt 2 u): (4 + 2 sqrt 2) u = 176 ms against 4 + 2, 5 sqrt(2) u = 183 ms; with blocks of at
+    most 2 steps 2 + 2 + 2, the last starts (6 - sqrt 2) u and runs 2 sqrt(2) u: (6 + sqrt 2) u = 191 ms."""
     n, step = 7, 2.0
     x = step * np.arange(n)
     q = np.column_stack([x, np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)])
@@ -908,7 +909,7 @@ def test_block_ends_are_the_best_partition_of_a_triangle_chain(blocked, want):
         ends = np.r_[0, np.cumsum(parts)]
         if not all(ok[i, j - i - 1] for i, j in zip(ends[:-1], ends[1:], strict=True)):
             continue
-        t = _triangle_chain(parts, step, A_LIN / 2)
+        t = _triangle_chain(parts, step, A_LIN)
         if t < best:
             best, best_ends, second = t, ends.tolist(), best
         elif t < second:
@@ -1087,21 +1088,23 @@ def test_a_repeated_last_point_takes_no_time():
     assert np.allclose(t.positions(np.zeros(5), joints), w.positions(np.zeros(5), joints[:2]), atol=1e-12)
 
 
-def _blend_chain(lengths, a_h: float, vcap: float) -> float:
-    """End (s) of a chain of blocks of ``lengths`` mm from rest (no entry move) at acceleration a_h and
-    speed at most vcap: each block its own triangle (2 sqrt(L / a_h), peak sqrt(a_h L)) or trapezoid
-    (L / v + v / a_h); the next starts when it decelerates below the blend speed bv = min(v, a_h t_blend),
-    t_blend = min(L / v, L' / v', max(v, v') / a_h) (tpComputeBlendVelocity), i.e. bv / a_h before its end,
+def _blend_chain(lengths, a: float, vcap: float) -> float:
+    """End (s) of a chain of blocks of ``lengths`` mm from rest (no entry move), speed at most vcap: each
+    block but the last ends in a parabolic blend and runs at a_j = a/2, the last ends at rest and runs at
+    the whole a; each its own triangle (2 sqrt(L / a_j), peak sqrt(a_j L)) or trapezoid (L / v + v / a_j);
+    the next starts when it decelerates below the blend speed bv = min(v, a_j t_blend), t_blend =
+    min(L / v, L' / v', max(v / a_j, v' / a_j')) (tpComputeBlendVelocity), i.e. bv / a_j before its end,
     and not before the block before it has ended."""
+    acc = [a if j == len(lengths) - 1 else a / 2 for j in range(len(lengths))]
     TV = []
-    for length in lengths:
-        peak = np.sqrt(a_h * length)
-        TV.append((2 * length / peak, peak) if peak <= vcap else (length / vcap + vcap / a_h, vcap))
+    for length, aj in zip(lengths, acc, strict=True):
+        peak = np.sqrt(aj * length)
+        TV.append((2 * length / peak, peak) if peak <= vcap else (length / vcap + vcap / aj, vcap))
     start = [0.0]
     for j in range(1, len(lengths)):
-        (tp, vp), (_, vn) = TV[j - 1], TV[j]
-        t_blend = min(lengths[j - 1] / vp, lengths[j] / vn, max(vp, vn) / a_h)
-        s = start[-1] + tp - min(vp, a_h * t_blend) / a_h
+        (tp, vp), (_, vn), ap, an = TV[j - 1], TV[j], acc[j - 1], acc[j]
+        t_blend = min(lengths[j - 1] / vp, lengths[j] / vn, max(vp / ap, vn / an))
+        s = start[-1] + tp - min(vp, ap * t_blend) / ap
         if j >= 2:
             s = max(s, start[-2] + TV[j - 2][0])
         start.append(s)
@@ -1110,9 +1113,14 @@ def _blend_chain(lengths, a_h: float, vcap: float) -> float:
 
 def test_block_ends_follow_the_speed_limit():
     """Points along X at steps of 1, 2, 16, 16, 0.5 mm (no entry, a law too fast to bind, blocks of up to
-    4 steps): by brute force over every choice of ends on the chain of blends, the blocks 0-4-5 are the
-    fastest at the axes' 500 mm/s (a long block reaches 229 mm/s), but under [TRAJ] MAX_LINEAR_VELOCITY
-    120 mm/s the long block is capped and 0-3-5 wins; the placement follows its planner's v_limit."""
+    4 steps): by brute force over every choice of ends on the chain of blends (inner blocks at a/2 = 1500,
+    the last at a = 3000 mm/s^2), the blocks 0-1-5 are the fastest at the axes' 500 mm/s: the 1 mm block
+    peaks at sqrt(1500) mm/s after 25.8 ms, where the 34.5 mm last block starts, a triangle at 3000
+    (peak 322 mm/s) of 2 sqrt(34.5 / 3000) = 214.5 ms: 240.3 ms (0-2-5: 252.9 ms). Under [TRAJ]
+    MAX_LINEAR_VELOCITY 120 mm/s that long block is capped (34.5 / 120 + 120 / 3000, 353.3 ms in all) and
+    0-3-5 wins: 19 mm at 1500 (19/120 + 120/1500 = 238.3 ms), the last 16.5 mm started at its deceleration
+    (t_blend = 120/1500: the blend speed is 120) 158.3 ms in, 16.5/120 + 120/3000 = 177.5 ms: 335.8 ms. The
+    placement follows its planner's v_limit."""
     x = np.r_[0.0, np.cumsum([1.0, 2.0, 16.0, 16.0, 0.5])]
     n = len(x)
     q = np.column_stack([x, np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)])
@@ -1122,10 +1130,10 @@ def test_block_ends_follow_the_speed_limit():
         for mask in itertools.product([False, True], repeat=n - 2):
             ends = np.r_[0, 1 + np.flatnonzero(mask), n - 1]
             if np.diff(ends).max() <= 4:
-                times[tuple(ends.tolist())] = _blend_chain(np.diff(x[ends]), A_LIN / 2, v_limit or V_LIN)
+                times[tuple(ends.tolist())] = _blend_chain(np.diff(x[ends]), A_LIN, v_limit or V_LIN)
         ranked = sorted(times, key=times.get)
         assert times[ranked[1]] - times[ranked[0]] > len(ranked[0]) * DT
-        assert ranked[0] == ((0, 4, 5) if v_limit is None else (0, 3, 5))
+        assert ranked[0] == ((0, 1, 5) if v_limit is None else (0, 3, 5))
         got = L.LinuxCNCPlanner(v_limit=v_limit).block_ends(M, q, np.zeros(n), ok, q[0], 0.0)
         assert tuple(got.tolist()) == ranked[0]
 
