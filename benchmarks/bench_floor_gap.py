@@ -14,8 +14,16 @@ planner model camsmooth.controller.linuxcnc; no LinuxCNC run).
    through its points (K candidate ends per interval), the tips their forward kinematics, placed
    and predicted again (camsmooth.smoothing.evaluate.time_law): predicted / floor of the original
    points.
+4. The best any placement through the points reaches on the planner model (``--best``): blocks
+   that may use the WHOLE tolerance (as the floor's) and blends left unchecked (no servo-cycle
+   tolerance), the planner's dynamic programme over the block ends (Planner.block_ends), then a
+   local search on the model's executed time (drop, add or move any block end by one point, until
+   no move helps), then each block's G93 time made 1.3x or 2x longer where that runs the row sooner
+   (a slower block can let its neighbour blend sooner). What it prints is an estimate of the best
+   any program through these points reaches on LinuxCNC 2.9, not a bound; the model is within
+   0.2-2% of the headless LinuxCNC per row (bench_controller.py).
 
-    .venv/bin/python benchmarks/bench_floor_gap.py [--samples dome,wave] [--rows 3] [--spline 2,4]
+    .venv/bin/python benchmarks/bench_floor_gap.py [--samples dome,wave] [--rows 3] [--spline 2,4] [--best]
 """
 
 from __future__ import annotations
@@ -33,7 +41,15 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 from bench_controller import TOLERANCE, smoothed  # noqa: E402
 from scipy.interpolate import CubicSpline  # noqa: E402
 
-from camsmooth.controller.blocks import BLOCK_TOLERANCE_SHARE, tool_tips  # noqa: E402
+from camsmooth.constants import DEFAULT_SAFE_HEIGHT_MM  # noqa: E402
+from camsmooth.controller import planner_for  # noqa: E402
+from camsmooth.controller.blocks import (  # noqa: E402
+    BLOCK_TOLERANCE_SHARE,
+    MAX_BLOCK_POINTS,
+    block_reach,
+    row_entry,
+    tool_tips,
+)
 from camsmooth.controller.linuxcnc import LinuxCNCPlanner, Segments, least_row_times  # noqa: E402
 from camsmooth.smoothing.evaluate import time_law  # noqa: E402
 
@@ -50,11 +66,55 @@ def chain_ratio(lengths: np.ndarray, acc: float = ACC) -> float:
     return float(LinuxCNCPlanner().run(seg).end[-1] / np.sqrt(2.0 * np.asarray(lengths) / acc).sum())
 
 
+def best_through_points(machine, q: np.ndarray, tip: np.ndarray, t_opt: np.ndarray) -> tuple[float, float, float]:
+    """One row (q (n, 5) X Y Z mm A B rad, tip (n, 3) mm, t_opt (n,) s): the planner model's time
+    (s) of the blocks its dynamic programme picks within the whole TOLERANCE (blends unchecked), after
+    the local search over block ends, and after the search over slower G93 block times (part 4)."""
+    planner = planner_for(machine, TOLERANCE, np.zeros(len(q)), q)
+    ok = block_reach(machine, np.zeros(len(q)), q, tip, TOLERANCE)
+    entry_q, entry_time = row_entry(machine, q[0], DEFAULT_SAFE_HEIGHT_MM, 2000.0)
+
+    def took(k: np.ndarray, bt: np.ndarray | None = None) -> float:
+        run, _ = planner.row_run(machine, q[k], np.diff(t_opt[k]) if bt is None else bt, entry_q, entry_time)
+        return float(run.end[-1] - run.end[0])
+
+    def allowed(k: np.ndarray) -> bool:
+        steps = np.diff(k)
+        return bool(np.all(steps <= MAX_BLOCK_POINTS) and np.all(ok[k[:-1], steps - 1]))
+
+    k = np.asarray(planner.block_ends(machine, q, t_opt, ok, entry_q, entry_time))
+    dp = best = took(k)
+    better = True
+    while better:
+        better = False
+        moves = [np.delete(k, i) for i in range(1, len(k) - 1)]
+        moves += [np.sort(np.r_[k, j]) for j in np.setdiff1d(np.arange(1, len(q) - 1), k)]
+        for i in range(1, len(k) - 1):
+            for step in (-1, 1):
+                kk = k.copy()
+                kk[i] += step
+                if kk[i - 1] < kk[i] < kk[i + 1]:
+                    moves.append(kk)
+        for kk in moves:
+            if allowed(kk) and (t := took(kk)) < best - 1e-4:
+                k, best, better = kk, t, True
+    bt = np.diff(t_opt[k])
+    slow = best
+    for i in range(len(bt)):
+        for factor in (1.3, 2.0):
+            b2 = bt.copy()
+            b2[i] *= factor
+            if (t := took(k, b2)) < slow - 1e-4:
+                bt, slow = b2, t
+    return dp, best, slow
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--samples", default="dome,wave")
     ap.add_argument("--rows", type=int, default=3)
     ap.add_argument("--spline", default="", help="candidate block ends per point interval, e.g. 2,4 (part 3)")
+    ap.add_argument("--best", action="store_true", help="the best placement through the points on the model (part 4)")
     args = ap.parse_args()
     print(f"== 1. chains of 60 segments at {ACC:g} mm/s^2: model time / sum of the per-block floors")
     for label, pattern in (("equal 0.5 mm", [0.5]), ("equal 2 mm", [2.0]), ("0.5 / 0.75 alternating", [0.5, 0.75]),
@@ -86,6 +146,15 @@ def main() -> None:
             pred = law.controller.row_cycle_time
             print(f"  {sample:6s} {k} ends per interval: predicted {np.round(pred, 3)} s, "
                   f"{np.round(pred / whole, 3)}x the floor of the points, {law.controller.blocks} blocks")
+        if args.best:
+            print(f"== 4. {sample}: the best placement through the points on the model, the whole tolerance, "
+                  "blends unchecked: / floor")
+            for k, row in enumerate(r.controller.row_ids):
+                sel = r.rows == row
+                dp, local, slow = best_through_points(machine, q[sel], r.cl[sel], r.plan.t_plan[sel])
+                print(f"  {sample:6s} row {row:3d}: dynamic programme {dp / whole[k]:.3f}x, local search "
+                      f"{local / whole[k]:.3f}x, slower G93 blocks {slow / whole[k]:.3f}x (camsmooth's program "
+                      f"{r.controller.row_cycle_time[k] / whole[k]:.3f}x)")
 
 
 if __name__ == "__main__":

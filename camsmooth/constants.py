@@ -6,7 +6,8 @@ numerical stack.
 
 from __future__ import annotations
 
-__all__ = ["DEFAULT_TOLERANCE_MM", "WRITTEN_DECIMALS", "DEFAULT_SAFE_HEIGHT_MM", "PATH_TOLERANCE_SHARE"]
+__all__ = ["DEFAULT_TOLERANCE_MM", "WRITTEN_DECIMALS", "DEFAULT_SAFE_HEIGHT_MM", "PATH_TOLERANCE_SHARE",
+           "PARABOLIC_PATH_TOLERANCE_SHARE", "NAIVE_CAM_TOLERANCE_SHARE"]
 
 #: The part's allowed deviation (mm) when the user gives none (``--tolerance``; ``smooth``,
 #: ``analyze_program``): a finishing tolerance. It decides every clearance question: a pose whose
@@ -22,7 +23,21 @@ WRITTEN_DECIMALS: int = 4
 DEFAULT_SAFE_HEIGHT_MM: float = 10.0
 
 #: Share of the user's tolerance the controller's own blend tolerance gets (LinuxCNC ``G64 P``): its
-#: bound on how far a blend cuts an XYZ corner, which holds the corner of a row's entry move; the
-#: tool tip at every servo cycle is held within EXECUTED_TOLERANCE_SHARE (camsmooth.controller) by
-#: the block times. Written by the linuxcnc post (camsmooth.post.linuxcnc), used by its planner model.
+#: bound on how far a blend cuts an XYZ corner, which is the bound where LinuxCNC may join two moves
+#: that turn no rotary axis by a blend arc; the tool tip at every servo cycle is held within
+#: EXECUTED_TOLERANCE_SHARE (camsmooth.controller) by the block times. Written by the linuxcnc post
+#: (camsmooth.post.linuxcnc), used by its planner model.
 PATH_TOLERANCE_SHARE: float = 0.6
+#: ``G64 P`` over the user's tolerance for a machine-mode program in which every move between two
+#: points turns a rotary axis (camsmooth.controller.blend_tolerance). LinuxCNC 2.9 joins such moves
+#: by parabolic blends only, where P is no bound on the path but a cap on the blend speed, 2 sqrt(a/2
+#: P / cos(theta)) at an XYZ corner of the joints (camsmooth.controller.linuxcnc); the tip is held by
+#: the block times, which the planner model checks cycle by cycle. Measured on the planner model over
+#: the blade, wave, ridge and dome rows of benchmarks/bench_controller.py, executed / floor: 0.6 ->
+#: 1.24 / 1.14 / 1.20 / 1.15, 1.0 -> 1.16 / 1.11 / 1.12 / 1.07, 2.0 -> 1.13 / 1.09 / 1.09 / 1.03; 3.0
+#: slows some rows by 30% (their blends then need many rounds of slowing down).
+PARABOLIC_PATH_TOLERANCE_SHARE: float = 2.0
+#: The share of the user's tolerance LinuxCNC's naive-CAM detector gets (``G64 Q``): it joins
+#: consecutive XYZ-only moves that lie within Q of a line, which the planner model does not model;
+#: kept below the tolerance (without Q, LinuxCNC takes Q = P).
+NAIVE_CAM_TOLERANCE_SHARE: float = 0.6

@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from camsmooth.controller import PATH_TOLERANCE_SHARE, LinuxCNCPlanner, decimate, planner_for
+from camsmooth.constants import NAIVE_CAM_TOLERANCE_SHARE
+from camsmooth.controller import LinuxCNCPlanner, decimate, planner_for
 from camsmooth.controller.blocks import BLOCK_TOLERANCE_SHARE
 from camsmooth.controller.linuxcnc_sim import interpret, linuxcnc_missing, simulate
 from camsmooth.geometry.cutter import ToroidalCutter
@@ -195,8 +196,8 @@ def test_linuxcnc_interpreter_reads_the_program_and_its_positions_and_times(blad
         first = np.r_[True, r.rows[keep][1:] != r.rows[keep][:-1]]
         assert np.allclose(60.0 / fw[~first], bt[~first], rtol=1e-6, atol=1e-7)
         assert canon.inverse_time[cut].all()
-        p = f"{PATH_TOLERANCE_SHARE * 0.005:.4f}"
-        assert f"G64 P{p} Q{p}" in text
+        p, q = f"{r.controller.blend_tolerance:.4f}", f"{NAIVE_CAM_TOLERANCE_SHARE * 0.005:.4f}"
+        assert f"G64 P{p} Q{q}" in text and float(q) < 0.005  # the naive-CAM detector kept within the tolerance
 
 
 @needs_linuxcnc
@@ -353,8 +354,9 @@ def test_the_blocks_keep_the_models_tool_tip_within_the_tolerance_at_every_servo
     from camsmooth.controller.blocks import programmed_tip_path, tip_deviation, tool_tips
 
     r, m = blade_rows.methods["nlp"], blade_rows.machine
-    p = planner_for(m, 0.005)
     q = np.column_stack([r.xyz, r.rotary.values])
+    p = planner_for(m, 0.005, r.rows, q)  # the blend tolerance the program is written with
+    assert p.tolerance == r.controller.blend_tolerance
     worst_written, worst_optimal = 0.0, 0.0
     for rid in np.unique(r.rows):
         sel = np.flatnonzero(r.rows == rid)
@@ -442,3 +444,28 @@ def test_least_row_times_is_below_what_the_model_predicts_for_every_method(blade
         assert np.all(bound < r.controller.row_cycle_time)
         assert np.all(bound >= np.asarray(r.plan.row_cycle_time) * 0.9)
         assert np.all(least_row_times(m, r.rows, q, r.cl, feed, 0.01) <= bound + 1e-12)
+
+
+def test_blend_tolerance_exceeds_the_tolerance_only_where_every_move_turns_a_rotary_axis():
+    """LinuxCNC 2.9 joins two moves that turn no rotary axis by a blend arc bounded by G64 P (the
+    tolerance's share PATH_TOLERANCE_SHARE < 1), but moves that turn one only by parabolic blends, whose
+    path camsmooth's block times hold: then P is PARABOLIC_PATH_TOLERANCE_SHARE of it. A move whose
+    rotary axes differ by less than the written 0.0001 deg turns none; the rows' boundaries do not count."""
+    from camsmooth.constants import PARABOLIC_PATH_TOLERANCE_SHARE, PATH_TOLERANCE_SHARE
+    from camsmooth.controller import blend_tolerance
+
+    n = 6
+    q = np.column_stack([np.arange(n, dtype=float), np.zeros((n, 2)), np.zeros(n), np.radians(np.arange(n) * 0.5)])
+    rows = np.zeros(n, int)
+    assert blend_tolerance(rows, q, 0.005) == pytest.approx(PARABOLIC_PATH_TOLERANCE_SHARE * 0.005)
+    assert PATH_TOLERANCE_SHARE < 1.0 < PARABOLIC_PATH_TOLERANCE_SHARE
+    flat = q.copy()
+    flat[3, 4] = flat[2, 4] + np.radians(0.00004)  # written as the same angle: an XYZ-only move
+    assert blend_tolerance(rows, flat, 0.005) == pytest.approx(PATH_TOLERANCE_SHARE * 0.005)
+    # the same angle across a row boundary (the retract and rapid between them) is no move of the program
+    two = q.copy()
+    two[3, 4] = two[2, 4]
+    assert blend_tolerance(np.repeat([0, 1], 3), two, 0.005) == pytest.approx(PARABOLIC_PATH_TOLERANCE_SHARE * 0.005)
+    m = _machine()
+    assert planner_for(m, 0.005, rows, q).tolerance == pytest.approx(PARABOLIC_PATH_TOLERANCE_SHARE * 0.005)
+    assert planner_for(m, 0.005).tolerance == pytest.approx(PATH_TOLERANCE_SHARE * 0.005)

@@ -160,11 +160,12 @@ def test_placement_is_never_slower_than_the_longest_blocks_and_keeps_the_tip_wit
     blocks and times at every servo cycle, stays within EXECUTED_TOLERANCE_SHARE of the tolerance
     of the path the full-density program commands."""
     m = blade_rows.machine
-    p = planner_for(m, TOL)
     for name in ("nlp", "none"):
         r = blade_rows.methods[name]
         q = _joints(r)
         c = r.controller
+        p = planner_for(m, TOL, r.rows, q)  # with the blend tolerance the program is written with
+        assert p.tolerance == c.blend_tolerance
         entry_feed = np.full(len(c.row_ids), FEED)
         old = predict(p, m, r.rows, q, r.cl, r.plan.t_plan, decimate(m, r.rows, q, r.cl, TOL),
                       entry_height=ENTRY_MM, entry_feed=entry_feed, tolerance=TOL)

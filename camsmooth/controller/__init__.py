@@ -11,14 +11,17 @@
 - ``linuxcnc_sim``: LinuxCNC itself, its interpreter and a headless simulation (tests and
   benchmarks, needs the ``linuxcnc-uspace`` package).
 
-``planner_for(machine)`` gives the planner model of the machine's post (``[post] dialect``), or
-None where camsmooth has no model of the controller (then the time-optimal law is what is
+``planner_for(machine)`` gives the planner model of the machine's post (``[post] dialect``) with
+the program's blend tolerance (``blend_tolerance``: LinuxCNC's ``G64 P``), or None where camsmooth
+has no model of the controller (then the time-optimal law is what is
 reported). A second controller is one more entry in ``PLANNERS``.
 """
 
 from __future__ import annotations
 
-from camsmooth.constants import PATH_TOLERANCE_SHARE  # the linuxcnc post writes it too (G64 P)
+import numpy as np
+
+from camsmooth.constants import PARABOLIC_PATH_TOLERANCE_SHARE, PATH_TOLERANCE_SHARE  # the linuxcnc post's G64 P
 from camsmooth.controller.blocks import (
     BLOCK_TOLERANCE_SHARE,
     EXECUTED_TOLERANCE_SHARE,
@@ -33,6 +36,7 @@ from camsmooth.controller.tcp import TCPPlanner, mode_text, tcp_planner_for
 from camsmooth.machine.kinematics import Machine
 
 __all__ = ["PLANNERS", "PATH_TOLERANCE_SHARE", "BLOCK_TOLERANCE_SHARE", "EXECUTED_TOLERANCE_SHARE", "planner_for",
+           "blend_tolerance",
            "floor_text", "ControllerPlan", "Planner", "decimate", "place", "predict", "LinuxCNCPlanner", "TCPPlanner",
            "tcp_planner_for", "mode_text"]
 
@@ -40,12 +44,33 @@ __all__ = ["PLANNERS", "PATH_TOLERANCE_SHARE", "BLOCK_TOLERANCE_SHARE", "EXECUTE
 PLANNERS: dict[str, type] = {"linuxcnc": LinuxCNCPlanner}
 
 
-def planner_for(machine: Machine, tolerance: float) -> Planner | None:
+def blend_tolerance(rows: np.ndarray, q: np.ndarray, tolerance: float) -> float:
+    """The blend tolerance (mm, LinuxCNC ``G64 P``) a machine-mode program of the points q (N, 5)
+    X Y Z mm and the rotary axes rad, rows (N,), is written and timed with for the user's
+    ``tolerance`` (mm): PARABOLIC_PATH_TOLERANCE_SHARE of it where every move between two points of a
+    row turns a rotary axis as written (4 decimals, deg): LinuxCNC joins those only by parabolic
+    blends, whose path the block times hold; else PATH_TOLERANCE_SHARE, the bound of the blend arc
+    by which it may join two moves that turn none."""
+    rows = np.asarray(rows)
+    deg = np.round(np.degrees(np.asarray(q, float)[:, 3:]), 4)
+    same_row = rows[1:] == rows[:-1]
+    turns = np.any(deg[1:] != deg[:-1], axis=1)
+    share = PARABOLIC_PATH_TOLERANCE_SHARE if bool(np.all(turns[same_row])) else PATH_TOLERANCE_SHARE
+    return share * float(tolerance)
+
+
+def planner_for(machine: Machine, tolerance: float, rows: np.ndarray | None = None,
+                q: np.ndarray | None = None) -> Planner | None:
     """The planner model of the machine's controller (by its ``[post] dialect``) for a program
-    written for the user's ``tolerance`` (mm), None if camsmooth has no model of it."""
+    written for the user's ``tolerance`` (mm), None if camsmooth has no model of it; with the
+    program's rows (N,) and points q (N, 5) its blend tolerance is ``blend_tolerance``'s, else
+    PATH_TOLERANCE_SHARE of the tolerance."""
     post = getattr(machine, "post", None)
     cls = PLANNERS.get(getattr(post, "dialect", ""))
-    return cls(tolerance=PATH_TOLERANCE_SHARE * tolerance) if cls is not None else None
+    if cls is None:
+        return None
+    blend = PATH_TOLERANCE_SHARE * tolerance if q is None or rows is None else blend_tolerance(rows, q, tolerance)
+    return cls(tolerance=blend)
 
 
 def floor_text(controller: str, floor_s: float, program_s: float) -> str:

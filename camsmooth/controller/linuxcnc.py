@@ -24,9 +24,12 @@ headless simulation in ``benchmarks/bench_controller.py`` and ``tests/test_contr
    at its own half acceleration from that cycle on (``tpUpdateBlend`` ramps the next segment's
    ``target_vel``, but ``tpCalculateTrapezoidalAccel`` takes ``tpGetRealTargetVel``, which is
    ``reqvel`` for a move not synchronized to the spindle). A feed block next to a rapid stops
-   (``handleModeChange``). So the speed a short block reaches is
-   about ``sqrt(a/2 L)``: that, not the programmed feed, sets the pace of a program of short
-   five-axis blocks.
+   (``handleModeChange``). The halving follows a segment's OWN end: the last block of a row, which
+   ends at rest, accelerates at its whole acceleration, also while the block before it blends into
+   it (measured on the headless LinuxCNC, dome rows of ``benchmarks/bench_controller.py``: with
+   it halved the model put the tip up to 1.3 um nearer the path than LinuxCNC in that last blend
+   and the row 0.4-0.7% longer). So the speed a short block reaches is about ``sqrt(a/2 L)``: that,
+   not the programmed feed, sets the pace of a program of short five-axis blocks.
 5. Everything runs at the servo period (1 ms), with the segment end split inside a cycle
    (``checkEndCondition``, ``tpHandleSplitCycle``).
 
@@ -34,7 +37,9 @@ Only what camsmooth's programs use is modelled: straight moves (G00, G01) in G93
 parabolic blend of step 4 and the stop of a mode change; moves without rotary motion are
 modelled with the same parabolic blend (LinuxCNC would join them tangentially or by an arc, which
 is faster), so the model is conservative there. The ``G64 P`` tolerance caps the blend speed at
-``2 sqrt(a/2 P / cos(theta))`` for corners, which camsmooth's near-collinear blocks do not reach.
+``2 sqrt(a/2 P / cos(theta))`` (theta half the turn between the two segments' XYZ directions):
+in the joints of a five-axis row consecutive blocks turn by a few degrees, so at a small P this
+cap, not the blocks, sets the pace (camsmooth.constants.PATH_TOLERANCE_SHARE).
 """
 
 from __future__ import annotations
@@ -210,7 +215,7 @@ def _update(k: int, length: np.ndarray, reqvel: np.ndarray, maxvel: np.ndarray, 
 @njit(cache=True)
 def _run(length: np.ndarray, reqvel: np.ndarray, maxvel: np.ndarray, acc: np.ndarray, parabolic: np.ndarray,
          direction: np.ndarray, tolerance: float, dt: float,
-         max_cycles: int, full_stop: bool = False) -> tuple[np.ndarray, ...]:  # pragma: no cover - compiled
+         max_cycles: int) -> tuple[np.ndarray, ...]:  # pragma: no cover - compiled
     """tpRunCycle until the queue is empty: per segment the cycle it became the head of the queue
     (active) and the cycle at whose end it was removed (done); per cycle, at its end, the head
     segment and the progress (length units) of it and of the segment after it (which moves at the
@@ -225,8 +230,8 @@ def _run(length: np.ndarray, reqvel: np.ndarray, maxvel: np.ndarray, acc: np.nda
     blend_vel = np.zeros(n)
     acc_h = np.empty(n)
     for k in range(n):
-        half = parabolic[k] or (k > 0 and parabolic[k - 1])
-        acc_h[k] = acc[k] * (0.5 if half else 1.0)
+        # halved by the segment's own parabolic end only (module docstring, step 4)
+        acc_h[k] = acc[k] * (0.5 if parabolic[k] else 1.0)
     start = np.full(n, -1, np.int64)
     done = np.full(n, -1, np.int64)
     cap = 1024
@@ -240,8 +245,6 @@ def _run(length: np.ndarray, reqvel: np.ndarray, maxvel: np.ndarray, acc: np.nda
         nx = i + 1 if i + 1 < n else -1
         if start[tc] < 0:
             start[tc] = cyc
-            if full_stop and not parabolic[tc]:  # no blend left: the stop at the whole acceleration
-                acc_h[tc] = acc[tc]
             blending_next[tc] = False
             on_final_decel[tc] = False
         if splitting[tc]:
@@ -412,7 +415,9 @@ def least_row_times(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.n
     to rest at half its acceleration a_s = L / max_i(|d_i| / a_i) (L its length, d_i the joint
     moves), overlapping only its two neighbours, so its share of the time is at least
     L / v >= 2 v / a_s, that is at least sqrt(2 max_i |d_i| / a_i) (a block that moves no rotary
-    axis may be joined tangentially and gets no such term). It also lasts at least
+    axis may be joined tangentially and gets no such term; a row's last block ramps at its whole
+    acceleration, but from rest to rest and alone once the one before it is done: at least
+    2 sqrt(max_i |d_i| / a_i), more than its term). It also lasts at least
     max_i |d_i| / vmax_i and its tip chord over the programmed feed. The bound is the least sum of
     these over every choice of block ends among the row's points whose blocks keep the skipped
     tips within the WHOLE tolerance (``block_reach``): it credits the blends with no deviation and
@@ -501,11 +506,6 @@ class LinuxCNCPlanner:
     tolerance: float = 0.0
     name: str = "linuxcnc"
     title: str = "LinuxCNC"
-    #: a segment that ends at rest decelerates at its whole acceleration once the segment before it
-    #: is done (what the headless LinuxCNC does at the end of a TCP-mode row, where the last block's
-    #: rotary axis reaches its whole amax: camsmooth.controller.tcp); False: at half (step 4), as
-    #: the machine-mode model was checked
-    full_stop: bool = False
 
     def block_ends(self, machine: Machine, q: np.ndarray, t_opt: np.ndarray, ok: np.ndarray, entry_q: np.ndarray,
                    entry_time: float) -> np.ndarray | None:
@@ -539,7 +539,9 @@ class LinuxCNCPlanner:
         entry = np.array([float(el), min(float(el) / max(entry_time, 1e-6), float(ev), float(emax)), 0.5 * float(ea)])
         if not entry[0] > 0:  # no entry move: the row starts at rest
             entry = np.array([0.0, 0.0, 1.0])
-        best, ends = _place_row(allowed, length, vcap, 0.5 * acc, np.ascontiguousarray(direction), entry,
+        # half the acceleration for a block ending in a parabolic blend, the whole for the row's last (step 4)
+        acc_h = np.where(i + np.arange(1, K + 1)[None, :] == n - 1, acc, 0.5 * acc)
+        best, ends = _place_row(allowed, length, vcap, acc_h, np.ascontiguousarray(direction), entry,
                                 np.asarray(ed, float), self.tolerance, self.servo_period)
         if not np.isfinite(best) or best >= 1e300 or ends[0] != 0:
             return None  # no chain of moving blocks through the row (repeated points): no choice made
@@ -594,8 +596,10 @@ class LinuxCNCPlanner:
         moving = seg.length > 0
         if not moving.all():  # run the moving segments; a dropped one ends when the one before it does
             idx = np.flatnonzero(moving)
-            inner = self.run(Segments(**{f: (v[idx] if isinstance(v, np.ndarray) else v)
-                                         for f, v in vars(seg).items()}))
+            fields = {f: (v[idx] if isinstance(v, np.ndarray) else v) for f, v in vars(seg).items()}
+            # LinuxCNC never queues a dropped move: a stop after it is the stop of the moving one before
+            fields["stop_after"] = np.add.reduceat(seg.stop_after.astype(np.int64), idx) > 0
+            inner = self.run(Segments(**fields))
             before = np.searchsorted(idx, np.arange(len(moving)), side="right") - 1
             end = np.where(before >= 0, np.r_[inner.end, 0.0][before], 0.0)
             start = np.where(moving, np.r_[inner.start, 0.0][np.maximum(before, 0)], end)
@@ -613,8 +617,7 @@ class LinuxCNCPlanner:
         length = seg.length.astype(float)
         start, done, head, p_head, p_next = _run(length, seg.reqvel.astype(float), seg.maxvel.astype(float),
                                                  seg.acc.astype(float), parabolic, seg.direction.astype(float),
-                                                 float(seg.tolerance), self.servo_period, max_cycles,
-                                                 self.full_stop)
+                                                 float(seg.tolerance), self.servo_period, max_cycles)
         if (done < 0).any():
             raise RuntimeError("LinuxCNC planner model did not finish the program (a segment that cannot move)")
         L = np.r_[length, 1.0, 1.0]

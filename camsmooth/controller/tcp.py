@@ -175,8 +175,7 @@ class TCPPlanner:
     title: str = "LinuxCNC TCP mode (M428)"
 
     def _world_planner(self) -> LinuxCNCPlanner:
-        return LinuxCNCPlanner(servo_period=self.servo_period, v_limit=self.v_limit, tolerance=self.tolerance,
-                               full_stop=True)
+        return LinuxCNCPlanner(servo_period=self.servo_period, v_limit=self.v_limit, tolerance=self.tolerance)
 
     def block_ends(self, machine: Machine, world: np.ndarray, t_opt: np.ndarray, ok: np.ndarray,
                    entry_world: np.ndarray, entry_time: float) -> np.ndarray | None:
@@ -323,7 +322,7 @@ class TCPPlanner:
         return TCPPlan(controller=self.name, keep=keep, block_time=block_time, t_plan=t_ctrl, feed_plan=feed_plan,
                        row_ids=rows[starts].astype(np.int64), row_cycle_time=row_cycle,
                        cycle_time=float(row_cycle.sum()), row_deviation=row_dev, row_floor=floor,
-                       row_feed_scale=scale, row_joint_ratio=ratio)
+                       row_feed_scale=scale, row_joint_ratio=ratio, blend_tolerance=self.tolerance)
 
     def plan(self, machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray, t_opt: np.ndarray,
              tolerance: float, *, entry_height: float, entry_feed: np.ndarray, feed: np.ndarray | None = None

@@ -4,10 +4,11 @@ own when camsmooth writes for it.
 
 - Program start ``G21 G90 G17 G40 G49``, inverse time G93, home ``G53 G00 Z0`` (LinuxCNC G-code
   reference, "G53 Move in Machine Coordinates").
-- Path blending ``G64 P<s T> Q<s T>`` (P the blending tolerance, Q the naive-CAM detector's; T the
-  user's tolerance, s = camsmooth.constants.PATH_TOLERANCE_SHARE: LinuxCNC's own bound on its XYZ
-  corner blends; the block times of camsmooth.controller.blocks hold the tool tip of every servo
-  cycle of the planner model within EXECUTED_TOLERANCE_SHARE of T).
+- Path blending ``G64 P<s T> Q<q T>`` (T the user's tolerance; P the blending tolerance, s =
+  camsmooth.constants.PATH_TOLERANCE_SHARE: in LinuxCNC 2.9 a cap on the speed of its XYZ corner
+  blends; the block times of camsmooth.controller.blocks hold the tool tip of every servo cycle of
+  the planner model within EXECUTED_TOLERANCE_SHARE of T; Q the naive-CAM detector's, q =
+  NAIVE_CAM_TOLERANCE_SHARE, below T).
 - Tool-centre-point: LinuxCNC has no standard G-code for it; its shipped five-axis configurations
   (``xyzac-trt.ini``, ``xyzbc-trt.ini``) remap ``M428`` to kinematics type 1 (the trt kinematics)
   and ``M429`` to type 0 (identity), so TCP on is ``M428`` and off ``M429`` (``[post] tcp_on /
@@ -33,7 +34,7 @@ __all__ = ["LINUXCNC", "DIALECTS", "linuxcnc_sense"]
 
 #: the writer's words for LinuxCNC (module docstring)
 LINUXCNC = Words("linuxcnc", paren, ("G21", "G90", "G17", "G40", "G49"), home=("G53 G00 Z0",), tcp_on="M428",
-                 tcp_off="M429", path_tolerance=("G64 P{blend} Q{blend}",))
+                 tcp_off="M429", path_tolerance=("G64 P{blend} Q{naive}",))
 
 
 def linuxcnc_sense(machine: Any) -> np.ndarray:

@@ -47,7 +47,8 @@ class PostProgram:
     the blocks where the block times are the controller plan's). method, inputs (label, text),
     tool_text (the header's tool line after 'tool: '), n_points (the points of the method, before a
     controller plan kept some of them as blocks: ``read_gcode`` tells a decimated program by it),
-    tolerance (mm): the header.
+    tolerance (mm): the header; blend_tolerance (mm): the controller's blend tolerance a controller
+    plan was timed with (LinuxCNC ``G64 P``; None: the writer's default share of the tolerance).
     """
 
     rows: np.ndarray
@@ -65,6 +66,7 @@ class PostProgram:
     f_prog: np.ndarray | None = None
     block_time: np.ndarray | None = None
     t_opt: np.ndarray | None = None
+    blend_tolerance: float | None = None
 
     def __len__(self) -> int:
         return len(self.rows)

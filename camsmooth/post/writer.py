@@ -37,10 +37,11 @@ Modes (``[post] mode``):
 
 Path tolerance (how far the controller may blend off the programmed path), set after the
 program start from the user's tolerance T (mm), by each controller manual's name for it:
-LinuxCNC "path blending" ``G64 P<s T> Q<s T>`` (P the blending tolerance, Q the naive-CAM
-detector's; s = camsmooth.constants.PATH_TOLERANCE_SHARE: LinuxCNC's own bound on its XYZ corner
-blends, while the block times of camsmooth.controller.blocks hold the tool tip of every servo
-cycle of the planner model within EXECUTED_TOLERANCE_SHARE of T);
+LinuxCNC "path blending" ``G64 P<s T> Q<q T>`` (P the blending tolerance: a controller plan's
+(``ControllerPlan.blend_tolerance``, camsmooth.controller.blend_tolerance), else s =
+camsmooth.constants.PATH_TOLERANCE_SHARE; the block times of camsmooth.controller.blocks hold the
+tool tip of every servo cycle of the planner model within EXECUTED_TOLERANCE_SHARE of T; Q the
+naive-CAM detector's, q = NAIVE_CAM_TOLERANCE_SHARE, below T);
 Heidenhain cycle 32 TOLERANCE (``CYCL DEF 32.0 TOLERANCE`` / ``32.1 T<T>`` / ``32.2 HSC-MODE:0``,
 finishing); Siemens high-speed settings ``CYCLE832(<T>, _FINISH, 1)``; Fanuc AI contour control
 ``G05.1 Q1`` (look-ahead on; the Fanuc tolerance is a machine parameter, not a program word). A
@@ -94,7 +95,12 @@ from typing import Any
 import numpy as np
 
 from camsmooth import __version__
-from camsmooth.constants import DEFAULT_SAFE_HEIGHT_MM, PATH_TOLERANCE_SHARE, WRITTEN_DECIMALS
+from camsmooth.constants import (
+    DEFAULT_SAFE_HEIGHT_MM,
+    NAIVE_CAM_TOLERANCE_SHARE,
+    PATH_TOLERANCE_SHARE,
+    WRITTEN_DECIMALS,
+)
 from camsmooth.errors import InputError
 from camsmooth.io.atomic import atomic_path
 from camsmooth.post.model import PostDialect, PostProgram, check_travel, tip_path_lengths, written_joints
@@ -132,7 +138,7 @@ class Words:
     per_minute: str = "G94"
     klartext: bool = False
     percent: bool = False
-    path_tolerance: tuple[str, ...] | None = None  # lines setting the path tolerance ({tol}, {blend}: mm)
+    path_tolerance: tuple[str, ...] | None = None  # lines setting the path tolerance ({tol}, {blend}, {naive}: mm)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -437,7 +443,7 @@ def write_program(path: str | os.PathLike, program: PostProgram, machine: Any, *
     F, still = _block_feeds(machine, mv, mode)
     sign = entry.signs(machine)
     lines = _program_open(d, program_name) + _header(d, mode, machine, program, h, still, sign)
-    start = _program_start(d, mode, st.tcp_on, st.tool, program.tolerance)
+    start = _program_start(d, mode, st.tcp_on, st.tool, program.tolerance, program.blend_tolerance)
     if setup is not None and not setup.empty:  # the input's tool call, spindle, coolant, work offset
         blocks = setup.start_blocks(d.name)
         at = len(d.start) if not d.klartext else 0
@@ -552,11 +558,13 @@ def _program_open(d: Words, name: str) -> list[str]:
     return []
 
 
-def _program_start(d: Words, mode: str, tcp_on: str | None, tool: int, tolerance: float | None = None) -> list[str]:
+def _program_start(d: Words, mode: str, tcp_on: str | None, tool: int, tolerance: float | None = None,
+                   blend: float | None = None) -> list[str]:
     tol: list[str] = []
     if tolerance is not None and d.path_tolerance is not None:
-        words = _fixed(np.array([tolerance, PATH_TOLERANCE_SHARE * tolerance]), 4)
-        tol = [ln.format(tol=words[0], blend=words[1]) for ln in d.path_tolerance]
+        p = PATH_TOLERANCE_SHARE * tolerance if blend is None else blend
+        words = _fixed(np.array([tolerance, p, NAIVE_CAM_TOLERANCE_SHARE * tolerance]), 4)
+        tol = [ln.format(tol=words[0], blend=words[1], naive=words[2]) for ln in d.path_tolerance]
     if d.klartext:
         out = [f"TOOL CALL {tool} Z"] + tol
         if mode == "tcp":

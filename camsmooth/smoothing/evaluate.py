@@ -121,7 +121,7 @@ def time_law(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
     law = dict(plan=plan, t_plan=t_plan, row_cycle_time_optimal=row_opt, cycle_time_optimal=float(row_opt.sum()),
                limiting=machine_label(plan.limiting, machine) if plan is not None else "", controller=None,
                cycle_time=float(row_opt.sum()), row_cycle_time=row_opt)
-    planner = planner_for(machine, tolerance)
+    planner = planner_for(machine, tolerance, rows, q)
     if planner is not None and len(rows):
         starts = [s.start for s in row_slices(rows)]
         entry = np.asarray(feed, float)[starts] if feed is not None else np.full(len(starts), np.nan)
