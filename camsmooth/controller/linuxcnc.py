@@ -498,7 +498,7 @@ class LinuxCNCPlanner:
 
     servo_period: s; v_limit: [TRAJ] MAX_LINEAR_VELOCITY in mm/s (None: the fastest linear
     axis, as camsmooth's simulation configuration sets it); tolerance: the program's ``G64 P``
-    (mm; camsmooth writes half the user's tolerance, camsmooth.post.writer).
+    (mm; the program's: camsmooth.controller.blend_tolerance, which camsmooth.post.writer writes).
     """
 
     servo_period: float = SERVO_PERIOD_S
@@ -515,10 +515,11 @@ class LinuxCNCPlanner:
         s, the time law whose differences the G93 blocks command; the row is entered from rest at
         entry_q by a feed move of entry_time s, as in ``row_run``. Dynamic programme over the block
         ends on this model's chain of parabolic blends (``_place_row``: each segment's own trapezoid
-        at half its acceleration, the next started at the blend speed, two segments at a time): a
-        row of short blocks runs at sqrt(a/2 L) per block, and a shorter block after a longer one
-        waits, so neither the fewest blocks nor the longest first is the fastest choice. None where
-        no chain of moving blocks goes through the row (a repeated point)."""
+        at half its acceleration, the row's last at its whole, the next started at the blend speed,
+        two segments at a time): a row of short blocks runs at sqrt(a/2 L) per block, and a shorter
+        block after a longer one waits, so neither the fewest blocks nor the longest first is the
+        fastest choice. None where no chain of moving blocks goes through the row (a repeated
+        point)."""
         q = np.asarray(q, float)
         t_opt = np.asarray(t_opt, float)
         n, K = np.asarray(ok).shape
