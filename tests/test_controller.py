@@ -469,3 +469,26 @@ def test_blend_tolerance_exceeds_the_tolerance_only_where_every_move_turns_a_rot
     m = _machine()
     assert planner_for(m, 0.005, rows, q).tolerance == pytest.approx(PARABOLIC_PATH_TOLERANCE_SHARE * 0.005)
     assert planner_for(m, 0.005).tolerance == pytest.approx(PATH_TOLERANCE_SHARE * 0.005)
+
+
+def test_predict_names_the_joint_linuxcncs_own_blend_takes_past_its_limit():
+    """LinuxCNC runs a row's last block at its whole acceleration while the block before it still
+    decelerates at half of its own (camsmooth.controller.linuxcnc, step 4). Where B turns back between
+    them, both accelerations point the same way: B reaches a/2 + a = 1.5 of its amax while they
+    overlap, by the model's servo cycles (second differences), which ``row_joint_peak`` reports;
+    where B goes on the same way they partly cancel and B stays within its amax."""
+    from camsmooth.controller import predict
+
+    m = _machine()
+    p = LinuxCNCPlanner()
+    x = np.array([0.0, 0.2, 0.4])
+    for b, turns_back in ((np.array([0.0, 3.0, 0.0]), True), (np.array([0.0, 3.0, 6.0]), False)):
+        q = np.column_stack([x, np.zeros(3), np.full(3, 150.0), np.zeros(3), np.radians(b)])
+        tip = m.tool_pose_np(q[:, 3], q[:, 4], q[:, 0], q[:, 1], q[:, 2])[0]
+        plan = predict(p, m, np.zeros(3, int), q, tip, np.array([0.0, 1e-3, 2e-3]), np.ones(3, bool),
+                       entry_height=0.0, entry_feed=np.array([2000.0]))
+        B = plan.row_joint_peak[0, 4]
+        if turns_back:
+            assert 1.45 < B < 1.55, plan.row_joint_peak
+        else:
+            assert B <= 1.01, plan.row_joint_peak  # the warning threshold (camsmooth.smoothing.pipeline)

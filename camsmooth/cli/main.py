@@ -301,6 +301,10 @@ def _print_summary(result) -> None:
         print("scallop 'no overlap': somewhere adjacent passes do not overlap (the effective cutting radius is below "
               "half the stepover), so material is left standing between them: no finite scallop")
     for name, r in result.methods.items():
+        for peak in getattr(r.metrics, "controller_joint_peaks", []):
+            print(f"camsmooth: warning: {name}: row {peak.row}: the {r.metrics.controller} planner takes "
+                  f"{peak.axis} to {peak.ratio:.3g} of its velocity or acceleration limit where two blocks blend "
+                  f"(its own parabolic blend, as its model runs the program)", file=sys.stderr)
         for miss in getattr(r.metrics, "scallop_missed", []):
             print(f"camsmooth: warning: {name}: row {miss.row}: finish budget missed at {miss.points} point"
                   f"{'s' * (miss.points > 1)}: scallop {miss.scallop_um:.4g} um against {miss.budget_um:.4g} um at "

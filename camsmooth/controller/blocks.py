@@ -33,10 +33,10 @@ import numpy as np
 from numba import njit
 
 from camsmooth.geometry.paths import _row_runs
-from camsmooth.machine.kinematics import Machine
+from camsmooth.machine.kinematics import Machine, axis_limits
 
 __all__ = ["BLOCK_TOLERANCE_SHARE", "MAX_BLOCK_POINTS", "block_reach", "decimate", "place", "row_entry",
-           "ControllerPlan", "Planner", "predict"]
+           "ControllerPlan", "Planner", "predict", "joint_ratio"]
 
 #: share of the user's tolerance the longer blocks may use: their tip curves keep every dropped tip
 #: this close; the blends then get what is left up to EXECUTED_TOLERANCE_SHARE, checked on the
@@ -366,7 +366,10 @@ class ControllerPlan:
     user's tolerance (``Planner.row_floor``; None where the controller has no floor or the
     tolerance was not given): row_cycle_time can come down to it, never below; blend_tolerance: mm,
     the controller's blend tolerance the plan was timed with (LinuxCNC ``G64 P``, which the program
-    must be written with), None where the planner has none.
+    must be written with), None where the planner has none; row_joint_peak: (R, 5), per row and
+    joint (X Y Z and the rotary axes) the larger of its largest |velocity| / vmax and |acceleration|
+    / amax over the planner model's servo cycles (None: not computed): above 1 the controller's own
+    planner takes the joint past its limit (LinuxCNC where two blocks overlap in a blend).
     """
 
     controller: str
@@ -380,6 +383,7 @@ class ControllerPlan:
     row_deviation: np.ndarray
     row_floor: np.ndarray | None = None
     blend_tolerance: float | None = None
+    row_joint_peak: np.ndarray | None = None
 
     @property
     def floor(self) -> float | None:
@@ -497,6 +501,21 @@ def _hold_row(planner: Planner, machine: Machine, q: np.ndarray, k: np.ndarray, 
     return k, bt, np.r_[0.0, run.end[1:] - run.end[0]], worst
 
 
+def joint_ratio(machine: Machine, joints: np.ndarray, period: float, stride: int = 1) -> np.ndarray:
+    """(2, 5) the largest |velocity| / vmax (row 0) and |acceleration| / amax (row 1) of each joint
+    over servo samples joints (K, 5) X Y Z mm, rotary rad, at ``period`` s (first differences, and
+    second differences over ``stride`` cycles: 1 sees a one-cycle step where a segment ends inside a
+    cycle, a few see an acceleration that lasts; the motion starts and ends at rest: the first and
+    last sample are held)."""
+    vmax, amax, _ = axis_limits(machine)
+    q = np.asarray(joints, float)
+    k = int(stride)
+    q = np.vstack([np.repeat(q[:1], k, axis=0), q, np.repeat(q[-1:], k, axis=0)])
+    v = np.abs(np.diff(q, axis=0)) / period
+    a = np.abs(q[2 * k:] - 2.0 * q[k:-k] + q[:-2 * k]) / (k * period) ** 2
+    return np.vstack([v.max(axis=0, initial=0.0) / vmax, a.max(axis=0, initial=0.0) / amax])
+
+
 def points_timing(s: np.ndarray, k: np.ndarray, tk: np.ndarray, tip_k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """One row's points as the controller passes them: (n,) s from the row's start and (n,) the
     tool-tip feed (mm/min, each block's chord over its time; 0 at the row's first and last point).
@@ -541,6 +560,7 @@ def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray,
     feed = np.zeros(n)
     row_cycle = np.zeros(len(starts))
     row_dev = np.zeros(len(starts))
+    peak = np.zeros((len(starts), 5))
     at = np.zeros(n, np.int64)  # per point, its vertex in its row's programmed tip path
     for r, (a, b) in enumerate(zip(starts, ends, strict=True)):
         k = a + np.flatnonzero(keep[a:b])
@@ -555,6 +575,9 @@ def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray,
             limit = EXECUTED_TOLERANCE_SHARE * float(tolerance or 0.0)
             k, bt, tk, row_dev[r] = _hold_row(planner, machine, q, k, t_opt, entry_q, entry_time, path, at, limit)
             keep[k] = True
+            _, joints = planner.row_run(machine, q[k], bt, entry_q, entry_time)
+            # over 5 cycles: an overlap of two blends lasts; a segment ending inside a cycle is a one-cycle step
+            peak[r] = joint_ratio(machine, joints, getattr(planner, "servo_period", 1e-3), stride=5).max(axis=0)
         block_time[k[1:]] = bt
         # points inside a block: by their share of the block's pivot travel
         s = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(q[a:b, :3], axis=0), axis=1))]
@@ -567,4 +590,4 @@ def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray,
                           feed_plan=feed, row_ids=rows[starts].astype(np.int64), row_cycle_time=row_cycle,
                           cycle_time=float(row_cycle.sum()), row_deviation=row_dev,
                           row_floor=None if floor is None else np.asarray(floor, float),
-                          blend_tolerance=getattr(planner, "tolerance", None))
+                          blend_tolerance=getattr(planner, "tolerance", None), row_joint_peak=peak)

@@ -47,6 +47,7 @@ from camsmooth.controller.blocks import (
     _row_bounds,
     _run_deviation,
     decimate,
+    joint_ratio,
     points_timing,
     reach_table,
     sooner_blocks,
@@ -130,18 +131,6 @@ def chord_reach(rows: np.ndarray, tip: np.ndarray, tolerance: float, max_points:
         return np.einsum("bpk,bpk->bp", off, off).max(axis=1) <= tol2
 
     return reach_table(rows, len(tip), max_points, passes)
-
-
-def joint_ratio(machine: Machine, joints: np.ndarray, period: float = SERVO_PERIOD_S) -> np.ndarray:
-    """(2, 5) the largest |velocity| / vmax (row 0) and |acceleration| / amax (row 1) of each joint
-    over servo samples joints (K, 5) X Y Z mm, rotary rad, at ``period`` s (first and second finite
-    differences; the motion starts and ends at rest: the first and last sample are held)."""
-    vmax, amax, _ = axis_limits(machine)
-    q = np.asarray(joints, float)
-    q = np.vstack([q[:1], q, q[-1:]])
-    v = np.abs(np.diff(q, axis=0)) / period
-    a = np.abs(np.diff(q, 2, axis=0)) / period ** 2
-    return np.vstack([v.max(axis=0, initial=0.0) / vmax, a.max(axis=0, initial=0.0) / amax])
 
 
 @dataclass(frozen=True, kw_only=True)

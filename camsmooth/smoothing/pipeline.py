@@ -50,7 +50,15 @@ from camsmooth.smoothing.orientation import (
 )
 from camsmooth.smoothing.parallel import RowPool, default_workers
 from camsmooth.smoothing.pole import PolePassage, find_passages, pole_start
-from camsmooth.smoothing.result import MethodResult, Metrics, PointNote, ScallopMiss, SmoothResult, interferes
+from camsmooth.smoothing.result import (
+    JointPeak,
+    MethodResult,
+    Metrics,
+    PointNote,
+    ScallopMiss,
+    SmoothResult,
+    interferes,
+)
 from camsmooth.smoothing.rows import (
     RowContext,
     RowOptions,
@@ -478,6 +486,12 @@ class ProgramSmoother:
             m.controller = law.controller.controller
             m.blocks = law.controller.blocks
             m.controller_deviation_mm = float(np.max(law.controller.row_deviation, initial=0.0))
+            peak = law.controller.row_joint_peak
+            if peak is not None:  # LinuxCNC's own blends past a joint's limit, by more than 1%
+                names = list(self.nominal.joint_names)
+                m.controller_joint_peaks = [JointPeak(int(law.controller.row_ids[r]), names[int(np.argmax(peak[r]))],
+                                                      float(peak[r].max()))
+                                            for r in np.flatnonzero(peak.max(axis=1) > 1.01)]
             if law.controller.row_floor is not None:
                 m.controller_floor_s = law.controller.floor
                 m.row_controller_floor_s = law.controller.row_floor.tolist()

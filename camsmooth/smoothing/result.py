@@ -24,6 +24,17 @@ def interferes(delta: np.ndarray, tolerance: float) -> np.ndarray:
         return np.asarray(delta, dtype=float) < -float(tolerance)
 
 
+@dataclass(frozen=True)
+class JointPeak:
+    """A row where the controller's planner (its model, camsmooth.controller) takes a joint past its
+    limit: row id, the joint (the machine's axis name) and the larger of its largest |velocity| /
+    vmax and |acceleration| / amax over the row's servo cycles (more than 1.01)."""
+
+    row: int
+    axis: str
+    ratio: float
+
+
 @dataclass(kw_only=True)
 class PointNote:
     """A point the summary names: its name in the input (file and row), row id, index in the
@@ -69,6 +80,8 @@ class Metrics:
     time-optimal figures): cycle_time_s, row_cycle_time_s, controller (its name, '' for none),
     blocks (cut blocks written), controller_deviation_mm (the largest distance of the tool tip the
     controller's planner model commands at any servo cycle from the programmed path),
+    controller_joint_peaks (the rows where the controller's own planner takes a joint past its
+    velocity or acceleration limit at a servo cycle of its model: ``JointPeak``, empty where none),
     controller_floor_s and row_controller_floor_s (the least time any program of straight blocks
     through the program's points can take on that controller within the tolerance, s, in total
     and per row; None / [] where the controller has no floor); these are the written mode's
@@ -106,6 +119,7 @@ class Metrics:
     controller: str = ""
     blocks: int | None = None
     controller_deviation_mm: float | None = None
+    controller_joint_peaks: list[JointPeak] = field(default_factory=list)
     controller_floor_s: float | None = None
     row_controller_floor_s: list[float] = field(default_factory=list)
     tcp_cycle_time_s: float | None = None
