@@ -33,9 +33,11 @@ PATH_TOLERANCE_SHARE: float = 0.6
 #: by parabolic blends only, where P is no bound on the path but a cap on the blend speed, 2 sqrt(a/2
 #: P / cos(theta)) at an XYZ corner of the joints (camsmooth.controller.linuxcnc); the tip is held by
 #: the block times, which the planner model checks cycle by cycle. Measured on the planner model over
-#: the blade, wave, ridge and dome rows of benchmarks/bench_controller.py, executed / floor: 0.6 ->
-#: 1.24 / 1.14 / 1.20 / 1.15, 1.0 -> 1.16 / 1.11 / 1.12 / 1.07, 2.0 -> 1.13 / 1.09 / 1.09 / 1.03; 3.0
-#: slows some rows by 30% (their blends then need many rounds of slowing down).
+#: the blade, wave, ridge and dome rows of benchmarks/bench_controller.py, executed / floor with blocks
+#: within 0.93 and servo cycles within 0.95 of the tolerance: 1.0 -> 1.16 / 1.11 / 1.12 / 1.07, 2.0 ->
+#: 1.13 / 1.09 / 1.09 / 1.03 (0.6 with the former shares: 1.24 / 1.14 / 1.20 / 1.15); 3.0 and 4.0 slow
+#: some rows by 30-45%: a row's entry move, at the programmed feed, then blends too far into its first
+#: block for any slowing of the blocks to hold.
 PARABOLIC_PATH_TOLERANCE_SHARE: float = 2.0
 #: The share of the user's tolerance LinuxCNC's naive-CAM detector gets (``G64 Q``): it joins
 #: consecutive XYZ-only moves that lie within Q of a line, which the planner model does not model;

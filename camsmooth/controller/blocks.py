@@ -42,8 +42,8 @@ __all__ = ["BLOCK_TOLERANCE_SHARE", "MAX_BLOCK_POINTS", "block_reach", "decimate
 #: this close; the blends then get what is left up to EXECUTED_TOLERANCE_SHARE, checked on the
 #: planner model's servo cycles (``predict``): a blend's deviation sits at a block's end, where its
 #: own tip curve meets the path. Measured on the planner model over the blade, wave, ridge, dome and
-#: teapot rows of benchmarks/bench_controller.py (G64 P at PATH_TOLERANCE_SHARE): 0.93 with an
-#: executed share of 0.95 runs the rows 1-4% sooner than 0.88 with 0.9, and 4-6% sooner than 0.78
+#: teapot rows of benchmarks/bench_controller.py (G64 P at twice the tolerance): 0.93 with an
+#: executed share of 0.95 runs them 0.4-1.4% sooner than 0.88 with 0.9, and 1.4-5% sooner than 0.78
 #: with 0.8 (the shares before the model's last blend was corrected).
 BLOCK_TOLERANCE_SHARE = 0.93
 #: most points one block may replace (bounds the vectorised search)
