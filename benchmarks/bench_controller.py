@@ -182,16 +182,17 @@ def run(sample: str, rows: int, methods: list[str], keep: Path | None, machine_f
     return out
 
 
-def _joint_peaks(machine, joints: np.ndarray, k: np.ndarray, dt: float) -> tuple[float, float]:
+def _joint_peaks(machine, joints: np.ndarray, k: np.ndarray, dt: float) -> tuple[float, float, float, float]:
     """The largest |velocity| / vmax and |acceleration| / amax of the linear joints X Y Z (the ones
-    LinuxCNC does not limit in TCP mode) over the servo samples k and one either side (finite
-    differences); joints (K, 5) mm, rad."""
+    LinuxCNC does not limit in TCP mode), then of the rotary joints, over the servo samples k and
+    two either side (finite differences over one sample); joints (K, 5) mm, rad."""
     from camsmooth.machine.kinematics import axis_limits
 
     vmax, amax, _ = axis_limits(machine)
     q = joints[max(k[0] - 2, 0):k[-1] + 3]
-    return (float((np.abs(np.diff(q, axis=0)).max(axis=0) / dt / vmax)[:3].max()),
-            float((np.abs(np.diff(q, 2, axis=0)).max(axis=0) / dt ** 2 / amax)[:3].max()))
+    v = np.abs(np.diff(q, axis=0)).max(axis=0) / dt / vmax
+    a = np.abs(np.diff(q, 2, axis=0)).max(axis=0) / dt ** 2 / amax
+    return float(v[:3].max()), float(a[:3].max()), float(v[3:].max()), float(a[3:].max())
 
 
 def run_modes(sample: str, rows: int, keep: Path | None, machine) -> list[dict]:
@@ -224,11 +225,12 @@ def run_modes(sample: str, rows: int, keep: Path | None, machine) -> list[dict]:
             if mode == "tcp":
                 path = np.vstack([r.cl[sel[0]] + DEFAULT_SAFE_HEIGHT_MM * r.axis[sel[0]], r.cl[sel]])
                 dev[row] = float(tip_deviation(tips[k[0]:k[-1] + 1], path).max())
-            v, a = _joint_peaks(m, joints, k, sim.servo_period)
+            v, a, v_rot, a_rot = _joint_peaks(m, joints, k, sim.servo_period)
             out.append(dict(sample=sample, machine=m.name, mode=mode, row=int(row),
                             executed=float((k[-1] - k[0] + 1) * sim.servo_period),
                             predicted=float(plan.row_cycle_time[j]), floor=float(plan.row_floor[j]),
                             blocks=int(plan.keep[sel].sum() - 1), deviation_um=1e3 * dev[row], v=v, a=a,
+                            v_rot=v_rot, a_rot=a_rot,
                             scale=float(getattr(plan, "row_feed_scale", np.ones(len(plan.row_ids)))[j])))
     return out
 
@@ -237,10 +239,11 @@ def main_modes(args: argparse.Namespace) -> None:
     """``--mode tcp``: both modes per row (``run_modes``) for each sample: the dome on its own A/C
     trunnion, the other samples on ``bc_table_machine``."""
     print(f"LinuxCNC simulation, tolerance {TOLERANCE} mm, servo period 1 ms; TCP mode on the trt switchkins "
-          "kinematics (M428), machine mode on trivkins; linear joints' peaks over their limits at 1 ms")
+          "kinematics (M428), machine mode on trivkins; the joints' peaks over their limits at 1 ms (v, a: "
+          "linear joints; rot: rotary)")
     print(f"{'sample':7s} {'mode':8s} {'row':>4s} {'blocks':>6s} {'executed s':>10s} {'predicted s':>11s} "
           f"{'pred/exec-1':>11s} {'floor s':>8s} {'exec/floor':>10s} {'F scale':>7s} {'tip um':>7s} {'v/vmax':>7s} "
-          f"{'a/amax':>7s}")
+          f"{'a/amax':>7s} {'rot v':>6s} {'rot a':>6s}")
     totals: dict[tuple[str, str], list[float]] = {}
     for sample in args.samples.split(","):
         machine = linuxcnc_machine(sample, args.machine) if sample == "dome" or args.machine else bc_table_machine()
@@ -253,7 +256,7 @@ def main_modes(args: argparse.Namespace) -> None:
             print(f"{x['sample']:7s} {x['mode']:8s} {x['row']:4d} {x['blocks']:6d} {x['executed']:10.3f} "
                   f"{x['predicted']:11.3f} {x['predicted'] / x['executed'] - 1:+11.2%} {x['floor']:8.3f} "
                   f"{x['executed'] / x['floor']:10.3f} {x['scale']:7.3f} {x['deviation_um']:7.2f} {x['v']:7.2f} "
-                  f"{x['a']:7.2f}")
+                  f"{x['a']:7.2f} {x['v_rot']:6.3f} {x['a_rot']:6.3f}")
             t = totals.setdefault((x["sample"], x["mode"]), [0.0, 0.0, 0.0])
             t[0] += x["executed"]
             t[1] += x["predicted"]
@@ -265,8 +268,9 @@ def main_modes(args: argparse.Namespace) -> None:
     for sample in {s for s, _ in totals}:
         if (sample, "tcp") in totals and (sample, "machine") in totals:
             tcp, mach = totals[(sample, "tcp")][0], totals[(sample, "machine")][0]
-            print(f"{sample}: executed TCP {tcp:.3f} s, machine {mach:.3f} s: "
-                  f"TCP {100 * (mach / tcp - 1):+.1f}% faster")
+            faster = "TCP mode" if tcp < mach else "machine mode"
+            print(f"{sample}: executed TCP {tcp:.3f} s, machine {mach:.3f} s: {faster} "
+                  f"{100 * (max(tcp, mach) / min(tcp, mach) - 1):.1f}% faster")
 
 
 def main() -> None:

@@ -28,8 +28,8 @@ DEFAULT_SAFE_HEIGHT_MM: float = 10.0
 #: EXECUTED_TOLERANCE_SHARE (camsmooth.controller) by the block times. Written by the linuxcnc post
 #: (camsmooth.post.linuxcnc), used by its planner model.
 PATH_TOLERANCE_SHARE: float = 0.6
-#: ``G64 P`` over the user's tolerance for a machine-mode program in which every move between two
-#: points turns a rotary axis (camsmooth.controller.blend_tolerance). LinuxCNC 2.9 joins such moves
+#: ``G64 P`` over the user's tolerance for a program (machine or TCP mode) in which every move
+#: between two points turns a rotary axis (camsmooth.controller.blend_tolerance). LinuxCNC 2.9 joins such moves
 #: by parabolic blends only, where P is no bound on the path but a cap on the blend speed, 2 sqrt(a/2
 #: P / cos(theta)) at an XYZ corner of the joints (camsmooth.controller.linuxcnc); the tip is held by
 #: the block times, which the planner model checks cycle by cycle. Measured on the planner model over
@@ -37,7 +37,9 @@ PATH_TOLERANCE_SHARE: float = 0.6
 #: within 0.93 and servo cycles within 0.95 of the tolerance: 1.0 -> 1.16 / 1.11 / 1.12 / 1.07, 2.0 ->
 #: 1.13 / 1.09 / 1.09 / 1.03 (0.6 with the former shares: 1.24 / 1.14 / 1.20 / 1.15); 3.0 and 4.0 slow
 #: some rows by 30-45%: a row's entry move, at the programmed feed, then blends too far into its first
-#: block for any slowing of the blocks to hold.
+#: block for any slowing of the blocks to hold. In TCP mode on LinuxCNC (bench_controller.py --mode
+#: tcp, dome on its A/C table, wave, blade, ridge and teapot on a B/C one) 2.0 runs the rows in
+#: 1.02-1.09 of the TCP floor against 1.10-1.29 at 0.6, with the blends held block by block.
 PARABOLIC_PATH_TOLERANCE_SHARE: float = 2.0
 #: The share of the user's tolerance LinuxCNC's naive-CAM detector gets (``G64 Q``): it joins
 #: consecutive XYZ-only moves that lie within Q of a line, which the planner model does not model;

@@ -24,7 +24,7 @@ import pytest
 
 from camsmooth.constants import DEFAULT_SAFE_HEIGHT_MM
 from camsmooth.controller import mode_text
-from camsmooth.controller.blocks import BLOCK_TOLERANCE_SHARE, decimate
+from camsmooth.controller.blocks import BLOCK_TOLERANCE_SHARE, EXECUTED_TOLERANCE_SHARE, _hold_row, decimate
 from camsmooth.controller.tcp import (
     TCPPlan,
     TCPPlanner,
@@ -236,11 +236,55 @@ def test_the_held_feeds_keep_every_joint_within_its_limits_at_every_servo_cycle(
     assert held_somewhere and plan.within_limits
 
 
+def test_the_rotary_axes_past_amax_in_the_blend_into_the_last_block_are_held(dome):
+    """With G64 P at twice the tolerance (every dome move turns a rotary axis), LinuxCNC's parabolic
+    blend into a row's last block overlaps the block before's deceleration at half its
+    acceleration with the last block's at its whole one: on the time-optimal law's block times the
+    A axis goes past its amax at 1 ms once the blends are held within the tolerance (1.11 on the
+    model, 1.08 measured on LinuxCNC without this hold). The plan lengthens the blocks that do it:
+    by finite differences of the model's world positions, every rotary axis within amax (0.1% for
+    the rest stop's one-cycle step), for at most 1% more row time than the tip hold alone."""
+    r = dome.methods["nlp"]
+    m = dome.machine
+    q = np.column_stack([r.xyz, r.rotary.values])
+    planner = tcp_planner_for(m, TOL, r.rows, q)
+    assert planner.tolerance == pytest.approx(2.0 * TOL)
+    t = r.plan.t_plan
+    rows = np.unique(r.rows)
+    entry = np.full(len(rows), 2000.0)
+    plan = planner.plan(m, r.rows, q, r.cl, t, TOL, entry_height=DEFAULT_SAFE_HEIGHT_MM, entry_feed=entry)
+    amax = np.array([m.limits[a].amax for a in m.joint_names])[3:]
+    w = world_coordinates(q, r.cl)
+
+    def rotary_acc(k: np.ndarray, bt: np.ndarray, ew: np.ndarray, et: float) -> tuple[float, float]:
+        run, pos = planner.row_run(m, w[k], bt, ew, et)
+        a = np.abs(np.diff(np.vstack([pos[:1], pos, pos[-1:]])[:, 3:], 2, axis=0)).max(axis=0) / 1e-6 / amax
+        return float(a.max()), float(run.end[-1] - run.end[0])
+
+    unheld = []
+    for i, row in enumerate(rows):
+        sel = np.flatnonzero(r.rows == row)
+        k = sel[plan.keep[sel]]
+        ew, et = planner._entry(m, q[sel[0]], r.cl[sel[0]], DEFAULT_SAFE_HEIGHT_MM, 2000.0)
+        held, took = rotary_acc(k, plan.block_time[k[1:]], ew, et)
+        assert held <= 1.001, (row, held)
+        assert took == pytest.approx(plan.row_cycle_time[i], abs=2e-3)
+        # the same blocks held for the tip alone (camsmooth.controller.blocks._hold_row without the rotary check)
+        _, bt_tip, _, _ = _hold_row(planner, m, w[sel], k - sel[0], t[sel], ew, et,
+                                    np.vstack([ew[None, :3], r.cl[sel]]), np.arange(len(sel)) + 1,
+                                    EXECUTED_TOLERANCE_SHARE * TOL, tips=lambda x: x[:, :3], split=False)
+        tip_peak, tip_took = rotary_acc(k, bt_tip, ew, et)
+        unheld.append(tip_peak)
+        assert took <= 1.01 * tip_took + 2e-3, (row, took, tip_took)
+    assert max(unheld) > 1.05, unheld
+
+
 def test_smooth_says_both_modes_and_writes_the_tcp_program_with_the_held_feeds(dome, tmp_path):
     """smooth on the dome's A/C trunnion with the LinuxCNC post: the metrics carry TCP mode's and
     machine mode's predictions and floors, the program written in TCP mode (the machine file's
-    mode) has the TCP plan's blocks with F = the tip chord over the held block time, and the
-    summary line says which mode is faster."""
+    mode) has the TCP plan's blocks with F = the tip chord over the held block time and the G64 P
+    the plan was timed with (twice the tolerance: every dome move turns a rotary axis, LinuxCNC
+    joins them by parabolic blends only), and the summary line says which mode is faster."""
     from camsmooth.smoothing.posting import write_gcode
 
     r = dome.methods["nlp"]
@@ -254,6 +298,8 @@ def test_smooth_says_both_modes_and_writes_the_tcp_program_with_the_held_feeds(d
     text = ngc.read_text()
     assert "M428" in text and "G94" in text and "G93" not in text
     plan = r.controller
+    assert plan.blend_tolerance == pytest.approx(2.0 * TOL)
+    assert re.search(rf"^G64 P{plan.blend_tolerance:.4f} Q", text, re.M), text[:2000]
     blocks = [ln for ln in text.splitlines() if ln.startswith("G01")]
     assert len(blocks) == plan.blocks + 3  # and one entry move per row
     f_now, fs = None, []

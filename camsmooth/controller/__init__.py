@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from camsmooth.constants import PARABOLIC_PATH_TOLERANCE_SHARE, PATH_TOLERANCE_SHARE  # the linuxcnc post's G64 P
+from camsmooth.constants import PATH_TOLERANCE_SHARE  # the linuxcnc post's G64 P
 from camsmooth.controller.blocks import (
     BLOCK_TOLERANCE_SHARE,
     EXECUTED_TOLERANCE_SHARE,
@@ -31,7 +31,7 @@ from camsmooth.controller.blocks import (
     place,
     predict,
 )
-from camsmooth.controller.linuxcnc import LinuxCNCPlanner
+from camsmooth.controller.linuxcnc import LinuxCNCPlanner, blend_tolerance
 from camsmooth.controller.tcp import TCPPlanner, mode_text, tcp_planner_for
 from camsmooth.machine.kinematics import Machine
 
@@ -42,21 +42,6 @@ __all__ = ["PLANNERS", "PATH_TOLERANCE_SHARE", "BLOCK_TOLERANCE_SHARE", "EXECUTE
 
 #: dialect of the machine's post -> the model of that controller's planner
 PLANNERS: dict[str, type] = {"linuxcnc": LinuxCNCPlanner}
-
-
-def blend_tolerance(rows: np.ndarray, q: np.ndarray, tolerance: float) -> float:
-    """The blend tolerance (mm, LinuxCNC ``G64 P``) a machine-mode program of the points q (N, 5)
-    X Y Z mm and the rotary axes rad, rows (N,), is written and timed with for the user's
-    ``tolerance`` (mm): PARABOLIC_PATH_TOLERANCE_SHARE of it where every move between two points of a
-    row turns a rotary axis as written (4 decimals, deg): LinuxCNC joins those only by parabolic
-    blends, whose path the block times hold; else PATH_TOLERANCE_SHARE, the bound of the blend arc
-    by which it may join two moves that turn none."""
-    rows = np.asarray(rows)
-    deg = np.round(np.degrees(np.asarray(q, float)[:, 3:]), 4)
-    same_row = rows[1:] == rows[:-1]
-    turns = np.any(deg[1:] != deg[:-1], axis=1)
-    share = PARABOLIC_PATH_TOLERANCE_SHARE if bool(np.all(turns[same_row])) else PATH_TOLERANCE_SHARE
-    return share * float(tolerance)
 
 
 def planner_for(machine: Machine, tolerance: float, rows: np.ndarray | None = None,

@@ -445,6 +445,8 @@ _ROUNDS = 30
 #: a block whose own tip curve comes farther than this share of the executed limit from the
 #: programmed path is split back into the program's points (its blends get the rest)
 _SPLIT_SHARE = 0.99
+#: factor a block is lengthened by per round while the run takes a coordinate past its limit during it
+_LIMIT_STEP = 1.1
 
 
 def _blend_excess(run: RowRun, dev: np.ndarray, limit: float, n_blocks: int, following: bool = False) -> np.ndarray:
@@ -463,41 +465,60 @@ def _blend_excess(run: RowRun, dev: np.ndarray, limit: float, n_blocks: int, fol
 
 def _hold_row(planner: Planner, machine: Machine, q: np.ndarray, k: np.ndarray, t_opt: np.ndarray,
               entry_q: np.ndarray, entry_time: float, path: np.ndarray | None, at: np.ndarray | None,
-              limit: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+              limit: float, *, tips: Callable[[np.ndarray], np.ndarray] | None = None, split: bool = True,
+              over_limits: Callable[[RowRun, np.ndarray], np.ndarray] | None = None
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """One row's blocks k (indices into q) and their times, starting from the time-optimal law's
     t_opt, made such that the planner model's tool tip at every servo cycle stays within ``limit``
-    (mm) of ``path`` (None: not checked; at: the path vertex of each point of q). A block whose
-    own tip curve comes farther than _SPLIT_SHARE of the limit is split back into the program's
-    points; then, at most _ROUNDS times, a blend that goes farther than the limit is slowed: the
-    block that decelerates into it lengthened from what it took by sqrt(excess / limit) and 2% (a
-    parabolic blend's deviation grows with the square of its speed; on the blade rows of
-    benchmarks/bench_controller.py slowing this block alone runs 2.5% sooner than slowing both
-    blocks of the blend, and needs fewer rounds than steps of the fourth root), and both blocks of
-    the blend once a round no longer brings the worst deviation down. Returns k, the
-    block times (s), the blocks' end times (s from the row's start, starting with 0) and the
-    largest deviation of the last run (mm, 0 when not checked)."""
-    if path is not None and len(k) > 1:
-        split = (_chord_deviation(machine, q, k, path, at) > _SPLIT_SHARE * limit) & (np.diff(k) > 1)
-        if split.any():
-            k = np.r_[np.concatenate([np.arange(k[j], k[j + 1]) if split[j] else k[j:j + 1]
+    (mm) of ``path`` (None: not checked; at: the path vertex of each point of q). With ``split``, a
+    block whose own tip curve comes farther than _SPLIT_SHARE of the limit is split back into the
+    program's points; then, at most _ROUNDS times, a blend that goes farther than the limit is
+    slowed: the block that decelerates into it lengthened from what it took by sqrt(excess /
+    limit) and 2% (a parabolic blend's deviation grows with the square of its speed; on the blade
+    rows of benchmarks/bench_controller.py slowing this block alone runs 2.5% sooner than slowing
+    both blocks of the blend, and needs fewer rounds than steps of the fourth root), and both
+    blocks of the blend once a round no longer brings the worst deviation down.
+
+    tips: the tool tips (K, 3) mm of the positions (K, 5) the planner commands (default: the
+    machine's forward kinematics of joints; TCP mode: the world coordinates' first three);
+    over_limits(run, positions): (n_blocks,) per block the largest ratio of a coordinate's
+    acceleration (or velocity) to its limit while the block moves (None: not checked); a block
+    over 1 is lengthened by _LIMIT_STEP per round for as long as the largest ratio comes down.
+    Returns k, the block times (s), the blocks' end times (s from the row's start, starting with
+    0) and the largest deviation of the last run (mm, 0 when not checked)."""
+    tips = tips or (lambda joints: tool_tips(machine, joints))
+    if split and path is not None and len(k) > 1:
+        cut = (_chord_deviation(machine, q, k, path, at) > _SPLIT_SHARE * limit) & (np.diff(k) > 1)
+        if cut.any():
+            k = np.r_[np.concatenate([np.arange(k[j], k[j + 1]) if cut[j] else k[j:j + 1]
                                       for j in range(len(k) - 1)]), k[-1]]
     bt = np.diff(t_opt[k])
     worst = 0.0
     both = False
-    for _ in range(_ROUNDS if path is not None else 1):
+    peak: float | None = np.inf  # over_limits' largest ratio in the last round (None: no longer held)
+    for _ in range(_ROUNDS if path is not None or over_limits is not None else 1):
         run, joints = planner.row_run(machine, q[k], bt, entry_q, entry_time)
-        if path is None:
+        excess = np.zeros(len(bt))
+        if path is not None:
+            dev = _run_deviation(run, tips(joints), path, at[k])
+            before, worst = worst, float(dev.max())
+            if worst > limit:
+                both = both or (before > 0 and worst >= before)
+                # zero where what is left is a block's own tip curve: slowing down cannot help it
+                excess = _blend_excess(run, dev, limit, len(bt), following=both)
+        over = np.zeros(len(bt), bool)
+        if over_limits is not None and peak is not None:
+            ratio = over_limits(run, joints)
+            top = float(ratio.max(initial=0.0))
+            if top >= peak:  # lengthening does not bring it down: leave the blocks as they are
+                peak = None
+            else:
+                over, peak = ratio > 1.0, top
+        if not excess.any() and not over.any():
             break
-        dev = _run_deviation(run, tool_tips(machine, joints), path, at[k])
-        before, worst = worst, float(dev.max())
-        if worst <= limit:
-            break
-        both = both or (before > 0 and worst >= before)
-        excess = _blend_excess(run, dev, limit, len(bt), following=both)
-        if not excess.any():
-            break  # what is left is a block's own tip curve: slowing down cannot help
         # the controller runs short five-axis blocks slower than commanded: slow down from what it did
-        bt = np.where(excess > 0, np.maximum(bt, np.diff(run.end)) * (excess / limit) ** 0.5 * 1.02, bt)
+        slow = np.maximum(bt, np.diff(run.end))
+        bt = np.where(excess > 0, slow * (excess / limit) ** 0.5 * 1.02, np.where(over, slow * _LIMIT_STEP, bt))
     return k, bt, np.r_[0.0, run.end[1:] - run.end[0]], worst
 
 

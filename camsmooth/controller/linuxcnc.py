@@ -49,11 +49,12 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from camsmooth.constants import PARABOLIC_PATH_TOLERANCE_SHARE, PATH_TOLERANCE_SHARE
 from camsmooth.controller.blocks import _row_bounds, block_reach
 from camsmooth.machine.kinematics import Machine, axis_limits
 
-__all__ = ["LinuxCNCPlanner", "Segments", "canon_segments", "least_row_times", "least_block_times", "SERVO_PERIOD_S",
-           "linuxcnc_sense"]
+__all__ = ["LinuxCNCPlanner", "blend_tolerance", "Segments", "canon_segments", "least_row_times", "least_block_times",
+           "SERVO_PERIOD_S", "linuxcnc_sense"]
 
 def linuxcnc_sense(machine: Machine) -> np.ndarray:
     """(2,) the sign of each rotary axis value LinuxCNC is given against camsmooth's
@@ -399,6 +400,22 @@ def _place_row(ok: np.ndarray, length: np.ndarray, vcap: np.ndarray, acc_h: np.n
         ends[m] = j
         k = pk
     return best, ends[:m + 1][::-1].copy()
+
+
+def blend_tolerance(rows: np.ndarray, q: np.ndarray, tolerance: float) -> float:
+    """The blend tolerance (mm, LinuxCNC ``G64 P``) a program of the points q (N, 5), rows (N,), is
+    written and timed with for the user's ``tolerance`` (mm); q: X Y Z mm (the joints in machine
+    mode, the tool tip in TCP mode) and the rotary axes rad. PARABOLIC_PATH_TOLERANCE_SHARE of it
+    where every move between two points of a row turns a rotary axis as written (4 decimals, deg):
+    LinuxCNC joins those only by parabolic blends, whose path the block times hold (in either
+    mode); else PATH_TOLERANCE_SHARE, the bound of the blend arc by which it may join two moves
+    that turn none."""
+    rows = np.asarray(rows)
+    deg = np.round(np.degrees(np.asarray(q, float)[:, 3:]), 4)
+    same_row = rows[1:] == rows[:-1]
+    turns = np.any(deg[1:] != deg[:-1], axis=1)
+    share = PARABOLIC_PATH_TOLERANCE_SHARE if bool(np.all(turns[same_row])) else PATH_TOLERANCE_SHARE
+    return share * float(tolerance)
 
 
 #: longest block (in points) the lower bound of ``least_row_times`` considers

@@ -16,11 +16,18 @@ the tip feed mm/min). What that changes for the planner (LinuxCNC 2.9, ``tp.c``,
    (``chord_reach``): blocks can be longer than in machine mode.
 3. Nobody limits the joints: the kinematics turns every servo cycle's world position into joints
    (``world_joints``: ``Machine.linear_axes`` of the tip at the rotary angles), whose velocity and
-   acceleration may exceed the joints' limits (LinuxCNC's issue tracker, #1738). So the F words are
-   held down per row (``TCPPlanner.predict``: one factor on the row's block times, bisection) until
-   every joint's finite-difference velocity and acceleration over the model's servo cycles is
-   within the machine file's ``vmax`` / ``amax``, and the model's tool tip within
-   EXECUTED_TOLERANCE_SHARE of the tolerance from the programmed tips' polyline.
+   acceleration may exceed the joints' limits (LinuxCNC's issue tracker, #1738). So the block
+   times are held (``TCPPlanner.predict``): first block by block, as in machine mode
+   (camsmooth.controller.blocks._hold_row), the blocks whose blends take the model's tool tip
+   farther than EXECUTED_TOLERANCE_SHARE of the tolerance from the programmed tips' polyline, and
+   those during which a rotary axis goes past its amax (the parabolic blend into a row's last
+   block adds the last block's whole acceleration to the half of the block before); then one
+   factor on the row's block times (bisection) until every linear joint's finite-difference
+   velocity and acceleration over the model's servo cycles is within the machine file's ``vmax``
+   / ``amax``.
+4. The blend tolerance (``G64 P``) is ``blend_tolerance``'s, as in machine mode: twice the
+   tolerance where every move turns a rotary axis (parabolic blends only; the holds above keep
+   the tip), else PATH_TOLERANCE_SHARE of it.
 
 The floor (``TCPPlanner.row_floor``) is ``least_row_times``' bound on the world coordinates with
 the chord rule: no program of straight TCP blocks through the points runs faster on LinuxCNC 2.9
@@ -44,6 +51,7 @@ from camsmooth.controller.blocks import (
     EXECUTED_TOLERANCE_SHARE,
     MAX_BLOCK_POINTS,
     ControllerPlan,
+    _hold_row,
     _row_bounds,
     _run_deviation,
     decimate,
@@ -57,6 +65,7 @@ from camsmooth.controller.linuxcnc import (
     SERVO_PERIOD_S,
     BlockTimes,
     LinuxCNCPlanner,
+    blend_tolerance,
     canon_segments,
     least_block_times,
 )
@@ -137,10 +146,11 @@ def chord_reach(rows: np.ndarray, tip: np.ndarray, tolerance: float, max_points:
 class TCPPlan(ControllerPlan):
     """A TCP-mode program's blocks and LinuxCNC's timing of them (``ControllerPlan``; block_time:
     the held block times, whose tip feeds the TCP program's F words are), and per row:
-    row_feed_scale (R,), the factor the time-optimal law's block feeds were held down by (1: not
-    at all), row_joint_ratio (R,), the linear joints' largest velocity or acceleration over their
-    limits at the model's servo cycles with those F words (<= 1: within the limits; the rotary
-    joints are world coordinates, which the planner itself holds within theirs)."""
+    row_feed_scale (R,), the factor the block feeds were held down by on top of the per-block
+    holds (1: not at all), row_joint_ratio (R,), the linear joints' largest velocity or
+    acceleration over their limits at the model's servo cycles with those F words (<= 1: within
+    the limits; the rotary joints are world coordinates, which the planner holds within theirs but
+    for the blend into a row's last block, which the per-block hold covers)."""
 
     row_feed_scale: np.ndarray = field(default_factory=lambda: np.zeros(0))
     row_joint_ratio: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -236,46 +246,74 @@ class TCPPlanner:
         return sooner_blocks(self, machine, rows, w, t_opt, ok, keep,
                              lambda r, a: self._entry(machine, q[a], tip[a], entry_height, float(entry_feed[r])))
 
-    def _held_row(self, machine: Machine, w: np.ndarray, tip_path: np.ndarray, k: np.ndarray, bt0: np.ndarray,
-                  entry_w: np.ndarray, entry_time: float, limit: float | None
-                  ) -> tuple[float, BlockTimes, float, float]:
-        """One row's blocks k (indices into w, the row's world coordinates; tip_path: the entry tip
-        then the row's tips, mm) with block times bt0 / s, s the largest factor in
-        [LOWEST_FEED_SCALE, 1] (bisection) at which every linear joint stays within its limits (the
-        rotary joints are world coordinates: the planner holds them within theirs) and the
-        model's tip within ``limit`` mm of the polyline (None: not checked). Returns s, the run,
-        the joints' largest ratio to their limits and the tip's largest distance (mm)."""
-        vertex = k - k[0] + 1  # the path vertex each segment ends at (the entry move ends at 1)
+    def _rotary_over(self, machine: Machine, run: BlockTimes, world: np.ndarray) -> np.ndarray:
+        """Per block of a row run (the entry move counted on the first), the rotary axes' largest
+        acceleration over their amax at the model's servo cycles (finite differences over one
+        cycle, the limit held with 0.1% for the rest stop's one-cycle step) while it moves, 0 where
+        within. LinuxCNC limits them as world coordinates, but a parabolic blend into a row's last
+        block overlaps the block before's deceleration at half its acceleration with the last
+        block's at the whole one (1.11 of amax on the dome rows at G64 P twice the tolerance)."""
+        n = len(run.end) - 1
+        amax = axis_limits(machine)[1][3:]
+        w = np.vstack([world[:1, 3:], world[:, 3:], world[-1:, 3:]])
+        acc = (np.abs(np.diff(w, 2, axis=0)) / self.servo_period ** 2 / amax).max(axis=1)
+        out = np.zeros(n + 2)
+        cyc = np.flatnonzero(acc > 1.0 + 1e-3)
+        if len(cyc):
+            ratio = acc[cyc]
+            # the block that accelerates at its whole rate: the one blended into, else the head
+            seg = np.where((run.following_fraction[cyc] > 0) & (run.following[cyc] <= n), run.following[cyc],
+                           run.head[cyc])
+            np.maximum.at(out, np.minimum(seg, n + 1), ratio)
+            out[1] = max(out[1], out[0])
+        return out[1:n + 1]
 
-        def attempt(s: float) -> tuple[bool, BlockTimes, float, float]:
+    def _held_row(self, machine: Machine, w: np.ndarray, tip_path: np.ndarray, k: np.ndarray, t_opt: np.ndarray,
+                  entry_w: np.ndarray, entry_time: float, limit: float | None
+                  ) -> tuple[np.ndarray, float, BlockTimes, np.ndarray, float, float]:
+        """One row's blocks k (indices into w, the row's world coordinates; tip_path: the entry tip
+        then the row's tips, mm) with the time-optimal law's block times (t_opt, s) held: first
+        per block, the blends that take the model's tip farther than ``limit`` mm from the polyline
+        (None: not checked) and the blocks where a rotary axis goes past its amax lengthened
+        (camsmooth.controller.blocks._hold_row); then all of them divided by s, the largest factor
+        in [LOWEST_FEED_SCALE, 1] (bisection) at which every linear joint stays within its
+        limits and the tip within ``limit``. Returns the held block times, s, the run, its world
+        positions per servo cycle, the linear joints' largest ratio to their limits and the tip's
+        largest distance (mm)."""
+        at = np.arange(len(w)) + 1  # the path vertex of each point (the entry tip is vertex 0)
+        _, bt0, _, _ = _hold_row(self, machine, w, k, t_opt, entry_w, entry_time,
+                                 None if limit is None else tip_path, at, limit or 0.0, tips=lambda x: x[:, :3],
+                                 split=False, over_limits=lambda run, pos: self._rotary_over(machine, run, pos))
+
+        def attempt(s: float) -> tuple[bool, BlockTimes, np.ndarray, float, float]:
             run, pos = self.row_run(machine, w[k], bt0 / s, entry_w, entry_time)
             # the linear joints: the rotary ones are world coordinates, which the planner limits
             ratio = float(joint_ratio(machine, np.vstack([world_joints(machine, entry_w[None, :]),
                                                           world_joints(machine, pos)]), self.servo_period)[:, :3].max())
-            dev = 0.0 if limit is None else float(_run_deviation(run, pos[:, :3], tip_path, vertex).max(initial=0.0))
-            return ratio <= 1.0 and (limit is None or dev <= limit), run, ratio, dev
+            dev = 0.0 if limit is None else float(_run_deviation(run, pos[:, :3], tip_path, at[k]).max(initial=0.0))
+            return ratio <= 1.0 and (limit is None or dev <= limit), run, pos, ratio, dev
 
-        good, run, ratio, dev = attempt(1.0)
+        good, run, pos, ratio, dev = attempt(1.0)
         if good:
-            return 1.0, run, ratio, dev
+            return bt0, 1.0, run, pos, ratio, dev
         lo, hi = LOWEST_FEED_SCALE, 1.0
-        good, best_run, best_ratio, best_dev = attempt(lo)
-        if not good:  # not held even at the lowest factor: report it as it is
-            return lo, best_run, best_ratio, best_dev
-        for _ in range(_BISECTIONS):
-            mid = 0.5 * (lo + hi)
-            good, run, ratio, dev = attempt(mid)
-            if good:
-                lo, best_run, best_ratio, best_dev = mid, run, ratio, dev
-            else:
-                hi = mid
-        return lo, best_run, best_ratio, best_dev
+        good, *best = attempt(lo)
+        if good:
+            for _ in range(_BISECTIONS):
+                mid = 0.5 * (lo + hi)
+                good, *got = attempt(mid)
+                if good:
+                    lo, best = mid, got
+                else:
+                    hi = mid
+        # not held even at the lowest factor: reported as it is
+        return (bt0 / lo, lo, *best)
 
     def predict(self, machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray, t_opt: np.ndarray,
                 keep: np.ndarray, *, entry_height: float, entry_feed: np.ndarray, tolerance: float | None = None,
                 feed: np.ndarray | None = None) -> TCPPlan:
         """LinuxCNC's timing of a TCP program written in the blocks ``keep`` with the time-optimal
-        law's block times (t_opt, s from each row's start) held down per row (``_held_row``; with
+        law's block times (t_opt, s from each row's start) held per block and row (``_held_row``; with
         ``tolerance`` (mm, the user's) the model's tip is also held within EXECUTED_TOLERANCE_SHARE
         of it from the polyline of the programmed tips, the entry tip first). q (N, 5) joints mm
         rad; tip (N, 3) mm; entry_height mm and entry_feed (R,) mm/min, the rows' entry moves as the
@@ -290,6 +328,7 @@ class TCPPlanner:
         block_time, t_ctrl, feed_plan = np.zeros(n), np.zeros(n), np.zeros(n)
         row_cycle, row_dev = np.zeros(len(starts)), np.zeros(len(starts))
         scale, ratio = np.ones(len(starts)), np.zeros(len(starts))
+        peak = np.zeros((len(starts), 5))
         limit = None if tolerance is None else EXECUTED_TOLERANCE_SHARE * float(tolerance)
         for r, (a, b) in enumerate(zip(starts, ends, strict=True)):
             k = a + np.flatnonzero(keep[a:b])
@@ -297,11 +336,12 @@ class TCPPlanner:
             if len(k) > 1:
                 entry_w, entry_time = self._entry(machine, q[a], tip[a], entry_height, float(entry_feed[r]))
                 path = np.vstack([entry_w[None, :3], tip[a:b]])
-                bt0 = np.diff(t_opt[k])
-                scale[r], run, ratio[r], row_dev[r] = self._held_row(machine, w[a:b], path, k - a, bt0, entry_w,
-                                                                     entry_time, limit)
-                block_time[k[1:]] = bt0 / scale[r]
+                block_time[k[1:]], scale[r], run, pos, ratio[r], row_dev[r] = self._held_row(
+                    machine, w[a:b], path, k - a, t_opt[a:b], entry_w, entry_time, limit)
                 tk = np.r_[0.0, run.end[1:] - run.end[0]]
+                joints = world_joints(machine, np.vstack([entry_w[None, :], pos]))
+                # over 5 cycles, as machine mode's (camsmooth.controller.blocks.predict)
+                peak[r] = joint_ratio(machine, joints, self.servo_period, stride=5).max(axis=0)
             s = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(tip[a:b], axis=0), axis=1))]
             t_ctrl[a:b], feed_plan[a:b] = points_timing(s, k - a, tk, tip[k])
             row_cycle[r] = tk[-1]
@@ -311,7 +351,8 @@ class TCPPlanner:
         return TCPPlan(controller=self.name, keep=keep, block_time=block_time, t_plan=t_ctrl, feed_plan=feed_plan,
                        row_ids=rows[starts].astype(np.int64), row_cycle_time=row_cycle,
                        cycle_time=float(row_cycle.sum()), row_deviation=row_dev, row_floor=floor,
-                       row_feed_scale=scale, row_joint_ratio=ratio, blend_tolerance=self.tolerance)
+                       row_feed_scale=scale, row_joint_ratio=ratio, blend_tolerance=self.tolerance,
+                       row_joint_peak=peak)
 
     def plan(self, machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray, t_opt: np.ndarray,
              tolerance: float, *, entry_height: float, entry_feed: np.ndarray, feed: np.ndarray | None = None
@@ -322,14 +363,18 @@ class TCPPlanner:
                             tolerance=tolerance, feed=feed)
 
 
-def tcp_planner_for(machine: Machine, tolerance: float) -> TCPPlanner | None:
+def tcp_planner_for(machine: Machine, tolerance: float, rows: np.ndarray | None = None,
+                    q: np.ndarray | None = None) -> TCPPlanner | None:
     """The TCP-mode planner model for ``machine`` when its post is LinuxCNC's and LinuxCNC's trt
     kinematics describes it (``trt_kinematics``), for a program written for the user's
-    ``tolerance`` (mm); else None."""
+    ``tolerance`` (mm); else None. With the program's rows (N,) and joints q (N, 5) (mm, rad) its
+    ``G64 P`` is ``blend_tolerance``'s (the same rotary moves in both modes), else
+    PATH_TOLERANCE_SHARE of the tolerance."""
     post = getattr(machine, "post", None)
     if getattr(post, "dialect", "") != "linuxcnc" or trt_kinematics(machine) is None:
         return None
-    return TCPPlanner(tolerance=PATH_TOLERANCE_SHARE * tolerance)
+    blend = PATH_TOLERANCE_SHARE * tolerance if q is None or rows is None else blend_tolerance(rows, q, tolerance)
+    return TCPPlanner(tolerance=blend)
 
 
 def mode_text(tcp_s: float, tcp_floor_s: float | None, machine_s: float, machine_floor_s: float | None,

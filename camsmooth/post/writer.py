@@ -342,8 +342,7 @@ def _header(dialect: Words, mode: str, machine: Any, program: PostProgram, h: fl
     head.append(c("t= beside a block: s from the row's start at the programmed feed f= (mm/min, given where it "
                   "changes)"))
     blend, tol = getattr(program, "blend_tolerance", None), getattr(program, "tolerance", None)
-    if (mode == "machine" and blend is not None and tol is not None and blend > tol
-            and "G64" in (dialect.path_tolerance or ("",))[0]):
+    if blend is not None and tol is not None and blend > tol and "G64" in (dialect.path_tolerance or ("",))[0]:
         head.append(c(f"G64 P{blend:.4f} over the {tol:.4f} mm tolerance: every move turns a rotary axis, "
                       "joined by parabolic blends only,"))
         head.append(c("where P caps the blend speed: the block times hold the tool tip within the tolerance at "
@@ -450,9 +449,8 @@ def write_program(path: str | os.PathLike, program: PostProgram, machine: Any, *
     F, still = _block_feeds(machine, mv, mode)
     sign = entry.signs(machine)
     lines = _program_open(d, program_name) + _header(d, mode, machine, program, h, still, sign)
-    # a plan's blend tolerance is machine mode's (camsmooth.controller.blend_tolerance); TCP keeps the share
-    start = _program_start(d, mode, st.tcp_on, st.tool, program.tolerance,
-                           program.blend_tolerance if mode == "machine" else None)
+    # the blend tolerance the controller plan was timed with (camsmooth.controller.blend_tolerance)
+    start = _program_start(d, mode, st.tcp_on, st.tool, program.tolerance, program.blend_tolerance)
     if setup is not None and not setup.empty:  # the input's tool call, spindle, coolant, work offset
         blocks = setup.start_blocks(d.name)
         at = len(d.start) if not d.klartext else 0

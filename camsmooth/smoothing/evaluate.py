@@ -138,7 +138,7 @@ def time_law(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
         ctrl = predict(planner, machine, rows, q, tip, t_plan, np.asarray(keep, bool),
                        entry_height=DEFAULT_SAFE_HEIGHT_MM, entry_feed=entry, tolerance=tolerance, feed=feed)
         law.update(controller=ctrl, cycle_time=float(ctrl.cycle_time), row_cycle_time=np.asarray(ctrl.row_cycle_time))
-        tcp_planner = tcp_planner_for(machine, tolerance) if keep_given is None else None
+        tcp_planner = tcp_planner_for(machine, tolerance, rows, q) if keep_given is None else None
         if tcp_planner is not None:  # TCP mode beside machine mode; the written mode's plan is the controller's
             tcp = tcp_planner.plan(machine, rows, q, tip, t_plan, tolerance, entry_height=DEFAULT_SAFE_HEIGHT_MM,
                                    entry_feed=entry, feed=feed)
