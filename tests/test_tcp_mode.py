@@ -249,6 +249,9 @@ def test_the_rotary_axes_past_amax_in_the_blend_into_the_last_block_are_held(dom
     q = np.column_stack([r.xyz, r.rotary.values])
     planner = tcp_planner_for(m, TOL, r.rows, q)
     assert planner.tolerance == pytest.approx(2.0 * TOL)
+    still = q.copy()
+    still[np.flatnonzero(r.rows == r.rows[0])[:2], 3:] = q[0, 3:]  # one move of a row turns no rotary axis
+    assert tcp_planner_for(m, TOL, r.rows, still).tolerance == pytest.approx(0.6 * TOL)  # the blend arc's bound
     t = r.plan.t_plan
     rows = np.unique(r.rows)
     entry = np.full(len(rows), 2000.0)
