@@ -7,7 +7,7 @@ numerical stack.
 from __future__ import annotations
 
 __all__ = ["DEFAULT_TOLERANCE_MM", "WRITTEN_DECIMALS", "DEFAULT_SAFE_HEIGHT_MM", "PATH_TOLERANCE_SHARE",
-           "PARABOLIC_PATH_TOLERANCE_SHARE", "NAIVE_CAM_TOLERANCE_SHARE"]
+           "PARABOLIC_PATH_TOLERANCE_SHARE", "TCP_PARABOLIC_PATH_TOLERANCE_SHARE", "NAIVE_CAM_TOLERANCE_SHARE"]
 
 #: The part's allowed deviation (mm) when the user gives none (``--tolerance``; ``smooth``,
 #: ``analyze_program``): a finishing tolerance. It decides every clearance question: a pose whose
@@ -28,19 +28,26 @@ DEFAULT_SAFE_HEIGHT_MM: float = 10.0
 #: EXECUTED_TOLERANCE_SHARE (camsmooth.controller) by the block times. Written by the linuxcnc post
 #: (camsmooth.post.linuxcnc), used by its planner model.
 PATH_TOLERANCE_SHARE: float = 0.6
-#: ``G64 P`` over the user's tolerance for a program (machine or TCP mode) in which every move
-#: between two points turns a rotary axis (camsmooth.controller.blend_tolerance). LinuxCNC 2.9 joins such moves
+#: ``G64 P`` over the user's tolerance for a machine-mode program in which every move between two
+#: points turns a rotary axis (camsmooth.controller.blend_tolerance). LinuxCNC 2.9 joins such moves
 #: by parabolic blends only, where P is no bound on the path but a cap on the blend speed, 2 sqrt(a/2
 #: P / cos(theta)) at an XYZ corner of the joints (camsmooth.controller.linuxcnc); the tip is held by
-#: the block times, which the planner model checks cycle by cycle. Measured on the planner model over
-#: the blade, wave, ridge and dome rows of benchmarks/bench_controller.py, executed / floor with blocks
-#: within 0.93 and servo cycles within 0.95 of the tolerance: 1.0 -> 1.16 / 1.11 / 1.12 / 1.07, 2.0 ->
-#: 1.13 / 1.09 / 1.09 / 1.03 (0.6 with the former shares: 1.24 / 1.14 / 1.20 / 1.15); 3.0 and 4.0 slow
-#: some rows by 30-45%: a row's entry move, at the programmed feed, then blends too far into its first
-#: block for any slowing of the blocks to hold. In TCP mode on LinuxCNC (bench_controller.py --mode
-#: tcp, dome on its A/C table, wave, blade, ridge and teapot on a B/C one) 2.0 runs the rows in
-#: 1.02-1.09 of the TCP floor against 1.10-1.29 at 0.6, with the blends held block by block.
-PARABOLIC_PATH_TOLERANCE_SHARE: float = 2.0
+#: the block times, which the planner model checks cycle by cycle, and each row's entry move ends at
+#: rest (``G61`` for it; its blend at the 90 deg corner into the row is what P would let go too
+#: far). Measured on the planner model, executed / floor over the blade, wave, ridge and dome rows
+#: of benchmarks/bench_controller.py on their machines (blocks within 0.96 and servo cycles within
+#: 0.98 of the tolerance): 2.0 -> 1.091 / 1.081 / 1.085 / 1.022 (entry blended), 6.0 -> 1.070 /
+#: 1.061 / 1.062 / 1.026, 12.0 -> 1.067 / 1.055 / 1.054 / 1.026, 40.0 -> 1.067 / 1.054 / 1.052 /
+#: 1.026 (entry stopped); wave and blade on a B/C trunnion: 1.192 / 1.116 at 2.0, 1.118 / 1.083 at
+#: 12.0. With the entry blended, 3.0 and 4.0 ran some rows 30-45% later.
+PARABOLIC_PATH_TOLERANCE_SHARE: float = 12.0
+#: TCP mode's share where every move turns a rotary axis (camsmooth.controller.tcp): its entry move
+#: blends into the row (stopped, the entry's acceleration along the tool axis, turned into the
+#: joints by the table, takes a linear joint past its amax), so P stays where the block times can
+#: hold that blend. On LinuxCNC (bench_controller.py --mode tcp, the dome on its A/C table, wave,
+#: blade, ridge and teapot on a B/C one) 2.0 runs the rows in 1.02-1.09 of the TCP floor against
+#: 1.10-1.29 at 0.6, with the blends held block by block.
+TCP_PARABOLIC_PATH_TOLERANCE_SHARE: float = 2.0
 #: The share of the user's tolerance LinuxCNC's naive-CAM detector gets (``G64 Q``): it joins
 #: consecutive XYZ-only moves that lie within Q of a line, which the planner model does not model;
 #: kept below the tolerance (without Q, LinuxCNC takes Q = P).

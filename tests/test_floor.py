@@ -231,3 +231,47 @@ def test_the_block_check_answers_as_the_distance_to_every_segment():
     frac = rng.uniform(0, 1, 9)  # where the search starts does not change the answer
     for tol in np.quantile(worst, [0.1, 0.5, 0.9]):
         assert np.array_equal(_all_within(pts, curve, frac, tol), worst <= tol)
+
+
+def test_past_the_tolerance_p_every_block_turns_a_rotary_axis_as_written():
+    """Where ``G64 P`` exceeds the tolerance (every move of the program turns a rotary axis),
+    LinuxCNC would join a block that turns none by a blend arc as far off as P. A row whose A
+    turns back and forth by 0.001 deg (every move turns it, every pair of moves brings it back):
+    the tolerance alone lets blocks span several points (checked), but the placement keeps every
+    point, so every written block turns A (4 decimals of a degree, as written)."""
+    m = _machine()
+    n = 30
+    tip = np.column_stack([np.linspace(0.0, 6.0, n), np.zeros(n), np.zeros(n)])
+    rot = np.column_stack([np.radians(0.001 * (np.arange(n) % 2)), np.zeros(n)])
+    q = np.column_stack([m.linear_axes(tip, rot[:, 0], rot[:, 1]), rot])
+    rows = np.zeros(n, int)
+    p = planner_for(m, TOL, rows, q)
+    assert p.tolerance > TOL and p.entry_stop
+    assert block_reach(m, rows, q, tip, BLOCK_TOLERANCE_SHARE * TOL)[:-2, 1].all()  # two moves would pass
+    t = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(tip, axis=0), axis=1))] / (FEED / 60.0)
+    keep = place(p, m, rows, q, tip, t, TOL, entry_height=ENTRY_MM, entry_feed=np.array([FEED]))
+    deg = np.round(np.degrees(q[keep, 3:]), 4)
+    assert np.all(np.any(deg[1:] != deg[:-1], axis=1))
+    assert keep.all()
+
+
+def test_a_stopped_entry_is_written_with_g61_and_the_g64_line_again(blade_rows, tmp_path):
+    """The nlp plan of two blade rows stops each row's entry move (its G64 P is over the
+    tolerance): the LinuxCNC program has, per row, G61 right before the entry move (the row's first
+    G01) and the program's G64 line right after it, and the header says so."""
+    from camsmooth.smoothing.posting import write_gcode
+
+    r = blade_rows.methods["nlp"]
+    plan = r.controller
+    assert plan.entry_stop and plan.blend_tolerance > TOL
+    ngc = tmp_path / "blade.ngc"
+    write_gcode(ngc, r, blade_rows.machine, blade_rows.cutter, FEED, tolerance=TOL)
+    lines = ngc.read_text().splitlines()
+    g64 = [ln for ln in lines if ln.startswith("G64 ")]
+    assert g64[0] == f"G64 P{plan.blend_tolerance:.4f} Q0.0030"
+    rows = [i for i, ln in enumerate(lines) if re.match(r"\(row \d+:", ln)]
+    assert len(rows) == len(np.unique(r.rows)) == lines.count("G61")
+    for i in rows:
+        first = next(j for j in range(i, len(lines)) if lines[j].startswith("G01"))
+        assert lines[first - 1] == "G61" and lines[first + 1] == g64[0], lines[i:first + 2]
+    assert any("entry move ends at rest: G61 before it" in ln for ln in lines[:40])

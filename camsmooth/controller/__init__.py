@@ -49,13 +49,14 @@ def planner_for(machine: Machine, tolerance: float, rows: np.ndarray | None = No
     """The planner model of the machine's controller (by its ``[post] dialect``) for a program
     written for the user's ``tolerance`` (mm), None if camsmooth has no model of it; with the
     program's rows (N,) and points q (N, 5) its blend tolerance is ``blend_tolerance``'s, else
-    PATH_TOLERANCE_SHARE of the tolerance."""
+    PATH_TOLERANCE_SHARE of the tolerance. A blend tolerance over the tolerance comes with an
+    exact stop at the end of each row's entry move (``entry_stop``)."""
     post = getattr(machine, "post", None)
     cls = PLANNERS.get(getattr(post, "dialect", ""))
     if cls is None:
         return None
     blend = PATH_TOLERANCE_SHARE * tolerance if q is None or rows is None else blend_tolerance(rows, q, tolerance)
-    return cls(tolerance=blend)
+    return cls(tolerance=blend, entry_stop=blend > tolerance)
 
 
 def floor_text(controller: str, floor_s: float, program_s: float) -> str:

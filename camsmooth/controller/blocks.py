@@ -32,10 +32,11 @@ from typing import Protocol
 import numpy as np
 from numba import njit
 
+from camsmooth.constants import WRITTEN_DECIMALS
 from camsmooth.geometry.paths import _row_runs
 from camsmooth.machine.kinematics import Machine, axis_limits
 
-__all__ = ["BLOCK_TOLERANCE_SHARE", "MAX_BLOCK_POINTS", "block_reach", "decimate", "place", "row_entry",
+__all__ = ["BLOCK_TOLERANCE_SHARE", "MAX_BLOCK_POINTS", "block_reach", "rotary_turns", "decimate", "place", "row_entry",
            "ControllerPlan", "Planner", "predict", "joint_ratio"]
 
 #: share of the user's tolerance the longer blocks may use: their tip curves keep every dropped tip
@@ -225,6 +226,20 @@ def block_reach(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarr
     return reach_table(rows, len(q), max_points, passes)
 
 
+def rotary_turns(q: np.ndarray, max_points: int = MAX_BLOCK_POINTS) -> np.ndarray:
+    """(N, max_points) bool in ``block_reach``'s layout: whether the block from point a to a + k
+    turns a rotary axis as written (WRITTEN_DECIMALS decimals of a degree; False past the last
+    point). LinuxCNC joins such blocks by parabolic blends only; a block that turns none may be
+    joined by a blend arc as far off as ``G64 P``, so where P exceeds the tolerance ``place``
+    keeps only blocks that turn one (and none longer from a point than the first that does not).
+    q (N, 5) X Y Z mm, rotary rad."""
+    deg = np.round(np.degrees(np.asarray(q, float)[:, 3:]), WRITTEN_DECIMALS)
+    out = np.zeros((len(deg), int(max_points)), bool)
+    for k in range(1, min(int(max_points), len(deg) - 1) + 1):
+        out[:-k, k - 1] = np.any(deg[k:] != deg[:-k], axis=1)
+    return out
+
+
 def reach_table(rows: np.ndarray, n: int, max_points: int,
                 passes: Callable[[np.ndarray, int], np.ndarray]) -> np.ndarray:
     """(n, max_points) bool: entry [a, k - 1] says whether the block from point a over k points
@@ -305,6 +320,8 @@ def place(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray, t
     q = np.asarray(q, float)
     t_opt = np.asarray(t_opt, float)
     ok = block_reach(real or machine, rows, q, tip, BLOCK_TOLERANCE_SHARE * float(tolerance))
+    if getattr(planner, "tolerance", 0.0) > tolerance:  # G64 P past it: only blocks blended parabolically
+        ok = np.logical_and.accumulate(ok & rotary_turns(q, ok.shape[1]), axis=1)
     keep = decimate(real or machine, rows, q, tip, tolerance, ok=ok)
     starts, ends = _row_bounds(rows)
     limit = EXECUTED_TOLERANCE_SHARE * float(tolerance)
@@ -368,7 +385,8 @@ class ControllerPlan:
     user's tolerance (``Planner.row_floor``; None where the controller has no floor or the
     tolerance was not given): row_cycle_time can come down to it, never below; blend_tolerance: mm,
     the controller's blend tolerance the plan was timed with (LinuxCNC ``G64 P``, which the program
-    must be written with), None where the planner has none; row_joint_peak: (R, 5), per row and
+    must be written with), None where the planner has none; entry_stop: each row's entry move
+    ends at rest (LinuxCNC ``G61`` for it, which the program must be written with); row_joint_peak: (R, 5), per row and
     joint (X Y Z and the rotary axes) the larger of its largest |velocity| / vmax and |acceleration|
     / amax over the planner model's servo cycles (None: not computed): above 1 the controller's own
     planner takes the joint past its limit (LinuxCNC where two blocks overlap in a blend).
@@ -385,6 +403,7 @@ class ControllerPlan:
     row_deviation: np.ndarray
     row_floor: np.ndarray | None = None
     blend_tolerance: float | None = None
+    entry_stop: bool = False
     row_joint_peak: np.ndarray | None = None
 
     @property
@@ -600,8 +619,10 @@ def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray,
             k, bt, tk, row_dev[r] = _hold_row(planner, machine, q, k, t_opt, entry_q, entry_time, path, at, limit)
             keep[k] = True
             _, joints = planner.row_run(machine, q[k], bt, entry_q, entry_time)
-            # over 5 cycles: an overlap of two blends lasts; a segment ending inside a cycle is a one-cycle step
-            peak[r] = joint_ratio(machine, joints, getattr(planner, "servo_period", 1e-3), stride=5).max(axis=0)
+            # over 5 cycles: an overlap of two blends lasts; a segment ending inside a cycle is a one-cycle step.
+            # From the entry's start, where the row's motion starts at rest
+            period = getattr(planner, "servo_period", 1e-3)
+            peak[r] = joint_ratio(machine, np.vstack([entry_q[None, :], joints]), period, stride=5).max(axis=0)
         block_time[k[1:]] = bt
         # points inside a block: by their share of the block's pivot travel
         s = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(q[a:b, :3], axis=0), axis=1))]
@@ -614,4 +635,5 @@ def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray,
                           feed_plan=feed, row_ids=rows[starts].astype(np.int64), row_cycle_time=row_cycle,
                           cycle_time=float(row_cycle.sum()), row_deviation=row_dev,
                           row_floor=None if floor is None else np.asarray(floor, float),
-                          blend_tolerance=getattr(planner, "tolerance", None), row_joint_peak=peak)
+                          blend_tolerance=getattr(planner, "tolerance", None),
+                          entry_stop=bool(getattr(planner, "entry_stop", False)), row_joint_peak=peak)

@@ -402,11 +402,13 @@ def _place_row(ok: np.ndarray, length: np.ndarray, vcap: np.ndarray, acc_h: np.n
     return best, ends[:m + 1][::-1].copy()
 
 
-def blend_tolerance(rows: np.ndarray, q: np.ndarray, tolerance: float) -> float:
+def blend_tolerance(rows: np.ndarray, q: np.ndarray, tolerance: float,
+                    parabolic_share: float = PARABOLIC_PATH_TOLERANCE_SHARE) -> float:
     """The blend tolerance (mm, LinuxCNC ``G64 P``) a program of the points q (N, 5), rows (N,), is
     written and timed with for the user's ``tolerance`` (mm); q: X Y Z mm (the joints in machine
-    mode, the tool tip in TCP mode) and the rotary axes rad. PARABOLIC_PATH_TOLERANCE_SHARE of it
-    where every move between two points of a row turns a rotary axis as written (4 decimals, deg):
+    mode, the tool tip in TCP mode) and the rotary axes rad. ``parabolic_share`` of it (machine
+    mode's PARABOLIC_PATH_TOLERANCE_SHARE, TCP mode's TCP_PARABOLIC_PATH_TOLERANCE_SHARE) where
+    every move between two points of a row turns a rotary axis as written (4 decimals, deg):
     LinuxCNC joins those only by parabolic blends, whose path the block times hold (in either
     mode); else PATH_TOLERANCE_SHARE, the bound of the blend arc by which it may join two moves
     that turn none."""
@@ -414,7 +416,7 @@ def blend_tolerance(rows: np.ndarray, q: np.ndarray, tolerance: float) -> float:
     deg = np.round(np.degrees(np.asarray(q, float)[:, 3:]), 4)
     same_row = rows[1:] == rows[:-1]
     turns = np.any(deg[1:] != deg[:-1], axis=1)
-    share = PARABOLIC_PATH_TOLERANCE_SHARE if bool(np.all(turns[same_row])) else PATH_TOLERANCE_SHARE
+    share = parabolic_share if bool(np.all(turns[same_row])) else PATH_TOLERANCE_SHARE
     return share * float(tolerance)
 
 
@@ -515,12 +517,16 @@ class LinuxCNCPlanner:
 
     servo_period: s; v_limit: [TRAJ] MAX_LINEAR_VELOCITY in mm/s (None: the fastest linear
     axis, as camsmooth's simulation configuration sets it); tolerance: the program's ``G64 P``
-    (mm; the program's: camsmooth.controller.blend_tolerance, which camsmooth.post.writer writes).
+    (mm; the program's: camsmooth.controller.blend_tolerance, which camsmooth.post.writer writes);
+    entry_stop: each row's entry move ends at rest (the writer's ``G61`` for it: the first block
+    then starts from rest, and no blend joins the entry's corner, which the block times could
+    not hold once P exceeds the tolerance).
     """
 
     servo_period: float = SERVO_PERIOD_S
     v_limit: float | None = None
     tolerance: float = 0.0
+    entry_stop: bool = False
     name: str = "linuxcnc"
     title: str = "LinuxCNC"
 
@@ -555,7 +561,7 @@ class LinuxCNCPlanner:
         el, ev, ea, emax, _, ed = _move_limits((q[0] - np.asarray(entry_q, float)) * deg, vmax, amax,
                                                self.servo_period, vlim)
         entry = np.array([float(el), min(float(el) / max(entry_time, 1e-6), float(ev), float(emax)), 0.5 * float(ea)])
-        if not entry[0] > 0:  # no entry move: the row starts at rest
+        if not entry[0] > 0 or self.entry_stop:  # no entry move, or one that ends at rest: the row starts at rest
             entry = np.array([0.0, 0.0, 1.0])
         # half the acceleration for a block ending in a parabolic blend, the whole for the row's last (step 4)
         acc_h = np.where(i + np.arange(1, K + 1)[None, :] == n - 1, acc, 0.5 * acc)
@@ -584,11 +590,11 @@ class LinuxCNCPlanner:
                 entry_time: float) -> tuple[BlockTimes, np.ndarray]:
         """One row as LinuxCNC runs it: the row is entered from rest at ``entry_q`` by a feed move
         of ``entry_time`` s onto q_blocks[0] (blended into the row, as LinuxCNC does between two
-        feed moves), then one G93 block per further point with the commanded block times
-        ``block_time`` (s), and ends at rest (the rapid that follows). Joints X Y Z mm A B rad;
-        the values are rounded as the G-code writer writes them (4 decimals, mm and degrees).
-        Returns the segments' BlockTimes (the entry move first) and (K, 5) the joints (mm, rad)
-        commanded at the end of every servo cycle."""
+        feed moves, or ending at rest with ``entry_stop``), then one G93 block per further point
+        with the commanded block times ``block_time`` (s), and ends at rest (the rapid that
+        follows). Joints X Y Z mm A B rad; the values are rounded as the G-code writer writes them
+        (4 decimals, mm and degrees). Returns the segments' BlockTimes (the entry move first) and
+        (K, 5) the joints (mm, rad) commanded at the end of every servo cycle."""
         def written(q: np.ndarray) -> np.ndarray:
             q = np.atleast_2d(np.asarray(q, float))
             return np.round(np.column_stack([q[:, :3], np.degrees(q[:, 3:])]), 4)
@@ -597,6 +603,7 @@ class LinuxCNCPlanner:
         k = len(times)
         start, joints = written(entry_q)[0], written(q_blocks)
         seg = self.segments(machine, start, joints, np.zeros(k, bool), 60.0 / times, np.ones(k, bool))
+        seg.stop_after[0] |= self.entry_stop
         bt = self.run(seg)
         q = bt.positions(start, joints)
         return bt, np.column_stack([q[:, :3], np.radians(q[:, 3:])])

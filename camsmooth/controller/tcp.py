@@ -25,9 +25,10 @@ the tip feed mm/min). What that changes for the planner (LinuxCNC 2.9, ``tp.c``,
    factor on the row's block times (bisection) until every linear joint's finite-difference
    velocity and acceleration over the model's servo cycles is within the machine file's ``vmax``
    / ``amax``.
-4. The blend tolerance (``G64 P``) is ``blend_tolerance``'s, as in machine mode: twice the
-   tolerance where every move turns a rotary axis (parabolic blends only; the holds above keep
-   the tip), else PATH_TOLERANCE_SHARE of it.
+4. The blend tolerance (``G64 P``) is ``blend_tolerance``'s with
+   TCP_PARABOLIC_PATH_TOLERANCE_SHARE: twice the tolerance where every move turns a rotary axis
+   (parabolic blends only; the holds above keep the tip), else PATH_TOLERANCE_SHARE of it. The
+   entry move blends into the row's first block (machine mode stops it, and takes a larger P).
 
 The floor (``TCPPlanner.row_floor``) is ``least_row_times``' bound on the world coordinates with
 the chord rule: no program of straight TCP blocks through the points runs faster on LinuxCNC 2.9
@@ -45,7 +46,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from camsmooth.constants import PATH_TOLERANCE_SHARE
+from camsmooth.constants import PATH_TOLERANCE_SHARE, TCP_PARABOLIC_PATH_TOLERANCE_SHARE
 from camsmooth.controller.blocks import (
     BLOCK_TOLERANCE_SHARE,
     EXECUTED_TOLERANCE_SHARE,
@@ -58,6 +59,7 @@ from camsmooth.controller.blocks import (
     joint_ratio,
     points_timing,
     reach_table,
+    rotary_turns,
     sooner_blocks,
 )
 from camsmooth.controller.linuxcnc import (
@@ -242,6 +244,8 @@ class TCPPlanner:
         q, tip, t_opt = (np.asarray(x, float) for x in (q, tip, t_opt))
         w = world_coordinates(q, tip)
         ok = chord_reach(rows, tip, BLOCK_TOLERANCE_SHARE * float(tolerance))
+        if self.tolerance > tolerance:  # G64 P past the tolerance: only blocks LinuxCNC blends parabolically
+            ok = np.logical_and.accumulate(ok & rotary_turns(q, ok.shape[1]), axis=1)
         keep = decimate(machine, rows, q, tip, tolerance, ok=ok)
         return sooner_blocks(self, machine, rows, w, t_opt, ok, keep,
                              lambda r, a: self._entry(machine, q[a], tip[a], entry_height, float(entry_feed[r])))
@@ -368,12 +372,14 @@ def tcp_planner_for(machine: Machine, tolerance: float, rows: np.ndarray | None 
     """The TCP-mode planner model for ``machine`` when its post is LinuxCNC's and LinuxCNC's trt
     kinematics describes it (``trt_kinematics``), for a program written for the user's
     ``tolerance`` (mm); else None. With the program's rows (N,) and joints q (N, 5) (mm, rad) its
-    ``G64 P`` is ``blend_tolerance``'s (the same rotary moves in both modes), else
+    ``G64 P`` is ``blend_tolerance``'s with TCP_PARABOLIC_PATH_TOLERANCE_SHARE (the entry move
+    blends into the row: a larger P lets that blend go farther than slower blocks can hold), else
     PATH_TOLERANCE_SHARE of the tolerance."""
     post = getattr(machine, "post", None)
     if getattr(post, "dialect", "") != "linuxcnc" or trt_kinematics(machine) is None:
         return None
-    blend = PATH_TOLERANCE_SHARE * tolerance if q is None or rows is None else blend_tolerance(rows, q, tolerance)
+    blend = (PATH_TOLERANCE_SHARE * tolerance if q is None or rows is None
+             else blend_tolerance(rows, q, tolerance, TCP_PARABOLIC_PATH_TOLERANCE_SHARE))
     return TCPPlanner(tolerance=blend)
 
 

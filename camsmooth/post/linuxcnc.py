@@ -8,7 +8,9 @@ own when camsmooth writes for it.
   camsmooth.constants.PATH_TOLERANCE_SHARE: in LinuxCNC 2.9 a cap on the speed of its XYZ corner
   blends; the block times of camsmooth.controller.blocks hold the tool tip of every servo cycle of
   the planner model within EXECUTED_TOLERANCE_SHARE of T; Q the naive-CAM detector's, q =
-  NAIVE_CAM_TOLERANCE_SHARE, below T).
+  NAIVE_CAM_TOLERANCE_SHARE, below T). Where the controller plan stops each row's entry move
+  (``ControllerPlan.entry_stop``: P over T), ``G61`` (exact path) before the entry move and the
+  ``G64`` line again after it, so that the move ends at rest.
 - Tool-centre-point: LinuxCNC has no standard G-code for it; its shipped five-axis configurations
   (``xyzac-trt.ini``, ``xyzbc-trt.ini``) remap ``M428`` to kinematics type 1 (the trt kinematics)
   and ``M429`` to type 0 (identity), so TCP on is ``M428`` and off ``M429`` (``[post] tcp_on /
@@ -34,7 +36,7 @@ __all__ = ["LINUXCNC", "DIALECTS", "linuxcnc_sense"]
 
 #: the writer's words for LinuxCNC (module docstring)
 LINUXCNC = Words("linuxcnc", paren, ("G21", "G90", "G17", "G40", "G49"), home=("G53 G00 Z0",), tcp_on="M428",
-                 tcp_off="M429", path_tolerance=("G64 P{blend} Q{naive}",))
+                 tcp_off="M429", path_tolerance=("G64 P{blend} Q{naive}",), exact_stop="G61")
 
 
 def linuxcnc_sense(machine: Any) -> np.ndarray:

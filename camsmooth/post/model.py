@@ -48,7 +48,9 @@ class PostProgram:
     tool_text (the header's tool line after 'tool: '), n_points (the points of the method, before a
     controller plan kept some of them as blocks: ``read_gcode`` tells a decimated program by it),
     tolerance (mm): the header; blend_tolerance (mm): the controller's blend tolerance a controller
-    plan was timed with (LinuxCNC ``G64 P``; None: the writer's default share of the tolerance).
+    plan was timed with (LinuxCNC ``G64 P``; None: the writer's default share of the tolerance);
+    entry_stop: the plan stops each row's entry move (``ControllerPlan.entry_stop``), which the
+    writer writes with the dialect's exact stop.
     """
 
     rows: np.ndarray
@@ -67,6 +69,7 @@ class PostProgram:
     block_time: np.ndarray | None = None
     t_opt: np.ndarray | None = None
     blend_tolerance: float | None = None
+    entry_stop: bool = False
 
     def __len__(self) -> int:
         return len(self.rows)

@@ -41,7 +41,9 @@ LinuxCNC "path blending" ``G64 P<s T> Q<q T>`` (P the blending tolerance: a cont
 (``ControllerPlan.blend_tolerance``, camsmooth.controller.blend_tolerance), else s =
 camsmooth.constants.PATH_TOLERANCE_SHARE; the block times of camsmooth.controller.blocks hold the
 tool tip of every servo cycle of the planner model within EXECUTED_TOLERANCE_SHARE of T; Q the
-naive-CAM detector's, q = NAIVE_CAM_TOLERANCE_SHARE, below T);
+naive-CAM detector's, q = NAIVE_CAM_TOLERANCE_SHARE, below T; where the plan stops each row's entry
+move, ``ControllerPlan.entry_stop``, the dialect's exact stop ``G61`` before that move and the
+``G64`` line again after it);
 Heidenhain cycle 32 TOLERANCE (``CYCL DEF 32.0 TOLERANCE`` / ``32.1 T<T>`` / ``32.2 HSC-MODE:0``,
 finishing); Siemens high-speed settings ``CYCLE832(<T>, _FINISH, 1)``; Fanuc AI contour control
 ``G05.1 Q1`` (look-ahead on; the Fanuc tolerance is a machine parameter, not a program word). A
@@ -139,6 +141,7 @@ class Words:
     klartext: bool = False
     percent: bool = False
     path_tolerance: tuple[str, ...] | None = None  # lines setting the path tolerance ({tol}, {blend}, {naive}: mm)
+    exact_stop: str | None = None  # modal exact stop for a plan's entry stop (path_tolerance again after it)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -347,6 +350,9 @@ def _header(dialect: Words, mode: str, machine: Any, program: PostProgram, h: fl
                       "joined by parabolic blends only,"))
         head.append(c("where P caps the blend speed: the block times hold the tool tip within the tolerance at "
                       "every servo cycle"))
+        if getattr(program, "entry_stop", False) and dialect.exact_stop is not None:
+            head.append(c(f"each row's entry move ends at rest: {dialect.exact_stop} before it, the G64 line again "
+                          "after it"))
     return head
 
 
@@ -459,7 +465,11 @@ def write_program(path: str | os.PathLike, program: PostProgram, machine: Any, *
         start = start[:at] + blocks + start[at:]
     lines += start
     coords = np.column_stack([mv.joints[:, :3] if mode == "machine" else mv.tips, np.degrees(mv.joints[:, 3:]) * sign])
-    lines += _blocks(d, mode, mv, coords, F, "XYZ" + "".join(getattr(machine, "rotary", ("A", "B"))))
+    stop = None
+    if getattr(program, "entry_stop", False) and d.exact_stop is not None and program.tolerance is not None:
+        # the entry ends at rest; the path tolerance the program started with is set again after it
+        stop = ([d.exact_stop], _path_tolerance(d, program.tolerance, program.blend_tolerance))
+    lines += _blocks(d, mode, mv, coords, F, "XYZ" + "".join(getattr(machine, "rotary", ("A", "B"))), stop)
     end = _program_end(d, mode, st.tcp_off, program_name)
     if setup is not None and not setup.empty:
         at = len(end) - len(d.home) - len(d.end) - int(d.klartext) - int(d.percent)
@@ -473,11 +483,13 @@ def write_program(path: str | os.PathLike, program: PostProgram, machine: Any, *
     return path
 
 
-def _blocks(d: Words, mode: str, mv: Any, coords: np.ndarray, F: np.ndarray, letters: str = "XYZAB") -> list[str]:
+def _blocks(d: Words, mode: str, mv: Any, coords: np.ndarray, F: np.ndarray, letters: str = "XYZAB",
+            entry_stop: tuple[list[str], list[str]] | None = None) -> list[str]:
     """One formatted line per block (numbers formatted as whole columns by polars, not one by
     one), with a comment line at each row's start; ``letters`` the address of each coordinate
     column (X Y Z and the machine's rotary axes). F is modal in G94 and in Klartext: written when
-    it changes or after a rapid; in G93 every feed block carries its own."""
+    it changes or after a rapid; in G93 every feed block carries its own. entry_stop: the lines
+    written before and after each row's first feed move (its entry), which then ends at rest."""
     import polars as pl
 
     n = len(coords)
@@ -509,7 +521,12 @@ def _blocks(d: Words, mode: str, mv: Any, coords: np.ndarray, F: np.ndarray, let
         if a_ in starts:
             row, cnt = starts[a_]
             out.append(d.comment(f"row {row}: {cnt} points"))
-        out.extend(block[a_:b_])
+        feed = a_ + np.flatnonzero(~rapid[a_:b_])
+        if entry_stop is not None and a_ in starts and len(feed):
+            e = int(feed[0])
+            out.extend(block[a_:e] + entry_stop[0] + block[e:e + 1] + entry_stop[1] + block[e + 1:b_])
+        else:
+            out.extend(block[a_:b_])
     return out
 
 
@@ -565,13 +582,19 @@ def _program_open(d: Words, name: str) -> list[str]:
     return []
 
 
+def _path_tolerance(d: Words, tolerance: float, blend: float | None = None) -> list[str]:
+    """The dialect's path-tolerance lines for the user's ``tolerance`` (mm) and the controller's
+    blend tolerance ``blend`` (mm; None: PATH_TOLERANCE_SHARE of the tolerance); [] without any."""
+    if d.path_tolerance is None:
+        return []
+    p = PATH_TOLERANCE_SHARE * tolerance if blend is None else blend
+    words = _fixed(np.array([tolerance, p, NAIVE_CAM_TOLERANCE_SHARE * tolerance]), 4)
+    return [ln.format(tol=words[0], blend=words[1], naive=words[2]) for ln in d.path_tolerance]
+
+
 def _program_start(d: Words, mode: str, tcp_on: str | None, tool: int, tolerance: float | None = None,
                    blend: float | None = None) -> list[str]:
-    tol: list[str] = []
-    if tolerance is not None and d.path_tolerance is not None:
-        p = PATH_TOLERANCE_SHARE * tolerance if blend is None else blend
-        words = _fixed(np.array([tolerance, p, NAIVE_CAM_TOLERANCE_SHARE * tolerance]), 4)
-        tol = [ln.format(tol=words[0], blend=words[1], naive=words[2]) for ln in d.path_tolerance]
+    tol = [] if tolerance is None else _path_tolerance(d, tolerance, blend)
     if d.klartext:
         out = [f"TOOL CALL {tool} Z"] + tol
         if mode == "tcp":
