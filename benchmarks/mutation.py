@@ -1443,8 +1443,8 @@ _equivalent(_BLK, "block_reach", [
     "one is within reach): the answers do not depend on it (tests/test_floor.py checks them against every "
     "segment by brute force with random fractions)")
 _equivalent(_BLK, "_hold_row", [
-    "split = (_chord_deviation(machine, q, k, path, at) > _SPLIT_SHARE * limit) & (np.diff(k) > 1) -> "
-    "split = (_chord_deviation(machine, q, k, path, at) >= _SPLIT_SHARE * limit) & (np.diff(k) > 1)"], _WHY_EQ)
+    "cut = (_chord_deviation(machine, q, k, path, at) > _SPLIT_SHARE * limit) & (np.diff(k) > 1) -> "
+    "cut = (_chord_deviation(machine, q, k, path, at) >= _SPLIT_SHARE * limit) & (np.diff(k) > 1)"], _WHY_EQ)
 _equivalent(_BLK, "predict", ["bt = np.zeros(0) -> bt = np.zeros(1)"],
             "bt keeps this value only for a row of one kept point, where block_time[k[1:]] selects nothing and one "
             "value broadcast to no entries changes nothing")

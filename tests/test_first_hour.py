@@ -305,9 +305,18 @@ def other_linuxcnc():
     shutil.rmtree(d, ignore_errors=True)
 
 
-def _pids(name: str) -> set[int]:
+def _pids(name: str, session: int | None = None) -> set[int]:
+    """The pids of the processes called ``name``; with ``session``, only those of that session
+    (another simulation of the suite, running beside it, has its own)."""
     out = subprocess.run(["pidof", name], capture_output=True, text=True).stdout
-    return {int(p) for p in out.split()}
+
+    def sid(p: int) -> int | None:
+        try:
+            return os.getsid(p)
+        except OSError:  # gone since pidof
+            return None
+
+    return {int(p) for p in out.split() if session is None or sid(int(p)) == session}
 
 
 @pytest.mark.skipif(_linuxcnc_ready() is not None, reason=f"LinuxCNC simulation not isolable: {_linuxcnc_ready()}")
@@ -318,14 +327,16 @@ def test_simulation_runs_beside_another_linuxcnc_and_leaves_it_running(other_lin
     simulation's HAL memory)."""
     from camsmooth.controller.linuxcnc_sim import LINUXCNC_LOCK, simulate
 
-    before = _pids("milltask")
+    before = _pids("milltask", other_linuxcnc.pid)
+    assert before
     prog = tmp_path / "move.ngc"
     prog.write_text("G21 G90\nG01 X10 F600\nM30\n")
     run = simulate(prog, _default_linuxcnc_machine(), timeout=60)
     moving = np.flatnonzero(np.abs(np.diff(run.joints[:, 0])) > 0)
     assert run.joints[-1, 0] == pytest.approx(10.0, abs=1e-6)
     assert (moving[-1] - moving[0] + 1) * run.servo_period >= 1.0  # at least 10 mm / (600 mm/min)
-    assert other_linuxcnc.poll() is None and LINUXCNC_LOCK.exists() and before <= _pids("milltask")
+    assert other_linuxcnc.poll() is None and LINUXCNC_LOCK.exists()
+    assert before <= _pids("milltask", other_linuxcnc.pid)
 
 
 @pytest.mark.skipif(_linuxcnc_ready() is not None, reason=f"LinuxCNC simulation not isolable: {_linuxcnc_ready()}")
