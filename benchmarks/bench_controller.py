@@ -77,7 +77,7 @@ from camsmooth.machine.kinematics import (  # noqa: E402
 from camsmooth.post import load_program  # noqa: E402
 from camsmooth.smoothing.cam import cam_program  # noqa: E402
 from camsmooth.smoothing.evaluate import time_law  # noqa: E402
-from camsmooth.smoothing.pipeline import smooth  # noqa: E402
+from camsmooth.smoothing.pipeline import SmoothOptions, smooth  # noqa: E402
 from camsmooth.smoothing.posting import write_gcode  # noqa: E402
 
 TOLERANCE = 0.005
@@ -126,9 +126,11 @@ def cam_clsf(path: CCPath, cutter: ToroidalCutter, lead_deg: float = 11.0) -> st
     return "\n".join(lines + ["END-OF-PATH"]) + "\n"
 
 
-def smoothed(sample: str, rows: int, methods: list[str], machine_file: Path | None = None, machine=None):
+def smoothed(sample: str, rows: int, methods: list[str], machine_file: Path | None = None, machine=None,
+             hold_feed: bool = False):
     """(machine, cutter, SmoothResult) of ``rows`` rows from the middle of the sample's path,
-    smoothed for LinuxCNC (``machine``, default ``linuxcnc_machine``) at 2000 mm/min and TOLERANCE."""
+    smoothed for LinuxCNC (``machine``, default ``linuxcnc_machine``) at 2000 mm/min and TOLERANCE
+    (``hold_feed``: SmoothOptions.hold_feed)."""
     machine = machine or linuxcnc_machine(sample, machine_file)
     shipped = ROOT / "surfaces" / f"{sample}.toml"
     if shipped.exists():
@@ -152,13 +154,13 @@ def smoothed(sample: str, rows: int, methods: list[str], machine_file: Path | No
             program = cam_program(load_program(cls), MeshIndex(surf.mesh), cutter, TOLERANCE)
     res = smooth(program, surf, machine, cutter, feed=2000.0,
                  lead_range=tuple(np.radians([2.0, 20.0])), tilt_range=tuple(np.radians([-15.0, 15.0])),
-                 method="nlp", tolerance=TOLERANCE)
+                 method="nlp", tolerance=TOLERANCE, options=SmoothOptions(hold_feed=hold_feed))
     return machine, cutter, res
 
 
-def run(sample: str, rows: int, methods: list[str], keep: Path | None, machine_file: Path | None = None
-        ) -> list[dict]:
-    machine, cutter, res = smoothed(sample, rows, methods, machine_file)
+def run(sample: str, rows: int, methods: list[str], keep: Path | None, machine_file: Path | None = None,
+        hold_feed: bool = False) -> list[dict]:
+    machine, cutter, res = smoothed(sample, rows, methods, machine_file, hold_feed=hold_feed)
     out = []
     for m in methods:
         r = res.methods[m]
@@ -173,12 +175,21 @@ def run(sample: str, rows: int, methods: list[str], keep: Path | None, machine_f
             sim = simulate(ngc, machine, keep=(keep / f"{sample}_{m}") if keep else None)
             wall = time.time() - t0
             text = ngc.read_text()
+        joints = camsmooth_joints(machine, sim.joints)
+        tips = machine.tool_pose_np(joints[:, 3], joints[:, 4], joints[:, 0], joints[:, 1], joints[:, 2])[0]
+        speed = np.r_[0.0, np.linalg.norm(np.diff(tips, axis=0), axis=1)] * 60.0 / sim.servo_period / 2000.0
+        cut = row_samples(text, sim)
+        fpk = r.controller.row_feed_peak
         for x in row_runs(machine, r, text, sim):
             sel = r.rows == x.row
+            j = list(r.controller.row_ids).index(x.row)
             out.append(dict(sample=sample, method=m, row=x.row, executed=x.executed, predicted=x.predicted,
                             optimal=x.optimal, bound=float(bound[x.row]), deviation_um=1e3 * x.deviation,
                             model_deviation_um=1e3 * float(model_dev[x.row]),
-                            blocks=int(r.controller.keep[sel].sum() - 1), points=int(sel.sum()), wall=wall))
+                            blocks=int(r.controller.keep[sel].sum() - 1), points=int(sel.sum()), wall=wall,
+                            tip_feed=float(speed[cut[x.row]].max()),
+                            # the model's ratio where past the feed, 0 where within (nan: no feed given)
+                            model_tip_feed=float(fpk[j]) if fpk is not None else float("nan")))
     return out
 
 
@@ -283,6 +294,8 @@ def main() -> None:
     ap.add_argument("--keep", type=Path, default=None, help="folder to keep the simulations' files in")
     ap.add_argument("--machine", type=Path, default=None,
                     help="run every sample on this machine file (e.g. surfaces/nutating_machine.toml)")
+    ap.add_argument("--hold-feed", action="store_true",
+                    help="smooth with SmoothOptions.hold_feed (machine mode): the tool tip held within the feed")
     ap.add_argument("--mode", choices=("machine", "tcp"), default="machine",
                     help="tcp: TCP mode beside machine mode per row (the dome on its A/C trunnion, the other samples "
                          "on a B/C trunnion with the dome's limits; nlp only)")
@@ -296,15 +309,15 @@ def main() -> None:
     print(f"LinuxCNC simulation, tolerance {TOLERANCE} mm, servo period 1 ms")
     print(f"{'sample':8s} {'method':7s} {'row':>4s} {'points':>6s} {'blocks':>6s} {'executed s':>10s} "
           f"{'predicted s':>11s} {'pred/exec-1':>11s} {'optimal s':>9s} {'exec/opt':>8s} {'bound/opt':>9s} "
-          f"{'exec/floor':>10s} {'tip dev um':>10s} {'model um':>8s}")
+          f"{'exec/floor':>10s} {'tip dev um':>10s} {'model um':>8s} {'tip/F':>6s} {'model':>6s}")
     totals: dict[tuple[str, str], list[float]] = {}
     for sample in args.samples.split(","):
-        for row in run(sample, args.rows, args.methods.split(","), args.keep, args.machine):
+        for row in run(sample, args.rows, args.methods.split(","), args.keep, args.machine, args.hold_feed):
             print(f"{row['sample']:8s} {row['method']:7s} {row['row']:4d} {row['points']:6d} {row['blocks']:6d} "
                   f"{row['executed']:10.3f} {row['predicted']:11.3f} {row['predicted'] / row['executed'] - 1:+11.2%} "
                   f"{row['optimal']:9.3f} {row['executed'] / row['optimal']:8.2f} {row['bound'] / row['optimal']:9.2f} "
                   f"{row['executed'] / row['bound']:10.3f} {row['deviation_um']:10.2f} "
-                  f"{row['model_deviation_um']:8.2f}")
+                  f"{row['model_deviation_um']:8.2f} {row['tip_feed']:6.2f} {row['model_tip_feed']:6.2f}")
             t = totals.setdefault((row["sample"], row["method"]), [0.0, 0.0, 0.0, 0.0, 0.0])
             t[0] += row["executed"]
             t[1] += row["predicted"]

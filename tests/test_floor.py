@@ -275,3 +275,44 @@ def test_a_stopped_entry_is_written_with_g61_and_the_g64_line_again(blade_rows, 
         first = next(j for j in range(i, len(lines)) if lines[j].startswith("G01"))
         assert lines[first - 1] == "G61" and lines[first + 1] == g64[0], lines[i:first + 2]
     assert any("entry move ends at rest: G61 before it" in ln for ln in lines[:40])
+
+
+def test_the_tip_past_the_programmed_feed_is_reported_and_held_on_request(blade_rows, capsys):
+    """In a parabolic blend both blocks move, so LinuxCNC can take the tool tip faster than the
+    programmed feed. For the two blade rows: the plan's row_feed_peak equals the tip's largest speed
+    over the feed recomputed here (forward kinematics of the model's joints at every servo cycle
+    after the entry, finite differences) and is past 1.01 somewhere; smooth's summary warns with it.
+    With hold_feed every row's tip stays within the feed (0.1% for a rest stop's one-cycle step), at
+    a longer cycle time."""
+    from camsmooth.cli.main import _print_summary
+    from camsmooth.smoothing.evaluate import time_law
+
+    m, r = blade_rows.machine, blade_rows.methods["nlp"]
+    q = _joints(r)
+    feed = np.full(len(q), FEED)
+
+    def tip_speeds(plan) -> np.ndarray:
+        p = planner_for(m, TOL, r.rows, q)
+        out = []
+        for row in np.unique(r.rows):
+            sel = np.flatnonzero(r.rows == row)
+            k = sel[plan.keep[sel]]
+            entry_q, entry_time = row_entry(m, q[sel[0]], ENTRY_MM, FEED)
+            run, joints = p.row_run(m, q[k], plan.block_time[k[1:]], entry_q, entry_time)
+            tips = fk_tips(m, np.vstack([entry_q[None, :], joints]))
+            v = np.linalg.norm(np.diff(tips, axis=0), axis=1) / 1e-3 * 60.0 / FEED
+            out.append(v[run.head >= 1].max())
+        return np.array(out)
+
+    free = time_law(m, r.rows, q, r.cl, feed, tolerance=TOL, plan=r.plan)
+    got = tip_speeds(free.controller)
+    assert got.max() > 1.01
+    assert np.allclose(free.controller.row_feed_peak, np.where(got > 1.0, got, 0.0), rtol=1e-9, atol=1e-9)
+    held = time_law(m, r.rows, q, r.cl, feed, tolerance=TOL, plan=r.plan, hold_feed=True)
+    assert tip_speeds(held.controller).max() <= 1.001
+    assert held.controller.cycle_time > free.controller.cycle_time
+    _print_summary(blade_rows)
+    err = capsys.readouterr().err
+    fp = r.metrics.controller_feed_peak
+    assert fp is not None and fp.ratio == pytest.approx(got.max(), rel=1e-6)
+    assert f"take the tool tip to {fp.ratio:.3g} of the programmed feed (row {fp.row};" in err

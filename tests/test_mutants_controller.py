@@ -639,7 +639,7 @@ class _FakePlanner:
         k = len(end)
         run = SimpleNamespace(end=end, head=np.arange(k), following=np.arange(1, k + 1),
                               following_fraction=np.zeros(k))
-        return run, np.vstack([entry[None, :], q_blocks])
+        return run, np.asarray(q_blocks, float)  # one "servo cycle" per segment, at its end (the protocol's layout)
 
 
 def test_place_takes_the_planner_ends_only_when_the_model_runs_them_faster():

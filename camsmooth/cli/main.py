@@ -155,7 +155,7 @@ def run_smooth(args: argparse.Namespace) -> int:
         gcode = tx.file(args.gcode) if args.gcode else None
         report = tx.folder(args.report, replace=args.force, keep=inputs) if args.report else None
         options = SmoothOptions(workers=args.workers, dask=args.dask,  # workers None: all cores when worth it
-                                max_scallop=args.max_scallop)
+                                max_scallop=args.max_scallop, hold_feed=args.hold_feed)
         surface, machine = load_part(args), load_machine(args.machine)  # STEP, mesh or definition
         program, cutter = load_input(args, surface, machine)
         result = smooth(program, surface, machine, cutter,
@@ -305,6 +305,11 @@ def _print_summary(result) -> None:
             print(f"camsmooth: warning: {name}: row {peak.row}: the {r.metrics.controller} planner takes "
                   f"{peak.axis} to {peak.ratio:.3g} of its velocity or acceleration limit where two blocks blend "
                   f"(its own parabolic blend, as its model runs the program)", file=sys.stderr)
+        fp = getattr(r.metrics, "controller_feed_peak", None)
+        if fp is not None:
+            print(f"camsmooth: warning: {name}: the {r.metrics.controller} planner's blends take the tool tip to "
+                  f"{fp.ratio:.3g} of the programmed feed (row {fp.row}; {fp.rows} row{'s' * (fp.rows > 1)} more "
+                  f"than 1% past it); smooth --hold-feed holds the blocks so that it does not", file=sys.stderr)
         for miss in getattr(r.metrics, "scallop_missed", []):
             print(f"camsmooth: warning: {name}: row {miss.row}: finish budget missed at {miss.points} point"
                   f"{'s' * (miss.points > 1)}: scallop {miss.scallop_um:.4g} um against {miss.budget_um:.4g} um at "
@@ -613,6 +618,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "(from the cutter's effective radius at its lead and tilt, the surface's curvature and the "
                    "stepover measured on the path); with a CAM program, nlp is also held to the CAM's own scallop "
                    "plus the tolerance; rows that cannot meet it are named with the size")
+    p.add_argument("--hold-feed", action="store_true",
+                   help="on a controller camsmooth models (LinuxCNC): hold the blocks so that its planner's blends "
+                   "never take the tool tip faster than the programmed feed (by default they may, and smooth says "
+                   "by how much; holding costs cycle time)")
     p.add_argument("--workers", type=number(ge=1, le=1024, integer=True, unit=""), default=None, metavar="N",
                    help="processes for the rows (default: all cores for programs of 5000 points or more)")
     p.add_argument("--dask", default=None, metavar="ADDRESS",

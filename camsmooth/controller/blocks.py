@@ -36,8 +36,8 @@ from camsmooth.constants import WRITTEN_DECIMALS
 from camsmooth.geometry.paths import _row_runs
 from camsmooth.machine.kinematics import Machine, axis_limits
 
-__all__ = ["BLOCK_TOLERANCE_SHARE", "MAX_BLOCK_POINTS", "block_reach", "rotary_turns", "decimate", "place", "row_entry",
-           "ControllerPlan", "Planner", "predict", "joint_ratio"]
+__all__ = ["BLOCK_TOLERANCE_SHARE", "MAX_BLOCK_POINTS", "block_reach", "rotary_turns", "tip_speed_over", "decimate",
+           "place", "row_entry", "ControllerPlan", "Planner", "predict", "joint_ratio"]
 
 #: share of the user's tolerance the longer blocks may use: their tip curves keep every dropped tip
 #: this close; the blends then get what is left up to EXECUTED_TOLERANCE_SHARE, checked on the
@@ -307,7 +307,8 @@ def row_entry(machine: Machine, q: np.ndarray, entry_height: float, entry_feed: 
 
 
 def place(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray, t_opt: np.ndarray,
-          tolerance: float, *, entry_height: float, entry_feed: np.ndarray, real: Machine | None = None) -> np.ndarray:
+          tolerance: float, *, entry_height: float, entry_feed: np.ndarray, real: Machine | None = None,
+          hold_feed: np.ndarray | None = None) -> np.ndarray:
     """Points that end a block (bool (N,)), chosen against the planner model's executed time: among
     the blocks that keep the skipped tips within ``BLOCK_TOLERANCE_SHARE * tolerance`` (mm) on
     ``real`` (the machine the tips are on, default ``machine``; ``block_reach``), the block ends the
@@ -315,7 +316,9 @@ def place(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray, t
     row where the model runs them faster than ``decimate``'s longest blocks (else those), both
     timed as ``predict`` times them: with their blends held within the tolerance (``_hold_row``).
     t_opt: (N,) s from each row's start, the law whose differences the blocks command; rows are
-    entered as ``predict`` enters them (entry_height mm, entry_feed (R,) mm/min)."""
+    entered as ``predict`` enters them (entry_height mm, entry_feed (R,) mm/min); hold_feed (N,)
+    mm/min: the programmed tip feed the held times also keep the tool tip within (``predict``;
+    None: not held)."""
     rows = np.asarray(rows)
     q = np.asarray(q, float)
     t_opt = np.asarray(t_opt, float)
@@ -330,7 +333,8 @@ def place(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray, t
         a, b = starts[r], ends[r]
         entry_q, entry_time = row_entry(machine, q[a], entry_height, float(entry_feed[r]))
         path, at = _tip_polyline(machine, q[a:b], tool_tips(machine, entry_q[None, :])[0], 4, np.radians(0.25))
-        return _hold_row(planner, machine, q[a:b], k - a, t_opt[a:b], entry_q, entry_time, path, at, limit)[2][-1]
+        return _hold_row(planner, machine, q[a:b], k - a, t_opt[a:b], entry_q, entry_time, path, at, limit,
+                         over_limits=_feed_check(planner, machine, entry_q, hold_feed, a, b))[2][-1]
 
     return sooner_blocks(planner, machine, rows, q, t_opt, ok, keep,
                          lambda r, a: row_entry(machine, q[a], entry_height, float(entry_feed[r])), held)
@@ -389,7 +393,10 @@ class ControllerPlan:
     ends at rest (LinuxCNC ``G61`` for it, which the program must be written with); row_joint_peak: (R, 5), per row and
     joint (X Y Z and the rotary axes) the larger of its largest |velocity| / vmax and |acceleration|
     / amax over the planner model's servo cycles (None: not computed): above 1 the controller's own
-    planner takes the joint past its limit (LinuxCNC where two blocks overlap in a blend).
+    planner takes the joint past its limit (LinuxCNC where two blocks overlap in a blend);
+    row_feed_peak: (R,) the tool tip's largest speed over the row's programmed feed at the model's
+    servo cycles after the entry (0 where within, None where the feed was not given): in a
+    parabolic blend both blocks move, and the tip can go faster than either commands.
     """
 
     controller: str
@@ -405,6 +412,7 @@ class ControllerPlan:
     blend_tolerance: float | None = None
     entry_stop: bool = False
     row_joint_peak: np.ndarray | None = None
+    row_feed_peak: np.ndarray | None = None
 
     @property
     def floor(self) -> float | None:
@@ -469,6 +477,10 @@ _ROUNDS = 30
 _SPLIT_SHARE = 0.99
 #: factor a block is lengthened by per round while the run takes a coordinate past its limit during it
 _LIMIT_STEP = 1.1
+#: share a servo cycle's tool-tip speed may exceed the programmed feed by (a rest stop's one-cycle step)
+_FEED_SLACK = 1e-3
+#: rounds in a row in which over_limits' largest ratio does not come down before that hold stops
+_STALLED = 3
 
 
 def _blend_excess(run: RowRun, dev: np.ndarray, limit: float, n_blocks: int, following: bool = False) -> np.ndarray:
@@ -483,6 +495,40 @@ def _blend_excess(run: RowRun, dev: np.ndarray, limit: float, n_blocks: int, fol
         np.maximum.at(worst, np.minimum(seg, n_blocks + 1), dev[over])
     worst[1] = max(worst[1], worst[0])
     return worst[1:n_blocks + 1]
+
+
+def tip_speed_over(machine: Machine, run: RowRun, joints: np.ndarray, entry_q: np.ndarray, period: float,
+                   feed: float, slack: float = 1e-3) -> np.ndarray:
+    """Per block of a row run (n_blocks,), the tool tip's largest speed over ``feed`` (mm/min, the
+    row's programmed feed) at the servo cycles the block moves in (executing or blended into), 0
+    where within ``slack`` (a rest stop's one-cycle step). In a parabolic blend both blocks move: where the one blended
+    into accelerates faster than the other decelerates, their speeds add up past either's (the tip
+    at 1.39 of the feed on a saddle row, 1.55 on a blade row, on the planner model). The entry move
+    (the run's first segment, at its own feed) is not counted. joints (K, 5) X Y Z mm, rotary rad
+    at the end of each servo cycle of ``period`` s, the row entered from rest at entry_q."""
+    n = len(run.end) - 1
+    tips = tool_tips(machine, np.vstack([np.asarray(entry_q, float)[None, :], joints]))
+    speed = np.linalg.norm(np.diff(tips, axis=0), axis=1) * 60.0 / period / float(feed)
+    cyc = np.flatnonzero((speed > 1.0 + slack) & (run.head >= 1))
+    out = np.zeros(n + 2)
+    for seg in (run.head[cyc], np.where(run.following_fraction[cyc] > 0, run.following[cyc], run.head[cyc])):
+        np.maximum.at(out, np.minimum(seg, n + 1), speed[cyc])
+    return out[1:n + 1]
+
+
+def _feed_check(planner: Planner, machine: Machine, entry_q: np.ndarray, feed: np.ndarray | None, a: int, b: int,
+                slack: float | None = None) -> Callable[[RowRun, np.ndarray], np.ndarray] | None:
+    """``_hold_row``'s over_limits for the row of points a:b: ``tip_speed_over`` against the row's
+    programmed feed (mm/min, its largest; None where the feed is not known); slack as there."""
+    if feed is None:
+        return None
+    f = np.asarray(feed, float)[a:b]
+    f = f[np.isfinite(f) & (f > 0)]
+    if not len(f):
+        return None
+    period = float(getattr(planner, "servo_period", 1e-3))
+    return lambda run, joints: tip_speed_over(machine, run, joints, entry_q, period, float(f.max()),
+                                              _FEED_SLACK if slack is None else slack)
 
 
 def _hold_row(planner: Planner, machine: Machine, q: np.ndarray, k: np.ndarray, t_opt: np.ndarray,
@@ -505,7 +551,8 @@ def _hold_row(planner: Planner, machine: Machine, q: np.ndarray, k: np.ndarray, 
     machine's forward kinematics of joints; TCP mode: the world coordinates' first three);
     over_limits(run, positions): (n_blocks,) per block the largest ratio of a coordinate's
     acceleration (or velocity) to its limit while the block moves (None: not checked); a block
-    over 1 is lengthened by _LIMIT_STEP per round for as long as the largest ratio comes down.
+    over 1 is lengthened by _LIMIT_STEP per round until the largest ratio has not come down for
+    _STALLED rounds in a row.
     Returns k, the block times (s), the blocks' end times (s from the row's start, starting with
     0) and the largest deviation of the last run (mm, 0 when not checked)."""
     tips = tips or (lambda joints: tool_tips(machine, joints))
@@ -517,7 +564,8 @@ def _hold_row(planner: Planner, machine: Machine, q: np.ndarray, k: np.ndarray, 
     bt = np.diff(t_opt[k])
     worst = 0.0
     both = False
-    peak: float | None = np.inf  # over_limits' largest ratio in the last round (None: no longer held)
+    peak: float | None = np.inf  # over_limits' lowest largest ratio so far (None: no longer held)
+    stalled = 0  # rounds since it last came down
     for _ in range(_ROUNDS if path is not None or over_limits is not None else 1):
         run, joints = planner.row_run(machine, q[k], bt, entry_q, entry_time)
         excess = np.zeros(len(bt))
@@ -532,10 +580,11 @@ def _hold_row(planner: Planner, machine: Machine, q: np.ndarray, k: np.ndarray, 
         if over_limits is not None and peak is not None:
             ratio = over_limits(run, joints)
             top = float(ratio.max(initial=0.0))
-            if top >= peak:  # lengthening does not bring it down: leave the blocks as they are
+            stalled = stalled + 1 if top >= peak else 0
+            if stalled >= _STALLED:  # lengthening does not bring it down: leave the blocks as they are
                 peak = None
             else:
-                over, peak = ratio > 1.0, top
+                over, peak = ratio > 1.0, min(top, peak)
         if not excess.any() and not over.any():
             break
         # the controller runs short five-axis blocks slower than commanded: slow down from what it did
@@ -578,7 +627,8 @@ def points_timing(s: np.ndarray, k: np.ndarray, tk: np.ndarray, tip_k: np.ndarra
 
 def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
             t_opt: np.ndarray, keep: np.ndarray, *, entry_height: float, entry_feed: np.ndarray,
-            tolerance: float | None = None, feed: np.ndarray | None = None) -> ControllerPlan:
+            tolerance: float | None = None, feed: np.ndarray | None = None, hold_feed: bool = False
+            ) -> ControllerPlan:
     """The controller's timing of a program written in the blocks ``keep`` with the block times
     of the time-optimal law ``t_opt`` (s from each row's start). q: (N, 5) X Y Z mm A B rad;
     tip: (N, 3) mm. Each row is entered by a feed move of ``entry_height`` mm along the tool axis
@@ -604,6 +654,7 @@ def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray,
     row_cycle = np.zeros(len(starts))
     row_dev = np.zeros(len(starts))
     peak = np.zeros((len(starts), 5))
+    feed_peak = np.full(len(starts), np.nan)
     at = np.zeros(n, np.int64)  # per point, its vertex in its row's programmed tip path
     for r, (a, b) in enumerate(zip(starts, ends, strict=True)):
         k = a + np.flatnonzero(keep[a:b])
@@ -616,13 +667,18 @@ def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray,
                 path, at[a:b] = _tip_polyline(machine, q[a:b], tool_tips(machine, entry_q[None, :])[0], 4,
                                               np.radians(0.25))
             limit = EXECUTED_TOLERANCE_SHARE * float(tolerance or 0.0)
-            k, bt, tk, row_dev[r] = _hold_row(planner, machine, q, k, t_opt, entry_q, entry_time, path, at, limit)
+            k, bt, tk, row_dev[r] = _hold_row(planner, machine, q, k, t_opt, entry_q, entry_time, path, at, limit,
+                                              over_limits=_feed_check(planner, machine, entry_q,
+                                                                      prog_feed if hold_feed else None, a, b))
             keep[k] = True
-            _, joints = planner.row_run(machine, q[k], bt, entry_q, entry_time)
+            run, joints = planner.row_run(machine, q[k], bt, entry_q, entry_time)
             # over 5 cycles: an overlap of two blends lasts; a segment ending inside a cycle is a one-cycle step.
             # From the entry's start, where the row's motion starts at rest
             period = getattr(planner, "servo_period", 1e-3)
             peak[r] = joint_ratio(machine, np.vstack([entry_q[None, :], joints]), period, stride=5).max(axis=0)
+            speed = _feed_check(planner, machine, entry_q, prog_feed, a, b, slack=0.0)
+            if speed is not None:
+                feed_peak[r] = float(speed(run, joints).max(initial=0.0))
         block_time[k[1:]] = bt
         # points inside a block: by their share of the block's pivot travel
         s = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(q[a:b, :3], axis=0), axis=1))]
@@ -636,4 +692,5 @@ def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray,
                           cycle_time=float(row_cycle.sum()), row_deviation=row_dev,
                           row_floor=None if floor is None else np.asarray(floor, float),
                           blend_tolerance=getattr(planner, "tolerance", None),
-                          entry_stop=bool(getattr(planner, "entry_stop", False)), row_joint_peak=peak)
+                          entry_stop=bool(getattr(planner, "entry_stop", False)), row_joint_peak=peak,
+                          row_feed_peak=None if prog_feed is None else feed_peak)

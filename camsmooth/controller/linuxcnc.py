@@ -39,7 +39,10 @@ modelled with the same parabolic blend (LinuxCNC would join them tangentially or
 is faster), so the model is conservative there. The ``G64 P`` tolerance caps the blend speed at
 ``2 sqrt(a/2 P / cos(theta))`` (theta half the turn between the two segments' XYZ directions):
 in the joints of a five-axis row consecutive blocks turn by a few degrees, so at a small P this
-cap, not the blocks, sets the pace (camsmooth.constants.PATH_TOLERANCE_SHARE).
+cap, not the blocks, sets the pace (camsmooth.constants.PATH_TOLERANCE_SHARE; where every move
+turns a rotary axis P is PARABOLIC_PATH_TOLERANCE_SHARE of the tolerance, ``blend_tolerance``). A
+stop after a segment (a mode change, ``G61`` for a row's entry move: ``LinuxCNCPlanner.entry_stop``)
+ends it at rest and starts the next from rest.
 """
 
 from __future__ import annotations

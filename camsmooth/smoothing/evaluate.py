@@ -97,14 +97,16 @@ def _row_ends(t: np.ndarray, rows: np.ndarray) -> np.ndarray:
 
 def time_law(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray, feed: np.ndarray | None, *,
              tolerance: float, plan: FeedPlan | None = None, t_plan: np.ndarray | None = None,
-             keep: np.ndarray | None = None, real: Machine | None = None) -> TimeLaw:
+             keep: np.ndarray | None = None, real: Machine | None = None, hold_feed: bool = False) -> TimeLaw:
     """The program's time law (module docstring). rows (N,), q (N, 5) X Y Z mm A B rad, tip (N, 3)
     mm, feed (N,) programmed tip feed mm/min (None: unknown, then ``t_plan`` must be given).
     plan: an already computed time-optimal plan (else planned here); t_plan: the law the program
     itself commands (a written program's block times), used instead of the plan's; keep: the
     points that end a controller block (None: camsmooth.controller.place, as the writer
     does); real: the machine the tips are decimated on (an error model's, default ``machine``);
-    tolerance: mm, the user's."""
+    tolerance: mm, the user's; hold_feed: the controller's blocks are also held so that its model's
+    tool tip never goes faster than the programmed feed (its blends can take it past; the plan's
+    ``row_feed_peak`` says by how much when not held)."""
     from camsmooth.constants import DEFAULT_SAFE_HEIGHT_MM
     from camsmooth.controller import place, planner_for, predict
     from camsmooth.controller.tcp import tcp_planner_for
@@ -134,9 +136,10 @@ def time_law(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
         keep_given = keep
         if keep is None:  # the blocks the controller runs soonest (camsmooth.controller.place)
             keep = place(planner, machine, rows, q, tip, t_plan, tolerance, entry_height=DEFAULT_SAFE_HEIGHT_MM,
-                         entry_feed=entry, real=real)
+                         entry_feed=entry, real=real, hold_feed=feed if hold_feed else None)
         ctrl = predict(planner, machine, rows, q, tip, t_plan, np.asarray(keep, bool),
-                       entry_height=DEFAULT_SAFE_HEIGHT_MM, entry_feed=entry, tolerance=tolerance, feed=feed)
+                       entry_height=DEFAULT_SAFE_HEIGHT_MM, entry_feed=entry, tolerance=tolerance, feed=feed,
+                       hold_feed=hold_feed)
         law.update(controller=ctrl, cycle_time=float(ctrl.cycle_time), row_cycle_time=np.asarray(ctrl.row_cycle_time))
         tcp_planner = tcp_planner_for(machine, tolerance, rows, q) if keep_given is None else None
         if tcp_planner is not None:  # TCP mode beside machine mode; the written mode's plan is the controller's

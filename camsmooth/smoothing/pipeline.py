@@ -51,6 +51,7 @@ from camsmooth.smoothing.orientation import (
 from camsmooth.smoothing.parallel import RowPool, default_workers
 from camsmooth.smoothing.pole import PolePassage, find_passages, pole_start
 from camsmooth.smoothing.result import (
+    FeedPeak,
     JointPeak,
     MethodResult,
     Metrics,
@@ -89,7 +90,10 @@ class SmoothOptions:
     ``if __name__ == "__main__":`` guard, which is why the API's default is one. max_scallop (mm):
     the scallop 'nlp' may leave at any point (camsmooth.smoothing.finish; None: no bound);
     cam_scallop: when the input is a CAM program with its own axes, 'nlp''s scallop may exceed the
-    CAM program's at no point by more than the tolerance (the tighter of the two applies)."""
+    CAM program's at no point by more than the tolerance (the tighter of the two applies);
+    hold_feed: on a controller camsmooth models (LinuxCNC), the blocks are also held so that its
+    planner's blends never take the tool tip faster than the programmed feed (they can: in a
+    parabolic blend both blocks move; camsmooth.controller.blocks.tip_speed_over)."""
 
     spline_step: int = 10
     rows: RowOptions = field(default_factory=RowOptions)
@@ -97,6 +101,7 @@ class SmoothOptions:
     dask: str | None = None
     max_scallop: float | None = None  # mm: the finish budget of 'nlp' at every point (camsmooth.smoothing.finish)
     cam_scallop: bool = True  # with a CAM program: 'nlp' no rougher than it anywhere, within the tolerance
+    hold_feed: bool = False  # a modelled controller's blends kept from taking the tool tip past the programmed feed
 
 
 def row_times(points: np.ndarray, feed_mm_min: np.ndarray) -> np.ndarray:
@@ -474,7 +479,8 @@ class ProgramSmoother:
         parts = [(p.path.rows[a:b], q[a:b], tip[a:b], p.feed[a:b]) for a, b in zip(cuts[:-1], cuts[1:], strict=True)]
         plans = [x for part in self.pool.map(plan_chunk, parts) for x in part]
         plan = combine([int(p.path.rows[s.start]) for s in p.slices], plans)
-        law = time_law(self.nominal, p.path.rows, q, tip, p.feed, tolerance=self.tolerance, plan=plan, real=self.real)
+        law = time_law(self.nominal, p.path.rows, q, tip, p.feed, tolerance=self.tolerance, plan=plan, real=self.real,
+                       hold_feed=self.options.hold_feed)
         r.plan, r.controller = plan, law.controller
         m = r.metrics
         m.cycle_time_optimal_s = law.cycle_time_optimal
@@ -492,6 +498,11 @@ class ProgramSmoother:
                 m.controller_joint_peaks = [JointPeak(int(law.controller.row_ids[r]), names[int(np.argmax(peak[r]))],
                                                       float(peak[r].max()))
                                             for r in np.flatnonzero(peak.max(axis=1) > 1.01)]
+            fp = law.controller.row_feed_peak
+            if fp is not None and np.any(fp > 1.01):  # the blends take the tip past the programmed feed
+                worst = int(np.nanargmax(fp))
+                m.controller_feed_peak = FeedPeak(int(law.controller.row_ids[worst]), float(fp[worst]),
+                                                  int(np.sum(fp > 1.01)))
             if law.controller.row_floor is not None:
                 m.controller_floor_s = law.controller.floor
                 m.row_controller_floor_s = law.controller.row_floor.tolist()

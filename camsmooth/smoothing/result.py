@@ -35,6 +35,17 @@ class JointPeak:
     ratio: float
 
 
+@dataclass(frozen=True)
+class FeedPeak:
+    """Where the controller's planner (its model) takes the tool tip past the programmed feed: the
+    row id where it goes farthest, the tip's largest speed there over the row's programmed feed
+    (more than 1.01), and how many rows go more than 1% past it."""
+
+    row: int
+    ratio: float
+    rows: int
+
+
 @dataclass(kw_only=True)
 class PointNote:
     """A point the summary names: its name in the input (file and row), row id, index in the
@@ -82,6 +93,8 @@ class Metrics:
     controller's planner model commands at any servo cycle from the programmed path),
     controller_joint_peaks (the rows where the controller's own planner takes a joint past its
     velocity or acceleration limit at a servo cycle of its model: ``JointPeak``, empty where none),
+    controller_feed_peak (where its blends take the tool tip past the programmed feed: ``FeedPeak``,
+    None where they do not by more than 1% or the feed is held: ``SmoothOptions.hold_feed``),
     controller_floor_s and row_controller_floor_s (the least time any program of straight blocks
     through the program's points can take on that controller within the tolerance, s, in total
     and per row; None / [] where the controller has no floor); these are the written mode's
@@ -120,6 +133,7 @@ class Metrics:
     blocks: int | None = None
     controller_deviation_mm: float | None = None
     controller_joint_peaks: list[JointPeak] = field(default_factory=list)
+    controller_feed_peak: FeedPeak | None = None
     controller_floor_s: float | None = None
     row_controller_floor_s: list[float] = field(default_factory=list)
     tcp_cycle_time_s: float | None = None
