@@ -334,7 +334,8 @@ def place(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray, t
         entry_q, entry_time = row_entry(machine, q[a], entry_height, float(entry_feed[r]))
         path, at = _tip_polyline(machine, q[a:b], tool_tips(machine, entry_q[None, :])[0], 4, np.radians(0.25))
         return _hold_row(planner, machine, q[a:b], k - a, t_opt[a:b], entry_q, entry_time, path, at, limit,
-                         over_limits=_feed_check(planner, machine, entry_q, hold_feed, a, b))[2][-1]
+                         over_limits=_feed_check(planner, hold_feed, a, b, tool_tips(machine, entry_q[None, :])[0],
+                                                 lambda j: tool_tips(machine, j)))[2][-1]
 
     return sooner_blocks(planner, machine, rows, q, t_opt, ok, keep,
                          lambda r, a: row_entry(machine, q[a], entry_height, float(entry_feed[r])), held)
@@ -497,18 +498,16 @@ def _blend_excess(run: RowRun, dev: np.ndarray, limit: float, n_blocks: int, fol
     return worst[1:n_blocks + 1]
 
 
-def tip_speed_over(machine: Machine, run: RowRun, joints: np.ndarray, entry_q: np.ndarray, period: float,
-                   feed: float, slack: float = 1e-3) -> np.ndarray:
+def tip_speed_over(run: RowRun, tips: np.ndarray, period: float, feed: float, slack: float = 1e-3) -> np.ndarray:
     """Per block of a row run (n_blocks,), the tool tip's largest speed over ``feed`` (mm/min, the
     row's programmed feed) at the servo cycles the block moves in (executing or blended into), 0
-    where within ``slack`` (a rest stop's one-cycle step). In a parabolic blend both blocks move: where the one blended
-    into accelerates faster than the other decelerates, their speeds add up past either's (the tip
-    at 1.39 of the feed on a saddle row, 1.55 on a blade row, on the planner model). The entry move
-    (the run's first segment, at its own feed) is not counted. joints (K, 5) X Y Z mm, rotary rad
-    at the end of each servo cycle of ``period`` s, the row entered from rest at entry_q."""
+    where within ``slack`` (a rest stop's one-cycle step). In a parabolic blend both blocks move:
+    where the one blended into accelerates faster than the other decelerates, their speeds add up
+    past either's (on the headless LinuxCNC the tip reached 1.63 of the feed on a blade row). The
+    entry move (the run's first segment, at its own feed) is not counted. tips (K + 1, 3) mm: where
+    the row's motion starts (at rest) and the tool tip at the end of each servo cycle of ``period`` s."""
     n = len(run.end) - 1
-    tips = tool_tips(machine, np.vstack([np.asarray(entry_q, float)[None, :], joints]))
-    speed = np.linalg.norm(np.diff(tips, axis=0), axis=1) * 60.0 / period / float(feed)
+    speed = np.linalg.norm(np.diff(np.asarray(tips, float), axis=0), axis=1) * 60.0 / period / float(feed)
     cyc = np.flatnonzero((speed > 1.0 + slack) & (run.head >= 1))
     out = np.zeros(n + 2)
     for seg in (run.head[cyc], np.where(run.following_fraction[cyc] > 0, run.following[cyc], run.head[cyc])):
@@ -516,10 +515,12 @@ def tip_speed_over(machine: Machine, run: RowRun, joints: np.ndarray, entry_q: n
     return out[1:n + 1]
 
 
-def _feed_check(planner: Planner, machine: Machine, entry_q: np.ndarray, feed: np.ndarray | None, a: int, b: int,
-                slack: float | None = None) -> Callable[[RowRun, np.ndarray], np.ndarray] | None:
+def _feed_check(planner: Planner, feed: np.ndarray | None, a: int, b: int, start_tip: np.ndarray,
+                tips: Callable[[np.ndarray], np.ndarray], slack: float = _FEED_SLACK
+                ) -> Callable[[RowRun, np.ndarray], np.ndarray] | None:
     """``_hold_row``'s over_limits for the row of points a:b: ``tip_speed_over`` against the row's
-    programmed feed (mm/min, its largest; None where the feed is not known); slack as there."""
+    programmed feed (mm/min, its largest; None where the feed is not known). start_tip (3,) mm:
+    where the row's motion starts; tips: the tool tips (K, 3) of the positions a run commands."""
     if feed is None:
         return None
     f = np.asarray(feed, float)[a:b]
@@ -527,8 +528,8 @@ def _feed_check(planner: Planner, machine: Machine, entry_q: np.ndarray, feed: n
     if not len(f):
         return None
     period = float(getattr(planner, "servo_period", 1e-3))
-    return lambda run, joints: tip_speed_over(machine, run, joints, entry_q, period, float(f.max()),
-                                              _FEED_SLACK if slack is None else slack)
+    return lambda run, pos: tip_speed_over(run, np.vstack([np.asarray(start_tip, float).reshape(1, 3), tips(pos)]),
+                                           period, float(f.max()), slack)
 
 
 def _hold_row(planner: Planner, machine: Machine, q: np.ndarray, k: np.ndarray, t_opt: np.ndarray,
@@ -663,20 +664,20 @@ def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray,
         tk = np.zeros(1)
         if len(k) > 1:
             path = None
+            entry_tip = tool_tips(machine, entry_q[None, :])[0]
             if tolerance is not None:
-                path, at[a:b] = _tip_polyline(machine, q[a:b], tool_tips(machine, entry_q[None, :])[0], 4,
-                                              np.radians(0.25))
+                path, at[a:b] = _tip_polyline(machine, q[a:b], entry_tip, 4, np.radians(0.25))
             limit = EXECUTED_TOLERANCE_SHARE * float(tolerance or 0.0)
             k, bt, tk, row_dev[r] = _hold_row(planner, machine, q, k, t_opt, entry_q, entry_time, path, at, limit,
-                                              over_limits=_feed_check(planner, machine, entry_q,
-                                                                      prog_feed if hold_feed else None, a, b))
+                                              over_limits=_feed_check(planner, prog_feed if hold_feed else None, a, b,
+                                                                      entry_tip, lambda j: tool_tips(machine, j)))
             keep[k] = True
             run, joints = planner.row_run(machine, q[k], bt, entry_q, entry_time)
             # over 5 cycles: an overlap of two blends lasts; a segment ending inside a cycle is a one-cycle step.
             # From the entry's start, where the row's motion starts at rest
             period = getattr(planner, "servo_period", 1e-3)
             peak[r] = joint_ratio(machine, np.vstack([entry_q[None, :], joints]), period, stride=5).max(axis=0)
-            speed = _feed_check(planner, machine, entry_q, prog_feed, a, b, slack=0.0)
+            speed = _feed_check(planner, prog_feed, a, b, entry_tip, lambda j: tool_tips(machine, j), slack=0.0)
             if speed is not None:
                 feed_peak[r] = float(speed(run, joints).max(initial=0.0))
         block_time[k[1:]] = bt

@@ -42,6 +42,7 @@ in the sign of an axis, the post writes LinuxCNC's); F mm/min.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -52,6 +53,7 @@ from camsmooth.controller.blocks import (
     EXECUTED_TOLERANCE_SHARE,
     MAX_BLOCK_POINTS,
     ControllerPlan,
+    _feed_check,
     _hold_row,
     _row_bounds,
     _run_deviation,
@@ -273,12 +275,14 @@ class TCPPlanner:
         return out[1:n + 1]
 
     def _held_row(self, machine: Machine, w: np.ndarray, tip_path: np.ndarray, k: np.ndarray, t_opt: np.ndarray,
-                  entry_w: np.ndarray, entry_time: float, limit: float | None
+                  entry_w: np.ndarray, entry_time: float, limit: float | None,
+                  feed_over: Callable[[BlockTimes, np.ndarray], np.ndarray] | None = None
                   ) -> tuple[np.ndarray, float, BlockTimes, np.ndarray, float, float]:
         """One row's blocks k (indices into w, the row's world coordinates; tip_path: the entry tip
         then the row's tips, mm) with the time-optimal law's block times (t_opt, s) held: first
         per block, the blends that take the model's tip farther than ``limit`` mm from the polyline
-        (None: not checked) and the blocks where a rotary axis goes past its amax lengthened
+        (None: not checked) and the blocks where a rotary axis goes past its amax (and, with
+        ``feed_over``, the tip past the programmed feed: ``tip_speed_over``) lengthened
         (camsmooth.controller.blocks._hold_row); then all of them divided by s, the largest factor
         in [LOWEST_FEED_SCALE, 1] (bisection) at which every linear joint stays within its
         limits and the tip within ``limit``. Returns the held block times, s, the run, its world
@@ -287,7 +291,9 @@ class TCPPlanner:
         at = np.arange(len(w)) + 1  # the path vertex of each point (the entry tip is vertex 0)
         _, bt0, _, _ = _hold_row(self, machine, w, k, t_opt, entry_w, entry_time,
                                  None if limit is None else tip_path, at, limit or 0.0, tips=lambda x: x[:, :3],
-                                 split=False, over_limits=lambda run, pos: self._rotary_over(machine, run, pos))
+                                 split=False, over_limits=lambda run, pos: np.maximum(
+                                     self._rotary_over(machine, run, pos),
+                                     0.0 if feed_over is None else feed_over(run, pos)))
 
         def attempt(s: float) -> tuple[bool, BlockTimes, np.ndarray, float, float]:
             run, pos = self.row_run(machine, w[k], bt0 / s, entry_w, entry_time)
@@ -315,13 +321,14 @@ class TCPPlanner:
 
     def predict(self, machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray, t_opt: np.ndarray,
                 keep: np.ndarray, *, entry_height: float, entry_feed: np.ndarray, tolerance: float | None = None,
-                feed: np.ndarray | None = None) -> TCPPlan:
+                feed: np.ndarray | None = None, hold_feed: bool = False) -> TCPPlan:
         """LinuxCNC's timing of a TCP program written in the blocks ``keep`` with the time-optimal
         law's block times (t_opt, s from each row's start) held per block and row (``_held_row``; with
         ``tolerance`` (mm, the user's) the model's tip is also held within EXECUTED_TOLERANCE_SHARE
         of it from the polyline of the programmed tips, the entry tip first). q (N, 5) joints mm
         rad; tip (N, 3) mm; entry_height mm and entry_feed (R,) mm/min, the rows' entry moves as the
-        writer writes them; feed (N,) mm/min, the programmed tip feed, for the floor. Points inside
+        writer writes them; feed (N,) mm/min, the programmed tip feed, for the floor, the plan's
+        row_feed_peak and, with ``hold_feed``, the blocks' hold (as machine mode's). Points inside
         a block are timed by their share of the block's tip chord."""
         rows = np.asarray(rows)
         q, tip, t_opt = (np.asarray(x, float) for x in (q, tip, t_opt))
@@ -333,6 +340,7 @@ class TCPPlanner:
         row_cycle, row_dev = np.zeros(len(starts)), np.zeros(len(starts))
         scale, ratio = np.ones(len(starts)), np.zeros(len(starts))
         peak = np.zeros((len(starts), 5))
+        feed_peak = np.full(len(starts), np.nan)
         limit = None if tolerance is None else EXECUTED_TOLERANCE_SHARE * float(tolerance)
         for r, (a, b) in enumerate(zip(starts, ends, strict=True)):
             k = a + np.flatnonzero(keep[a:b])
@@ -340,8 +348,12 @@ class TCPPlanner:
             if len(k) > 1:
                 entry_w, entry_time = self._entry(machine, q[a], tip[a], entry_height, float(entry_feed[r]))
                 path = np.vstack([entry_w[None, :3], tip[a:b]])
+                speed = _feed_check(self, feed if hold_feed else None, a, b, entry_w[:3], lambda x: x[:, :3])
                 block_time[k[1:]], scale[r], run, pos, ratio[r], row_dev[r] = self._held_row(
-                    machine, w[a:b], path, k - a, t_opt[a:b], entry_w, entry_time, limit)
+                    machine, w[a:b], path, k - a, t_opt[a:b], entry_w, entry_time, limit, speed)
+                over = _feed_check(self, feed, a, b, entry_w[:3], lambda x: x[:, :3], slack=0.0)
+                if over is not None:
+                    feed_peak[r] = float(over(run, pos).max(initial=0.0))
                 tk = np.r_[0.0, run.end[1:] - run.end[0]]
                 joints = world_joints(machine, np.vstack([entry_w[None, :], pos]))
                 # over 5 cycles, as machine mode's (camsmooth.controller.blocks.predict)
@@ -356,15 +368,15 @@ class TCPPlanner:
                        row_ids=rows[starts].astype(np.int64), row_cycle_time=row_cycle,
                        cycle_time=float(row_cycle.sum()), row_deviation=row_dev, row_floor=floor,
                        row_feed_scale=scale, row_joint_ratio=ratio, blend_tolerance=self.tolerance,
-                       row_joint_peak=peak)
+                       row_joint_peak=peak, row_feed_peak=None if feed is None else feed_peak)
 
     def plan(self, machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray, t_opt: np.ndarray,
-             tolerance: float, *, entry_height: float, entry_feed: np.ndarray, feed: np.ndarray | None = None
-             ) -> TCPPlan:
+             tolerance: float, *, entry_height: float, entry_feed: np.ndarray, feed: np.ndarray | None = None,
+             hold_feed: bool = False) -> TCPPlan:
         """``place`` then ``predict``: the TCP program camsmooth writes and LinuxCNC's timing of it."""
         keep = self.place(machine, rows, q, tip, t_opt, tolerance, entry_height=entry_height, entry_feed=entry_feed)
         return self.predict(machine, rows, q, tip, t_opt, keep, entry_height=entry_height, entry_feed=entry_feed,
-                            tolerance=tolerance, feed=feed)
+                            tolerance=tolerance, feed=feed, hold_feed=hold_feed)
 
 
 def tcp_planner_for(machine: Machine, tolerance: float, rows: np.ndarray | None = None,

@@ -144,7 +144,7 @@ def time_law(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
         tcp_planner = tcp_planner_for(machine, tolerance, rows, q) if keep_given is None else None
         if tcp_planner is not None:  # TCP mode beside machine mode; the written mode's plan is the controller's
             tcp = tcp_planner.plan(machine, rows, q, tip, t_plan, tolerance, entry_height=DEFAULT_SAFE_HEIGHT_MM,
-                                   entry_feed=entry, feed=feed)
+                                   entry_feed=entry, feed=feed, hold_feed=hold_feed)
             law.update(tcp=tcp, machine_mode=ctrl)
             if getattr(getattr(machine, "post", None), "mode", "machine") == "tcp":
                 law.update(controller=tcp, cycle_time=float(tcp.cycle_time),
