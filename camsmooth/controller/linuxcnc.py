@@ -440,8 +440,11 @@ def least_row_times(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.n
     axis may be joined tangentially and gets no such term; a row's last block ramps at its whole
     acceleration, but from rest to rest and alone once the one before it is done: at least
     2 sqrt(max_i |d_i| / a_i), more than its term). It also lasts at least
-    max_i |d_i| / vmax_i and its tip chord over the programmed feed. The bound is the least sum of
-    these over every choice of block ends among the row's points whose blocks keep the skipped
+    max_i |d_i| / vmax_i and its tip chord over the programmed feed (this term holds for a program
+    whose tip keeps the feed: LinuxCNC's blends can take it past, camsmooth.controller.blocks.
+    tip_speed_over, and a feed-bound row then runs a little under the bound, 0.5% on the saddle
+    rows of benchmarks/bench_controller.py, unless held: SmoothOptions.hold_feed). The bound is
+    the least sum of these over every choice of block ends among the row's points whose blocks keep the skipped
     tips within the WHOLE tolerance (``block_reach``): it credits the blends with no deviation and
     the blocks with the whole tolerance, and ignores the first acceleration and the last stop.
     Dynamic programming over the block ends, blocks of at most ``max_points`` points.
