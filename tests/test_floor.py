@@ -281,7 +281,8 @@ def test_the_tip_past_the_programmed_feed_is_reported_and_held_on_request(blade_
     """In a parabolic blend both blocks move, so LinuxCNC can take the tool tip faster than the
     programmed feed. For the two blade rows: the plan's row_feed_peak equals the tip's largest speed
     over the feed recomputed here (forward kinematics of the model's joints at every servo cycle
-    after the entry, finite differences) and is past 1.01 somewhere; smooth's summary warns with it.
+    after the entry, finite differences) and is past 1.01 somewhere; smooth's summary warns with it
+    and the report's verdict line says it.
     With hold_feed every row's tip stays within the feed (0.1% for a rest stop's one-cycle step), at
     a longer cycle time."""
     from camsmooth.cli.main import _print_summary
@@ -316,3 +317,7 @@ def test_the_tip_past_the_programmed_feed_is_reported_and_held_on_request(blade_
     fp = r.metrics.controller_feed_peak
     assert fp is not None and fp.ratio == pytest.approx(got.max(), rel=1e-6)
     assert f"take the tool tip to {fp.ratio:.3g} of the programmed feed (row {fp.row};" in err
+    from camsmooth.report.smoothing import _verdict_html, method_summary
+
+    verdict = _verdict_html(["nlp"], {"nlp": method_summary(r)}, "nlp")
+    assert f"take the tool tip to {fp.ratio:.3g} of the programmed feed (row {fp.row};" in verdict

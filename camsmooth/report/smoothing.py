@@ -570,6 +570,7 @@ def method_summary(m: MethodResult) -> dict[str, Any]:
         "controller_floor_s": (float(mt.controller_floor_s) if mt is not None
                                and mt.controller_floor_s is not None else nan),
         "modes_line": _modes_line(mt),
+        "feed_peak": getattr(mt, "controller_feed_peak", None) if mt is not None else None,
         "violations_programmed": dict(mt.violations_programmed) if mt is not None else {},
         "peak_acc_plan": mt.peak_acc_plan if mt is not None else PerAxis.nan(m.rotary.names),
         "planned": m.plan is not None,
@@ -661,6 +662,10 @@ def _verdict_html(order: list[str], summaries: dict[str, dict[str, Any]], primar
             cyc += f", {_fmt(s['cycle_time_s'], '.4g')} s on the {html.escape(s['controller'])} controller"
             if np.isfinite(s["controller_deviation_mm"]):
                 cyc += f" (tool tip within {_fmt(1e3 * s['controller_deviation_mm'], '.3g')} \u00b5m of the path)"
+            fp = s.get("feed_peak")
+            if fp is not None:
+                cyc += (f"; its blends take the tool tip to {_fmt(fp.ratio, '.3g')} of the programmed feed (row "
+                        f"{fp.row}; {fp.rows} row{'s' * (fp.rows > 1)} past it; smooth --hold-feed holds it)")
             if np.isfinite(s["controller_floor_s"]):
                 cyc += f"; {html.escape(floor_text(s['controller'], s['controller_floor_s'], s['cycle_time_s']))}"
             if s.get("modes_line"):
