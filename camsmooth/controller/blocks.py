@@ -36,7 +36,8 @@ from camsmooth.constants import WRITTEN_DECIMALS
 from camsmooth.geometry.paths import _row_runs
 from camsmooth.machine.kinematics import Machine, axis_limits
 
-__all__ = ["BLOCK_TOLERANCE_SHARE", "MAX_BLOCK_POINTS", "block_reach", "rotary_turns", "tip_speed_over", "decimate",
+__all__ = ["BLOCK_TOLERANCE_SHARE", "MAX_BLOCK_POINTS", "block_reach", "rotary_turns", "tip_speed_over", "block_peaks",
+           "decimate",
            "place", "row_entry", "ControllerPlan", "Planner", "predict", "joint_ratio"]
 
 #: share of the user's tolerance the longer blocks may use: their tip curves keep every dropped tip
@@ -506,12 +507,22 @@ def tip_speed_over(run: RowRun, tips: np.ndarray, period: float, feed: float, sl
     past either's (on the headless LinuxCNC the tip reached 1.63 of the feed on a blade row). The
     entry move (the run's first segment, at its own feed) is not counted. tips (K + 1, 3) mm: where
     the row's motion starts (at rest) and the tool tip at the end of each servo cycle of ``period`` s."""
-    n = len(run.end) - 1
     speed = np.linalg.norm(np.diff(np.asarray(tips, float), axis=0), axis=1) * 60.0 / period / float(feed)
     cyc = np.flatnonzero((speed > 1.0 + slack) & (run.head >= 1))
+    return block_peaks(run, speed[cyc], run.head[cyc],
+                       np.where(run.following_fraction[cyc] > 0, run.following[cyc], run.head[cyc]))
+
+
+def block_peaks(run: RowRun, ratio: np.ndarray, *segments: np.ndarray) -> np.ndarray:
+    """Per block of a row run (n_blocks,), the largest of ``ratio`` (one value per servo cycle
+    picked) over the cycles each ``segments`` array (the segment each picked cycle is charged to:
+    0 the entry move, counted on the first block; past the last, on the last) charges to it, 0
+    where none: what the holds of ``_hold_row`` lengthen."""
+    n = len(run.end) - 1
     out = np.zeros(n + 2)
-    for seg in (run.head[cyc], np.where(run.following_fraction[cyc] > 0, run.following[cyc], run.head[cyc])):
-        np.maximum.at(out, np.minimum(seg, n + 1), speed[cyc])
+    for seg in segments:
+        np.maximum.at(out, np.minimum(np.asarray(seg, np.int64), n + 1), ratio)
+    out[1] = max(out[1], out[0])
     return out[1:n + 1]
 
 

@@ -57,6 +57,7 @@ from camsmooth.controller.blocks import (
     _hold_row,
     _row_bounds,
     _run_deviation,
+    block_peaks,
     decimate,
     joint_ratio,
     points_timing,
@@ -263,16 +264,10 @@ class TCPPlanner:
         amax = axis_limits(machine)[1][3:]
         w = np.vstack([world[:1, 3:], world[:, 3:], world[-1:, 3:]])
         acc = (np.abs(np.diff(w, 2, axis=0)) / self.servo_period ** 2 / amax).max(axis=1)
-        out = np.zeros(n + 2)
         cyc = np.flatnonzero(acc > 1.0 + 1e-3)
-        if len(cyc):
-            ratio = acc[cyc]
-            # the block that accelerates at its whole rate: the one blended into, else the head
-            seg = np.where((run.following_fraction[cyc] > 0) & (run.following[cyc] <= n), run.following[cyc],
-                           run.head[cyc])
-            np.maximum.at(out, np.minimum(seg, n + 1), ratio)
-            out[1] = max(out[1], out[0])
-        return out[1:n + 1]
+        # the block that accelerates at its whole rate: the one blended into, else the head
+        return block_peaks(run, acc[cyc], np.where((run.following_fraction[cyc] > 0) & (run.following[cyc] <= n),
+                                                   run.following[cyc], run.head[cyc]))
 
     def _held_row(self, machine: Machine, w: np.ndarray, tip_path: np.ndarray, k: np.ndarray, t_opt: np.ndarray,
                   entry_w: np.ndarray, entry_time: float, limit: float | None,
