@@ -37,8 +37,7 @@ from camsmooth.geometry.paths import _row_runs
 from camsmooth.machine.kinematics import Machine, axis_limits
 
 __all__ = ["BLOCK_TOLERANCE_SHARE", "MAX_BLOCK_POINTS", "block_reach", "rotary_turns", "tip_speed_over", "block_peaks",
-           "decimate",
-           "place", "row_entry", "ControllerPlan", "Planner", "predict", "joint_ratio"]
+           "decimate", "place", "row_entry", "ControllerPlan", "Planner", "predict", "joint_ratio"]
 
 #: share of the user's tolerance the longer blocks may use: their tip curves keep every dropped tip
 #: this close; the blends then get what is left up to EXECUTED_TOLERANCE_SHARE, checked on the
