@@ -92,11 +92,12 @@ def _blocks(text: str) -> list[str]:
 
 def test_decimated_blocks_keep_every_dropped_tip_within_their_share(blade_rows):
     """Independent check: each written block's tip curve (forward kinematics of the linearly
-    interpolated joints, 200 steps) passes every dropped point's tip within the block share of
-    the tolerance; fewer blocks than points."""
+    interpolated joints as written, the points' joints moved by the plan's joint_shift, 200 steps)
+    passes every dropped point's tip within the block share of the tolerance; fewer blocks than
+    points."""
     r = blade_rows.methods["nlp"]
     m = blade_rows.machine
-    q = np.column_stack([r.xyz, r.rotary.values])
+    q = np.column_stack([r.xyz, r.rotary.values]) + r.controller.joint_shift
     keep = r.controller.keep
     assert keep.sum() < 0.9 * len(keep)
     k = np.flatnonzero(keep)
@@ -172,8 +173,9 @@ def test_model_of_short_rotary_blocks_is_limited_by_half_the_acceleration():
 @pytest.mark.parametrize("mode", ["machine", "tcp"])
 def test_linuxcnc_interpreter_reads_the_program_and_its_positions_and_times(blade_rows, tmp_path, mode):
     """rs274 reads every block; its canonical X Y Z A B equal the written blocks' joints (machine
-    mode) or tips (tcp mode) to the written precision, and in machine mode its inverse-time feed
-    gives each cut block the controller plan's block time."""
+    mode: the points' joints moved by the plan's joint_shift, its block ends off the points) or tips
+    (tcp mode) to the written precision, and in machine mode its inverse-time feed gives each cut
+    block the controller plan's block time."""
     m = _machine(mode)
     r = blade_rows.methods["nlp"]
     ngc = tmp_path / f"p_{mode}.ngc"
@@ -182,7 +184,10 @@ def test_linuxcnc_interpreter_reads_the_program_and_its_positions_and_times(blad
         pytest.skip("TCP mode needs the M428/M429 remaps of LinuxCNC's sample configurations")
     canon = interpret(ngc, ini=_trt_config(tmp_path) / "xyzac-trt.ini" if mode == "tcp" else None)
     keep = r.controller.keep
-    pts = np.column_stack([r.xyz if mode == "machine" else r.cl, np.degrees(r.rotary.values)])[keep]
+    shift = r.controller.joint_shift
+    assert shift is not None and np.abs(shift[keep]).max() > 1e-3  # machine mode's ends sit off the points
+    xyz = r.xyz + shift[:, :3] if mode == "machine" else r.cl
+    pts = np.column_stack([xyz, np.degrees(r.rotary.values)])[keep]
     cut = ~canon.rapid
     cut &= np.abs(canon.joints[:, 2]) < 1e3  # not the final G53 retract
     # each row: the entry feed move (onto the first point) and the row's blocks
@@ -263,7 +268,8 @@ def test_blade_rows_on_linuxcnc_take_the_predicted_time_and_stay_within_the_tole
     next segment of a blend was 1.3% slow), the tool tip (forward kinematics of the joints
     LinuxCNC commanded at every servo cycle) stays within the tolerance of the path the
     full-density program commands and within 1 um of where the model puts it, and no row beats
-    the lower bound of least_row_times."""
+    the lower bound of least_row_times for block ends as far off the points as the program's
+    (the floor at the tolerance plus that distance, ``test_floor``)."""
     from camsmooth.controller.linuxcnc import least_row_times
     from camsmooth.controller.linuxcnc_sim import row_runs
 
@@ -275,7 +281,7 @@ def test_blade_rows_on_linuxcnc_take_the_predicted_time_and_stay_within_the_tole
     rows = row_runs(m, r, ngc.read_text(), run)
     assert sorted(x.row for x in rows) == sorted(int(x) for x in np.unique(r.rows))
     bound = least_row_times(m, r.rows, np.column_stack([r.xyz, r.rotary.values]), r.cl, np.full(len(r.rows), 2000.0),
-                            0.005)
+                            0.005 + r.controller.end_offset)
     model_dev = dict(zip(r.controller.row_ids, r.controller.row_deviation, strict=True))
     least = dict(zip(r.controller.row_ids, bound, strict=True))
     for x in rows:
@@ -347,14 +353,16 @@ def test_model_positions_follow_each_segment_and_its_blend():
 
 def test_the_blocks_keep_the_models_tool_tip_within_the_tolerance_at_every_servo_cycle(blade_rows):
     """The nlp rows' program: the model's tool tip over every servo cycle stays within
-    EXECUTED_TOLERANCE_SHARE of the tolerance, checked here by running the planner model on the
-    written blocks; at the time-optimal law's block times it does not (the check does work)."""
+    EXECUTED_TOLERANCE_SHARE of the tolerance of the path through the points, checked here by
+    running the planner model on the written blocks (their ends off the points by the plan's
+    joint_shift); at the time-optimal law's block times it does not (the check does work)."""
     from camsmooth.constants import DEFAULT_SAFE_HEIGHT_MM
     from camsmooth.controller import EXECUTED_TOLERANCE_SHARE
     from camsmooth.controller.blocks import programmed_tip_path, tip_deviation, tool_tips
 
     r, m = blade_rows.methods["nlp"], blade_rows.machine
     q = np.column_stack([r.xyz, r.rotary.values])
+    written = q + r.controller.joint_shift
     p = planner_for(m, 0.005, r.rows, q)  # the blend tolerance the program is written with
     assert p.tolerance == r.controller.blend_tolerance
     worst_written, worst_optimal = 0.0, 0.0
@@ -365,7 +373,7 @@ def test_the_blocks_keep_the_models_tool_tip_within_the_tolerance_at_every_servo
         entry[:3] += DEFAULT_SAFE_HEIGHT_MM * r.axis[sel[0]]
         path = programmed_tip_path(m, q[sel], tool_tips(m, entry[None])[0])
         for bt, is_written in ((r.controller.block_time[k[1:]], True), (np.diff(r.plan.t_plan[k]), False)):
-            _, joints = p.row_run(m, q[k], bt, entry, 60 * DEFAULT_SAFE_HEIGHT_MM / 2000.0)
+            _, joints = p.row_run(m, written[k], bt, entry, 60 * DEFAULT_SAFE_HEIGHT_MM / 2000.0)
             dev = float(tip_deviation(tool_tips(m, joints), path).max())
             if is_written:
                 worst_written = max(worst_written, dev)
@@ -433,17 +441,21 @@ def test_least_row_times_is_the_best_choice_of_block_ends_by_brute_force():
 
 def test_least_row_times_is_below_what_the_model_predicts_for_every_method(blade_rows):
     """No program camsmooth writes beats the bound: per row and method, the bound at the
-    tolerance is below the controller's predicted row time, and a looser tolerance lowers it."""
+    tolerance for block ends as far off the points as the program's is below the controller's
+    predicted row time, and a looser tolerance or a larger offset lowers it."""
     from camsmooth.controller.linuxcnc import least_row_times
 
     m = blade_rows.machine
     for r in blade_rows.methods.values():
         q = np.column_stack([r.xyz, r.rotary.values])
         feed = np.full(len(q), 2000.0)
-        bound = least_row_times(m, r.rows, q, r.cl, feed, 0.005)
+        e = r.controller.end_offset
+        assert e > 0
+        bound = least_row_times(m, r.rows, q, r.cl, feed, 0.005, end_offset=e)
         assert np.all(bound < r.controller.row_cycle_time)
         assert np.all(bound >= np.asarray(r.plan.row_cycle_time) * 0.9)
-        assert np.all(least_row_times(m, r.rows, q, r.cl, feed, 0.01) <= bound + 1e-12)
+        assert np.all(least_row_times(m, r.rows, q, r.cl, feed, 0.01, end_offset=e) <= bound + 1e-12)
+        assert np.all(least_row_times(m, r.rows, q, r.cl, feed, 0.005, end_offset=2 * e) <= bound + 1e-12)
 
 
 def test_blend_tolerance_exceeds_the_tolerance_only_where_every_move_turns_a_rotary_axis():

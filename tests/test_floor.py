@@ -17,9 +17,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from camsmooth.controller import EXECUTED_TOLERANCE_SHARE, decimate, place, planner_for, predict
+from camsmooth.controller import EXECUTED_TOLERANCE_SHARE, decimate, place, planner_for, predict, vertex_shift
 from camsmooth.controller.blocks import (
     BLOCK_TOLERANCE_SHARE,
+    VERTEX_SHIFT_SHARE,
     block_reach,
     programmed_tip_path,
     row_entry,
@@ -60,10 +61,11 @@ def _short_rows(m, n: int = 12):
     return np.repeat([0, 1], n), q, tip
 
 
-def _brute_floor(m, q, tip, ok, feed_mm_s):
+def _brute_floor(m, q, tip, ok, feed_mm_s, slack: float = 0.0):
     """The floor's definition, by every choice of block ends of one row: each block lasts at least
     its tip chord over the feed, its largest joint move over that joint's speed, and (when it turns
-    a rotary axis) sqrt(2 max_i |d_i| / a_i), the parabolic blend at half the acceleration."""
+    a rotary axis) sqrt(2 max_i |d_i| / a_i), the parabolic blend at half the acceleration; with
+    block ends up to ``slack`` mm off the points, the chord and the linear moves 2 slack shorter."""
     vmax, amax, _ = axis_limits(m)
     n = len(q)
     best = np.inf
@@ -75,16 +77,18 @@ def _brute_floor(m, q, tip, ok, feed_mm_s):
                 total = np.inf
                 break
             d = np.abs(q[j] - q[i])
+            d[:3] = np.maximum(d[:3] - 2 * slack, 0.0)
             rest = np.sqrt(2 * np.max(d / amax)) if d[3:].max() > 0 else 0.0
-            total += max(np.linalg.norm(tip[j] - tip[i]) / feed_mm_s, np.max(d / vmax), rest)
+            total += max((np.linalg.norm(tip[j] - tip[i]) - 2 * slack) / feed_mm_s, np.max(d / vmax), rest)
         best = min(best, total)
     return best
 
 
 def test_the_floor_is_the_least_time_over_every_choice_of_block_ends_and_below_the_prediction():
     """The controller plan's floor (what ``smooth`` prints) on two short rows: per row the least
-    floor cost over all 2^(n-2) choices of block ends (brute force of the definition), and below
-    the time the planner model predicts for the program camsmooth writes."""
+    floor cost over all 2^(n-2) choices of block ends (brute force of the definition, the blocks
+    the tolerance plus the program's end offset allows), below the time the planner model predicts
+    for the program camsmooth writes; with no offset, the same by brute force through the points."""
     from camsmooth.smoothing.evaluate import time_law
 
     m = _machine()
@@ -92,12 +96,17 @@ def test_the_floor_is_the_least_time_over_every_choice_of_block_ends_and_below_t
     law = time_law(m, rows, q, tip, np.full(len(rows), FEED), tolerance=TOL)
     ctrl = law.controller
     assert ctrl is not None and ctrl.row_floor is not None
+    e = ctrl.end_offset
+    assert 0 < e <= VERTEX_SHIFT_SHARE * TOL + 1e-12
+    through = planner_for(m, TOL, rows, q).row_floor(m, rows, q, tip, np.full(len(rows), FEED), TOL)
     for r in range(2):
         sel = rows == r
-        ok = block_reach(m, np.zeros(sel.sum(), int), q[sel], tip[sel], TOL, 64)
-        want = _brute_floor(m, q[sel], tip[sel], ok, FEED / 60.0)
-        assert ctrl.row_floor[r] == pytest.approx(want, rel=1e-12)
+        one = np.zeros(sel.sum(), int)
+        ok = block_reach(m, one, q[sel], tip[sel], TOL + e, 64)
+        assert ctrl.row_floor[r] == pytest.approx(_brute_floor(m, q[sel], tip[sel], ok, FEED / 60.0, e), rel=1e-12)
         assert ctrl.row_floor[r] < ctrl.row_cycle_time[r]
+        ok = block_reach(m, one, q[sel], tip[sel], TOL, 64)
+        assert through[r] == pytest.approx(_brute_floor(m, q[sel], tip[sel], ok, FEED / 60.0), rel=1e-12)
     assert ctrl.floor == pytest.approx(ctrl.row_floor.sum())
 
 
@@ -156,9 +165,11 @@ def blade_rows():
 def test_placement_is_never_slower_than_the_longest_blocks_and_keeps_the_tip_within_the_tolerance(blade_rows):
     """The nlp and none programs of two blade rows: per row, the planner model's time of the placed
     blocks (what the pipeline writes) is no longer than that of the longest blocks within the
-    tolerance (the placement before), and the model's tool tip, recomputed here from the written
-    blocks and times at every servo cycle, stays within EXECUTED_TOLERANCE_SHARE of the tolerance
-    of the path the full-density program commands."""
+    tolerance (the placement before), through the points as with their ends moved off them
+    (vertex_shift, which the pipeline writes: fewer blocks, run sooner), and the model's tool tip,
+    recomputed here from the written blocks and times at every servo cycle, stays within
+    EXECUTED_TOLERANCE_SHARE of the tolerance of the path the full-density program commands
+    (through the points)."""
     m = blade_rows.machine
     for name in ("nlp", "none"):
         r = blade_rows.methods[name]
@@ -169,25 +180,34 @@ def test_placement_is_never_slower_than_the_longest_blocks_and_keeps_the_tip_wit
         entry_feed = np.full(len(c.row_ids), FEED)
         old = predict(p, m, r.rows, q, r.cl, r.plan.t_plan, decimate(m, r.rows, q, r.cl, TOL),
                       entry_height=ENTRY_MM, entry_feed=entry_feed, tolerance=TOL)
+        kw = dict(entry_height=ENTRY_MM, entry_feed=entry_feed)
+        through = predict(p, m, r.rows, q, r.cl, r.plan.t_plan, place(p, m, r.rows, q, r.cl, r.plan.t_plan, TOL, **kw),
+                          tolerance=TOL, **kw)
+        sh = vertex_shift(m, r.rows, q, r.cl, TOL)
         new = predict(p, m, r.rows, q, r.cl, r.plan.t_plan,
-                      place(p, m, r.rows, q, r.cl, r.plan.t_plan, TOL, entry_height=ENTRY_MM, entry_feed=entry_feed),
-                      entry_height=ENTRY_MM, entry_feed=entry_feed, tolerance=TOL)
+                      place(p, m, r.rows, q, r.cl, r.plan.t_plan, TOL, shift=sh, **kw), tolerance=TOL, shift=sh, **kw)
         assert np.allclose(new.row_cycle_time, c.row_cycle_time)  # the pipeline's blocks are these
         assert np.all(new.row_cycle_time <= old.row_cycle_time + 1e-9), (name, new.row_cycle_time, old.row_cycle_time)
+        assert np.all(through.row_cycle_time <= old.row_cycle_time + 1e-9)
+        # the ends off the points: fewer blocks, sooner than the best placement through the points
+        assert new.blocks < through.blocks and new.cycle_time < through.cycle_time, name
+        written = q + c.joint_shift
         for rid in c.row_ids:
             sel = np.flatnonzero(r.rows == rid)
             k = sel[c.keep[sel]]
             entry_q, entry_time = row_entry(m, q[sel[0]], ENTRY_MM, FEED)
             path = programmed_tip_path(m, q[sel], fk_tips(m, entry_q[None])[0])
-            _, joints = p.row_run(m, q[k], c.block_time[k[1:]], entry_q, entry_time)
+            _, joints = p.row_run(m, written[k], c.block_time[k[1:]], entry_q, entry_time)
             assert tip_deviation(fk_tips(m, joints), path).max() <= EXECUTED_TOLERANCE_SHARE * TOL + 1e-6, name
 
 
 def test_smooth_prints_the_floor_beside_the_prediction(blade_rows, capsys):
-    """``smooth``'s summary line per method: 'LinuxCNC cannot run straight blocks through these
-    points in less than X s; this program: Y s', X the floor of the program's points recomputed
-    here (least_row_times at the whole tolerance and the programmed feed), Y the predicted time,
-    X <= Y; the report's row table carries the floor per row."""
+    """``smooth``'s summary line per method: 'LinuxCNC cannot run straight blocks with their ends
+    within E um of these points in less than X s; this program: Y s', E the largest distance of a
+    written block end's tip from its point (recomputed by forward kinematics), X the floor for
+    such programs recomputed here (least_row_times with that end offset, at the programmed feed),
+    Y the predicted time, X <= Y; the floor through the points (no offset) is above X, and the
+    report's row table carries the floor per row."""
     from camsmooth.cli.main import _print_floor
     from camsmooth.controller.linuxcnc import least_row_times
     from camsmooth.report.smoothing import _rows_html
@@ -196,14 +216,18 @@ def test_smooth_prints_the_floor_beside_the_prediction(blade_rows, capsys):
     out = capsys.readouterr().out
     m = blade_rows.machine
     for name, r in blade_rows.methods.items():
-        got = re.search(rf"^{name}: LinuxCNC cannot run straight blocks through these points in less than "
-                        r"([\d.e+-]+) s; this program: ([\d.e+-]+) s", out, re.M)
+        got = re.search(rf"^{name}: LinuxCNC cannot run straight blocks with their ends within ([\d.]+) um of these "
+                        r"points in less than ([\d.e+-]+) s; this program: ([\d.e+-]+) s", out, re.M)
         assert got, out
-        floor, program = float(got.group(1)), float(got.group(2))
-        want = least_row_times(m, r.rows, _joints(r), r.cl, np.full(len(r.rows), FEED), TOL)
+        off_um, floor, program = (float(got.group(i)) for i in (1, 2, 3))
+        q, keep = _joints(r), r.controller.keep
+        moved = np.linalg.norm(fk_tips(m, (q + r.controller.joint_shift)[keep]) - fk_tips(m, q[keep]), axis=1).max()
+        assert off_um == pytest.approx(1e3 * moved, abs=0.051) and 0 < moved <= VERTEX_SHIFT_SHARE * TOL + 1e-9
+        want = least_row_times(m, r.rows, q, r.cl, np.full(len(r.rows), FEED), TOL, end_offset=moved)
         assert floor == pytest.approx(want.sum(), rel=1e-3)
         assert program == pytest.approx(r.metrics.cycle_time_s, rel=1e-3)
         assert floor <= program
+        assert least_row_times(m, r.rows, q, r.cl, np.full(len(r.rows), FEED), TOL).sum() > floor
         assert np.allclose(r.metrics.row_controller_floor_s, want)
     html = _rows_html(blade_rows.methods["nlp"], tuple(m.rotary))
     assert "least time on linuxcnc" in html
@@ -299,7 +323,7 @@ def test_the_tip_past_the_programmed_feed_is_reported_and_held_on_request(blade_
             sel = np.flatnonzero(r.rows == row)
             k = sel[plan.keep[sel]]
             entry_q, entry_time = row_entry(m, q[sel[0]], ENTRY_MM, FEED)
-            run, joints = p.row_run(m, q[k], plan.block_time[k[1:]], entry_q, entry_time)
+            run, joints = p.row_run(m, (q + plan.joint_shift)[k], plan.block_time[k[1:]], entry_q, entry_time)
             tips = fk_tips(m, np.vstack([entry_q[None, :], joints]))
             v = np.linalg.norm(np.diff(tips, axis=0), axis=1) / 1e-3 * 60.0 / FEED
             out.append(v[run.head >= 1].max())
@@ -321,3 +345,67 @@ def test_the_tip_past_the_programmed_feed_is_reported_and_held_on_request(blade_
 
     verdict = _verdict_html(["nlp"], {"nlp": method_summary(r)}, "nlp")
     assert f"take the tool tip to {fp.ratio:.3g} of the programmed feed (row {fp.row};" in verdict
+
+
+def _arc_row(m, radius: float, step: float, n: int, rot: tuple[float, float]):
+    """One row whose tool tips lie on a circle of ``radius`` mm in the XZ plane (centre below the
+    first tip), ``step`` rad apart, the rotary axes held at ``rot`` (rad): every block's tip curve
+    is then a straight chord."""
+    phi = step * (np.arange(n) - (n - 1) / 2)
+    tip = np.column_stack([radius * np.sin(phi), np.zeros(n), radius * np.cos(phi) - radius])
+    A, B = np.full(n, rot[0]), np.full(n, rot[1])
+    return np.zeros(n, int), np.column_stack([m.linear_axes(tip, A, B), A, B]), tip, phi
+
+
+@pytest.mark.parametrize("machine_file", [None, "dome_machine.toml"])
+def test_block_ends_move_out_by_half_the_sagitta_up_to_their_share_of_the_tolerance(machine_file):
+    """vertex_shift on a circular tip path with the rotary axes held (head and A/C table): each
+    inner point's tip moves radially outward by min(VERTEX_SHIFT_SHARE x T, half the sagitta of the
+    chord from h points before it to h after, h = min(4, points to the row's ends)), the closed form
+    R (1 - cos(h step)) / 2, checked by forward kinematics of the shifted joints; the rotary axes
+    and the row's ends do not move."""
+    from camsmooth.machine.kinematics import load_machine
+
+    root = Path(__file__).resolve().parent.parent / "surfaces"
+    m = _machine() if machine_file is None else load_machine(str(root / machine_file))
+    R, step, n = 200.0, 0.002, 30
+    rows, q, tip, phi = _arc_row(m, R, step, n, (np.radians(-20.0), np.radians(35.0)))
+    sh = vertex_shift(m, rows, q, tip, TOL)
+    assert np.all(sh[:, 3:] == 0) and np.all(sh[[0, -1]] == 0)
+    h = np.minimum(4, np.minimum(np.arange(n), n - 1 - np.arange(n)))[1:-1]
+    size = np.minimum(VERTEX_SHIFT_SHARE * TOL, 0.5 * R * (1 - np.cos(h * step)))
+    assert size.min() < VERTEX_SHIFT_SHARE * TOL == size.max()  # both branches
+    outward = np.column_stack([np.sin(phi), np.zeros(n), np.cos(phi)])[1:-1]
+    moved = fk_tips(m, q + sh)[1:-1] - tip[1:-1]
+    assert np.allclose(moved, size[:, None] * outward, atol=1e-9)
+
+
+def test_with_the_ends_moved_out_a_block_spans_what_the_closed_form_allows():
+    """block_reach on the circular tip path, every block's ends moved out by d (vertex_shift, the
+    whole share) or not at all: the longest block from each inner point is the largest k for
+    which every skipped tip (radius R, at angles i step from the block's start) and every skipped
+    interval's middle (radius R cos(step / 2)) lies within the tolerance of the chord between the
+    moved ends, whose line is (R + d) cos(k step / 2) from the centre: |rho cos(angle from the
+    block's middle) - (R + d) cos(k step / 2)|. With the ends moved out the blocks are longer."""
+    m = _machine()
+    R, step, n = 200.0, 0.002, 40
+    rows, q, tip, _ = _arc_row(m, R, step, n, (0.0, np.radians(10.0)))
+    tol = BLOCK_TOLERANCE_SHARE * TOL
+    sh = vertex_shift(m, rows, q, tip, TOL)
+    d = VERTEX_SHIFT_SHARE * TOL
+
+    def closed_form(dd: float) -> int:
+        best = 1
+        for k in range(2, 17):
+            ang = np.r_[np.arange(1, k), np.arange(k) + 0.5] * step - k * step / 2
+            rho = np.r_[np.full(k - 1, R), np.full(k, R * np.cos(step / 2))]
+            if np.abs(rho * np.cos(ang) - (R + dd) * np.cos(k * step / 2)).max() > tol:
+                break
+            best = k
+        return best
+
+    inner = np.arange(8, 16)  # blocks whose ends all move by the whole share (4 points from the row's ends)
+    for shift, dd in ((None, 0.0), (sh, d)):
+        reach = block_reach(m, rows, q, tip, tol, shift=shift).sum(axis=1)
+        assert np.all(reach[inner] == closed_form(dd)), (dd, reach[inner], closed_form(dd))
+    assert closed_form(d) > closed_form(0.0)

@@ -629,7 +629,7 @@ class _FakePlanner:
         self.calls.append(len(q))
         return None if self.ends is None else np.asarray(self.ends)
 
-    def row_floor(self, machine, rows, q, tip, feed, tolerance):
+    def row_floor(self, machine, rows, q, tip, feed, tolerance, end_offset=0.0):
         self.floor_args = (feed, tolerance)
         return self.floor
 

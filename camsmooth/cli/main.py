@@ -355,7 +355,8 @@ def _print_floor(result) -> None:
     for name, r in result.methods.items():
         mm = r.metrics
         if mm.controller and mm.controller_floor_s is not None:
-            print(f"{name}: {floor_text(mm.controller, mm.controller_floor_s, mm.cycle_time_s)} "
+            text = floor_text(mm.controller, mm.controller_floor_s, mm.cycle_time_s, mm.controller_end_offset_mm)
+            print(f"{name}: {text} "
                   f"({mm.cycle_time_s / max(mm.controller_floor_s, 1e-12):.3f}x the floor)")
         if mm.tcp_cycle_time_s is not None and mm.machine_cycle_time_s is not None:  # both LinuxCNC modes
             modes = mode_text(mm.tcp_cycle_time_s, mm.tcp_floor_s, mm.machine_cycle_time_s, mm.machine_floor_s,

@@ -1,8 +1,9 @@
 """The controller: what the machine's control does with a program camsmooth writes.
 
 - ``blocks``: the blocks a program is written in (longer blocks where the axes are smooth,
-  within the tolerance), ``ControllerPlan``, a controller's timing of them per point, and the
-  check that the planner model's tool tip stays within the tolerance at every servo cycle;
+  within the tolerance, their ends moved off the points inside it: ``vertex_shift``),
+  ``ControllerPlan``, a controller's timing of them per point, and the check that the planner
+  model's tool tip stays within the tolerance at every servo cycle;
 - ``linuxcnc``: a model of LinuxCNC's trajectory planner (derived from its source), and the least
   time any program of straight blocks can take on it (``least_row_times``);
 - ``tcp``: LinuxCNC's TCP mode (M428, its trt kinematics) on an A/C or B/C table: the planner on
@@ -30,6 +31,7 @@ from camsmooth.controller.blocks import (
     decimate,
     place,
     predict,
+    vertex_shift,
 )
 from camsmooth.controller.linuxcnc import LinuxCNCPlanner, blend_tolerance
 from camsmooth.controller.tcp import TCPPlanner, mode_text, tcp_planner_for
@@ -38,7 +40,7 @@ from camsmooth.machine.kinematics import Machine
 __all__ = ["PLANNERS", "PATH_TOLERANCE_SHARE", "BLOCK_TOLERANCE_SHARE", "EXECUTED_TOLERANCE_SHARE", "planner_for",
            "blend_tolerance",
            "floor_text", "ControllerPlan", "Planner", "decimate", "place", "predict", "LinuxCNCPlanner", "TCPPlanner",
-           "tcp_planner_for", "mode_text"]
+           "tcp_planner_for", "mode_text", "vertex_shift"]
 
 #: dialect of the machine's post -> the model of that controller's planner
 PLANNERS: dict[str, type] = {"linuxcnc": LinuxCNCPlanner}
@@ -59,10 +61,13 @@ def planner_for(machine: Machine, tolerance: float, rows: np.ndarray | None = No
     return cls(tolerance=blend, entry_stop=blend > tolerance)
 
 
-def floor_text(controller: str, floor_s: float, program_s: float) -> str:
+def floor_text(controller: str, floor_s: float, program_s: float, end_offset_mm: float = 0.0) -> str:
     """The floor beside the prediction, as ``smooth`` and the report say it: the controller (by its
-    planner's name, e.g. 'linuxcnc'), its floor and the program's predicted time (s)."""
+    planner's name, e.g. 'linuxcnc'), its floor and the program's predicted time (s);
+    end_offset_mm: how far the program's block ends sit off the points (``ControllerPlan.end_offset``;
+    the floor is then the one for block ends that far off them)."""
     title = getattr(PLANNERS.get(controller), "title", None) or {TCPPlanner.name: TCPPlanner.title}.get(controller,
                                                                                                         controller)
-    return (f"{title} cannot run straight blocks through these points in less than {floor_s:.4g} s; "
-            f"this program: {program_s:.4g} s")
+    where = (f"with their ends within {1e3 * end_offset_mm:.2g} um of these points" if end_offset_mm > 0
+             else "through these points")
+    return f"{title} cannot run straight blocks {where} in less than {floor_s:.4g} s; this program: {program_s:.4g} s"

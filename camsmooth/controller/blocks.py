@@ -13,6 +13,9 @@ G-code (camsmooth.post.writer):
    dropped point sits at (an upper bound on the distance to the block's tip curve). Among those
    blocks, ``decimate`` takes the longest from each end; ``place`` the ends the planner model runs
    soonest (``Planner.block_ends``; on LinuxCNC a shorter block after a longer one waits for it).
+   The blocks may end off the points (``vertex_shift``): each point that ends a block is written
+   with its tool tip moved to the outside of the path's curve by up to VERTEX_SHIFT_SHARE of the
+   tolerance, so a chord's deviation is split between its middle and its ends.
 2. ``predict``: the blocks' times as the controller runs them (a planner model, e.g.
    ``LinuxCNCPlanner``), made slow enough where the controller's blends would take the tool tip
    the model commands at some servo cycle farther than EXECUTED_TOLERANCE_SHARE of the tolerance
@@ -36,8 +39,9 @@ from camsmooth.constants import WRITTEN_DECIMALS
 from camsmooth.geometry.paths import _row_runs
 from camsmooth.machine.kinematics import Machine, axis_limits
 
-__all__ = ["BLOCK_TOLERANCE_SHARE", "MAX_BLOCK_POINTS", "block_reach", "rotary_turns", "tip_speed_over", "block_peaks",
-           "decimate", "place", "row_entry", "ControllerPlan", "Planner", "predict", "joint_ratio"]
+__all__ = ["BLOCK_TOLERANCE_SHARE", "MAX_BLOCK_POINTS", "VERTEX_SHIFT_SHARE", "vertex_shift", "block_reach",
+           "rotary_turns", "tip_speed_over", "block_peaks", "decimate", "place", "row_entry", "ControllerPlan",
+           "Planner", "predict", "joint_ratio"]
 
 #: share of the user's tolerance the longer blocks may use: their tip curves keep every dropped tip
 #: this close; the blends then get what is left up to EXECUTED_TOLERANCE_SHARE, checked on the
@@ -51,6 +55,18 @@ __all__ = ["BLOCK_TOLERANCE_SHARE", "MAX_BLOCK_POINTS", "block_reach", "rotary_t
 BLOCK_TOLERANCE_SHARE = 0.96
 #: most points one block may replace (bounds the vectorised search)
 MAX_BLOCK_POINTS = 16
+#: share of the user's tolerance a block end may be moved off its point (``vertex_shift``): the
+#: tip path's chords then sit across the path instead of on one side of it, and a block may span
+#: a sagitta of up to (1 + this) x its share instead of 1 x. On the planner model over four nlp
+#: rows each of the blade, wave, ridge, dome and teapot of benchmarks/bench_controller.py (G64 P
+#: at 12 T), predicted / floor through the points per row: 0.98-1.02 / 0.96-1.00 / 0.97-1.00 /
+#: 0.98-0.99 / 0.77-0.94 at 0.5, against 1.06-1.07 / 1.05-1.07 / 1.05-1.06 / 1.02-1.03 / 1.05-1.24
+#: with the ends on the points. 0.7 ran a first version 1-4% sooner still, but puts the ends 3.5
+#: of 5 um off the points, where the path curves towards the part that is into it; at 0.5 the
+#: chord is centred in the band.
+VERTEX_SHIFT_SHARE = 0.5
+#: points on each side of a point whose block's tip curve says which side of the path is outside
+_SHIFT_SPAN = 4
 #: intervals of the polyline that stands for a block's tip curve
 _CURVE_SAMPLES = 16
 #: point-segment pairs per batch of ``tip_deviation``
@@ -201,8 +217,54 @@ def _chord_deviation(machine: Machine, q: np.ndarray, k: np.ndarray, path: np.nd
     return out
 
 
+def _nearest_on(pts: np.ndarray, curve: np.ndarray) -> np.ndarray:
+    """The point (B, 3) of each polyline curve[b] (B, S, 3) nearest to pts[b] (B, 3)."""
+    a = curve[:, :-1, :]
+    d = curve[:, 1:, :] - a
+    t = np.clip(np.einsum("bsk,bsk->bs", pts[:, None, :] - a, d) / np.maximum(np.einsum("bsk,bsk->bs", d, d), 1e-300),
+                0.0, 1.0)
+    close = a + t[..., None] * d
+    best = np.argmin(np.einsum("bsk,bsk->bs", close - pts[:, None, :], close - pts[:, None, :]), axis=1)
+    return close[np.arange(len(pts)), best]
+
+
+def vertex_shift(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray, tolerance: float,
+                 share: float = VERTEX_SHIFT_SHARE) -> np.ndarray:
+    """Where each point would be written if it ends a block: (N, 5) the shift of its joints (X Y Z
+    mm; the rotary axes, the row's first and last points 0) that moves its tool tip off the path,
+    to the outside of the tip curve of the block from _SHIFT_SPAN points before it to as many after
+    (fewer near a row's ends), by half that block's sagitta and at most ``share`` x ``tolerance``
+    (mm). A chord of a curved path lies on its inside; with its ends moved out by half its sagitta
+    its deviation is shared between the middle and the ends, as a CAM system's inner and outer
+    tolerances share a band, so a block may span a longer stretch of path within the same band.
+    The tool axes are not moved. The joint shift is the tip shift through the linear axes'
+    Jacobian (exact: they translate, by a rotation in the workpiece frame on a table). q (N, 5)
+    X Y Z mm A B rad; tip (N, 3) mm, workpiece frame."""
+    q = np.asarray(q, float)
+    tip = np.asarray(tip, float)
+    n = len(q)
+    out = np.zeros((n, 5))
+    if n < 3 or share <= 0:
+        return out
+    starts, ends = _row_bounds(rows)
+    j = np.arange(n)
+    first, last = np.repeat(starts, ends - starts), np.repeat(ends - 1, ends - starts)
+    h = np.minimum(_SHIFT_SPAN, np.minimum(j - first, last - j))
+    j, h = j[h > 0], h[h > 0]
+    s = np.linspace(0.0, 1.0, 2 * _CURVE_SAMPLES + 1)
+    qa, qb = q[j - h], q[j + h]
+    curve = tool_tips(machine, qa[:, None, :] + s[None, :, None] * (qb - qa)[:, None, :])
+    out_dir = tip[j] - _nearest_on(tip[j], curve)
+    sag = np.linalg.norm(out_dir, axis=1)
+    move = np.where(sag > 0, np.minimum(share * float(tolerance), 0.5 * sag) / np.maximum(sag, 1e-300), 0.0)
+    base = tool_tips(machine, q[j])
+    jac = np.stack([tool_tips(machine, q[j] + np.eye(5)[i]) - base for i in range(3)], axis=2)  # tip per mm of X, Y, Z
+    out[j, :3] = np.linalg.solve(jac, (move[:, None] * out_dir)[..., None])[..., 0]
+    return out
+
+
 def block_reach(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray, tolerance: float,
-                max_points: int = MAX_BLOCK_POINTS) -> np.ndarray:
+                max_points: int = MAX_BLOCK_POINTS, *, shift: np.ndarray | None = None) -> np.ndarray:
     """Which blocks keep the tips they skip within ``tolerance`` (mm): (N, max_points) bool, entry
     [a, k - 1] for the block from point a to point a + k inside a's row (always True for k = 1).
 
@@ -210,14 +272,16 @@ def block_reach(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarr
     ``tolerance`` of the block's tip curve: the machine's forward kinematics of the joints
     interpolated linearly (what the controller does), as a polyline of _CURVE_SAMPLES steps. Once
     a block from a fails, the longer ones from a are not tried (they are marked False). q: (N, 5)
-    X Y Z mm A B rad; tip: (N, 3) mm, workpiece frame."""
+    X Y Z mm A B rad; tip: (N, 3) mm, workpiece frame; shift (N, 5): the blocks run between the
+    joints q + shift (``vertex_shift``; None: q), the tips they must pass stay q's."""
     q = np.asarray(q, float)
     tip = np.asarray(tip, float)
     mid = tool_tips(machine, 0.5 * (q[1:] + q[:-1])) if len(q) > 1 else np.zeros((0, 3))
     s = np.linspace(0.0, 1.0, _CURVE_SAMPLES + 1)
+    qc = q if shift is None else q + np.asarray(shift, float)
 
     def passes(a: np.ndarray, k: int) -> np.ndarray:
-        curve = tool_tips(machine, q[a][:, None, :] + s[None, :, None] * (q[a + k] - q[a])[:, None, :])
+        curve = tool_tips(machine, qc[a][:, None, :] + s[None, :, None] * (qc[a + k] - qc[a])[:, None, :])
         pts = np.concatenate([tip[a[:, None] + np.arange(1, k)[None, :]],
                               mid[a[:, None] + np.arange(0, k)[None, :]]], axis=1)
         frac = np.r_[np.arange(1, k) / k, (np.arange(k) + 0.5) / k]
@@ -308,7 +372,7 @@ def row_entry(machine: Machine, q: np.ndarray, entry_height: float, entry_feed: 
 
 def place(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray, t_opt: np.ndarray,
           tolerance: float, *, entry_height: float, entry_feed: np.ndarray, real: Machine | None = None,
-          hold_feed: np.ndarray | None = None) -> np.ndarray:
+          hold_feed: np.ndarray | None = None, shift: np.ndarray | None = None) -> np.ndarray:
     """Points that end a block (bool (N,)), chosen against the planner model's executed time: among
     the blocks that keep the skipped tips within ``BLOCK_TOLERANCE_SHARE * tolerance`` (mm) on
     ``real`` (the machine the tips are on, default ``machine``; ``block_reach``), the block ends the
@@ -318,13 +382,15 @@ def place(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray, t
     t_opt: (N,) s from each row's start, the law whose differences the blocks command; rows are
     entered as ``predict`` enters them (entry_height mm, entry_feed (R,) mm/min); hold_feed (N,)
     mm/min: the programmed tip feed the held times also keep the tool tip within (``predict``;
-    None: not held)."""
+    None: not held); shift (N, 5): the block ends are written at q + shift (``vertex_shift``; None:
+    at q), the tips the blocks must pass stay q's."""
     rows = np.asarray(rows)
     q = np.asarray(q, float)
     t_opt = np.asarray(t_opt, float)
-    ok = block_reach(real or machine, rows, q, tip, BLOCK_TOLERANCE_SHARE * float(tolerance))
+    ok = block_reach(real or machine, rows, q, tip, BLOCK_TOLERANCE_SHARE * float(tolerance), shift=shift)
     if getattr(planner, "tolerance", 0.0) > tolerance:  # G64 P past it: only blocks blended parabolically
         ok = np.logical_and.accumulate(ok & rotary_turns(q, ok.shape[1]), axis=1)
+    qc = q if shift is None else q + np.asarray(shift, float)  # the joints the blocks are written with
     keep = decimate(real or machine, rows, q, tip, tolerance, ok=ok)
     starts, ends = _row_bounds(rows)
     limit = EXECUTED_TOLERANCE_SHARE * float(tolerance)
@@ -333,11 +399,11 @@ def place(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray, t
         a, b = starts[r], ends[r]
         entry_q, entry_time = row_entry(machine, q[a], entry_height, float(entry_feed[r]))
         path, at = _tip_polyline(machine, q[a:b], tool_tips(machine, entry_q[None, :])[0], 4, np.radians(0.25))
-        return _hold_row(planner, machine, q[a:b], k - a, t_opt[a:b], entry_q, entry_time, path, at, limit,
+        return _hold_row(planner, machine, qc[a:b], k - a, t_opt[a:b], entry_q, entry_time, path, at, limit,
                          over_limits=_feed_check(planner, hold_feed, a, b, tool_tips(machine, entry_q[None, :])[0],
                                                  lambda j: tool_tips(machine, j)))[2][-1]
 
-    return sooner_blocks(planner, machine, rows, q, t_opt, ok, keep,
+    return sooner_blocks(planner, machine, rows, qc, t_opt, ok, keep,
                          lambda r, a: row_entry(machine, q[a], entry_height, float(entry_feed[r])), held)
 
 
@@ -386,7 +452,8 @@ class ControllerPlan:
     row_ids, row_cycle_time: (R,) s per row; cycle_time: s, the sum over rows (rapids not counted);
     row_deviation: (R,) mm, the largest distance of the model's tool tip from the programmed path
     over the row's servo cycles (0 where it was not checked); row_floor: (R,) s, the least time any
-    program of straight blocks through the row's points can take on this controller within the
+    program of straight blocks through the row's points (their ends as far off them as this
+    program's, ``end_offset``) can take on this controller within the
     user's tolerance (``Planner.row_floor``; None where the controller has no floor or the
     tolerance was not given): row_cycle_time can come down to it, never below; blend_tolerance: mm,
     the controller's blend tolerance the plan was timed with (LinuxCNC ``G64 P``, which the program
@@ -397,7 +464,10 @@ class ControllerPlan:
     planner takes the joint past its limit (LinuxCNC where two blocks overlap in a blend);
     row_feed_peak: (R,) the tool tip's largest speed over the row's programmed feed at the model's
     servo cycles after the entry (0 where within, None where the feed was not given): in a
-    parabolic blend both blocks move, and the tip can go faster than either commands.
+    parabolic blend both blocks move, and the tip can go faster than either commands;
+    joint_shift: (N, 5) X Y Z mm (rotary 0), what the program adds to the joints of each point it
+    keeps (``vertex_shift``: the block ends sit off the points, inside the tolerance; 0 at the
+    points it drops), None where the blocks end on the points.
     """
 
     controller: str
@@ -414,11 +484,20 @@ class ControllerPlan:
     entry_stop: bool = False
     row_joint_peak: np.ndarray | None = None
     row_feed_peak: np.ndarray | None = None
+    joint_shift: np.ndarray | None = None
 
     @property
     def floor(self) -> float | None:
         """s, the sum of ``row_floor`` over the rows (None without one)."""
         return None if self.row_floor is None else float(np.sum(self.row_floor))
+
+    @property
+    def end_offset(self) -> float:
+        """mm, the largest distance of a block end's tool tip from its point (``joint_shift``; 0
+        where the blocks end on the points)."""
+        if self.joint_shift is None or not len(self.joint_shift):
+            return 0.0
+        return float(np.linalg.norm(np.asarray(self.joint_shift, float)[:, :3], axis=1).max())
 
     @property
     def blocks(self) -> int:
@@ -452,9 +531,10 @@ class Planner(Protocol):
         ...
 
     def row_floor(self, machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
-                  feed: np.ndarray | None, tolerance: float) -> np.ndarray | None:
-        """(R,) s per row: the least time any program of straight blocks through the points can take
-        on the controller within ``tolerance`` (mm), None if unknown. feed (N,) mm/min or None."""
+                  feed: np.ndarray | None, tolerance: float, end_offset: float = 0.0) -> np.ndarray | None:
+        """(R,) s per row: the least time any program of straight blocks through the points (their
+        ends' tool tips within ``end_offset`` mm of them) can take on the controller within
+        ``tolerance`` (mm), None if unknown. feed (N,) mm/min or None."""
         ...
 
     def row_run(self, machine: Machine, q_blocks: np.ndarray, block_time: np.ndarray, entry: np.ndarray,
@@ -638,8 +718,8 @@ def points_timing(s: np.ndarray, k: np.ndarray, tk: np.ndarray, tip_k: np.ndarra
 
 def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
             t_opt: np.ndarray, keep: np.ndarray, *, entry_height: float, entry_feed: np.ndarray,
-            tolerance: float | None = None, feed: np.ndarray | None = None, hold_feed: bool = False
-            ) -> ControllerPlan:
+            tolerance: float | None = None, feed: np.ndarray | None = None, hold_feed: bool = False,
+            shift: np.ndarray | None = None) -> ControllerPlan:
     """The controller's timing of a program written in the blocks ``keep`` with the block times
     of the time-optimal law ``t_opt`` (s from each row's start). q: (N, 5) X Y Z mm A B rad;
     tip: (N, 3) mm. Each row is entered by a feed move of ``entry_height`` mm along the tool axis
@@ -652,10 +732,14 @@ def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray,
     into the program's points, and a block whose blend goes farther is lengthened and the row
     run again, at most _ROUNDS times (``_hold_row``). ``row_deviation`` is what the last run gives; the
     plan's ``keep`` has the split blocks' points. With the tolerance, ``row_floor`` is the planner's
-    floor through the same points (``Planner.row_floor``; feed (N,) mm/min the programmed tip feed,
-    None: unknown)."""
+    floor through the same points, for block ends as far off them as the plan's (``Planner.row_floor``;
+    feed (N,) mm/min the programmed tip feed, None: unknown). shift (N, 5): the blocks are written
+    between the joints q + shift (``vertex_shift``, as ``place`` chose them; None: q); the
+    programmed path stays q's."""
     rows = np.asarray(rows)
     keep = np.array(keep, bool)
+    q = np.asarray(q, float)
+    qc = q if shift is None else q + np.asarray(shift, float)
     prog_feed = None if feed is None else np.asarray(feed, float)
     n = len(rows)
     starts, ends = _row_bounds(rows)
@@ -678,11 +762,11 @@ def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray,
             if tolerance is not None:
                 path, at[a:b] = _tip_polyline(machine, q[a:b], entry_tip, 4, np.radians(0.25))
             limit = EXECUTED_TOLERANCE_SHARE * float(tolerance or 0.0)
-            k, bt, tk, row_dev[r] = _hold_row(planner, machine, q, k, t_opt, entry_q, entry_time, path, at, limit,
+            k, bt, tk, row_dev[r] = _hold_row(planner, machine, qc, k, t_opt, entry_q, entry_time, path, at, limit,
                                               over_limits=_feed_check(planner, prog_feed if hold_feed else None, a, b,
                                                                       entry_tip, lambda j: tool_tips(machine, j)))
             keep[k] = True
-            run, joints = planner.row_run(machine, q[k], bt, entry_q, entry_time)
+            run, joints = planner.row_run(machine, qc[k], bt, entry_q, entry_time)
             # over 5 cycles: an overlap of two blends lasts; a segment ending inside a cycle is a one-cycle step.
             # From the entry's start, where the row's motion starts at rest
             period = getattr(planner, "servo_period", 1e-3)
@@ -696,12 +780,15 @@ def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray,
         t_ctrl[a:b], feed[a:b] = points_timing(s, k - a, tk, tip[k])
         row_cycle[r] = tk[-1]
     floor = None
-    if tolerance is not None and n:
-        floor = planner.row_floor(machine, rows, q, tip, prog_feed, float(tolerance))
+    joint_shift = None if shift is None else np.where(keep[:, None], qc - q, 0.0)
+    off = 0.0 if joint_shift is None else float(np.linalg.norm(joint_shift[:, :3], axis=1).max(initial=0.0))
+    if tolerance is not None and n:  # the floor of programs whose block ends sit as far off the points
+        floor = planner.row_floor(machine, rows, q, tip, prog_feed, float(tolerance), off)
     return ControllerPlan(controller=planner.name, keep=keep, block_time=block_time, t_plan=t_ctrl,
                           feed_plan=feed, row_ids=rows[starts].astype(np.int64), row_cycle_time=row_cycle,
                           cycle_time=float(row_cycle.sum()), row_deviation=row_dev,
                           row_floor=None if floor is None else np.asarray(floor, float),
                           blend_tolerance=getattr(planner, "tolerance", None),
                           entry_stop=bool(getattr(planner, "entry_stop", False)), row_joint_peak=peak,
-                          row_feed_peak=None if prog_feed is None else feed_peak)
+                          row_feed_peak=None if prog_feed is None else feed_peak,
+                          joint_shift=joint_shift)

@@ -428,9 +428,11 @@ LEAST_TIME_BLOCK_POINTS = 64
 
 
 def least_row_times(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray, feed: np.ndarray,
-                    tolerance: float, *, max_points: int = LEAST_TIME_BLOCK_POINTS) -> np.ndarray:
+                    tolerance: float, *, max_points: int = LEAST_TIME_BLOCK_POINTS,
+                    end_offset: float = 0.0) -> np.ndarray:
     """A lower bound (s, per row in order of appearance) on the cut time of ANY program of straight
-    blocks that LinuxCNC 2.9 can run through a row's points within ``tolerance`` (mm).
+    blocks that LinuxCNC 2.9 can run through a row's points within ``tolerance`` (mm); with
+    ``end_offset`` (mm), of any whose block ends' tool tips may sit that far off the points.
 
     Why it bounds: a block that moves a rotary axis is joined to its neighbours only by a
     parabolic blend (module docstring, step 4). Each segment then rises from rest and falls back
@@ -449,23 +451,32 @@ def least_row_times(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.n
     the blocks with the whole tolerance, and ignores the first acceleration and the last stop.
     Dynamic programming over the block ends, blocks of at most ``max_points`` points.
 
+    Block ends off the points (camsmooth.controller.blocks.vertex_shift): the linear joints move
+    the tip by a rotation, and a block interpolates its joints linearly, so moving its ends by at
+    most e moves every point of its tip curve by at most e. A block that keeps the skipped tips
+    within T with its ends moved keeps them within T + e with its ends on the points, so the
+    bound takes the blocks ``block_reach`` allows at tolerance + end_offset, and shortens each
+    block's tip chord and linear joint moves by 2 e.
+
     rows (N,); q (N, 5) X Y Z mm A B rad; tip (N, 3) mm (workpiece frame); feed (N,) mm/min, the
     programmed tip feed."""
     q = np.asarray(q, float)
     tip = np.asarray(tip, float)
     vmax, amax, _ = axis_limits(machine)
-    ok = block_reach(machine, rows, q, tip, float(tolerance), max_points)
-    return least_block_times(vmax, amax, rows, q, tip, feed, ok, max_points)
+    ok = block_reach(machine, rows, q, tip, float(tolerance) + float(end_offset), max_points)
+    return least_block_times(vmax, amax, rows, q, tip, feed, ok, max_points, slack=float(end_offset))
 
 
 def least_block_times(vmax: np.ndarray, amax: np.ndarray, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
-                      feed: np.ndarray, ok: np.ndarray, max_points: int = LEAST_TIME_BLOCK_POINTS) -> np.ndarray:
+                      feed: np.ndarray, ok: np.ndarray, max_points: int = LEAST_TIME_BLOCK_POINTS,
+                      slack: float = 0.0) -> np.ndarray:
     """The dynamic programme of ``least_row_times`` over given coordinates and allowed blocks: per
     row (s), the least sum over a choice of block ends of max(tip chord / feed, max_i |d_i| /
     vmax_i, sqrt(2 max_i |d_i| / amax_i) where a rotary coordinate moves). q (N, 5) the planned
     coordinates (X Y Z mm, the rotary axes rad: the joints in machine mode, the tool tip and the
     rotary axes in TCP mode); vmax, amax (5,) their limits (mm/s, mm/s^2, rad/s, rad/s^2); tip
-    (N, 3) mm; feed (N,) mm/min; ok (N, K) bool, ``block_reach``'s layout (K >= max_points)."""
+    (N, 3) mm; feed (N,) mm/min; ok (N, K) bool, ``block_reach``'s layout (K >= max_points);
+    slack mm: how far each block end may sit off its point (chords and linear moves 2 slack shorter)."""
     q = np.asarray(q, float)
     tip = np.asarray(tip, float)
     feed = np.asarray(feed, float) / 60.0
@@ -480,7 +491,8 @@ def least_block_times(vmax: np.ndarray, amax: np.ndarray, rows: np.ndarray, q: n
             good = ok[a + i, k - 1]
             i = i[good]
             d = np.abs(q[a + j] - q[a + i])
-            chord = np.linalg.norm(tip[a + j] - tip[a + i], axis=1)
+            d[:, :3] = np.maximum(d[:, :3] - 2.0 * slack, 0.0)
+            chord = np.maximum(np.linalg.norm(tip[a + j] - tip[a + i], axis=1) - 2.0 * slack, 0.0)
             # only a block that turns a rotary axis is bound to the parabolic blend
             rest = np.where(d[:, 3:].max(axis=1) > 0, np.sqrt(2.0 * (d / amax).max(axis=1)), 0.0)
             cost = np.maximum.reduce([chord / feed[a + j], (d / vmax).max(axis=1), rest])
@@ -578,13 +590,14 @@ class LinuxCNCPlanner:
         return ends
 
     def row_floor(self, machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
-                  feed: np.ndarray | None, tolerance: float) -> np.ndarray:
+                  feed: np.ndarray | None, tolerance: float, end_offset: float = 0.0) -> np.ndarray:
         """The floor (s, per row in order of appearance): the least time any program of straight
-        blocks through the row's points can take on LinuxCNC 2.9 within ``tolerance`` (mm), by
-        ``least_row_times``. q (N, 5) X Y Z mm A B rad; tip (N, 3) mm; feed (N,) mm/min, the
-        programmed tip feed (None: unknown, then the feed does not bound a block)."""
+        blocks through the row's points (their ends' tips within ``end_offset`` mm of them) can
+        take on LinuxCNC 2.9 within ``tolerance`` (mm), by ``least_row_times``. q (N, 5) X Y Z mm
+        A B rad; tip (N, 3) mm; feed (N,) mm/min, the programmed tip feed (None: unknown, then the
+        feed does not bound a block)."""
         f = np.full(len(q), np.inf) if feed is None else np.where(np.asarray(feed, float) > 0, feed, np.inf)
-        return least_row_times(machine, rows, q, tip, f, tolerance)
+        return least_row_times(machine, rows, q, tip, f, tolerance, end_offset=end_offset)
 
     def segments(self, machine: Machine, start: np.ndarray, joints: np.ndarray, rapid: np.ndarray,
                  fword: np.ndarray, inverse_time: np.ndarray) -> Segments:

@@ -569,6 +569,7 @@ def method_summary(m: MethodResult) -> dict[str, Any]:
                                     and mt.controller_deviation_mm is not None else nan),
         "controller_floor_s": (float(mt.controller_floor_s) if mt is not None
                                and mt.controller_floor_s is not None else nan),
+        "end_offset_mm": float(getattr(mt, "controller_end_offset_mm", 0.0) or 0.0) if mt is not None else 0.0,
         "modes_line": _modes_line(mt),
         "feed_peak": getattr(mt, "controller_feed_peak", None) if mt is not None else None,
         "violations_programmed": dict(mt.violations_programmed) if mt is not None else {},
@@ -667,7 +668,8 @@ def _verdict_html(order: list[str], summaries: dict[str, dict[str, Any]], primar
                 cyc += (f"; its blends take the tool tip to {_fmt(fp.ratio, '.3g')} of the programmed feed (row "
                         f"{fp.row}; {fp.rows} row{'s' * (fp.rows > 1)} past it; smooth --hold-feed holds it)")
             if np.isfinite(s["controller_floor_s"]):
-                cyc += f"; {html.escape(floor_text(s['controller'], s['controller_floor_s'], s['cycle_time_s']))}"
+                floor = floor_text(s['controller'], s['controller_floor_s'], s['cycle_time_s'], s['end_offset_mm'])
+                cyc += f"; {html.escape(floor)}"
             if s.get("modes_line"):
                 cyc += f"; {html.escape(s['modes_line'])}"
         share = s["binding_share"]

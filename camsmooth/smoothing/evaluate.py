@@ -102,13 +102,14 @@ def time_law(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
     mm, feed (N,) programmed tip feed mm/min (None: unknown, then ``t_plan`` must be given).
     plan: an already computed time-optimal plan (else planned here); t_plan: the law the program
     itself commands (a written program's block times), used instead of the plan's; keep: the
-    points that end a controller block (None: camsmooth.controller.place, as the writer
-    does); real: the machine the tips are decimated on (an error model's, default ``machine``);
+    points that end a controller block (None: camsmooth.controller.place, as the writer does,
+    with the block ends moved off the points inside the tolerance: vertex_shift); real: the
+    machine the tips are decimated on (an error model's, default ``machine``);
     tolerance: mm, the user's; hold_feed: the controller's blocks are also held so that its model's
     tool tip never goes faster than the programmed feed (its blends can take it past; the plan's
     ``row_feed_peak`` says by how much when not held)."""
     from camsmooth.constants import DEFAULT_SAFE_HEIGHT_MM
-    from camsmooth.controller import place, planner_for, predict
+    from camsmooth.controller import place, planner_for, predict, vertex_shift
     from camsmooth.controller.tcp import tcp_planner_for
 
     rows = np.asarray(rows)
@@ -134,12 +135,15 @@ def time_law(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
             dt = np.maximum(t_plan[nxt] - t_plan[starts], 1e-9)
             entry = np.where(np.isfinite(entry) & (entry > 0), entry, 60.0 * chord / dt)
         keep_given = keep
-        if keep is None:  # the blocks the controller runs soonest (camsmooth.controller.place)
+        shift = None
+        if keep is None:  # the blocks the controller runs soonest (camsmooth.controller.place), their ends
+            # moved off the points inside the tolerance (camsmooth.controller.vertex_shift)
+            shift = vertex_shift(real or machine, rows, q, tip, tolerance)
             keep = place(planner, machine, rows, q, tip, t_plan, tolerance, entry_height=DEFAULT_SAFE_HEIGHT_MM,
-                         entry_feed=entry, real=real, hold_feed=feed if hold_feed else None)
+                         entry_feed=entry, real=real, hold_feed=feed if hold_feed else None, shift=shift)
         ctrl = predict(planner, machine, rows, q, tip, t_plan, np.asarray(keep, bool),
                        entry_height=DEFAULT_SAFE_HEIGHT_MM, entry_feed=entry, tolerance=tolerance, feed=feed,
-                       hold_feed=hold_feed)
+                       hold_feed=hold_feed, shift=shift)
         law.update(controller=ctrl, cycle_time=float(ctrl.cycle_time), row_cycle_time=np.asarray(ctrl.row_cycle_time))
         tcp_planner = tcp_planner_for(machine, tolerance, rows, q) if keep_given is None else None
         if tcp_planner is not None:  # TCP mode beside machine mode; the written mode's plan is the controller's

@@ -506,6 +506,7 @@ class ProgramSmoother:
             if law.controller.row_floor is not None:
                 m.controller_floor_s = law.controller.floor
                 m.row_controller_floor_s = law.controller.row_floor.tolist()
+            m.controller_end_offset_mm = law.controller.end_offset
         if law.tcp is not None:  # both LinuxCNC modes (camsmooth.controller.tcp)
             m.tcp_cycle_time_s = float(law.tcp.cycle_time)
             m.row_tcp_cycle_time_s = np.asarray(law.tcp.row_cycle_time, float).tolist()

@@ -97,7 +97,9 @@ class Metrics:
     None where they do not by more than 1% or the feed is held: ``SmoothOptions.hold_feed``),
     controller_floor_s and row_controller_floor_s (the least time any program of straight blocks
     through the program's points can take on that controller within the tolerance, s, in total
-    and per row; None / [] where the controller has no floor); these are the written mode's
+    and per row; None / [] where the controller has no floor), controller_end_offset_mm (how far
+    the written block ends' tool tips sit off the points, inside the tolerance, mm; the floor is
+    then the one for block ends that far off them); these are the written mode's
     (``[post] mode``). On a table LinuxCNC's trt kinematics describes (camsmooth.controller.tcp),
     both LinuxCNC modes: tcp_cycle_time_s, tcp_floor_s, row_tcp_cycle_time_s, row_tcp_floor_s (TCP
     mode, M428: the prediction with the F words held so that the joints stay within their limits,
@@ -136,6 +138,7 @@ class Metrics:
     controller_feed_peak: FeedPeak | None = None
     controller_floor_s: float | None = None
     row_controller_floor_s: list[float] = field(default_factory=list)
+    controller_end_offset_mm: float = 0.0
     tcp_cycle_time_s: float | None = None
     tcp_floor_s: float | None = None
     row_tcp_cycle_time_s: list[float] = field(default_factory=list)
