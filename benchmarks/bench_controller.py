@@ -14,8 +14,10 @@ the row, which LinuxCNC blends into the row's first block), beside the same dist
 tip camsmooth's model commands ("model um"); and the lower bound of
 camsmooth.controller.linuxcnc.least_row_times over the time-optimal law ("bound/opt"): no
 program of straight blocks through the row's points runs faster on LinuxCNC 2.9 within the
-tolerance (the floor, which ``smooth`` prints beside the prediction; "exec/floor" is the executed
-time over it).
+tolerance (the floor; "exec/floor" is the executed time over it). camsmooth's blocks end off the
+points, inside the tolerance (camsmooth.controller.vertex_shift, "off um" the farthest block end's
+tip): "exec/own" is the executed time over the floor for block ends that far off the points, the
+one ``smooth`` prints beside the prediction.
 
     .venv/bin/python benchmarks/bench_controller.py [--samples blade,wave] [--rows 3] [--methods none,spline,nlp]
     .venv/bin/python benchmarks/bench_controller.py --sample dome    (the A/C trunnion of surfaces/dome_machine.toml)
@@ -186,6 +188,7 @@ def run(sample: str, rows: int, methods: list[str], keep: Path | None, machine_f
             out.append(dict(sample=sample, method=m, row=x.row, executed=x.executed, predicted=x.predicted,
                             optimal=x.optimal, bound=float(bound[x.row]), deviation_um=1e3 * x.deviation,
                             model_deviation_um=1e3 * float(model_dev[x.row]),
+                            own=float(r.controller.row_floor[j]), offset_um=1e3 * r.controller.end_offset,
                             blocks=int(r.controller.keep[sel].sum() - 1), points=int(sel.sum()), wall=wall,
                             tip_feed=float(speed[cut[x.row]].max()),
                             # the model's ratio where past the feed, 0 where within (nan: no feed given)
@@ -309,27 +312,30 @@ def main() -> None:
     print(f"LinuxCNC simulation, tolerance {TOLERANCE} mm, servo period 1 ms")
     print(f"{'sample':8s} {'method':7s} {'row':>4s} {'points':>6s} {'blocks':>6s} {'executed s':>10s} "
           f"{'predicted s':>11s} {'pred/exec-1':>11s} {'optimal s':>9s} {'exec/opt':>8s} {'bound/opt':>9s} "
-          f"{'exec/floor':>10s} {'tip dev um':>10s} {'model um':>8s} {'tip/F':>6s} {'model':>6s}")
+          f"{'exec/floor':>10s} {'exec/own':>8s} {'off um':>6s} {'tip dev um':>10s} {'model um':>8s} {'tip/F':>6s} "
+          f"{'model':>6s}")
     totals: dict[tuple[str, str], list[float]] = {}
     for sample in args.samples.split(","):
         for row in run(sample, args.rows, args.methods.split(","), args.keep, args.machine, args.hold_feed):
             print(f"{row['sample']:8s} {row['method']:7s} {row['row']:4d} {row['points']:6d} {row['blocks']:6d} "
                   f"{row['executed']:10.3f} {row['predicted']:11.3f} {row['predicted'] / row['executed'] - 1:+11.2%} "
                   f"{row['optimal']:9.3f} {row['executed'] / row['optimal']:8.2f} {row['bound'] / row['optimal']:9.2f} "
-                  f"{row['executed'] / row['bound']:10.3f} {row['deviation_um']:10.2f} "
+                  f"{row['executed'] / row['bound']:10.3f} {row['executed'] / row['own']:8.3f} {row['offset_um']:6.2f} "
+                  f"{row['deviation_um']:10.2f} "
                   f"{row['model_deviation_um']:8.2f} {row['tip_feed']:6.2f} {row['model_tip_feed']:6.2f}")
-            t = totals.setdefault((row["sample"], row["method"]), [0.0, 0.0, 0.0, 0.0, 0.0])
+            t = totals.setdefault((row["sample"], row["method"]), [0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
             t[0] += row["executed"]
             t[1] += row["predicted"]
             t[2] += row["optimal"]
             t[3] += row["bound"]
             t[4] = max(t[4], row["deviation_um"])
+            t[5] += row["own"]
     print("\ntotals over the rows (bound: the least time any program of straight blocks through the points can "
           "take on LinuxCNC 2.9 within the tolerance, controller.linuxcnc.least_row_times)")
-    for (sample, m), (ex, pr, op, lb, dev) in totals.items():
+    for (sample, m), (ex, pr, op, lb, dev, own) in totals.items():
         print(f"{sample:8s} {m:7s} executed {ex:8.3f} s  predicted {pr:8.3f} s ({pr / ex - 1:+.2%})  "
               f"optimal {op:8.3f} s  executed/optimal {ex / op:.2f}  bound/optimal {lb / op:.2f}  "
-              f"executed/floor {ex / lb:.3f}  predicted/floor {pr / lb:.3f}  "
+              f"executed/floor {ex / lb:.3f}  predicted/floor {pr / lb:.3f}  executed/own floor {ex / own:.3f}  "
               f"largest tip deviation {dev:.2f} um (tolerance {1e3 * TOLERANCE:g} um)")
 
 
