@@ -299,6 +299,9 @@ def test_a_stopped_entry_is_written_with_g61_and_the_g64_line_again(blade_rows, 
         first = next(j for j in range(i, len(lines)) if lines[j].startswith("G01"))
         assert lines[first - 1] == "G61" and lines[first + 1] == g64[0], lines[i:first + 2]
     assert any("entry move ends at rest: G61 before it" in ln for ln in lines[:40])
+    said = [ln for ln in lines[:40] if "block ends up to" in ln]
+    assert said == [f"(block ends up to {1e3 * plan.end_offset:.2g} um off the path's points, to the outside of its "
+                    "curve and inside the tolerance [the tool axes as planned])"]
 
 
 def test_the_tip_past_the_programmed_feed_is_reported_and_held_on_request(blade_rows, capsys):

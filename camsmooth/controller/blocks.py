@@ -67,6 +67,8 @@ MAX_BLOCK_POINTS = 16
 VERTEX_SHIFT_SHARE = 0.5
 #: points on each side of a point whose block's tip curve says which side of the path is outside
 _SHIFT_SPAN = 4
+#: points per batch of ``vertex_shift``
+_SHIFT_CHUNK = 20_000
 #: intervals of the polyline that stands for a block's tip curve
 _CURVE_SAMPLES = 16
 #: point-segment pairs per batch of ``tip_deviation``
@@ -252,14 +254,16 @@ def vertex_shift(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndar
     h = np.minimum(_SHIFT_SPAN, np.minimum(j - first, last - j))
     j, h = j[h > 0], h[h > 0]
     s = np.linspace(0.0, 1.0, 2 * _CURVE_SAMPLES + 1)
-    qa, qb = q[j - h], q[j + h]
-    curve = tool_tips(machine, qa[:, None, :] + s[None, :, None] * (qb - qa)[:, None, :])
-    out_dir = tip[j] - _nearest_on(tip[j], curve)
-    sag = np.linalg.norm(out_dir, axis=1)
-    move = np.where(sag > 0, np.minimum(share * float(tolerance), 0.5 * sag) / np.maximum(sag, 1e-300), 0.0)
-    base = tool_tips(machine, q[j])
-    jac = np.stack([tool_tips(machine, q[j] + np.eye(5)[i]) - base for i in range(3)], axis=2)  # tip per mm of X, Y, Z
-    out[j, :3] = np.linalg.solve(jac, (move[:, None] * out_dir)[..., None])[..., 0]
+    for c in range(0, len(j), _SHIFT_CHUNK):  # bounded memory on programs of a million points
+        jc, hc = j[c:c + _SHIFT_CHUNK], h[c:c + _SHIFT_CHUNK]
+        qa, qb = q[jc - hc], q[jc + hc]
+        curve = tool_tips(machine, qa[:, None, :] + s[None, :, None] * (qb - qa)[:, None, :])
+        out_dir = tip[jc] - _nearest_on(tip[jc], curve)
+        sag = np.linalg.norm(out_dir, axis=1)
+        move = np.where(sag > 0, np.minimum(share * float(tolerance), 0.5 * sag) / np.maximum(sag, 1e-300), 0.0)
+        base = tool_tips(machine, q[jc])
+        jac = np.stack([tool_tips(machine, q[jc] + np.eye(5)[i]) - base for i in range(3)], axis=2)  # tip per mm
+        out[jc, :3] = np.linalg.solve(jac, (move[:, None] * out_dir)[..., None])[..., 0]
     return out
 
 

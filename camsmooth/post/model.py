@@ -50,7 +50,9 @@ class PostProgram:
     tolerance (mm): the header; blend_tolerance (mm): the controller's blend tolerance a controller
     plan was timed with (LinuxCNC ``G64 P``; None: the writer's default share of the tolerance);
     entry_stop: the plan stops each row's entry move (``ControllerPlan.entry_stop``), which the
-    writer writes with the dialect's exact stop.
+    writer writes with the dialect's exact stop; end_offset: mm, how far the joints' tool tips sit
+    off the method's points (``ControllerPlan.end_offset``: the plan moved its block ends inside the
+    tolerance), said in the header.
     """
 
     rows: np.ndarray
@@ -70,6 +72,7 @@ class PostProgram:
     t_opt: np.ndarray | None = None
     blend_tolerance: float | None = None
     entry_stop: bool = False
+    end_offset: float = 0.0
 
     def __len__(self) -> int:
         return len(self.rows)

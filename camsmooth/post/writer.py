@@ -353,6 +353,10 @@ def _header(dialect: Words, mode: str, machine: Any, program: PostProgram, h: fl
         if getattr(program, "entry_stop", False) and dialect.exact_stop is not None:
             head.append(c(f"each row's entry move ends at rest: {dialect.exact_stop} before it, the G64 line again "
                           "after it"))
+    off = float(getattr(program, "end_offset", 0.0) or 0.0)
+    if off > 0:
+        head.append(c(f"block ends up to {1e3 * off:.2g} um off the path's points, to the outside of its curve and "
+                      "inside the tolerance (the tool axes as planned)"))
     return head
 
 

@@ -117,7 +117,8 @@ def post_program(result: SmoothResult | MethodResult, cutter: Any, feed_mm_min: 
                        inputs=list(describe_inputs(inputs)), tool_text=tool_text(cutter), n_points=n,
                        tolerance=tolerance, t_prog=t_prog, f_prog=f_prog, block_time=block_time, t_opt=t_opt,
                        blend_tolerance=getattr(ctrl, "blend_tolerance", None),
-                       entry_stop=bool(getattr(ctrl, "entry_stop", False)))
+                       entry_stop=bool(getattr(ctrl, "entry_stop", False)),
+                       end_offset=float(getattr(ctrl, "end_offset", 0.0) or 0.0))
 
 
 def write_gcode(path: str | os.PathLike, result: SmoothResult | MethodResult, machine: Any, cutter: Any,
