@@ -174,7 +174,7 @@ def test_model_of_short_rotary_blocks_is_limited_by_half_the_acceleration():
 def test_linuxcnc_interpreter_reads_the_program_and_its_positions_and_times(blade_rows, tmp_path, mode):
     """rs274 reads every block; its canonical X Y Z A B equal the written blocks' joints (machine
     mode: the points' joints moved by the plan's joint_shift, its block ends off the points) or tips
-    (tcp mode) to the written precision, and in machine mode its inverse-time feed gives each cut
+    (tcp mode: moved by its tip_shift) to the written precision, and in machine mode its inverse-time feed gives each cut
     block the controller plan's block time."""
     m = _machine(mode)
     r = blade_rows.methods["nlp"]
@@ -186,7 +186,7 @@ def test_linuxcnc_interpreter_reads_the_program_and_its_positions_and_times(blad
     keep = r.controller.keep
     shift = r.controller.joint_shift
     assert shift is not None and np.abs(shift[keep]).max() > 1e-3  # machine mode's ends sit off the points
-    xyz = r.xyz + shift[:, :3] if mode == "machine" else r.cl
+    xyz = r.xyz + shift[:, :3] if mode == "machine" else r.cl + r.controller.tip_shift
     pts = np.column_stack([xyz, np.degrees(r.rotary.values)])[keep]
     cut = ~canon.rapid
     cut &= np.abs(canon.joints[:, 2]) < 1e3  # not the final G53 retract

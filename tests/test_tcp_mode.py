@@ -285,7 +285,8 @@ def test_the_rotary_axes_past_amax_in_the_blend_into_the_last_block_are_held(dom
 def test_smooth_says_both_modes_and_writes_the_tcp_program_with_the_held_feeds(dome, tmp_path):
     """smooth on the dome's A/C trunnion with the LinuxCNC post: the metrics carry TCP mode's and
     machine mode's predictions and floors, the program written in TCP mode (the machine file's
-    mode) has the TCP plan's blocks with F = the tip chord over the held block time and the G64 P
+    mode) has the TCP plan's blocks with F = the tip chord (between the tips as written: moved off
+    the points by the plan's tip_shift, at most half the tolerance) over the held block time and the G64 P
     the plan was timed with (twice the tolerance: every dome move turns a rotary axis, LinuxCNC
     joins them by parabolic blends only), and the summary line says which mode is faster."""
     from camsmooth.smoothing.posting import write_gcode
@@ -313,7 +314,9 @@ def test_smooth_says_both_modes_and_writes_the_tcp_program_with_the_held_feeds(d
     k = np.flatnonzero(plan.keep)
     first = np.r_[True, r.rows[k][1:] != r.rows[k][:-1]]
     cut = k[~first]
-    chord = np.linalg.norm(np.round(r.cl[cut], 4) - np.round(r.cl[k[np.flatnonzero(~first) - 1]], 4), axis=1)
+    assert 0 < plan.end_offset <= 0.5 * TOL + 1e-12
+    tips = r.cl + plan.tip_shift
+    chord = np.linalg.norm(np.round(tips[cut], 4) - np.round(tips[k[np.flatnonzero(~first) - 1]], 4), axis=1)
     written = np.asarray(fs, float)[~first]  # the G01 lines are the kept points in order, a row's entry first
     assert np.allclose(written, np.round(60.0 * chord / plan.block_time[cut], 1), atol=0.051)
     line = mode_text(mt.tcp_cycle_time_s, mt.tcp_floor_s, mt.machine_cycle_time_s, mt.machine_floor_s,
@@ -377,8 +380,8 @@ def test_a_tcp_program_on_linuxcncs_trt_kinematics_runs_as_predicted_within_the_
 def test_smooth_and_the_report_print_both_modes_with_their_floors(dome, capsys):
     """``smooth``'s summary and the report's verdict for a TCP program on the A/C trunnion: the
     floor line names TCP mode (the written one) and the mode line gives both predictions and
-    floors, the TCP floor recomputed here (least time on the world coordinates), and which is
-    faster by the predicted times."""
+    floors, the TCP floor recomputed here (least time on the world coordinates, for block ends as
+    far off the points as the program's), and which is faster by the predicted times."""
     from camsmooth.cli.main import _print_floor
     from camsmooth.report.smoothing import _modes_line
 
@@ -392,7 +395,8 @@ def test_smooth_and_the_report_print_both_modes_with_their_floors(dome, capsys):
     assert got, out
     tcp, tcp_floor, mach, mach_floor = (float(got.group(i)) for i in range(1, 5))
     q = np.column_stack([r.xyz, r.rotary.values])
-    want = TCPPlanner().row_floor(dome.machine, r.rows, q, r.cl, np.full(len(q), 2000.0), TOL)
+    want = TCPPlanner().row_floor(dome.machine, r.rows, q, r.cl, np.full(len(q), 2000.0), TOL,
+                                  end_offset=r.controller.end_offset)
     assert tcp_floor == pytest.approx(want.sum(), rel=1e-3)
     assert tcp == pytest.approx(mt.tcp_cycle_time_s, rel=1e-3) and mach == pytest.approx(mt.machine_cycle_time_s,
                                                                                          rel=1e-3)

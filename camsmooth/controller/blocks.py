@@ -231,17 +231,21 @@ def _nearest_on(pts: np.ndarray, curve: np.ndarray) -> np.ndarray:
 
 
 def vertex_shift(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray, tolerance: float,
-                 share: float = VERTEX_SHIFT_SHARE) -> np.ndarray:
-    """Where each point would be written if it ends a block: (N, 5) the shift of its joints (X Y Z
-    mm; the rotary axes, the row's first and last points 0) that moves its tool tip off the path,
-    to the outside of the tip curve of the block from _SHIFT_SPAN points before it to as many after
-    (fewer near a row's ends), by half that block's sagitta and at most ``share`` x ``tolerance``
-    (mm). A chord of a curved path lies on its inside; with its ends moved out by half its sagitta
-    its deviation is shared between the middle and the ends, as a CAM system's inner and outer
-    tolerances share a band, so a block may span a longer stretch of path within the same band.
-    The tool axes are not moved. The joint shift is the tip shift through the linear axes'
-    Jacobian (exact: they translate, by a rotation in the workpiece frame on a table). q (N, 5)
-    X Y Z mm A B rad; tip (N, 3) mm, workpiece frame."""
+                 share: float = VERTEX_SHIFT_SHARE, *, world: bool = False) -> np.ndarray:
+    """Where each point would be written if it ends a block: (N, 5) the shift of its coordinates
+    that moves its tool tip off the path, to the outside of the tip path of the block from
+    _SHIFT_SPAN points before it to as many after (fewer near a row's ends), by half that block's
+    sagitta and at most ``share`` x ``tolerance`` (mm); the rotary axes and each row's first and
+    last points do not move. A chord of a curved path lies on its inside; with its ends moved out
+    by half its sagitta its deviation is shared between the middle and the ends, as a CAM system's
+    inner and outer tolerances share a band, so a block may span a longer stretch of path within
+    the same band. The tool axes are not moved.
+
+    Machine mode (``world`` False): a block's tip path is the forward kinematics of its joints
+    interpolated linearly, and the shift is the joints' X Y Z (mm), the tip's move through the
+    linear axes' Jacobian (exact: they translate the tip, by a rotation in the workpiece frame on a
+    table). TCP mode (``world`` True): the tip path is the chord between the tips, and the shift is
+    the tip's (mm, workpiece frame). q (N, 5) X Y Z mm A B rad; tip (N, 3) mm, workpiece frame."""
     q = np.asarray(q, float)
     tip = np.asarray(tip, float)
     n = len(q)
@@ -256,14 +260,21 @@ def vertex_shift(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndar
     s = np.linspace(0.0, 1.0, 2 * _CURVE_SAMPLES + 1)
     for c in range(0, len(j), _SHIFT_CHUNK):  # bounded memory on programs of a million points
         jc, hc = j[c:c + _SHIFT_CHUNK], h[c:c + _SHIFT_CHUNK]
-        qa, qb = q[jc - hc], q[jc + hc]
-        curve = tool_tips(machine, qa[:, None, :] + s[None, :, None] * (qb - qa)[:, None, :])
+        if world:
+            curve = np.stack([tip[jc - hc], tip[jc + hc]], axis=1)
+        else:
+            qa, qb = q[jc - hc], q[jc + hc]
+            curve = tool_tips(machine, qa[:, None, :] + s[None, :, None] * (qb - qa)[:, None, :])
         out_dir = tip[jc] - _nearest_on(tip[jc], curve)
         sag = np.linalg.norm(out_dir, axis=1)
         move = np.where(sag > 0, np.minimum(share * float(tolerance), 0.5 * sag) / np.maximum(sag, 1e-300), 0.0)
+        step = move[:, None] * out_dir
+        if world:
+            out[jc, :3] = step
+            continue
         base = tool_tips(machine, q[jc])
         jac = np.stack([tool_tips(machine, q[jc] + np.eye(5)[i]) - base for i in range(3)], axis=2)  # tip per mm
-        out[jc, :3] = np.linalg.solve(jac, (move[:, None] * out_dir)[..., None])[..., 0]
+        out[jc, :3] = np.linalg.solve(jac, step[..., None])[..., 0]
     return out
 
 
@@ -404,8 +415,7 @@ def place(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray, t
         entry_q, entry_time = row_entry(machine, q[a], entry_height, float(entry_feed[r]))
         path, at = _tip_polyline(machine, q[a:b], tool_tips(machine, entry_q[None, :])[0], 4, np.radians(0.25))
         return _hold_row(planner, machine, qc[a:b], k - a, t_opt[a:b], entry_q, entry_time, path, at, limit,
-                         over_limits=_feed_check(planner, hold_feed, a, b, tool_tips(machine, entry_q[None, :])[0],
-                                                 lambda j: tool_tips(machine, j)))[2][-1]
+                         over_limits=_limit_check(planner, machine, hold_feed, a, b, entry_q))[2][-1]
 
     return sooner_blocks(planner, machine, rows, qc, t_opt, ok, keep,
                          lambda r, a: row_entry(machine, q[a], entry_height, float(entry_feed[r])), held)
@@ -471,7 +481,8 @@ class ControllerPlan:
     parabolic blend both blocks move, and the tip can go faster than either commands;
     joint_shift: (N, 5) X Y Z mm (rotary 0), what the program adds to the joints of each point it
     keeps (``vertex_shift``: the block ends sit off the points, inside the tolerance; 0 at the
-    points it drops), None where the blocks end on the points.
+    points it drops), None where the blocks end on the points; tip_shift: (N, 3) mm, workpiece
+    frame, the same move of the tool tip (what a TCP program adds to the tips it writes).
     """
 
     controller: str
@@ -489,6 +500,7 @@ class ControllerPlan:
     row_joint_peak: np.ndarray | None = None
     row_feed_peak: np.ndarray | None = None
     joint_shift: np.ndarray | None = None
+    tip_shift: np.ndarray | None = None
 
     @property
     def floor(self) -> float | None:
@@ -497,11 +509,11 @@ class ControllerPlan:
 
     @property
     def end_offset(self) -> float:
-        """mm, the largest distance of a block end's tool tip from its point (``joint_shift``; 0
+        """mm, the largest distance of a block end's tool tip from its point (``tip_shift``; 0
         where the blocks end on the points)."""
-        if self.joint_shift is None or not len(self.joint_shift):
+        if self.tip_shift is None or not len(self.tip_shift):
             return 0.0
-        return float(np.linalg.norm(np.asarray(self.joint_shift, float)[:, :3], axis=1).max())
+        return float(np.linalg.norm(np.asarray(self.tip_shift, float), axis=1).max())
 
     @property
     def blocks(self) -> int:
@@ -566,6 +578,9 @@ _LIMIT_STEP = 1.1
 _FEED_SLACK = 1e-3
 #: rounds in a row in which over_limits' largest ratio does not come down before that hold stops
 _STALLED = 3
+#: share a coordinate's one-cycle finite-difference acceleration may exceed its amax by: a rest
+#: stop's last cycle reads 1.003 of it on LinuxCNC's own stop, which no block time changes
+_ACC_SLACK = 5e-3
 
 
 def _blend_excess(run: RowRun, dev: np.ndarray, limit: float, n_blocks: int, following: bool = False) -> np.ndarray:
@@ -609,6 +624,46 @@ def block_peaks(run: RowRun, ratio: np.ndarray, *segments: np.ndarray) -> np.nda
     return out[1:n + 1]
 
 
+def acceleration_over(run: RowRun, positions: np.ndarray, amax: np.ndarray, period: float,
+                      slack: float = _ACC_SLACK, stride: int = 1, start: np.ndarray | None = None) -> np.ndarray:
+    """Per block of a row run (n_blocks,), the largest acceleration over its limit of any planned
+    coordinate (positions (K, D) at the end of every servo cycle of ``period`` s, amax (D,) in the
+    same units per s^2; second differences over ``stride`` cycles, at rest at ``start`` (D,)
+    before the first (None: at the first) and at the last after it: over 5 a segment that ends
+    inside a cycle, a one-cycle step, does not count)
+    at the cycles the block accelerates at its whole rate (the one blended into, else the
+    executing one), 0 where within ``slack``. LinuxCNC limits each coordinate per block, but a
+    parabolic blend into a row's last block overlaps the block before's deceleration at half its
+    acceleration with the last block's at the whole one (1.11 of amax on the dome's rotary axis in
+    TCP mode, 1.10 on a B/C trunnion's in machine mode, both on the headless LinuxCNC)."""
+    n = len(run.end) - 1
+    w = np.asarray(positions, float)
+    s = int(stride)
+    rest = w[:1] if start is None else np.asarray(start, float).reshape(1, -1)
+    w = np.vstack([np.repeat(rest, s, axis=0), w, np.repeat(w[-1:], s, axis=0)])
+    acc = (np.abs(w[2 * s:] - 2.0 * w[s:-s] + w[:-2 * s]) / (s * period) ** 2 / np.asarray(amax, float)).max(axis=1)
+    cyc = np.flatnonzero(acc > 1.0 + slack)
+    return block_peaks(run, acc[cyc], np.where((run.following_fraction[cyc] > 0) & (run.following[cyc] <= n),
+                                               run.following[cyc], run.head[cyc]))
+
+
+def _limit_check(planner: Planner, machine: Machine, feed: np.ndarray | None, a: int, b: int, entry_q: np.ndarray
+                 ) -> Callable[[RowRun, np.ndarray], np.ndarray]:
+    """Machine mode's over_limits for ``_hold_row`` on the row of points a:b entered from rest at
+    the joints entry_q: every joint's ``acceleration_over`` its amax, and where ``feed`` (mm/min)
+    is given the tool tip's ``tip_speed_over`` it (``_feed_check``)."""
+    amax = axis_limits(machine)[1]
+    period = float(getattr(planner, "servo_period", 1e-3))
+    speed = _feed_check(planner, feed, a, b, tool_tips(machine, np.asarray(entry_q, float)[None, :])[0],
+                        lambda j: tool_tips(machine, j))
+
+    def over(run: RowRun, joints: np.ndarray) -> np.ndarray:
+        out = acceleration_over(run, joints, amax, period, stride=5, start=entry_q)  # as predict's row_joint_peak
+        return out if speed is None else np.maximum(out, speed(run, joints))
+
+    return over
+
+
 def _feed_check(planner: Planner, feed: np.ndarray | None, a: int, b: int, start_tip: np.ndarray,
                 tips: Callable[[np.ndarray], np.ndarray], slack: float = _FEED_SLACK
                 ) -> Callable[[RowRun, np.ndarray], np.ndarray] | None:
@@ -646,8 +701,9 @@ def _hold_row(planner: Planner, machine: Machine, q: np.ndarray, k: np.ndarray, 
     machine's forward kinematics of joints; TCP mode: the world coordinates' first three);
     over_limits(run, positions): (n_blocks,) per block the largest ratio of a coordinate's
     acceleration (or velocity) to its limit while the block moves (None: not checked); a block
-    over 1 is lengthened by _LIMIT_STEP per round until the largest ratio has not come down for
-    _STALLED rounds in a row.
+    over 1 is lengthened by _LIMIT_STEP per round (in the rounds whose blends keep the path) until
+    the largest ratio has not come down for _STALLED rounds in a row, when the block times go back
+    to those of the round it was lowest in.
     Returns k, the block times (s), the blocks' end times (s from the row's start, starting with
     0) and the largest deviation of the last run (mm, 0 when not checked)."""
     tips = tips or (lambda joints: tool_tips(machine, joints))
@@ -660,9 +716,12 @@ def _hold_row(planner: Planner, machine: Machine, q: np.ndarray, k: np.ndarray, 
     worst = 0.0
     both = False
     peak: float | None = np.inf  # over_limits' lowest largest ratio so far (None: no longer held)
+    best = bt  # the block times of the round that reached it
     stalled = 0  # rounds since it last came down
+    ran = None
     for _ in range(_ROUNDS if path is not None or over_limits is not None else 1):
         run, joints = planner.row_run(machine, q[k], bt, entry_q, entry_time)
+        ran = bt
         excess = np.zeros(len(bt))
         if path is not None:
             dev = _run_deviation(run, tips(joints), path, at[k])
@@ -672,19 +731,30 @@ def _hold_row(planner: Planner, machine: Machine, q: np.ndarray, k: np.ndarray, 
                 # zero where what is left is a block's own tip curve: slowing down cannot help it
                 excess = _blend_excess(run, dev, limit, len(bt), following=both)
         over = np.zeros(len(bt), bool)
-        if over_limits is not None and peak is not None:
+        # the limits once the blends keep the path: slower blends may already keep them
+        if over_limits is not None and peak is not None and not excess.any():
             ratio = over_limits(run, joints)
             top = float(ratio.max(initial=0.0))
-            stalled = stalled + 1 if top >= peak else 0
-            if stalled >= _STALLED:  # lengthening does not bring it down: leave the blocks as they are
-                peak = None
+            if top < peak:
+                peak, best, stalled = top, bt, 0
             else:
-                over, peak = ratio > 1.0, min(top, peak)
+                stalled += 1
+            if stalled >= _STALLED:  # lengthening does not bring it down: back to the round that did best
+                peak = None
+                if not np.array_equal(bt, best):
+                    bt = best
+                    continue
+            else:
+                over = ratio > 1.0
         if not excess.any() and not over.any():
             break
         # the controller runs short five-axis blocks slower than commanded: slow down from what it did
         slow = np.maximum(bt, np.diff(run.end))
         bt = np.where(excess > 0, slow * (excess / limit) ** 0.5 * 1.02, np.where(over, slow * _LIMIT_STEP, bt))
+    if ran is not bt:  # the rounds ran out on block times not yet run
+        run, joints = planner.row_run(machine, q[k], bt, entry_q, entry_time)
+        if path is not None:
+            worst = float(_run_deviation(run, tips(joints), path, at[k]).max())
     return k, bt, np.r_[0.0, run.end[1:] - run.end[0]], worst
 
 
@@ -723,7 +793,7 @@ def points_timing(s: np.ndarray, k: np.ndarray, tk: np.ndarray, tip_k: np.ndarra
 def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
             t_opt: np.ndarray, keep: np.ndarray, *, entry_height: float, entry_feed: np.ndarray,
             tolerance: float | None = None, feed: np.ndarray | None = None, hold_feed: bool = False,
-            shift: np.ndarray | None = None) -> ControllerPlan:
+            shift: np.ndarray | None = None, hold: bool = True) -> ControllerPlan:
     """The controller's timing of a program written in the blocks ``keep`` with the block times
     of the time-optimal law ``t_opt`` (s from each row's start). q: (N, 5) X Y Z mm A B rad;
     tip: (N, 3) mm. Each row is entered by a feed move of ``entry_height`` mm along the tool axis
@@ -739,7 +809,9 @@ def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray,
     floor through the same points, for block ends as far off them as the plan's (``Planner.row_floor``;
     feed (N,) mm/min the programmed tip feed, None: unknown). shift (N, 5): the blocks are written
     between the joints q + shift (``vertex_shift``, as ``place`` chose them; None: q); the
-    programmed path stays q's."""
+    programmed path stays q's. hold False: t_opt is the program's own block times (a written
+    program's F words), run as written, neither split nor lengthened (row_deviation 0: not
+    checked)."""
     rows = np.asarray(rows)
     keep = np.array(keep, bool)
     q = np.asarray(q, float)
@@ -763,12 +835,12 @@ def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray,
         if len(k) > 1:
             path = None
             entry_tip = tool_tips(machine, entry_q[None, :])[0]
-            if tolerance is not None:
+            if tolerance is not None and hold:
                 path, at[a:b] = _tip_polyline(machine, q[a:b], entry_tip, 4, np.radians(0.25))
             limit = EXECUTED_TOLERANCE_SHARE * float(tolerance or 0.0)
             k, bt, tk, row_dev[r] = _hold_row(planner, machine, qc, k, t_opt, entry_q, entry_time, path, at, limit,
-                                              over_limits=_feed_check(planner, prog_feed if hold_feed else None, a, b,
-                                                                      entry_tip, lambda j: tool_tips(machine, j)))
+                                              over_limits=_limit_check(planner, machine, prog_feed if hold_feed else
+                                                                       None, a, b, entry_q) if hold else None)
             keep[k] = True
             run, joints = planner.row_run(machine, qc[k], bt, entry_q, entry_time)
             # over 5 cycles: an overlap of two blends lasts; a segment ending inside a cycle is a one-cycle step.
@@ -784,8 +856,13 @@ def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray,
         t_ctrl[a:b], feed[a:b] = points_timing(s, k - a, tk, tip[k])
         row_cycle[r] = tk[-1]
     floor = None
-    joint_shift = None if shift is None else np.where(keep[:, None], qc - q, 0.0)
-    off = 0.0 if joint_shift is None else float(np.linalg.norm(joint_shift[:, :3], axis=1).max(initial=0.0))
+    joint_shift = tip_shift = None
+    off = 0.0
+    if shift is not None:
+        joint_shift = np.where(keep[:, None], qc - q, 0.0)
+        tip_shift = np.zeros((n, 3))
+        tip_shift[keep] = tool_tips(machine, qc[keep]) - tool_tips(machine, q[keep])
+        off = float(np.linalg.norm(tip_shift, axis=1).max(initial=0.0))
     if tolerance is not None and n:  # the floor of programs whose block ends sit as far off the points
         floor = planner.row_floor(machine, rows, q, tip, prog_feed, float(tolerance), off)
     return ControllerPlan(controller=planner.name, keep=keep, block_time=block_time, t_plan=t_ctrl,
@@ -795,4 +872,4 @@ def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray,
                           blend_tolerance=getattr(planner, "tolerance", None),
                           entry_stop=bool(getattr(planner, "entry_stop", False)), row_joint_peak=peak,
                           row_feed_peak=None if prog_feed is None else feed_peak,
-                          joint_shift=joint_shift)
+                          joint_shift=joint_shift, tip_shift=tip_shift)

@@ -57,7 +57,7 @@ from camsmooth.controller.blocks import (
     _hold_row,
     _row_bounds,
     _run_deviation,
-    block_peaks,
+    acceleration_over,
     decimate,
     joint_ratio,
     points_timing,
@@ -127,17 +127,21 @@ def world_joints(machine: Machine, world: np.ndarray) -> np.ndarray:
     return np.column_stack([machine.linear_axes(w[:, :3], w[:, 3], w[:, 4]), w[:, 3:]])
 
 
-def chord_reach(rows: np.ndarray, tip: np.ndarray, tolerance: float, max_points: int = MAX_BLOCK_POINTS
-                ) -> np.ndarray:
+def chord_reach(rows: np.ndarray, tip: np.ndarray, tolerance: float, max_points: int = MAX_BLOCK_POINTS, *,
+                shift: np.ndarray | None = None) -> np.ndarray:
     """Which TCP blocks keep the tips they skip within ``tolerance`` (mm) of their chord (the tip
     path of a TCP block): (N, max_points) bool in ``block_reach``'s layout, entry [a, k - 1] for the
     block from point a to point a + k inside a's row (always True for k = 1). Once a block from a
-    fails, the longer ones from a are not tried. tip (N, 3) mm."""
+    fails, the longer ones from a are not tried. tip (N, 3) mm; shift (N, 3+): the chords run
+    between the tips moved by its first three columns (``vertex_shift`` with ``world``; None: not
+    moved), the tips they must pass stay tip (the path between two skipped tips is their chord,
+    never farther from the block's than its ends)."""
     tip = np.asarray(tip, float)
+    ends = tip if shift is None else tip + np.asarray(shift, float)[:, :3]
     tol2 = float(tolerance) ** 2
 
     def passes(a: np.ndarray, k: int) -> np.ndarray:
-        p0, d = tip[a], tip[a + k] - tip[a]
+        p0, d = ends[a], ends[a + k] - ends[a]
         rel = tip[a[:, None] + np.arange(1, k)[None, :]] - p0[:, None, :]
         t = np.clip(np.einsum("bpk,bk->bp", rel, d) / np.maximum(np.einsum("bk,bk->b", d, d), 1e-300)[:, None],
                     0.0, 1.0)
@@ -217,15 +221,18 @@ class TCPPlanner:
         return bt, np.column_stack([w[:, :3], np.radians(w[:, 3:])])
 
     def row_floor(self, machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
-                  feed: np.ndarray | None, tolerance: float) -> np.ndarray:
+                  feed: np.ndarray | None, tolerance: float, end_offset: float = 0.0) -> np.ndarray:
         """The TCP floor (s, per row in order of appearance): ``least_row_times``' bound on the world
         coordinates, blocks whose skipped tips stay within the whole ``tolerance`` (mm) of their
-        chord (``chord_reach``), the [AXIS] limits the machine file's. q (N, 5) joints (mm, rad);
-        tip (N, 3) mm; feed (N,) mm/min (None: unknown)."""
+        chord (``chord_reach``), the [AXIS] limits the machine file's; with ``end_offset`` (mm), for
+        block ends whose tips may sit that far off the points (the chords within ``tolerance`` +
+        end_offset, each chord 2 end_offset shorter: ``least_row_times``). q (N, 5) joints (mm,
+        rad); tip (N, 3) mm; feed (N,) mm/min (None: unknown)."""
         f = np.full(len(q), np.inf) if feed is None else np.where(np.asarray(feed, float) > 0, feed, np.inf)
         vmax, amax, _ = axis_limits(machine)
-        ok = chord_reach(rows, tip, float(tolerance), LEAST_TIME_BLOCK_POINTS)
-        return least_block_times(vmax, amax, rows, world_coordinates(q, tip), tip, f, ok, LEAST_TIME_BLOCK_POINTS)
+        ok = chord_reach(rows, tip, float(tolerance) + float(end_offset), LEAST_TIME_BLOCK_POINTS)
+        return least_block_times(vmax, amax, rows, world_coordinates(q, tip), tip, f, ok, LEAST_TIME_BLOCK_POINTS,
+                                 slack=float(end_offset))
 
     def _entry(self, machine: Machine, q: np.ndarray, tip: np.ndarray, entry_height: float,
                entry_feed: float) -> tuple[np.ndarray, float]:
@@ -237,16 +244,19 @@ class TCPPlanner:
         return w, 60.0 * entry_height / float(entry_feed)
 
     def place(self, machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray, t_opt: np.ndarray,
-              tolerance: float, *, entry_height: float, entry_feed: np.ndarray) -> np.ndarray:
+              tolerance: float, *, entry_height: float, entry_feed: np.ndarray,
+              shift: np.ndarray | None = None) -> np.ndarray:
         """Points that end a TCP block (bool (N,)): per row, among the blocks whose skipped tips stay
         within ``BLOCK_TOLERANCE_SHARE * tolerance`` (mm) of their chord, the block ends the model
         runs soonest (``block_ends``) where they run faster than the longest blocks (``decimate``'s
         greedy rule on ``chord_reach``), else those. t_opt (N,) s, the law the blocks command;
-        entry_height mm, entry_feed (R,) mm/min as ``predict``."""
+        entry_height mm, entry_feed (R,) mm/min as ``predict``; shift (N, 5): the world
+        coordinates' move at each point that ends a block (``vertex_shift`` with ``world``; None:
+        none)."""
         rows = np.asarray(rows)
         q, tip, t_opt = (np.asarray(x, float) for x in (q, tip, t_opt))
-        w = world_coordinates(q, tip)
-        ok = chord_reach(rows, tip, BLOCK_TOLERANCE_SHARE * float(tolerance))
+        w = world_coordinates(q, tip) + (0.0 if shift is None else np.asarray(shift, float))
+        ok = chord_reach(rows, tip, BLOCK_TOLERANCE_SHARE * float(tolerance), shift=shift)
         if self.tolerance > tolerance:  # G64 P past the tolerance: only blocks LinuxCNC blends parabolically
             ok = np.logical_and.accumulate(ok & rotary_turns(q, ok.shape[1]), axis=1)
         keep = decimate(machine, rows, q, tip, tolerance, ok=ok)
@@ -254,20 +264,9 @@ class TCPPlanner:
                              lambda r, a: self._entry(machine, q[a], tip[a], entry_height, float(entry_feed[r])))
 
     def _rotary_over(self, machine: Machine, run: BlockTimes, world: np.ndarray) -> np.ndarray:
-        """Per block of a row run (the entry move counted on the first), the rotary axes' largest
-        acceleration over their amax at the model's servo cycles (finite differences over one
-        cycle, the limit held with 0.1% for the rest stop's one-cycle step) while it moves, 0 where
-        within. LinuxCNC limits them as world coordinates, but a parabolic blend into a row's last
-        block overlaps the block before's deceleration at half its acceleration with the last
-        block's at the whole one (1.11 of amax on the dome rows at G64 P twice the tolerance)."""
-        n = len(run.end) - 1
-        amax = axis_limits(machine)[1][3:]
-        w = np.vstack([world[:1, 3:], world[:, 3:], world[-1:, 3:]])
-        acc = (np.abs(np.diff(w, 2, axis=0)) / self.servo_period ** 2 / amax).max(axis=1)
-        cyc = np.flatnonzero(acc > 1.0 + 1e-3)
-        # the block that accelerates at its whole rate: the one blended into, else the head
-        return block_peaks(run, acc[cyc], np.where((run.following_fraction[cyc] > 0) & (run.following[cyc] <= n),
-                                                   run.following[cyc], run.head[cyc]))
+        """Per block of a row run, the rotary axes' ``acceleration_over`` their amax: LinuxCNC
+        limits them as world coordinates, but not in a blend into a row's last block."""
+        return acceleration_over(run, np.asarray(world, float)[:, 3:], axis_limits(machine)[1][3:], self.servo_period)
 
     def _held_row(self, machine: Machine, w: np.ndarray, tip_path: np.ndarray, k: np.ndarray, t_opt: np.ndarray,
                   entry_w: np.ndarray, entry_time: float, limit: float | None,
@@ -316,7 +315,7 @@ class TCPPlanner:
 
     def predict(self, machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray, t_opt: np.ndarray,
                 keep: np.ndarray, *, entry_height: float, entry_feed: np.ndarray, tolerance: float | None = None,
-                feed: np.ndarray | None = None, hold_feed: bool = False) -> TCPPlan:
+                feed: np.ndarray | None = None, hold_feed: bool = False, shift: np.ndarray | None = None) -> TCPPlan:
         """LinuxCNC's timing of a TCP program written in the blocks ``keep`` with the time-optimal
         law's block times (t_opt, s from each row's start) held per block and row (``_held_row``; with
         ``tolerance`` (mm, the user's) the model's tip is also held within EXECUTED_TOLERANCE_SHARE
@@ -324,11 +323,13 @@ class TCPPlanner:
         rad; tip (N, 3) mm; entry_height mm and entry_feed (R,) mm/min, the rows' entry moves as the
         writer writes them; feed (N,) mm/min, the programmed tip feed, for the floor, the plan's
         row_feed_peak and, with ``hold_feed``, the blocks' hold (as machine mode's). Points inside
-        a block are timed by their share of the block's tip chord."""
+        a block are timed by their share of the block's tip chord. shift (N, 5): the world coordinates'
+        move at the points that end a block, as ``place`` chose them (None: none); the programmed
+        tips stay tip."""
         rows = np.asarray(rows)
         q, tip, t_opt = (np.asarray(x, float) for x in (q, tip, t_opt))
         keep = np.array(keep, bool)
-        w = world_coordinates(q, tip)
+        w = world_coordinates(q, tip) + (0.0 if shift is None else np.asarray(shift, float))
         n = len(rows)
         starts, ends = _row_bounds(rows)
         block_time, t_ctrl, feed_plan = np.zeros(n), np.zeros(n), np.zeros(n)
@@ -356,22 +357,32 @@ class TCPPlanner:
             s = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(tip[a:b], axis=0), axis=1))]
             t_ctrl[a:b], feed_plan[a:b] = points_timing(s, k - a, tk, tip[k])
             row_cycle[r] = tk[-1]
-        floor = None
-        if tolerance is not None and n:
-            floor = self.row_floor(machine, rows, q, tip, feed, float(tolerance))
+        floor = joint_shift = tip_shift = None
+        off = 0.0
+        if shift is not None:
+            tip_shift = np.where(keep[:, None], np.asarray(shift, float)[:, :3], 0.0)
+            joint_shift = np.zeros((n, 5))
+            joint_shift[keep] = world_joints(machine, w[keep]) - world_joints(machine, w[keep] - np.asarray(
+                shift, float)[keep])
+            off = float(np.linalg.norm(tip_shift, axis=1).max(initial=0.0))
+        if tolerance is not None and n:  # for block ends as far off the points as this program's
+            floor = self.row_floor(machine, rows, q, tip, feed, float(tolerance), off)
         return TCPPlan(controller=self.name, keep=keep, block_time=block_time, t_plan=t_ctrl, feed_plan=feed_plan,
                        row_ids=rows[starts].astype(np.int64), row_cycle_time=row_cycle,
                        cycle_time=float(row_cycle.sum()), row_deviation=row_dev, row_floor=floor,
                        row_feed_scale=scale, row_joint_ratio=ratio, blend_tolerance=self.tolerance,
-                       row_joint_peak=peak, row_feed_peak=None if feed is None else feed_peak)
+                       row_joint_peak=peak, row_feed_peak=None if feed is None else feed_peak,
+                       joint_shift=joint_shift, tip_shift=tip_shift)
 
     def plan(self, machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray, t_opt: np.ndarray,
              tolerance: float, *, entry_height: float, entry_feed: np.ndarray, feed: np.ndarray | None = None,
-             hold_feed: bool = False) -> TCPPlan:
-        """``place`` then ``predict``: the TCP program camsmooth writes and LinuxCNC's timing of it."""
-        keep = self.place(machine, rows, q, tip, t_opt, tolerance, entry_height=entry_height, entry_feed=entry_feed)
+             hold_feed: bool = False, shift: np.ndarray | None = None) -> TCPPlan:
+        """``place`` then ``predict``: the TCP program camsmooth writes and LinuxCNC's timing of it
+        (shift: the block ends' move off the points, ``vertex_shift`` with ``world``; None: none)."""
+        keep = self.place(machine, rows, q, tip, t_opt, tolerance, entry_height=entry_height, entry_feed=entry_feed,
+                          shift=shift)
         return self.predict(machine, rows, q, tip, t_opt, keep, entry_height=entry_height, entry_feed=entry_feed,
-                            tolerance=tolerance, feed=feed, hold_feed=hold_feed)
+                            tolerance=tolerance, feed=feed, hold_feed=hold_feed, shift=shift)
 
 
 def tcp_planner_for(machine: Machine, tolerance: float, rows: np.ndarray | None = None,

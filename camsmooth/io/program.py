@@ -104,7 +104,9 @@ class Written:
     controller, camsmooth.controller); dialect: the G-code dialect it was written for (None: CSV).
     Per point (None where not written): t s from the row's
     start at the programmed feed; feed mm/min, the programmed feed; t_plan s from the row's start,
-    the time law the program commands (G93 block times, the CSV's ``t_opt``); row_id, idx: smooth's
+    the time law the program commands (G93 block times, the CSV's ``t_opt``); t_blocks s from the
+    row's start, the law of the G-code's own F words (its controller's block times, which the
+    controller runs as written); row_id, idx: smooth's
     row id and index in the row; cc, normals (mm; CSV); delta (mm) and status (CSV).
     """
 
@@ -115,6 +117,7 @@ class Written:
     t: np.ndarray | None = None
     feed: np.ndarray | None = None
     t_plan: np.ndarray | None = None
+    t_blocks: np.ndarray | None = None
     row_id: np.ndarray | None = None
     idx: np.ndarray | None = None
     cc: np.ndarray | None = None
@@ -122,7 +125,7 @@ class Written:
     delta: np.ndarray | None = None
     status: np.ndarray | None = None
 
-    _PER_POINT = ("t", "feed", "t_plan", "row_id", "idx", "cc", "normals", "delta", "status")
+    _PER_POINT = ("t", "feed", "t_plan", "t_blocks", "row_id", "idx", "cc", "normals", "delta", "status")
 
     def take(self, keep: np.ndarray) -> Written:
         """A copy with the per-point arrays at the points ``keep`` (bool mask or indices)."""

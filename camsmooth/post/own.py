@@ -247,7 +247,7 @@ def _own_header(lines: list[str], tag: str | None, info: dict[str, str], rows: n
     wrote (its ``camsmooth post:`` header), (None, None) for another program. t_plan: the
     time-optimal law from each row's start: the ``o=`` annotations where the writer gave them (a
     controller plan's blocks, whose F words carry the controller's block times), else the block
-    times the program commands (G93: 60 / F s; tcp mode: the tip chord / F)."""
+    times the program commands (G93: 60 / F s; tcp mode: the tip chord / F), which are t_blocks."""
     if tag is None:
         return None, None
     head = "\n".join(lines[:80])
@@ -287,15 +287,17 @@ def _own_header(lines: list[str], tag: str | None, info: dict[str, str], rows: n
         with np.errstate(divide="ignore", invalid="ignore"):
             dt = 60.0 * chord / F
     dt = np.where(cut & ~starts, dt, 0.0)
-    t_plan = None
+    t_plan = t_blocks = None
+    if np.all(np.isfinite(dt[cut])):
+        total = np.cumsum(dt)
+        first = np.flatnonzero(starts)
+        t_blocks = np.full(n, np.nan)
+        t_blocks[cut] = total[cut] - total[first][grp[cut] - 1]
     o = np.asarray(o_ann if o_ann is not None else [], float)
     if len(o) == n and np.all(np.isfinite(o[cut])):
         t_plan = np.where(cut, o, np.nan)
-    elif np.all(np.isfinite(dt[cut])):
-        total = np.cumsum(dt)
-        first = np.flatnonzero(starts)
-        t_plan = np.full(n, np.nan)
-        t_plan[cut] = total[cut] - total[first][grp[cut] - 1]
+    else:
+        t_plan = t_blocks
     n_rows = int(starts.sum())
     row_id = None
     if len(row_ids) == n_rows:
@@ -307,5 +309,6 @@ def _own_header(lines: list[str], tag: str | None, info: dict[str, str], rows: n
         t_ok = bool(np.isfinite(t[cut]).all() and np.all(t[inner] > t[inner - 1]))  # increasing along each row
     written = Written(method=method, tolerance=tol, every_point=every, dialect=info.get("dialect"),
                       t=t if t_ok else None,
-                      feed=feed if np.isfinite(feed[cut]).all() else None, t_plan=t_plan, row_id=row_id)
+                      feed=feed if np.isfinite(feed[cut]).all() else None, t_plan=t_plan, t_blocks=t_blocks,
+                      row_id=row_id)
     return tool, written

@@ -184,7 +184,8 @@ def _toolpath(name: str, tool: Tool | None, machine: Machine, tip: np.ndarray, a
     """One tool path through camsmooth.smoothing.evaluate (the functions smooth reports with).
     written: what camsmooth wrote beside its own program (its programmed-feed time, feed and
     planned time law; the positions are then judged as written, with their rounding allowed
-    for); own_blocks: the points are the controller's blocks already (camsmooth's G-code)."""
+    for); own_blocks: the points are the controller's blocks already (camsmooth's G-code), timed
+    by their F words as the controller runs them."""
     q1, q2 = (angles[:, 0], angles[:, 1]) if angles is not None else _ik(machine, axes, rows)
     T = machine.tool_axis_np(q1, q2)
     xyz = machine.linear_axes(tip, q1, q2)
@@ -194,7 +195,8 @@ def _toolpath(name: str, tool: Tool | None, machine: Machine, tip: np.ndarray, a
     q = np.column_stack([xyz, q1, q2])
     ev = evaluate_program(machine, rows, t, q, tip, T, f, tolerance=tolerance, written=own,
                           t_plan=written.t_plan if own else None,
-                          keep=np.ones(len(rows), bool) if own_blocks else None)
+                          keep=np.ones(len(rows), bool) if own_blocks else None,
+                          t_blocks=written.t_blocks if own_blocks and own else None)
     law = ev.law
     deg = {k: (np.degrees(1.0) if k.split()[0] in machine.rotary else 1.0) for k in ev.peaks}
     peaks = {k: v * deg[k] for k, v in ev.peaks.items()}

@@ -97,7 +97,8 @@ def _row_ends(t: np.ndarray, rows: np.ndarray) -> np.ndarray:
 
 def time_law(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray, feed: np.ndarray | None, *,
              tolerance: float, plan: FeedPlan | None = None, t_plan: np.ndarray | None = None,
-             keep: np.ndarray | None = None, real: Machine | None = None, hold_feed: bool = False) -> TimeLaw:
+             keep: np.ndarray | None = None, real: Machine | None = None, hold_feed: bool = False,
+             t_blocks: np.ndarray | None = None) -> TimeLaw:
     """The program's time law (module docstring). rows (N,), q (N, 5) X Y Z mm A B rad, tip (N, 3)
     mm, feed (N,) programmed tip feed mm/min (None: unknown, then ``t_plan`` must be given).
     plan: an already computed time-optimal plan (else planned here); t_plan: the law the program
@@ -107,7 +108,10 @@ def time_law(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
     machine the tips are decimated on (an error model's, default ``machine``);
     tolerance: mm, the user's; hold_feed: the controller's blocks are also held so that its model's
     tool tip never goes faster than the programmed feed (its blends can take it past; the plan's
-    ``row_feed_peak`` says by how much when not held)."""
+    ``row_feed_peak`` says by how much when not held); t_blocks (N,) s from each row's start, with
+    ``keep``: the block times a written program commands (its F words), which the controller
+    runs as written (camsmooth held them when it wrote them, against the path through the points
+    it smoothed, which a program whose block ends sit off them no longer carries)."""
     from camsmooth.constants import DEFAULT_SAFE_HEIGHT_MM
     from camsmooth.controller import place, planner_for, predict, vertex_shift
     from camsmooth.controller.tcp import tcp_planner_for
@@ -141,14 +145,16 @@ def time_law(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
             shift = vertex_shift(real or machine, rows, q, tip, tolerance)
             keep = place(planner, machine, rows, q, tip, t_plan, tolerance, entry_height=DEFAULT_SAFE_HEIGHT_MM,
                          entry_feed=entry, real=real, hold_feed=feed if hold_feed else None, shift=shift)
-        ctrl = predict(planner, machine, rows, q, tip, t_plan, np.asarray(keep, bool),
-                       entry_height=DEFAULT_SAFE_HEIGHT_MM, entry_feed=entry, tolerance=tolerance, feed=feed,
-                       hold_feed=hold_feed, shift=shift)
+        as_written = keep is not None and t_blocks is not None
+        ctrl = predict(planner, machine, rows, q, tip, np.asarray(t_blocks, float) if as_written else t_plan,
+                       np.asarray(keep, bool), entry_height=DEFAULT_SAFE_HEIGHT_MM, entry_feed=entry,
+                       tolerance=tolerance, feed=feed, hold_feed=hold_feed, shift=shift, hold=not as_written)
         law.update(controller=ctrl, cycle_time=float(ctrl.cycle_time), row_cycle_time=np.asarray(ctrl.row_cycle_time))
         tcp_planner = tcp_planner_for(machine, tolerance, rows, q) if keep_given is None else None
         if tcp_planner is not None:  # TCP mode beside machine mode; the written mode's plan is the controller's
             tcp = tcp_planner.plan(machine, rows, q, tip, t_plan, tolerance, entry_height=DEFAULT_SAFE_HEIGHT_MM,
-                                   entry_feed=entry, feed=feed, hold_feed=hold_feed)
+                                   entry_feed=entry, feed=feed, hold_feed=hold_feed,
+                                   shift=vertex_shift(real or machine, rows, q, tip, tolerance, world=True))
             law.update(tcp=tcp, machine_mode=ctrl)
             if getattr(getattr(machine, "post", None), "mode", "machine") == "tcp":
                 law.update(controller=tcp, cycle_time=float(tcp.cycle_time),
@@ -173,11 +179,12 @@ class Evaluation:
 def evaluate_program(machine: Machine, rows: np.ndarray, t: np.ndarray, q: np.ndarray, tip: np.ndarray,
                      T: np.ndarray, feed: np.ndarray | None, *, tolerance: float, written: bool = True,
                      plan: FeedPlan | None = None, t_plan: np.ndarray | None = None,
-                     keep: np.ndarray | None = None) -> Evaluation:
+                     keep: np.ndarray | None = None, t_blocks: np.ndarray | None = None) -> Evaluation:
     """Everything ``smooth`` reports about a program's motion, for ``analyze`` (the pipeline calls
     the same pieces). t: (N,) s from each row's start at the programmed feed; T: (N, 3) unit tool
     axes; other arguments as ``time_law`` and ``axis_violations``."""
-    law = time_law(machine, rows, q, tip, feed, tolerance=tolerance, plan=plan, t_plan=t_plan, keep=keep)
+    law = time_law(machine, rows, q, tip, feed, tolerance=tolerance, plan=plan, t_plan=t_plan, keep=keep,
+                   t_blocks=t_blocks)
     viol, peaks = axis_violations(machine, q, law.t_plan, rows, written=written)
     viol_p, peaks_p = axis_violations(machine, q, t, rows, written=written)
     return Evaluation(gamma=gamma_of(T, t, rows), violations=viol, peaks=peaks, violations_programmed=viol_p,

@@ -100,6 +100,7 @@ def post_program(result: SmoothResult | MethodResult, cutter: Any, feed_mm_min: 
         sel = np.asarray(ctrl.keep, bool)
         if getattr(ctrl, "joint_shift", None) is not None:  # the block ends the plan moved off the points
             joints = joints + np.asarray(ctrl.joint_shift, float)
+            tips = tips + np.asarray(ctrl.tip_shift, float)
         rows, idx, joints, tips, axis, feed = (v[sel] for v in (rows, idx, joints, tips, axis, feed))
         t_prog = None if t_prog is None else t_prog[sel]
         f_prog = f_prog[sel]
