@@ -63,6 +63,7 @@ from camsmooth.controller.linuxcnc_sim import (  # noqa: E402
     simulate,
     trt_missing,
 )
+from camsmooth.controller.tcp import TCPPlanner  # noqa: E402
 from camsmooth.geometry.clearance import MeshIndex  # noqa: E402
 from camsmooth.geometry.cutter import ToroidalCutter, cc_to_cl  # noqa: E402
 from camsmooth.geometry.frames import axis_from_lead_tilt, local_frames  # noqa: E402
@@ -213,7 +214,9 @@ def run_modes(sample: str, rows: int, keep: Path | None, machine) -> list[dict]:
     """The nlp program of ``sample`` on a table machine LinuxCNC's trt kinematics describes, written
     and run in both modes: TCP (``M428``; the blocks and held F words of camsmooth.controller.tcp,
     on the simulation's trt switchkins kinematics, linuxcnc_sim.trt_config) and machine mode (G93,
-    trivkins). Per row and mode: executed, predicted and floor (s), the tip's largest distance (um)
+    trivkins). Per row and mode: executed, predicted and floor (s: the plan's own, for block ends as
+    far off the points as its program's; "pts": the mode's floor through the points themselves,
+    least_row_times and TCPPlanner.row_floor), the tip's largest distance (um)
     from the programmed path (TCP: the tips' polyline; machine: the joints' tip curves), the linear
     joints' largest velocity and acceleration over their limits."""
     tcp_machine = dataclasses.replace(machine, post=PostConfig(dialect="linuxcnc", mode="tcp"))
@@ -223,6 +226,9 @@ def run_modes(sample: str, rows: int, keep: Path | None, machine) -> list[dict]:
     q = np.column_stack([r.xyz, r.rotary.values])
     law = time_law(mm, r.rows, q, r.cl, np.full(len(q), 2000.0), tolerance=TOLERANCE, plan=r.plan)
     out = []
+    feed = np.full(len(q), 2000.0)
+    through = {"tcp": TCPPlanner().row_floor(tcp_machine, r.rows, q, r.cl, feed, TOLERANCE),
+               "machine": least_row_times(mm, r.rows, q, r.cl, feed, TOLERANCE)}
     for mode, m, plan in (("tcp", tcp_machine, r.controller), ("machine", mm, law.controller)):
         rr = dataclasses.replace(r, controller=plan)
         with tempfile.TemporaryDirectory() as tmp:
@@ -243,6 +249,7 @@ def run_modes(sample: str, rows: int, keep: Path | None, machine) -> list[dict]:
             out.append(dict(sample=sample, machine=m.name, mode=mode, row=int(row),
                             executed=float((k[-1] - k[0] + 1) * sim.servo_period),
                             predicted=float(plan.row_cycle_time[j]), floor=float(plan.row_floor[j]),
+                            points_floor=float(through[mode][j]),
                             blocks=int(plan.keep[sel].sum() - 1), deviation_um=1e3 * dev[row], v=v, a=a,
                             v_rot=v_rot, a_rot=a_rot,
                             scale=float(getattr(plan, "row_feed_scale", np.ones(len(plan.row_ids)))[j])))
@@ -256,8 +263,8 @@ def main_modes(args: argparse.Namespace) -> None:
           "kinematics (M428), machine mode on trivkins; the joints' peaks over their limits at 1 ms (v, a: "
           "linear joints; rot: rotary)")
     print(f"{'sample':7s} {'mode':8s} {'row':>4s} {'blocks':>6s} {'executed s':>10s} {'predicted s':>11s} "
-          f"{'pred/exec-1':>11s} {'floor s':>8s} {'exec/floor':>10s} {'F scale':>7s} {'tip um':>7s} {'v/vmax':>7s} "
-          f"{'a/amax':>7s} {'rot v':>6s} {'rot a':>6s}")
+          f"{'pred/exec-1':>11s} {'floor s':>8s} {'exec/floor':>10s} {'exec/pts':>8s} {'F scale':>7s} {'tip um':>7s} "
+          f"{'v/vmax':>7s} {'a/amax':>7s} {'rot v':>6s} {'rot a':>6s}")
     totals: dict[tuple[str, str], list[float]] = {}
     for sample in args.samples.split(","):
         machine = linuxcnc_machine(sample, args.machine) if sample == "dome" or args.machine else bc_table_machine()
@@ -269,7 +276,8 @@ def main_modes(args: argparse.Namespace) -> None:
         for x in run_modes(sample, args.rows, args.keep, machine):
             print(f"{x['sample']:7s} {x['mode']:8s} {x['row']:4d} {x['blocks']:6d} {x['executed']:10.3f} "
                   f"{x['predicted']:11.3f} {x['predicted'] / x['executed'] - 1:+11.2%} {x['floor']:8.3f} "
-                  f"{x['executed'] / x['floor']:10.3f} {x['scale']:7.3f} {x['deviation_um']:7.2f} {x['v']:7.2f} "
+                  f"{x['executed'] / x['floor']:10.3f} {x['executed'] / x['points_floor']:8.3f} {x['scale']:7.3f} "
+                  f"{x['deviation_um']:7.2f} {x['v']:7.2f} "
                   f"{x['a']:7.2f} {x['v_rot']:6.3f} {x['a_rot']:6.3f}")
             t = totals.setdefault((x["sample"], x["mode"]), [0.0, 0.0, 0.0])
             t[0] += x["executed"]

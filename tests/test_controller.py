@@ -174,8 +174,8 @@ def test_model_of_short_rotary_blocks_is_limited_by_half_the_acceleration():
 def test_linuxcnc_interpreter_reads_the_program_and_its_positions_and_times(blade_rows, tmp_path, mode):
     """rs274 reads every block; its canonical X Y Z A B equal the written blocks' joints (machine
     mode: the points' joints moved by the plan's joint_shift, its block ends off the points) or tips
-    (tcp mode: moved by its tip_shift) to the written precision, and in machine mode its inverse-time feed gives each cut
-    block the controller plan's block time."""
+    (tcp mode: moved by its tip_shift) to the written precision, and in machine mode its inverse-time
+    feed gives each cut block the controller plan's block time."""
     m = _machine(mode)
     r = blade_rows.methods["nlp"]
     ngc = tmp_path / f"p_{mode}.ngc"
