@@ -822,8 +822,9 @@ def test_hold_row_lengthens_from_what_the_model_took_and_stops_after_its_rounds(
     """The model runs no block in less than 3 s: the block heading the blend over the limit (4 limits
     at 3 s x 3 s) is lengthened from the 3 s it took, not the 2 s commanded: 3 x sqrt(4) x 1.02 on the
     second run. A blend that no speed helps (it is off the path whatever the times) is tried _ROUNDS
-    times, both of its blocks slowed once a round does not bring it down; a deviation off every blend
-    (the block's own tip curve) stops at once."""
+    times, both of its blocks slowed once a round does not bring it down, and run once more on the
+    times the last round set (what it returns is what was run); a deviation off every blend (the
+    block's own tip curve) stops at once."""
     q, tip = _line(7)
     t = np.arange(7.0)
     k = np.array([0, 2, 4, 6])
@@ -846,8 +847,9 @@ def test_hold_row_lengthens_from_what_the_model_took_and_stops_after_its_rounds(
             return run, joints
 
     p = Stuck(c=2 * lim)
-    _, _, _, worst = B._hold_row(p, M, q, k, t, q[0], 0.0, tip, np.arange(7), lim)
-    assert p.calls == B._ROUNDS and worst == pytest.approx(2 * lim)
+    _, bt, _, worst = B._hold_row(p, M, q, k, t, q[0], 0.0, tip, np.arange(7), lim)
+    assert p.calls == B._ROUNDS + 1 and worst == pytest.approx(2 * lim)
+    assert np.array_equal(p.times[-1], bt) and not np.array_equal(p.times[-2], bt)
     # round 1 slows the heads (blocks 1, 2) only; from round 2 on (no better) both blocks of each blend
     assert p.times[1][2] == 2.0 and p.times[2][2] > 2.0
 

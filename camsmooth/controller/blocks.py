@@ -750,7 +750,8 @@ def _hold_row(planner: Planner, machine: Machine, q: np.ndarray, k: np.ndarray, 
             break
         # the controller runs short five-axis blocks slower than commanded: slow down from what it did
         slow = np.maximum(bt, np.diff(run.end))
-        bt = np.where(excess > 0, slow * (excess / limit) ** 0.5 * 1.02, np.where(over, slow * _LIMIT_STEP, bt))
+        grow = np.sqrt(np.divide(excess, limit, out=np.zeros_like(excess), where=excess > 0)) * 1.02
+        bt = np.where(excess > 0, slow * grow, np.where(over, slow * _LIMIT_STEP, bt))
     if ran is not bt:  # the rounds ran out on block times not yet run
         run, joints = planner.row_run(machine, q[k], bt, entry_q, entry_time)
         if path is not None:
