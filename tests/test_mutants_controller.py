@@ -1172,3 +1172,23 @@ def test_least_block_times_gives_the_blend_term_only_to_the_blocks_that_turn():
     got = L.least_block_times(vmax, amax, np.zeros(4, int), q, tip, np.full(4, 1e12), np.ones((4, 2), bool), 2)
     want = np.sqrt(2 * 0.5 / 300.0) + 20 / 500.0
     assert got.tolist() == [pytest.approx(want, rel=1e-12)]
+
+
+def test_a_stalled_limit_hold_returns_to_the_round_that_did_best():
+    """over_limits' largest ratio per round 1.3, 1.2 (block 2 lengthened by _LIMIT_STEP each round
+    it is over), then 1.25 for _STALLED rounds: the hold stops and the block times go back to those
+    of the round at 1.2 (block 2 lengthened once), which it runs again and returns; the path is not
+    checked (None)."""
+    q, tip = _line(7)
+    t = np.arange(7.0)
+    k = np.array([0, 2, 4, 6])
+    ratios = iter([1.3, 1.2] + [1.25] * B._STALLED + [9.0])
+
+    def over(run, joints):
+        return np.array([0.0, next(ratios), 0.0])
+
+    p = _BlendPlanner(c=0.0)
+    _, bt, tk, _ = B._hold_row(p, M, q, k, t, q[0], 0.0, None, None, 0.0, over_limits=over)
+    assert bt == pytest.approx([2.0, 2.0 * B._LIMIT_STEP, 2.0], rel=1e-12)
+    assert np.allclose(tk, np.r_[0.0, np.cumsum(bt)])
+    assert p.calls == 2 + B._STALLED + 1
