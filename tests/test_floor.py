@@ -230,7 +230,8 @@ def test_smooth_prints_the_floor_beside_the_prediction(blade_rows, capsys):
         assert least_row_times(m, r.rows, q, r.cl, np.full(len(r.rows), FEED), TOL).sum() > floor
         assert np.allclose(r.metrics.row_controller_floor_s, want)
     html = _rows_html(blade_rows.methods["nlp"], tuple(m.rotary))
-    assert "least time on linuxcnc" in html
+    off = blade_rows.methods["nlp"].metrics.controller_end_offset_mm
+    assert f"least time on linuxcnc, any straight blocks, ends within {1e3 * off:.2g} \u00b5m of the points" in html
     for v in blade_rows.methods["nlp"].metrics.row_controller_floor_s:
         assert f"<td>{v:.4g}</td>" in html
 

@@ -753,6 +753,13 @@ def _summary_table(order: list[str], summaries: dict[str, dict[str, Any]], prima
 MAX_TABLE_ROWS = 60
 
 
+def _ends_within(mt: Any) -> str:
+    """', ends within E um of the points' where the program's block ends sit off them (E: Metrics.
+    controller_end_offset_mm), '' where they end on them."""
+    off = float(getattr(mt, "controller_end_offset_mm", 0.0) or 0.0)
+    return f", ends within {1e3 * off:.2g} \u00b5m of the points" if off > 0 else ""
+
+
 def _rows_html(m: MethodResult, rotary: Sequence[str] = ("A", "B")) -> str:
     """Per row of one method: points, cycle time (time-optimal, controller's), peak rates of the
     rotary axes (named ``rotary``) under the planned law (deg/s, deg/s^2) and the smallest
@@ -780,7 +787,7 @@ def _rows_html(m: MethodResult, rotary: Sequence[str] = ("A", "B")) -> str:
         note = f"<p class='small'>{n} rows: the {MAX_TABLE_ROWS} slowest are listed.</p>"
     head = ["row", "points", "cycle time optimal (s)"] + (
         [f"cycle time {mt.controller} (s)"] if ctl else []) + (
-        [f"least time on {mt.controller}, any straight blocks (s)"] if floor else []) + [
+        [f"least time on {mt.controller}, any straight blocks{_ends_within(mt)} (s)"] if floor else []) + [
         f"peak |{rotary[0]}'| / |{rotary[1]}'| (deg/s), {law}",
         f"peak |{rotary[0]}''| / |{rotary[1]}''| (deg/s\u00b2), {law}",
         "min \u03b4 (\u00b5m) at point"]
