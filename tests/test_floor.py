@@ -443,3 +443,37 @@ def test_the_blend_into_a_rows_last_block_is_held_within_the_joints_amax(last_de
     assert peak(c.block_time[1:]) <= 1.005
     assert c.row_joint_peak.max() <= 1.005
     assert peak(np.diff(t)) > 1.01
+
+
+def test_each_row_takes_the_sooner_of_its_blocks_off_and_through_the_points():
+    """through_points_where_sooner on two plans of the same three rows, by hand: the row the plan
+    through the points runs sooner (row 1) takes its blocks and no shift, the others keep the
+    blocks and the shift off the points; a tie keeps the ends off; None where no row is sooner."""
+    from types import SimpleNamespace
+
+    from camsmooth.controller.blocks import through_points_where_sooner
+
+    rows = np.repeat([4, 7, 9], 3)
+    shift = np.zeros((9, 5))
+    shift[:, 0] = np.arange(1, 10)
+    off = SimpleNamespace(row_cycle_time=np.array([1.0, 2.0, 3.0]), keep=np.array([1, 0, 1, 1, 0, 1, 1, 0, 1], bool))
+    through = SimpleNamespace(row_cycle_time=np.array([1.5, 1.9, 3.0]), keep=np.ones(9, bool))
+    keep, used = through_points_where_sooner(rows, shift, off, through)
+    assert keep.tolist() == [1, 0, 1, 1, 1, 1, 1, 0, 1]
+    assert used[:, 0].tolist() == [1, 2, 3, 0, 0, 0, 7, 8, 9] and not used[:, 1:].any()
+    slower = SimpleNamespace(row_cycle_time=np.array([1.5, 2.5, 3.5]), keep=through.keep)
+    assert through_points_where_sooner(rows, shift, off, slower) is None
+
+
+def test_the_written_rows_run_no_later_than_their_blocks_off_or_through_the_points(blade_rows):
+    """The pipeline's plan of the nlp blade rows (plan_blocks): per row no later on the model than
+    the blocks placed off the points and the blocks placed through them, each timed here."""
+    r, m = blade_rows.methods["nlp"], blade_rows.machine
+    q = _joints(r)
+    p = planner_for(m, TOL, r.rows, q)
+    kw = dict(entry_height=ENTRY_MM, entry_feed=np.full(len(r.controller.row_ids), FEED))
+    feed = np.full(len(q), FEED)
+    for s in (vertex_shift(m, r.rows, q, r.cl, TOL), None):
+        keep = place(p, m, r.rows, q, r.cl, r.plan.t_plan, TOL, shift=s, **kw)
+        alone = predict(p, m, r.rows, q, r.cl, r.plan.t_plan, keep, tolerance=TOL, feed=feed, shift=s, **kw)
+        assert np.all(r.controller.row_cycle_time <= alone.row_cycle_time + 1e-9)

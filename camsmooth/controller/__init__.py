@@ -30,6 +30,7 @@ from camsmooth.controller.blocks import (
     Planner,
     decimate,
     place,
+    plan_blocks,
     predict,
     vertex_shift,
 )
@@ -40,7 +41,7 @@ from camsmooth.machine.kinematics import Machine
 __all__ = ["PLANNERS", "PATH_TOLERANCE_SHARE", "BLOCK_TOLERANCE_SHARE", "EXECUTED_TOLERANCE_SHARE", "planner_for",
            "blend_tolerance",
            "floor_text", "ControllerPlan", "Planner", "decimate", "place", "predict", "LinuxCNCPlanner", "TCPPlanner",
-           "tcp_planner_for", "mode_text", "vertex_shift"]
+           "tcp_planner_for", "mode_text", "vertex_shift", "plan_blocks"]
 
 #: dialect of the machine's post -> the model of that controller's planner
 PLANNERS: dict[str, type] = {"linuxcnc": LinuxCNCPlanner}

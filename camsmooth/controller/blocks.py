@@ -41,7 +41,7 @@ from camsmooth.machine.kinematics import Machine, axis_limits
 
 __all__ = ["BLOCK_TOLERANCE_SHARE", "MAX_BLOCK_POINTS", "VERTEX_SHIFT_SHARE", "vertex_shift", "block_reach",
            "rotary_turns", "tip_speed_over", "block_peaks", "decimate", "place", "row_entry", "ControllerPlan",
-           "Planner", "predict", "joint_ratio"]
+           "Planner", "predict", "plan_blocks", "joint_ratio"]
 
 #: share of the user's tolerance the longer blocks may use: their tip curves keep every dropped tip
 #: this close; the blends then get what is left up to EXECUTED_TOLERANCE_SHARE, checked on the
@@ -874,3 +874,46 @@ def predict(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray,
                           entry_stop=bool(getattr(planner, "entry_stop", False)), row_joint_peak=peak,
                           row_feed_peak=None if prog_feed is None else feed_peak,
                           joint_shift=joint_shift, tip_shift=tip_shift)
+
+
+def through_points_where_sooner(rows: np.ndarray, shift: np.ndarray, off: ControllerPlan, through: ControllerPlan
+                                ) -> tuple[np.ndarray, np.ndarray] | None:
+    """Per row the sooner of two plans of the same points, one with its block ends moved off them
+    by ``shift`` (N, 5) and one through them: the blocks (N,) bool and the shift (N, 5), 0 on the
+    rows the plan through the points runs sooner; None where no row does (then ``off`` stands).
+    On rows the feed paces, the longer blocks off the points blend less often and run a little
+    later (the saddle rows of benchmarks/bench_controller.py: 1.1%)."""
+    faster = np.asarray(through.row_cycle_time) < np.asarray(off.row_cycle_time)
+    if not faster.any():
+        return None
+    starts, ends = _row_bounds(rows)
+    on = np.ones(len(rows), bool)
+    for a, b in zip(starts[faster], ends[faster], strict=True):
+        on[a:b] = False
+    return np.where(on, off.keep, through.keep), np.where(on[:, None], shift, 0.0)
+
+
+def plan_blocks(planner: Planner, machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
+                t_opt: np.ndarray, tolerance: float, *, entry_height: float, entry_feed: np.ndarray,
+                real: Machine | None = None, feed: np.ndarray | None = None, hold_feed: bool = False,
+                shift: np.ndarray | None = None) -> ControllerPlan:
+    """``place`` then ``predict``: the program camsmooth writes and the controller's timing of it
+    (arguments as theirs; feed (N,) mm/min the programmed tip feed, held with ``hold_feed``). With
+    ``shift`` (``vertex_shift``), per row the sooner of its blocks ending off the points and
+    through them (``through_points_where_sooner``)."""
+    kw = dict(entry_height=entry_height, entry_feed=entry_feed)
+    hold = feed if hold_feed else None
+
+    def planned(s: np.ndarray | None) -> ControllerPlan:
+        keep = place(planner, machine, rows, q, tip, t_opt, tolerance, real=real, hold_feed=hold, shift=s, **kw)
+        return predict(planner, machine, rows, q, tip, t_opt, keep, tolerance=tolerance, feed=feed,
+                       hold_feed=hold_feed, shift=s, **kw)
+
+    off = planned(shift)
+    if shift is None:
+        return off
+    mixed = through_points_where_sooner(rows, shift, off, planned(None))
+    if mixed is None:
+        return off
+    return predict(planner, machine, rows, q, tip, t_opt, mixed[0], tolerance=tolerance, feed=feed,
+                   hold_feed=hold_feed, shift=mixed[1], **kw)

@@ -64,6 +64,7 @@ from camsmooth.controller.blocks import (
     reach_table,
     rotary_turns,
     sooner_blocks,
+    through_points_where_sooner,
 )
 from camsmooth.controller.linuxcnc import (
     LEAST_TIME_BLOCK_POINTS,
@@ -378,11 +379,21 @@ class TCPPlanner:
              tolerance: float, *, entry_height: float, entry_feed: np.ndarray, feed: np.ndarray | None = None,
              hold_feed: bool = False, shift: np.ndarray | None = None) -> TCPPlan:
         """``place`` then ``predict``: the TCP program camsmooth writes and LinuxCNC's timing of it
-        (shift: the block ends' move off the points, ``vertex_shift`` with ``world``; None: none)."""
-        keep = self.place(machine, rows, q, tip, t_opt, tolerance, entry_height=entry_height, entry_feed=entry_feed,
-                          shift=shift)
-        return self.predict(machine, rows, q, tip, t_opt, keep, entry_height=entry_height, entry_feed=entry_feed,
-                            tolerance=tolerance, feed=feed, hold_feed=hold_feed, shift=shift)
+        (shift: the block ends' move off the points, ``vertex_shift`` with ``world``, per row where
+        that runs sooner than through them: ``through_points_where_sooner``; None: none)."""
+        kw = dict(entry_height=entry_height, entry_feed=entry_feed, tolerance=tolerance, feed=feed,
+                  hold_feed=hold_feed)
+
+        def planned(s: np.ndarray | None) -> TCPPlan:
+            keep = self.place(machine, rows, q, tip, t_opt, tolerance, entry_height=entry_height,
+                              entry_feed=entry_feed, shift=s)
+            return self.predict(machine, rows, q, tip, t_opt, keep, shift=s, **kw)
+
+        off = planned(shift)
+        if shift is None:
+            return off
+        mixed = through_points_where_sooner(rows, shift, off, planned(None))
+        return off if mixed is None else self.predict(machine, rows, q, tip, t_opt, mixed[0], shift=mixed[1], **kw)
 
 
 def tcp_planner_for(machine: Machine, tolerance: float, rows: np.ndarray | None = None,

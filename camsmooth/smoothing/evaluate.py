@@ -113,7 +113,7 @@ def time_law(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
     runs as written (camsmooth held them when it wrote them, against the path through the points
     it smoothed, which a program whose block ends sit off them no longer carries)."""
     from camsmooth.constants import DEFAULT_SAFE_HEIGHT_MM
-    from camsmooth.controller import place, planner_for, predict, vertex_shift
+    from camsmooth.controller import plan_blocks, planner_for, predict, vertex_shift
     from camsmooth.controller.tcp import tcp_planner_for
 
     rows = np.asarray(rows)
@@ -139,16 +139,16 @@ def time_law(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
             dt = np.maximum(t_plan[nxt] - t_plan[starts], 1e-9)
             entry = np.where(np.isfinite(entry) & (entry > 0), entry, 60.0 * chord / dt)
         keep_given = keep
-        shift = None
         if keep is None:  # the blocks the controller runs soonest (camsmooth.controller.place), their ends
-            # moved off the points inside the tolerance (camsmooth.controller.vertex_shift)
-            shift = vertex_shift(real or machine, rows, q, tip, tolerance)
-            keep = place(planner, machine, rows, q, tip, t_plan, tolerance, entry_height=DEFAULT_SAFE_HEIGHT_MM,
-                         entry_feed=entry, real=real, hold_feed=feed if hold_feed else None, shift=shift)
-        as_written = keep is not None and t_blocks is not None
-        ctrl = predict(planner, machine, rows, q, tip, np.asarray(t_blocks, float) if as_written else t_plan,
-                       np.asarray(keep, bool), entry_height=DEFAULT_SAFE_HEIGHT_MM, entry_feed=entry,
-                       tolerance=tolerance, feed=feed, hold_feed=hold_feed, shift=shift, hold=not as_written)
+            # moved off the points inside the tolerance where that runs sooner (camsmooth.controller.vertex_shift)
+            ctrl = plan_blocks(planner, machine, rows, q, tip, t_plan, tolerance, entry_height=DEFAULT_SAFE_HEIGHT_MM,
+                               entry_feed=entry, real=real, feed=feed, hold_feed=hold_feed,
+                               shift=vertex_shift(real or machine, rows, q, tip, tolerance))
+        else:
+            as_written = t_blocks is not None
+            ctrl = predict(planner, machine, rows, q, tip, np.asarray(t_blocks, float) if as_written else t_plan,
+                           np.asarray(keep, bool), entry_height=DEFAULT_SAFE_HEIGHT_MM, entry_feed=entry,
+                           tolerance=tolerance, feed=feed, hold_feed=hold_feed, hold=not as_written)
         law.update(controller=ctrl, cycle_time=float(ctrl.cycle_time), row_cycle_time=np.asarray(ctrl.row_cycle_time))
         tcp_planner = tcp_planner_for(machine, tolerance, rows, q) if keep_given is None else None
         if tcp_planner is not None:  # TCP mode beside machine mode; the written mode's plan is the controller's
