@@ -739,6 +739,25 @@ def test_run_deviation_measures_each_head_against_its_window_of_the_path():
     assert np.allclose(got, np.hypot(want, 0.5), atol=1e-12)
 
 
+def test_run_deviation_is_each_samples_distance_to_its_window_by_brute_force():
+    """A random walk of 300 path vertices, 40 segments, 5000 samples around it under heads in any
+    order: each sample's distance equals tip_deviation (every segment, batched numpy) against the
+    stretch of the path its head's window covers (the rule of the test above)."""
+    rng = np.random.default_rng(3)
+    path = np.cumsum(rng.normal(0.0, 1.0, (300, 3)), axis=0)
+    ends = np.sort(rng.choice(np.arange(1, 300), 40, replace=False))
+    heads = rng.integers(0, 42, 5000)
+    tips = path[rng.integers(0, 300, 5000)] + rng.normal(0.0, 0.3, (5000, 3))
+    got = B._run_deviation(SimpleNamespace(head=heads), tips, path, ends)
+    m = len(ends)
+    for i in range(0, 5000, 7):
+        h = heads[i]
+        lo = 0 if h == 0 else ends[min(h - 1, m - 1)]
+        hi = ends[min(h + 1, m - 1)]
+        want = B.tip_deviation(tips[i], path[max(lo - 1, 0):min(hi + 2, 300)])[0]
+        assert got[i] == pytest.approx(want, abs=1e-12), i
+
+
 def test_chord_deviation_is_each_blocks_chord_against_its_stretch_of_the_path():
     """Tool vertical (A = B = 0): a block's tip curve is its chord. Points at x = 0, 2, 4 mm on the X axis,
     at path vertices 0, 2, 4 of the path (0,0) (1,1) (2,0) (3,-2) (4,0) (3,0.1): the first chord's middle
