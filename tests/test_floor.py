@@ -477,3 +477,20 @@ def test_the_written_rows_run_no_later_than_their_blocks_off_or_through_the_poin
         keep = place(p, m, r.rows, q, r.cl, r.plan.t_plan, TOL, shift=s, **kw)
         alone = predict(p, m, r.rows, q, r.cl, r.plan.t_plan, keep, tolerance=TOL, feed=feed, shift=s, **kw)
         assert np.all(r.controller.row_cycle_time <= alone.row_cycle_time + 1e-9)
+
+
+@pytest.mark.parametrize("machine_file", [None, "dome_machine.toml"])
+def test_a_rows_entry_starts_where_the_writer_puts_it(machine_file):
+    """row_entry on the AB head and the A/C table, the table tilted by 70 deg: the entry's tool tip
+    is the row's first tip 10 mm up its tool axis (the writer's retract pose, the angles held), by
+    forward kinematics, and the move takes 10 mm over the feed."""
+    from camsmooth.machine.kinematics import load_machine
+
+    root = Path(__file__).resolve().parent.parent / "surfaces"
+    m = _machine() if machine_file is None else load_machine(str(root / machine_file))
+    q = np.array([6.3, -11.5, 27.7, np.radians(-70.0), np.radians(35.0)])
+    entry, t = row_entry(m, q, ENTRY_MM, FEED)
+    tip, axis = m.tool_pose_np(q[3], q[4], q[0], q[1], q[2])
+    want = np.asarray(tip, float).ravel() + ENTRY_MM * np.asarray(axis, float).ravel()
+    assert np.allclose(fk_tips(m, entry[None])[0], want, atol=1e-9)
+    assert np.array_equal(entry[3:], q[3:]) and t == pytest.approx(60.0 * ENTRY_MM / FEED)

@@ -407,11 +407,15 @@ def decimate(machine: Machine, rows: np.ndarray, q: np.ndarray, tip: np.ndarray,
 
 def row_entry(machine: Machine, q: np.ndarray, entry_height: float, entry_feed: float) -> tuple[np.ndarray, float]:
     """Where a row's entry feed move starts and how long it takes, as the G-code writer writes it:
-    ``entry_height`` mm up the tool axis from the row's first point q (5,) (X Y Z mm, rotary rad),
-    at ``entry_feed`` mm/min. Returns the joints (5,) and the time (s)."""
-    _, axis = machine.tool_pose_np(q[3], q[4], q[0], q[1], q[2])
-    entry_q = np.array(q, float)
-    entry_q[:3] += entry_height * np.asarray(axis, float).reshape(3)
+    the tool tip ``entry_height`` mm up the tool axis from the row's first point q (5,) (X Y Z mm,
+    rotary rad; workpiece frame), the angles held (``Machine.linear_axes``: on a head the pivot
+    moves by the same, on a table the linear axes by the table's rotation of it), at
+    ``entry_feed`` mm/min. Returns the joints (5,) and the time (s)."""
+    q = np.asarray(q, float)
+    tip, axis = machine.tool_pose_np(q[3], q[4], q[0], q[1], q[2])
+    up = (np.asarray(tip, float) + entry_height * np.asarray(axis, float)).reshape(1, 3)
+    entry_q = q.copy()
+    entry_q[:3] = np.asarray(machine.linear_axes(up, q[3:4], q[4:5]), float).reshape(3)
     return entry_q, 60.0 * entry_height / float(entry_feed)
 
 
